@@ -1,0 +1,49 @@
+"""The ``lenticalib`` console script: one parser, one small module per subcommand.
+
+Subcommand modules are imported only once their command is chosen, and they import numpy,
+OpenCV and numba lazily, so ``--help`` is instant.  Every :class:`~lenticalib.errors.LenticalibError`
+ends as one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .. import __version__
+from ..errors import LenticalibError
+
+_COMMANDS = {
+    "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),
+    "profile": ("lenticalib.cli.profile", "show, validate, import or export panel profiles"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="lenticalib", description="Calibrate, program and drive "
+                                     "slanted-lenticular 3D panels.")
+    parser.add_argument("--version", action="version", version=f"lenticalib {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name, (module_name, help_text) in _COMMANDS.items():
+        module = importlib.import_module(module_name)
+        module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except LenticalibError as exc:
+        print(f"lenticalib: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("lenticalib: interrupted", file=sys.stderr)
+        return 130
+
+
+def entry_point() -> None:
+    sys.exit(main())

@@ -1,0 +1,82 @@
+"""``lenticalib profile show|validate|import-lkg|export-lkg``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="profile_command", metavar="ACTION")
+    sub.required = True
+    show = sub.add_parser("show", help="print a profile's constants")
+    show.add_argument("profile", metavar="PROFILE")
+    show.add_argument("--json", action="store_true", help="print the normalized JSON")
+    show.set_defaults(run=run_show)
+    validate = sub.add_parser("validate", help="check a profile; exit 0 when it is valid")
+    validate.add_argument("profile", metavar="PROFILE")
+    validate.set_defaults(run=run_validate)
+    imp = sub.add_parser("import-lkg", help="convert a Looking Glass visual.json into a profile")
+    imp.add_argument("visual", metavar="VISUAL_JSON")
+    imp.add_argument("--views", type=int, required=True, metavar="N",
+                     help="number of views (a visual.json does not record it)")
+    imp.add_argument("-o", "--output", required=True, metavar="PROFILE")
+    imp.set_defaults(run=run_import)
+    exp = sub.add_parser("export-lkg", help="write a profile as a Looking Glass visual.json")
+    exp.add_argument("profile", metavar="PROFILE")
+    exp.add_argument("--dpi", type=float, help="panel pixels per inch (if the profile does not record it)")
+    exp.add_argument("-o", "--output", required=True, metavar="VISUAL_JSON")
+    exp.set_defaults(run=run_export)
+
+
+def run_show(args) -> int:
+    from ..profile import load_profile
+
+    profile = load_profile(args.profile)
+    if args.json:
+        print(profile.to_json(), end="")
+        return 0
+    unc = profile.uncertainty or {}
+    rows = [("views", profile.views, ""), ("slant", profile.slant, "pixels/row"),
+            ("period", profile.period, "subpixels"), ("offset", profile.offset, "subpixels"),
+            ("reference_view", profile.reference_view, "views"),
+            ("panel", f"{profile.width}x{profile.height}", "pixels"), ("subpixel_order", profile.subpixel_order, "")]
+    for name, value, unit in rows:
+        sigma = f" +- {unc[name]:.3g}" if name in unc else ""
+        print(f"{name:>15}  {value}{sigma} {unit}".rstrip())
+    if profile.provenance:
+        prov = profile.provenance
+        print(f"{'made by':>15}  {prov.get('method', '?')} on {prov.get('created', '?')} "
+              f"(lenticalib {prov.get('lenticalib_version', '?')})")
+    return 0
+
+
+def run_validate(args) -> int:
+    from ..profile import load_profile
+
+    profile = load_profile(args.profile)
+    print(f"{args.profile}: valid ({profile.views} views, {profile.width}x{profile.height})")
+    return 0
+
+
+def run_import(args) -> int:
+    from ..errors import InputError
+    from ..lkg import import_visual_json
+    from ..profile import MAX_VIEWS, save_profile
+
+    if not 2 <= args.views <= MAX_VIEWS:
+        raise InputError(f"must be between 2 and {MAX_VIEWS}, got {args.views}", source="--views")
+    profile = import_visual_json(args.visual, args.views)
+    save_profile(profile, args.output)
+    print(json.dumps({"output": args.output, "period": profile.period, "slant": profile.slant,
+                      "offset": profile.offset, "reference_view": profile.reference_view}))
+    return 0
+
+
+def run_export(args) -> int:
+    from ..lkg import export_visual_json
+    from ..profile import load_profile
+
+    export_visual_json(load_profile(args.profile), args.output, dpi=args.dpi)
+    print(f"wrote {args.output}")
+    return 0

@@ -1,0 +1,81 @@
+"""Encoders: N rendered views -> one panel raster, selected by name through a lazy registry.
+
+    reference   the seed's formula written out plainly (slow; the golden model)
+    tables      the seed system's precomputed masks: primary + secondary view per subpixel
+    fast        on-the-fly routing, vectorized numba kernels (the default)
+
+Modules are imported only when an encoder is asked for, so ``lenticalib --help`` stays instant.
+Third-party encoders register through the ``lenticalib.encoders`` entry-point group with a value
+``"module:function"``; the function takes ``(views, profile)`` and returns the raster.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib import metadata
+from typing import Callable
+
+import numpy as np
+
+from ..errors import BackendUnavailableError, InputError
+from ..profile import PanelProfile
+from .common import check_views, output_like
+
+DEFAULT_ENCODER = "fast"
+
+_BUILTIN = {
+    "reference": "lenticalib.encoders.reference:encode_reference",
+    "tables": "lenticalib.encoders.tables:encode_tables",
+    "fast": "lenticalib.encoders.fast:encode_fast",
+}
+
+
+def _registry() -> dict[str, str]:
+    entries = dict(_BUILTIN)
+    try:
+        for ep in metadata.entry_points(group="lenticalib.encoders"):
+            entries.setdefault(ep.name, ep.value)
+    except Exception:  # a broken third-party distribution must not break the built-ins
+        pass
+    return entries
+
+
+def available_encoders() -> list[str]:
+    """Names of every registered encoder."""
+    return sorted(_registry())
+
+
+def get_encoder(name: str) -> Callable[..., np.ndarray]:
+    """The encode function registered as ``name``.
+
+    Raises InputError for an unknown name, BackendUnavailableError when its module fails to import.
+    """
+    registry = _registry()
+    if name not in registry:
+        raise InputError(f"unknown encoder {name!r}", source="encoder",
+                         hint="choose one of " + ", ".join(sorted(registry)))
+    module_name, _, attr = registry[name].partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise BackendUnavailableError(f"encoder {name!r} is not available: {exc}", source="encoder",
+                                      hint="install its dependencies") from None
+    return getattr(module, attr)
+
+
+def encode(views: np.ndarray, profile: PanelProfile, method: str = DEFAULT_ENCODER, *,
+           out: np.ndarray | None = None, allow_stretch: bool = False) -> np.ndarray:
+    """Encode ``views`` ``(N, H_v, W_v, 3)`` RGB into the panel raster ``(height, width, 3)``.
+
+    The output has the views' dtype (uint8, uint16, float32 or float64).  ``out`` may supply a
+    preallocated raster (honoured by the ``fast`` encoder, copied into otherwise).
+    """
+    views = check_views(views, profile, check_aspect=not allow_stretch)
+    func = get_encoder(method)
+    if method == "fast":
+        return func(views, profile, out=output_like(views, profile, out))
+    result = func(views, profile)
+    if out is not None:
+        np.copyto(output_like(views, profile, out), result)
+        return out
+    return result

@@ -1,0 +1,144 @@
+"""Fast CPU encoder: routing computed on the fly in the canonical fixed-point arithmetic.
+
+No per-subpixel maps are streamed: per row it needs the start phase ``Z0[y]`` and the bilinear
+row taps; per output column one packed int32 (byte offset of the left tap | x weight).
+
+* uint8 views (the live-video case) go through the explicitly vectorized block kernel of
+  :mod:`._simd` (32 subpixels per step, two gathers each), threads over rows (numba ``prange``);
+  weights are 11-bit fixed point, so values are within 1 LSB of the float64 reference.
+* uint16 and float views, and layouts the block kernel cannot address (a view 1 pixel wide, a
+  stack of 2 GiB or more), go through a scalar numba kernel with float64 weights, which matches
+  the reference to float rounding.
+
+Routing (which view) is identical to :func:`lenticalib.routing.view_map` in every case.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numba as nb
+import numpy as np
+from numba import prange
+
+from ..profile import PanelProfile
+from ..routing import phase_constants
+from ..sampling import column_sampling, row_sampling
+from . import _simd
+
+_U64 = np.uint64
+_MASK32 = np.uint64(0xFFFFFFFF)
+_ONE = 1 << _simd.WEIGHT_BITS
+
+
+@nb.njit(parallel=True, cache=True, boundscheck=False)
+def _encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_offsets,
+                      row0, row_step, fyq, plane, n_chunks):  # pragma: no cover - compiled
+    height = out2d.shape[0]
+    length = out2d.shape[1]
+    lanes = lane_offsets.shape[1]
+    n_blocks = (length + lanes - 1) // lanes
+    base = flat.ctypes.data
+    ptab = tab.ctypes.data
+    plane_ptr = lane_offsets.ctypes.data
+    per_chunk = (height + n_chunks - 1) // n_chunks
+    nv = _U64(n_views)
+    for chunk in prange(n_chunks):
+        for y in range(chunk * per_chunk, min(height, (chunk + 1) * per_chunk)):
+            z = z0[y]
+            r0 = row0[y]
+            dr = row_step[y]
+            fy = fyq[y]
+            po = out2d[y].ctypes.data
+            for blk in range(n_blocks):
+                o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
+                lp = plane_ptr + 8 * lanes * (o0 % 3)
+                if mode == 0:
+                    _simd.block_pow2(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, _U64(shift), nv,
+                                     _U64(0), plane, r0, dr, fy)
+                elif mode == 1:
+                    _simd.block_general(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
+                                        _U64(0), plane, r0, dr, fy)
+                else:
+                    _simd.block_general_dark(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
+                                             threshold, plane, r0, dr, fy)
+
+
+@nb.njit(parallel=True, cache=True, boundscheck=False)
+def _encode_scalar(views, out, z0, k, n_views, has_dark, threshold, rho, x_lo, x_hi, x_w,
+                   y_lo, y_hi, y_w, is_int, top):  # pragma: no cover - compiled
+    height, width = out.shape[0], out.shape[1]
+    nv = _U64(n_views)
+    for y in prange(height):
+        ya, yb, fy = y_lo[y], y_hi[y], y_w[y]
+        for x in range(width):
+            for c in range(3):
+                xs = 3 * x + rho[c]
+                z = z0[y] - _U64(xs) * k
+                hi = (z >> _U64(32)) * nv
+                lo = (z & _MASK32) * nv
+                v = np.int64((hi + (lo >> _U64(32))) >> _U64(32))
+                if has_dark and z * nv >= threshold:
+                    out[y, x, c] = 0
+                    continue
+                xa, xb, fx = x_lo[xs], x_hi[xs], x_w[xs]
+                upper = views[v, ya, xa, c] * (1.0 - fx) + views[v, ya, xb, c] * fx
+                lower = views[v, yb, xa, c] * (1.0 - fx) + views[v, yb, xb, c] * fx
+                value = upper * (1.0 - fy) + lower * fy
+                if is_int:
+                    value = min(np.floor(value + 0.5), top)
+                out[y, x, c] = value
+
+
+@functools.lru_cache(maxsize=8)
+def _u8_plan(profile: PanelProfile, view_height: int, view_width: int):
+    """Per-profile constants of the block kernel (cached): column table, lane offsets, row taps."""
+    cols = column_sampling(profile, view_width)
+    rows = row_sampling(profile, view_height)
+    nsub = profile.subpixels_per_row
+    o = np.arange(nsub)
+    chan, x = o % 3, o // 3
+    xs = 3 * x + np.asarray(profile.rho)[chan]  # subpixel position of output value o
+    fxq = np.rint(cols.weight[xs] * _ONE).astype(np.uint32)
+    byte_col = cols.lo[xs].astype(np.uint32) * 3 + chan.astype(np.uint32)
+    tab = (byte_col | (fxq << _simd.COLUMN_BITS)).view(np.int32)
+    lanes = _simd.LANES
+    lane_offsets = np.empty((3, lanes), dtype=np.uint64)  # x_s - o0 for a block starting at o0 % 3 == p
+    for p in range(3):
+        oo = p + np.arange(lanes)
+        lane_offsets[p] = (3 * (oo // 3) + np.asarray(profile.rho)[oo % 3] - p).astype(np.int64).astype(np.uint64)
+    row_bytes = view_width * 3
+    row0 = rows.lo.astype(np.int64) * row_bytes
+    row_step = (rows.hi.astype(np.int64) - rows.lo) * row_bytes
+    fyq = np.rint(rows.weight * _ONE).astype(np.int64)
+    return tab, lane_offsets, row0, row_step, fyq
+
+
+def _block_kernel_fits(views: np.ndarray, nsub: int) -> bool:
+    return (views.dtype == np.uint8 and views.shape[2] >= 2 and views.size + 4 < 2**31
+            and 3 * views.shape[2] < (1 << _simd.COLUMN_BITS) and nsub >= _simd.LANES)
+
+
+def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None = None) -> np.ndarray:
+    """Encode ``views`` ``(N, H_v, W_v, 3)`` into ``out`` ``(height, width, 3)`` (allocated if None)."""
+    n, hv, wv, _ = views.shape
+    if out is None:
+        out = np.empty((profile.height, profile.width, 3), dtype=views.dtype)
+    z0, k, dark = phase_constants(profile)
+    if _block_kernel_fits(views, profile.subpixels_per_row):
+        tab, lane_offsets, row0, row_step, fyq = _u8_plan(profile, hv, wv)
+        pow2 = (n & (n - 1)) == 0
+        mode = 2 if dark is not None else (0 if pow2 else 1)
+        shift = 64 - (n.bit_length() - 1)
+        _encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
+                          _U64(dark or 0), mode, tab, lane_offsets, row0, row_step, fyq,
+                          hv * wv * 3, max(1, nb.get_num_threads()))
+        return out
+    cols = column_sampling(profile, wv)
+    rows = row_sampling(profile, hv)
+    is_int = bool(np.issubdtype(views.dtype, np.integer))
+    top = float(np.iinfo(views.dtype).max) if is_int else 0.0
+    _encode_scalar(views, out, z0, _U64(k), n, dark is not None, _U64(dark or 0),
+                   np.asarray(profile.rho, dtype=np.int64), cols.lo, cols.hi, cols.weight,
+                   rows.lo, rows.hi, rows.weight, is_int, top)
+    return out

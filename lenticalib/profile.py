@@ -1,0 +1,249 @@
+"""Panel profiles: the routing constants of one slanted-lenticular panel, as JSON.
+
+A profile holds the seed's constants (see ``../shared/optics.md``):
+
+    views            N, number of views (int, 2..254)
+    slant            C_r, pixels per row (float; its sign is the lens direction)
+    period           Delta_r, subpixels (float > 0)
+    offset           s_ref, subpixels (float)
+    reference_view   i_ref, views (float)
+    width, height    panel raster in pixels (int)
+    subpixel_order   "RGB" or "BGR": which colour sits at subpixel position 0, 1, 2
+
+plus a format version, optional 1-sigma uncertainties, optional Looking Glass extras and a
+provenance record (how, when and from which inputs it was made, with which lenticalib).
+
+A hand-written file with only the eight constants loads as the current format.  Loading
+parses JSON only: nothing in the file is ever executed.  Saving is atomic.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import hashlib
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any, Mapping
+
+from .atomic import write_text_atomic
+from .errors import ProfileError
+
+FORMAT_NAME = "lenticalib.profile"
+FORMAT_VERSION = 1
+MAX_VIEWS = 254  # view indices are stored as uint8 with 255 meaning "no view"
+MAX_SIDE = 65535
+
+SUBPIXEL_ORDERS = ("RGB", "BGR")
+CONSTANT_KEYS = ("views", "slant", "period", "offset", "reference_view", "width", "height",
+                 "subpixel_order")
+OPTIONAL_KEYS = ("format", "format_version", "uncertainty", "provenance", "looking_glass", "name",
+                 "notes")
+
+
+def subpixel_position(order: str) -> tuple[int, int, int]:
+    """rho: position (0, 1, 2 within the pixel) of the colour channels R, G, B, for ``order``."""
+    return (0, 1, 2) if order == "RGB" else (2, 1, 0)
+
+
+@dataclasses.dataclass(frozen=True)
+class PanelProfile:
+    """The calibrated routing constants of one panel (units in the module docstring).
+
+    Frozen and hashable on its routing fields, so derived tables can be cached per profile.
+    ``uncertainty`` maps a constant's name to its 1-sigma; ``provenance`` and
+    ``looking_glass`` are free-form JSON objects carried through load and save.
+    """
+
+    views: int
+    slant: float
+    period: float
+    offset: float
+    reference_view: float
+    width: int
+    height: int
+    subpixel_order: str = "RGB"
+    uncertainty: Mapping[str, float] | None = dataclasses.field(default=None, compare=False, hash=False)
+    provenance: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
+    looking_glass: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
+    name: str | None = dataclasses.field(default=None, compare=False, hash=False)
+
+    def __post_init__(self):
+        _validate_constants(dataclasses.asdict(self), source="profile")
+
+    @property
+    def subpixels_per_row(self) -> int:
+        """3 * width: number of subpixel columns x_s."""
+        return 3 * self.width
+
+    @property
+    def rho(self) -> tuple[int, int, int]:
+        """Subpixel position of the R, G, B channel (see :func:`subpixel_position`)."""
+        return subpixel_position(self.subpixel_order)
+
+    def routing_key(self) -> tuple:
+        """The fields that decide routing; equal keys give identical encodings."""
+        return (self.views, self.slant, self.period, self.offset, self.reference_view,
+                self.width, self.height, self.subpixel_order)
+
+    def replace(self, **changes) -> "PanelProfile":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping in the current format."""
+        out: dict[str, Any] = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION}
+        if self.name:
+            out["name"] = self.name
+        for key in CONSTANT_KEYS:
+            out[key] = getattr(self, key)
+        if self.uncertainty:
+            out["uncertainty"] = dict(self.uncertainty)
+        if self.looking_glass:
+            out["looking_glass"] = dict(self.looking_glass)
+        if self.provenance:
+            out["provenance"] = dict(self.provenance)
+        return out
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _validate_constants(data: Mapping[str, Any], source: str) -> None:
+    """Check types and ranges of the eight constants; raise ProfileError naming the field."""
+
+    def fail(field, message, hint=None):
+        raise ProfileError(f"field '{field}': {message}", source=source, hint=hint)
+
+    for key in ("views", "width", "height"):
+        if not _is_int(data[key]):
+            fail(key, f"must be a whole number, got {data[key]!r}")
+    for key in ("slant", "period", "offset", "reference_view"):
+        value = data[key]
+        if not _is_number(value):
+            fail(key, f"must be a number, got {value!r}")
+        if not math.isfinite(value):
+            fail(key, f"must be finite, got {value!r}")
+    if not 2 <= data["views"] <= MAX_VIEWS:
+        fail("views", f"must be between 2 and {MAX_VIEWS}, got {data['views']}")
+    if not data["period"] > 0:
+        fail("period", f"must be > 0 subpixels, got {data['period']}",
+             "the period is the lens pitch in subpixels, about 3 * lens pitch / pixel pitch")
+    for key in ("width", "height"):
+        if not 1 <= data[key] <= MAX_SIDE:
+            fail(key, f"must be between 1 and {MAX_SIDE} pixels, got {data[key]}")
+    if data["subpixel_order"] not in SUBPIXEL_ORDERS:
+        fail("subpixel_order", f"must be \"RGB\" or \"BGR\", got {data['subpixel_order']!r}")
+    # The seed's rule lights view i on x_s when x_s <= b < x_s + min(1, period/N) for one of the
+    # lattice points b = 3*C_r*y + s_ref + (i_ref - j)*period/N (j integer).  The lattice spacing
+    # is period/N, so for any period > 0 at most one lattice point falls into that window: no
+    # valid profile puts more than two views (in fact more than one) on a subpixel.  The
+    # sampling-table builder still counts what it evaluates and rejects more than two.
+    unc = data.get("uncertainty")
+    if unc is not None:
+        if not isinstance(unc, Mapping):
+            fail("uncertainty", "must be an object mapping constant names to 1-sigma values")
+        for key, value in unc.items():
+            if not _is_number(value) or not math.isfinite(value) or value < 0:
+                fail(f"uncertainty.{key}", f"must be a finite number >= 0, got {value!r}")
+    for key in ("provenance", "looking_glass"):
+        if data.get(key) is not None and not isinstance(data[key], Mapping):
+            fail(key, "must be a JSON object")
+
+
+def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
+    """Build a validated :class:`PanelProfile` from parsed JSON; errors name ``source`` and field."""
+    if not isinstance(data, dict):
+        raise ProfileError("must be a JSON object with the panel constants", source=source)
+    fmt = data.get("format", FORMAT_NAME)
+    if fmt != FORMAT_NAME:
+        raise ProfileError(f"field 'format': expected \"{FORMAT_NAME}\", got {fmt!r}", source=source,
+                           hint="is this a Looking Glass visual.json? use 'lenticalib profile import-lkg'")
+    version = data.get("format_version", FORMAT_VERSION)
+    if not _is_int(version) or version != FORMAT_VERSION:
+        raise ProfileError(f"field 'format_version': unknown version {version!r}", source=source,
+                           hint=f"this lenticalib reads version {FORMAT_VERSION}; upgrade lenticalib")
+    missing = [k for k in CONSTANT_KEYS if k not in data]
+    if missing:
+        raise ProfileError(f"missing field(s): {', '.join(missing)}", source=source,
+                           hint="a profile needs " + ", ".join(CONSTANT_KEYS))
+    unknown = sorted(set(data) - set(CONSTANT_KEYS) - set(OPTIONAL_KEYS))
+    if unknown:
+        raise ProfileError(f"unknown field(s): {', '.join(unknown)}", source=source,
+                           hint="check the spelling; known fields are "
+                                + ", ".join(CONSTANT_KEYS + OPTIONAL_KEYS))
+    fields = {k: data[k] for k in CONSTANT_KEYS}
+    for key in ("uncertainty", "provenance", "looking_glass", "name"):
+        fields[key] = data.get(key)
+    if fields["name"] is not None and not isinstance(fields["name"], str):
+        raise ProfileError("field 'name': must be a string", source=source)
+    _validate_constants(fields, source)
+    for key in ("slant", "period", "offset", "reference_view"):
+        fields[key] = float(fields[key])
+    return PanelProfile(**fields)
+
+
+def load_profile(path: str | os.PathLike) -> PanelProfile:
+    """Read and validate a profile JSON file.  Raises ProfileError naming the file and field."""
+    src = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ProfileError("no such file", source=src, hint="check the --profile path") from None
+    except IsADirectoryError:
+        raise ProfileError("is a folder, not a profile file", source=src) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProfileError(f"cannot read: {getattr(exc, 'strerror', None) or exc}", source=src) from None
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise ProfileError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})",
+                           source=src) from None
+    except ValueError as exc:
+        raise ProfileError(str(exc), source=src, hint="use finite numbers") from None
+    return profile_from_dict(data, source=src)
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"non-finite number {name} is not allowed")
+
+
+def save_profile(profile: PanelProfile, path: str | os.PathLike) -> Path:
+    """Write ``profile`` as JSON atomically (an existing file is replaced only on success)."""
+    return write_text_atomic(path, profile.to_json())
+
+
+def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) -> dict[str, Any]:
+    """A provenance record: what made the profile, when, from which files (with SHA-256)."""
+    from . import __version__
+
+    record: dict[str, Any] = {
+        "method": method,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "lenticalib_version": __version__,
+        "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]) if sys.argv and sys.argv[0] else None,
+        "inputs": [_describe_input(p) for p in inputs],
+    }
+    record.update(extra)
+    return record
+
+
+def _describe_input(path) -> dict[str, Any]:
+    p = Path(path)
+    entry: dict[str, Any] = {"path": str(p)}
+    try:
+        entry["sha256"] = hashlib.sha256(p.read_bytes()).hexdigest()
+    except OSError:
+        pass
+    return entry

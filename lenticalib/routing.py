@@ -1,0 +1,155 @@
+"""Subpixel routing: which view each panel subpixel shows, by the seed's rule.
+
+The seed's rule (DEVELOPERS.md): for view ``i`` of ``N``, ``s_i = s_ref - (Delta/N)(i - i_ref)``;
+for row ``y`` and integer ``m``, ``b_i(y, m) = 3 C_r y + s_i + m Delta``; view ``i`` lights
+subpixel ``x_s`` when ``x_s = floor(b)`` and ``frac(b) < Delta/N``.
+
+Closed form.  Over all ``(i, m)`` the points ``b`` form one lattice of spacing ``Delta/N``:
+``b_j = 3 C_r y + s_ref + (i_ref - j) Delta/N`` with ``i = j mod N``.  Writing the continuous view
+coordinate of ``../shared/optics.md``
+
+    w(x_s, y) = i_ref + (3 C_r y + s_ref - x_s) * N / Delta,
+
+view ``j mod N`` lights ``x_s`` iff ``j <= w < j + min(1, N/Delta)``.  Hence, in exact arithmetic,
+subpixel ``(x_s, y)`` shows view ``floor(w) mod N`` when ``frac(w) < N/Delta`` and no view
+otherwise; for ``Delta <= N`` every subpixel shows exactly one view.
+
+Canonical arithmetic.  lenticalib evaluates that closed form in 64-bit fixed point: the phase
+``z = w / N`` (cycles of N views) is held as ``Z = frac(z) * 2**64`` (uint64).  Per row the start
+phase ``Z0[y]`` is rounded *up* from the exact rational value and the per-subpixel step
+``K = 2**64 / Delta`` is rounded *down*, so ``Z = Z0[y] - x_s * K (mod 2**64)`` never falls below
+the exact phase and exceeds it by less than ``(1 + x_s) * 2**-64`` cycles.  Exact ties (``w`` an
+integer, ``frac(w) == N/Delta``) are therefore resolved exactly as exact arithmetic resolves them;
+only a value within ~1e-14 view *below* a boundary can come out on the other side.  The fast
+kernels, the view map and the sampling tables all use this arithmetic, so they agree bit for bit.
+"""
+
+from __future__ import annotations
+
+import functools
+from fractions import Fraction
+
+import numpy as np
+
+from .profile import PanelProfile
+
+_TWO64 = 1 << 64
+_MASK32 = np.uint64(0xFFFFFFFF)
+
+
+@functools.lru_cache(maxsize=16)
+def _phase_constants(key: tuple) -> tuple[np.ndarray, int, int | None]:
+    n, slant, period, offset, i_ref, width, height, _order = key
+    p = Fraction(period)
+    base = Fraction(i_ref) / n + Fraction(offset) / p
+    step_y = 3 * Fraction(slant) / p
+    z0 = np.empty(height, dtype=np.uint64)
+    for y in range(height):
+        z = base + step_y * y
+        scaled = (z - (z.numerator // z.denominator)) * _TWO64  # frac(z) in [0, 1), times 2**64
+        z0[y] = -((-scaled.numerator) // scaled.denominator) % _TWO64  # ceil, wrapped
+    k = (_TWO64 * p.denominator // p.numerator) % _TWO64  # floor(2**64 / period), wrapped
+    # lit iff frac(w) < N / period; frac(w) * 2**64 is (Z * N) mod 2**64.
+    ratio = Fraction(n) / p
+    dark_threshold = None if ratio >= 1 else -((-ratio.numerator * _TWO64) // ratio.denominator)
+    z0.setflags(write=False)
+    return z0, k, dark_threshold
+
+
+def phase_constants(profile: PanelProfile) -> tuple[np.ndarray, int, int | None]:
+    """Fixed-point phase of the canonical routing.
+
+    RETURNED VALUE
+    ``(z0, k, dark_threshold)``: ``z0`` uint64 array of shape ``(height,)``, the phase of subpixel
+    ``x_s = 0`` of each row in units of ``2**-64`` cycles (one cycle = N views), rounded up;
+    ``k`` the phase step per subpixel to the right, ``floor(2**64 / period) mod 2**64``;
+    ``dark_threshold`` ``None`` when ``period <= N`` (every subpixel lit), else
+    ``ceil(2**64 * N / period)``: a subpixel is lit iff ``(Z * N) mod 2**64 < dark_threshold``.
+    Cached per profile.
+    """
+    return _phase_constants(profile.routing_key())
+
+
+def view_map(profile: PanelProfile, rows: slice | None = None) -> np.ndarray:
+    """View shown by every subpixel, in the canonical arithmetic.
+
+    RETURNED VALUE
+    int16 array of shape ``(rows, 3 * width)``, indexed ``[y, x_s]`` with ``x_s = 3 x + rho(c)``
+    (panel subpixel order, not channel order); ``-1`` where no view lights the subpixel
+    (possible only when ``period > N``).
+    """
+    z0, k, dark = phase_constants(profile)
+    if rows is not None:
+        z0 = z0[rows]
+    xs = np.arange(profile.subpixels_per_row, dtype=np.uint64)
+    n = np.uint64(profile.views)
+    with np.errstate(over="ignore"):
+        z = z0[:, None] - xs[None, :] * np.uint64(k)
+        hi = (z >> np.uint64(32)) * n
+        lo = (z & _MASK32) * n
+        views = ((hi + (lo >> np.uint64(32))) >> np.uint64(32)).astype(np.int16)
+        if dark is not None:
+            views[(z * n) >= np.uint64(dark)] = -1
+    return views
+
+
+def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np.ndarray:
+    """Continuous view coordinate ``w(x_s, y)`` of optics.md, float64, shape ``(rows, 3 * width)``.
+
+    ``w`` is evaluated at the integer index ``x_s`` (the subpixel's left edge), as the seed's
+    rule does.  Not reduced modulo N.
+    """
+    y = np.arange(profile.height, dtype=np.float64) if rows is None else np.asarray(rows, np.float64)
+    xs = np.arange(profile.subpixels_per_row, dtype=np.float64)
+    scale = profile.views / profile.period
+    return profile.reference_view + (3.0 * profile.slant * y[:, None] + profile.offset - xs[None, :]) * scale
+
+
+def rule_views(profile: PanelProfile, max_views: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Brute-force evaluation of the seed's rule in float64, over every view and every m.
+
+    For each view ``i`` and each row, every ``m`` whose ``b_i(y, m)`` can land on the panel is
+    evaluated literally (``floor``, ``frac``, ``< period / N``), and the lit views are recorded.
+
+    RETURNED VALUE
+    ``(count, views)``: ``count`` uint8 ``(height, 3 * width)``, how many views light each
+    subpixel; ``views`` uint8 ``(max_views, height, 3 * width)``, the lit views in increasing
+    order, 255 in unused slots (views beyond ``max_views`` are counted but not stored).
+    """
+    n, h, nsub = profile.views, profile.height, profile.subpixels_per_row
+    delta = profile.period
+    count = np.zeros((h, nsub), dtype=np.uint8)
+    views = np.full((max_views, h, nsub), 255, dtype=np.uint8)
+    width_frac = delta / n
+    ys = np.arange(h, dtype=np.float64)
+    for i in range(n):
+        s_i = profile.offset - width_frac * (i - profile.reference_view)
+        start = 3.0 * profile.slant * ys + s_i  # b_i(y, 0)
+        m_lo = int(np.floor((-1.0 - start.max()) / delta)) - 1
+        m_hi = int(np.ceil((nsub + 1.0 - start.min()) / delta)) + 1
+        m = np.arange(m_lo, m_hi + 1, dtype=np.float64)
+        b = start[:, None] + m[None, :] * delta
+        x = np.floor(b)
+        lit = ((b - x) < width_frac) & (x >= 0) & (x < nsub)
+        yy, mm = np.nonzero(lit)
+        xx = x[yy, mm].astype(np.int64)
+        slot = count[yy, xx]
+        keep = slot < max_views
+        views[slot[keep], yy[keep], xx[keep]] = i
+        np.add.at(count, (yy, xx), 1)
+    return count, views
+
+
+def tie_mask(profile: PanelProfile, tolerance: float = 1e-9) -> np.ndarray:
+    """Subpixels whose ``w`` lies within ``tolerance`` views of a decision boundary.
+
+    Boundaries are integer ``w`` and, when ``period > N``, ``frac(w) = N / period``.  On these
+    exact ties float64 evaluations of the rule may legitimately disagree.  Bool ``(height, 3W)``.
+    """
+    w = view_coordinate(profile)
+    frac = w - np.floor(w)
+    ties = (frac < tolerance) | (frac > 1.0 - tolerance)
+    ratio = profile.views / profile.period
+    if ratio < 1.0:
+        ties |= np.abs(frac - ratio) < tolerance
+    return ties

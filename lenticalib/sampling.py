@@ -1,0 +1,118 @@
+"""Sampling tables: where each panel subpixel samples its view, and which view(s) it shows.
+
+Sample point ``u_p``.  Subpixel ``(x_s, y)`` covers ``[x_s, x_s + 1)`` in subpixel units; its
+centre is at panel pixel coordinate ``((x_s + 0.5) / 3, y + 0.5)``.  With half-pixel-centre
+convention (pixel ``k`` of the view covers ``[k, k + 1)``), the bilinear sample point in a view
+of ``W_v x H_v`` pixels is
+
+    u = (x_s + 0.5) / 3 * W_v / W - 0.5,      v = (y + 0.5) * H_v / H - 0.5,
+
+clamped to the view (edge pixels are repeated).  The view is sampled between pixels
+``x0, x0 + 1`` with weight ``fx = u - x0`` (and likewise in y); ``x0`` is kept at most
+``W_v - 2`` so that ``x0 + 1`` is always a valid pixel.
+
+Tables.  :class:`SamplingTables` holds, per subpixel, the primary and secondary view lit by the
+seed's rule (255 = none) and the bilinear geometry; built once per (profile, view size) and cached.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from .errors import ConfigurationError
+from .profile import PanelProfile
+from .routing import rule_views
+
+NO_VIEW = 255
+
+
+@dataclasses.dataclass(frozen=True)
+class AxisSampling:
+    """Bilinear geometry along one axis: output index -> (lo, hi, weight of hi).
+
+    ``lo``, ``hi`` int32 arrays of source pixel indices; ``weight`` float64 in [0, 1].
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    weight: np.ndarray
+
+
+def axis_sampling(n_out: int, n_src: int, scale_num: float, scale_den: float, offset: float) -> AxisSampling:
+    """Geometry for sample points ``u_k = (k + offset) * scale_num / scale_den - 0.5``, k < n_out."""
+    k = np.arange(n_out, dtype=np.float64)
+    u = (k + offset) * (scale_num / scale_den) - 0.5
+    u = np.clip(u, 0.0, n_src - 1.0)
+    lo = np.floor(u).astype(np.int64)
+    if n_src >= 2:
+        lo = np.minimum(lo, n_src - 2)
+        hi = lo + 1
+    else:
+        hi = lo
+    weight = u - lo
+    return AxisSampling(lo.astype(np.int32), hi.astype(np.int32), weight)
+
+
+def column_sampling(profile: PanelProfile, view_width: int) -> AxisSampling:
+    """Per subpixel column ``x_s`` (length ``3 * width``): its sample point in a view ``view_width`` wide."""
+    # u = (x_s + 0.5) / 3 * W_v / W - 0.5
+    return axis_sampling(profile.subpixels_per_row, view_width, view_width, 3.0 * profile.width, 0.5)
+
+
+def row_sampling(profile: PanelProfile, view_height: int) -> AxisSampling:
+    """Per panel row ``y`` (length ``height``): its sample point in a view ``view_height`` tall."""
+    return axis_sampling(profile.height, view_height, view_height, float(profile.height), 0.5)
+
+
+@dataclasses.dataclass(frozen=True)
+class SamplingTables:
+    """Precomputed masks and sample points for one profile and one view size.
+
+    ``primary``, ``secondary``: uint8 ``(height, 3 * width)`` indexed ``[y, x_s]`` (panel subpixel
+    order), the views lit by the seed's rule, ``NO_VIEW`` (255) where none.  ``columns`` has
+    ``3 * width`` entries (per ``x_s``), ``rows`` has ``height`` entries.
+    """
+
+    profile: PanelProfile
+    view_size: tuple[int, int]  # (H_v, W_v)
+    primary: np.ndarray
+    secondary: np.ndarray
+    columns: AxisSampling
+    rows: AxisSampling
+
+
+def pack_views(count: np.ndarray, views: np.ndarray, profile: PanelProfile) -> tuple[np.ndarray, np.ndarray]:
+    """Primary and secondary view per subpixel from a rule evaluation; reject > 2 views.
+
+    ``count`` (H, 3W) number of lit views, ``views`` (k >= 2, H, 3W) lit views in slots.
+    Raises ConfigurationError naming the first subpixel that more than two views light.
+    """
+    over = np.argwhere(count > 2)
+    if over.size:
+        y, xs = (int(v) for v in over[0])
+        raise ConfigurationError(
+            f"{int(count[y, xs])} views light subpixel x_s={xs} of row {y} "
+            f"({len(over)} subpixels have more than two views)",
+            source="profile",
+            hint="the sampling tables hold a primary and a secondary view per subpixel; "
+                 "check 'views' and 'period'")
+    return views[0].copy(), views[1].copy()
+
+
+@functools.lru_cache(maxsize=4)
+def _build(profile: PanelProfile, view_height: int, view_width: int) -> SamplingTables:
+    count, views = rule_views(profile, max_views=3)
+    primary, secondary = pack_views(count, views, profile)
+    for arr in (primary, secondary):
+        arr.setflags(write=False)
+    return SamplingTables(profile, (view_height, view_width), primary, secondary,
+                          column_sampling(profile, view_width), row_sampling(profile, view_height))
+
+
+def sampling_tables(profile: PanelProfile, view_height: int, view_width: int) -> SamplingTables:
+    """Masks (primary/secondary view) and bilinear geometry for ``profile`` and views of
+    ``view_height x view_width`` pixels.  Built once per profile and view size, then cached."""
+    return _build(profile, int(view_height), int(view_width))
