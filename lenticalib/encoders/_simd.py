@@ -19,11 +19,14 @@ The IR is generic: on CPUs without AVX-512/AVX2 gathers LLVM lowers it to scalar
 from __future__ import annotations
 
 import llvmlite.ir as ir
+import numba as nb
+import numpy as np
+from numba import prange
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-LANES = 32
+LANES = 64
 WEIGHT_BITS = 11  # bilinear weights are integers in [0, 2**WEIGHT_BITS]
 COLUMN_BITS = 20  # packed column table: low 20 bits byte offset, high 12 bits weight
 
@@ -117,3 +120,43 @@ def _declare(pow2: bool, dark: bool):
 block_pow2 = _declare(True, False)
 block_general = _declare(False, False)
 block_general_dark = _declare(False, True)
+
+
+# The row kernel lives here, next to the intrinsics it inlines: numba's on-disk cache is keyed on
+# the file that defines a jitted function, so keeping both in one file invalidates them together.
+_U64 = np.uint64
+
+
+@nb.njit(parallel=True, cache=True, boundscheck=False)
+def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_offsets,
+                      row0, row_step, fyq, plane, n_chunks):  # pragma: no cover - compiled
+    height = out2d.shape[0]
+    length = out2d.shape[1]
+    lanes = lane_offsets.shape[1]
+    n_blocks = (length + lanes - 1) // lanes
+    base = flat.ctypes.data
+    ptab = tab.ctypes.data
+    plane_ptr = lane_offsets.ctypes.data
+    per_chunk = (height + n_chunks - 1) // n_chunks
+    nv = _U64(n_views)
+    for chunk in prange(n_chunks):
+        for y in range(chunk * per_chunk, min(height, (chunk + 1) * per_chunk)):
+            z = z0[y]
+            r0 = row0[y]
+            dr = row_step[y]
+            fy = fyq[y]
+            po = out2d[y].ctypes.data
+            for blk in range(n_blocks):
+                o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
+                lp = plane_ptr + 8 * lanes * (o0 % 3)
+                if mode == 0:
+                    block_pow2(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, _U64(shift), nv,
+                                     _U64(0), plane, r0, dr, fy)
+                elif mode == 1:
+                    block_general(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
+                                        _U64(0), plane, r0, dr, fy)
+                else:
+                    block_general_dark(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
+                                             threshold, plane, r0, dr, fy)
+
+

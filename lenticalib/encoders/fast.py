@@ -32,39 +32,6 @@ _ONE = 1 << _simd.WEIGHT_BITS
 
 
 @nb.njit(parallel=True, cache=True, boundscheck=False)
-def _encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_offsets,
-                      row0, row_step, fyq, plane, n_chunks):  # pragma: no cover - compiled
-    height = out2d.shape[0]
-    length = out2d.shape[1]
-    lanes = lane_offsets.shape[1]
-    n_blocks = (length + lanes - 1) // lanes
-    base = flat.ctypes.data
-    ptab = tab.ctypes.data
-    plane_ptr = lane_offsets.ctypes.data
-    per_chunk = (height + n_chunks - 1) // n_chunks
-    nv = _U64(n_views)
-    for chunk in prange(n_chunks):
-        for y in range(chunk * per_chunk, min(height, (chunk + 1) * per_chunk)):
-            z = z0[y]
-            r0 = row0[y]
-            dr = row_step[y]
-            fy = fyq[y]
-            po = out2d[y].ctypes.data
-            for blk in range(n_blocks):
-                o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
-                lp = plane_ptr + 8 * lanes * (o0 % 3)
-                if mode == 0:
-                    _simd.block_pow2(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, _U64(shift), nv,
-                                     _U64(0), plane, r0, dr, fy)
-                elif mode == 1:
-                    _simd.block_general(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
-                                        _U64(0), plane, r0, dr, fy)
-                else:
-                    _simd.block_general_dark(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
-                                             threshold, plane, r0, dr, fy)
-
-
-@nb.njit(parallel=True, cache=True, boundscheck=False)
 def _encode_scalar(views, out, z0, k, n_views, has_dark, threshold, rho, x_lo, x_hi, x_w,
                    y_lo, y_hi, y_w, is_int, top):  # pragma: no cover - compiled
     height, width = out.shape[0], out.shape[1]
@@ -130,7 +97,7 @@ def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None
         pow2 = (n & (n - 1)) == 0
         mode = 2 if dark is not None else (0 if pow2 else 1)
         shift = 64 - (n.bit_length() - 1)
-        _encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
+        _simd.encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
                           _U64(dark or 0), mode, tab, lane_offsets, row0, row_step, fyq,
                           hv * wv * 3, max(1, nb.get_num_threads()))
         return out

@@ -1,0 +1,90 @@
+import json
+
+import numpy as np
+import pytest
+
+from lenticalib.errors import ConfigurationError, ProfileError
+from lenticalib.profile import PanelProfile, load_profile, make_provenance, save_profile
+from lenticalib.sampling import pack_views
+
+EIGHT = {"views": 32, "slant": -0.138, "period": 18.668, "offset": 5.25, "reference_view": 16,
+         "width": 3840, "height": 2160, "subpixel_order": "RGB"}
+
+
+def _write(tmp_path, data, name="p.json"):
+    path = tmp_path / name
+    path.write_text(data if isinstance(data, str) else json.dumps(data))
+    return path
+
+
+def test_hand_written_eight_keys_load_as_current_format(tmp_path):
+    p = load_profile(_write(tmp_path, EIGHT))
+    assert (p.views, p.period, p.reference_view, p.subpixel_order) == (32, 18.668, 16.0, "RGB")
+    assert p.to_dict()["format_version"] == 1
+
+
+def test_round_trip_keeps_provenance_and_uncertainty(tmp_path):
+    p = PanelProfile(**EIGHT, uncertainty={"slant": 1e-5}, provenance=make_provenance("test", inputs=[]))
+    path = save_profile(p, tmp_path / "out.json")
+    q = load_profile(path)
+    assert q == p and q.uncertainty == {"slant": 1e-5} and q.provenance["method"] == "test"
+    assert q.provenance["lenticalib_version"]
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"views": "32"}, "field 'views': must be a whole number"),
+    ({"views": 1}, "field 'views': must be between 2"),
+    ({"period": 0}, "field 'period': must be > 0"),
+    ({"period": -3.5}, "field 'period': must be > 0"),
+    ({"slant": True}, "field 'slant': must be a number"),
+    ({"offset": None}, "field 'offset': must be a number"),
+    ({"width": 0}, "field 'width'"),
+    ({"subpixel_order": "GRB"}, "field 'subpixel_order'"),
+    ({"format_version": 7}, "unknown version 7"),
+    ({"format": "something"}, "field 'format'"),
+    ({"colour": 1}, "unknown field(s): colour"),
+    ({"uncertainty": {"slant": -1}}, "uncertainty.slant"),
+])
+def test_bad_fields_name_the_file_and_field(tmp_path, change, message):
+    path = _write(tmp_path, {**EIGHT, **change})
+    with pytest.raises(ProfileError) as err:
+        load_profile(path)
+    assert message in str(err.value) and str(path) in str(err.value)
+
+
+def test_missing_field_non_finite_bad_json_missing_file(tmp_path):
+    data = dict(EIGHT)
+    del data["period"]
+    with pytest.raises(ProfileError, match="missing field"):
+        load_profile(_write(tmp_path, data))
+    with pytest.raises(ProfileError, match="non-finite"):
+        load_profile(_write(tmp_path, json.dumps(EIGHT).replace("-0.138", "NaN")))
+    with pytest.raises(ProfileError, match="not valid JSON"):
+        load_profile(_write(tmp_path, "{views: 3"))
+    with pytest.raises(ProfileError, match="no such file"):
+        load_profile(tmp_path / "absent.json")
+    with pytest.raises(ProfileError, match="JSON object"):
+        load_profile(_write(tmp_path, "[1, 2]"))
+
+
+def test_failed_save_leaves_the_old_file(tmp_path):
+    path = save_profile(PanelProfile(**EIGHT), tmp_path / "p.json")
+    before = path.read_text()
+    with pytest.raises(ProfileError):
+        save_profile(PanelProfile(**{**EIGHT, "period": -1.0}), path)  # invalid: never reaches disk
+    from lenticalib.errors import InputError
+    with pytest.raises(InputError, match="output folder does not exist"):
+        save_profile(PanelProfile(**EIGHT), tmp_path / "missing" / "p.json")
+    assert path.read_text() == before
+    assert [f.name for f in tmp_path.iterdir()] == ["p.json"]
+
+
+def test_more_than_two_views_on_a_subpixel_is_rejected():
+    p = PanelProfile(**{**EIGHT, "width": 4, "height": 2})
+    count = np.ones((2, 12), np.uint8)
+    views = np.zeros((3, 2, 12), np.uint8)
+    primary, secondary = pack_views(count, views, p)
+    assert primary.shape == (2, 12)
+    count[1, 5] = 3
+    with pytest.raises(ConfigurationError, match="3 views light subpixel x_s=5 of row 1"):
+        pack_views(count, views, p)
