@@ -26,6 +26,13 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
         raise InputError(f"cannot write here: {exc.strerror}", source=str(folder),
                          hint="choose a writable output folder") from None
     try:
+        try:
+            mode = target.stat().st_mode & 0o7777  # keep an existing file's permissions
+        except FileNotFoundError:
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask
+        os.chmod(tmp, mode)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
