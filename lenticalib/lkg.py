@@ -71,7 +71,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .errors import ProfileError
-from .profile import MAX_SIDE, MAX_VIEWS, PanelProfile, make_provenance
+from .profile import MAX_SIDE, MAX_VIEWS, PanelProfile, make_provenance, read_json_file
 
 REQUIRED_FIELDS = ("pitch", "slope", "center", "DPI", "screenW", "screenH")
 NUMERIC_FIELDS = REQUIRED_FIELDS + ("viewCone", "invView", "verticalAngle", "flipImageX",
@@ -152,10 +152,6 @@ def _normalize(raw: Any, source: str) -> dict[str, Any]:
     return out
 
 
-def _reject_constant(name: str):
-    raise ValueError(f"non-finite number {name} is not allowed")
-
-
 def read_visual_json(path: str | os.PathLike) -> dict[str, Any]:
     """Read a Looking Glass ``visual.json`` and return its fields with the wrappers removed.
 
@@ -174,22 +170,7 @@ def read_visual_json(path: str | os.PathLike) -> dict[str, Any]:
     pitch <= 0, slope == 0 or a screen size that is not a positive whole number.
     """
     src = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ProfileError("no such file", source=src,
-                           hint="give the path of the Looking Glass visual.json") from None
-    except IsADirectoryError:
-        raise ProfileError("is a folder, not a visual.json file", source=src) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProfileError(f"cannot read: {getattr(exc, 'strerror', None) or exc}", source=src) from None
-    try:
-        raw = json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise ProfileError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})",
-                           source=src) from None
-    except (ValueError, RecursionError) as exc:
-        raise ProfileError(f"not usable JSON: {exc}", source=src, hint="use finite numbers") from None
+    raw = read_json_file(path, "visual.json", "give the path of the Looking Glass visual.json")
     return _normalize(raw, src)
 
 

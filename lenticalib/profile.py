@@ -194,25 +194,34 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
     return PanelProfile(**fields)
 
 
-def load_profile(path: str | os.PathLike) -> PanelProfile:
-    """Read and validate a profile JSON file.  Raises ProfileError naming the file and field."""
+def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any:
+    """Parse a JSON file (data only: nothing in it is executed); non-finite numbers are refused.
+
+    Raises ProfileError naming the file for a missing, unreadable or invalid file; ``what`` names
+    the kind of file in messages, ``hint_missing`` says what to do when it does not exist.
+    """
     src = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ProfileError("no such file", source=src, hint="check the --profile path") from None
+        raise ProfileError("no such file", source=src, hint=hint_missing) from None
     except IsADirectoryError:
-        raise ProfileError("is a folder, not a profile file", source=src) from None
+        raise ProfileError(f"is a folder, not a {what} file", source=src) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ProfileError(f"cannot read: {getattr(exc, 'strerror', None) or exc}", source=src) from None
     try:
-        data = json.loads(text, parse_constant=_reject_constant)
+        return json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
         raise ProfileError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})",
                            source=src) from None
-    except ValueError as exc:
-        raise ProfileError(str(exc), source=src, hint="use finite numbers") from None
-    return profile_from_dict(data, source=src)
+    except (ValueError, RecursionError) as exc:
+        raise ProfileError(f"not usable JSON: {exc}", source=src, hint="use finite numbers") from None
+
+
+def load_profile(path: str | os.PathLike) -> PanelProfile:
+    """Read and validate a profile JSON file.  Raises ProfileError naming the file and field."""
+    data = read_json_file(path, "profile", "check the --profile path")
+    return profile_from_dict(data, source=str(path))
 
 
 def _reject_constant(name: str):
