@@ -4,7 +4,7 @@ No per-subpixel maps are streamed: per row it needs the start phase ``Z0[y]`` an
 row taps; per output column one packed int32 (byte offset of the left tap | x weight).
 
 * uint8 views (the live-video case) go through the explicitly vectorized block kernel of
-  :mod:`._simd` (32 subpixels per step, two gathers each), threads over rows (numba ``prange``);
+  :mod:`._simd` (``_simd.LANES`` subpixels per step, two gathers each), threads over rows;
   weights are 11-bit fixed point, so values are within 1 LSB of the float64 reference.
 * uint16 and float views, and layouts the block kernel cannot address (a view 1 pixel wide, a
   stack of 2 GiB or more), go through a scalar numba kernel with float64 weights, which matches

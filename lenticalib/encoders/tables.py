@@ -8,11 +8,13 @@ from ..profile import PanelProfile
 from ..sampling import NO_VIEW, sampling_tables
 from .common import finish
 
+ROWS_PER_CHUNK = 64
+
 
 def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
     """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.sampling.SamplingTables`.
 
-    Vectorized numpy over the whole raster; memory is about 60 bytes per subpixel.
+    Vectorized numpy over chunks of ``ROWS_PER_CHUNK`` rows, so temporaries stay bounded.
     """
     n, hv, wv, _ = views.shape
     tables = sampling_tables(profile, hv, wv)
@@ -24,17 +26,21 @@ def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
     chan = np.broadcast_to(np.arange(3)[None, :], (width, 3)).reshape(-1)
     cols, rows = tables.columns, tables.rows
     x0, x1, fx = cols.lo[xs], cols.hi[xs], cols.weight[xs]
-    out = np.zeros((height, width * 3), dtype=np.float64)
-    for table in (tables.primary, tables.secondary):
-        view = table[:, xs].astype(np.int64)  # (H, 3W) in output order
-        lit = view != NO_VIEW
-        if not lit.any():
-            continue
-        v = np.where(lit, view, 0)
-        y0 = rows.lo[:, None]
-        y1 = rows.hi[:, None]
-        fy = rows.weight[:, None]
-        top = views[v, y0, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y0, x1, chan] * fx
-        bottom = views[v, y1, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y1, x1, chan] * fx
-        out += np.where(lit, top * (1.0 - fy) + bottom * fy, 0.0)
-    return finish(out.reshape(height, width, 3), views.dtype)
+    out = np.empty((height, width, 3), dtype=views.dtype)
+    for y_start in range(0, height, ROWS_PER_CHUNK):  # bounded temporaries: ~60 bytes per subpixel of a chunk
+        rows_now = slice(y_start, min(height, y_start + ROWS_PER_CHUNK))
+        y0 = rows.lo[rows_now, None]
+        y1 = rows.hi[rows_now, None]
+        fy = rows.weight[rows_now, None]
+        acc = np.zeros((y0.shape[0], width * 3), dtype=np.float64)
+        for table in (tables.primary, tables.secondary):
+            view = table[rows_now][:, xs].astype(np.int64)  # (rows, 3W) in output order
+            lit = view != NO_VIEW
+            if not lit.any():
+                continue
+            v = np.where(lit, view, 0)
+            top = views[v, y0, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y0, x1, chan] * fx
+            bottom = views[v, y1, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y1, x1, chan] * fx
+            acc += np.where(lit, top * (1.0 - fy) + bottom * fy, 0.0)
+        out[rows_now] = finish(acc, views.dtype).reshape(-1, width, 3)
+    return out
