@@ -7,7 +7,9 @@ exits non-zero.  Anything else escaping the library is a bug.
     LenticalibError
     ├── InputError (ValueError)          bad user input: files, fields, arrays
     │   ├── ProfileError                 a panel profile that does not load or validate
-    │   └── ImageError                   an image or view set that cannot be used
+    │   ├── ImageError                   an image or view set that cannot be used
+    │   └── CaptureError                 a capture set (photos of the test patterns) that cannot be used
+    ├── CalibrationError                 a fit that fails or cannot be trusted
     ├── ConfigurationError (ValueError)  a valid-looking setup the encoder cannot honour
     └── BackendUnavailableError (ImportError)  a registered backend whose module will not load
 """
@@ -52,6 +54,14 @@ class ProfileError(InputError):
 
 class ImageError(InputError):
     """An image, a folder of views or a quilt that cannot be used."""
+
+
+class CaptureError(InputError):
+    """A capture set that cannot be used: a missing, extra, wrong, black, clipped or blurred photo."""
+
+
+class CalibrationError(LenticalibError):
+    """A fit that did not converge or whose result cannot be trusted (too uncertain, bad residual)."""
 
 
 class ConfigurationError(LenticalibError, ValueError):

@@ -16,7 +16,10 @@ from ..errors import LenticalibError
 
 _COMMANDS = {
     "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),
-    "profile": ("lenticalib.cli.profile", "show, validate, import or export panel profiles"),
+    "profile": ("lenticalib.cli.profile", "show, validate, import, export or compare panel profiles"),
+    "patterns": ("lenticalib.cli.patterns", "write the calibration test patterns for a panel"),
+    "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
+    "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
 }
 
 

@@ -1,4 +1,4 @@
-"""``lenticalib profile show|validate|import-lkg|export-lkg``."""
+"""``lenticalib profile show|validate|import-lkg|export-lkg|compare``."""
 
 from __future__ import annotations
 
@@ -27,6 +27,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument("--dpi", type=float, help="panel pixels per inch (if the profile does not record it)")
     exp.add_argument("-o", "--output", required=True, metavar="VISUAL_JSON")
     exp.set_defaults(run=run_export)
+    cmp_ = sub.add_parser("compare", help="how far profile A is from profile B, in views, over every subpixel")
+    cmp_.add_argument("profile", metavar="A")
+    cmp_.add_argument("reference", metavar="B", help="the reference (e.g. a simulation's truth.json)")
+    cmp_.add_argument("--json", action="store_true", help="print JSON")
+    cmp_.set_defaults(run=run_compare)
 
 
 def run_show(args) -> int:
@@ -79,4 +84,25 @@ def run_export(args) -> int:
 
     export_visual_json(load_profile(args.profile), args.output, dpi=args.dpi)
     print(f"wrote {args.output}")
+    return 0
+
+
+def run_compare(args) -> int:
+    from ..calib.compare import compare_profiles
+    from ..profile import load_profile
+
+    a, b = load_profile(args.profile), load_profile(args.reference)
+    diff = compare_profiles(a, b)
+    if args.json:
+        out = diff.to_dict()
+        out.update({"period_error": a.period - b.period, "slant_error": a.slant - b.slant})
+        print(json.dumps(out))
+        return 0
+    print(f"{args.profile} against {args.reference}, w - w_ref over {diff.subpixels} subpixels:")
+    print(f"  non-uniformity  {diff.rms:.4f} views RMS, {diff.worst:.4f} views worst")
+    print(f"  centring        {diff.centring:+.4f} views")
+    print(f"  period          {a.period:.6f} vs {b.period:.6f} subpixels ({a.period - b.period:+.2e})")
+    print(f"  slant           {a.slant:.7f} vs {b.slant:.7f} pixels/row ({a.slant - b.slant:+.2e})")
+    print(f"  subpixel order  {a.subpixel_order} vs {b.subpixel_order}"
+          f"{'' if diff.order_match else '  MISMATCH'}")
     return 0

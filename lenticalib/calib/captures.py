@@ -1,0 +1,142 @@
+"""Capture sets: one camera photo per test pattern in ``DIR/captures/NAME.{jpg,png,tif}``.
+
+This module finds the photos, checks that they are exactly the ones the manifest asks for,
+and loads them as *linear-light luminance* at a bounded working resolution.  Every problem
+ends in an :class:`~lenticalib.errors.CaptureError` naming the photo and what to do.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CaptureError
+from .patterns import PatternSet, read_manifest, srgb_decode
+
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+MAX_WORKING_WIDTH = 2560  # photos wider than this are area-averaged down (linear light)
+MIN_PHOTO_PIXELS = 300_000
+CLIP_LEVEL = 250 / 255  # sRGB-encoded value counted as clipped
+IGNORED_NAMES = {"thumbs.db", "desktop.ini"}
+
+
+@dataclasses.dataclass(frozen=True)
+class CaptureSet:
+    """A pattern folder with its manifest and the photo path of every pattern (by name)."""
+
+    directory: Path
+    patterns: PatternSet
+    photos: dict[str, Path]
+
+    def photo(self, name: str) -> Path:
+        return self.photos[name]
+
+    @property
+    def inputs(self) -> list[Path]:
+        return [self.directory / "patterns.json"] + [self.photos[n] for n in self.patterns.names]
+
+
+def open_capture_set(directory: str | os.PathLike) -> CaptureSet:
+    """Read ``DIR/patterns.json`` and match ``DIR/captures/*`` to it, one photo per pattern.
+
+    Raises CaptureError for a missing folder, a missing photo, two photos of one pattern,
+    or a file whose name matches no pattern.  Hidden files are ignored.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise CaptureError("is not a folder", source=str(directory),
+                           hint="give the folder 'lenticalib patterns' wrote, with the photos in captures/")
+    patterns = read_manifest(directory)
+    folder = directory / "captures"
+    if not folder.is_dir():
+        raise CaptureError("no captures folder", source=str(folder),
+                           hint="photograph every pattern and put the photos in DIR/captures/ named like "
+                                "the patterns (x0-0.png -> captures/x0-0.jpg)")
+    names = set(patterns.names)
+    photos: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        if path.name.startswith(".") or path.name.lower() in IGNORED_NAMES:
+            continue
+        stem, suffix = path.stem, path.suffix.lower()
+        if suffix not in PHOTO_SUFFIXES or stem not in names:
+            raise CaptureError("matches no pattern of this set", source=str(path),
+                               hint=f"name each photo like its pattern ({patterns.names[0]}.jpg ...) with "
+                                    f"suffix {', '.join(PHOTO_SUFFIXES)}; remove other files")
+        if stem in photos:
+            raise CaptureError(f"is a second photo of pattern {stem} (first: {photos[stem].name})",
+                               source=str(path), hint="keep one photo per pattern")
+        photos[stem] = path
+    missing = [n for n in patterns.names if n not in photos]
+    if missing:
+        shown = ", ".join(missing[:6]) + (" ..." if len(missing) > 6 else "")
+        raise CaptureError(f"{len(missing)} photo(s) missing: {shown}", source=str(folder),
+                           hint=f"photograph pattern {missing[0]}.png and save it as "
+                                f"captures/{missing[0]}.jpg (or .png/.tif)")
+    return CaptureSet(directory, patterns, photos)
+
+
+@dataclasses.dataclass
+class Photo:
+    """One loaded photo.
+
+    ``luma``: float32 (h, w), linear light summed over R, G, B (0..3), at working resolution.
+    ``rgb_mean``: float64 (3,), mean linear R, G, B over the frame.  ``clipped``: float32
+    (h, w), fraction of clipped sensor pixels per working pixel.  ``scale``: working pixels
+    per photo pixel (<= 1).  ``shape``: the photo's own (height, width).
+    """
+
+    name: str
+    path: Path
+    luma: np.ndarray
+    rgb: np.ndarray | None
+    clipped: np.ndarray
+    scale: float
+    shape: tuple[int, int]
+
+
+def read_photo_rgb(path: Path) -> np.ndarray:
+    """A photo as sRGB-encoded float32 RGB in [0, 1], EXIF orientation applied."""
+    import cv2
+
+    data = np.fromfile(path, dtype=np.uint8) if path.exists() else None
+    if data is None or data.size == 0:
+        raise CaptureError("cannot be read (missing or empty)", source=str(path), hint="copy the photo again")
+    image = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+    if image is None or image.ndim != 3:
+        raise CaptureError("is not a readable colour image", source=str(path),
+                           hint="save the photo as JPEG, PNG or TIFF")
+    scale = 65535.0 if image.dtype == np.uint16 else 255.0 if image.dtype == np.uint8 else 1.0
+    return image[:, :, ::-1].astype(np.float32) / np.float32(scale)
+
+
+def load_photo(name: str, path: Path, keep_rgb: bool = False, max_width: int = MAX_WORKING_WIDTH) -> Photo:
+    """Load, linearise (sRGB) and area-average one photo; CaptureError if it is unusable."""
+    import cv2
+
+    encoded = read_photo_rgb(path)
+    h, w = encoded.shape[:2]
+    if h * w < MIN_PHOTO_PIXELS:
+        raise CaptureError(f"is only {w}x{h} pixels", source=str(path),
+                           hint="photograph at full camera resolution (at least 0.3 megapixels)")
+    clipped = (encoded.max(axis=2) >= CLIP_LEVEL).astype(np.float32)
+    linear = srgb_decode(encoded).astype(np.float32)
+    scale = min(1.0, max_width / w)
+    if scale < 1.0:
+        size = (max(1, round(w * scale)), max(1, round(h * scale)))
+        linear = cv2.resize(linear, size, interpolation=cv2.INTER_AREA)
+        clipped = cv2.resize(clipped, size, interpolation=cv2.INTER_AREA)
+        scale = size[0] / w
+    luma = linear.sum(axis=2, dtype=np.float32)
+    return Photo(name, path, luma, linear if keep_rgb else None, clipped, scale, (h, w))
+
+
+def check_exposure(photo: Photo) -> None:
+    """CaptureError if the photo is black (nothing bright enough to measure)."""
+    bright = float(np.percentile(photo.luma, 99.5))
+    if bright < 0.02:
+        raise CaptureError("is black or far too dark", source=str(photo.path),
+                           hint="check that the pattern is on screen and expose so the panel is bright "
+                                "but not clipped")

@@ -1,0 +1,445 @@
+"""``fit_capture_set``: photos of the test patterns -> a calibrated panel profile.
+
+Steps (each checks its photos and fails with a message naming them):
+
+1. open the capture set and load every photo as linear luminance (``captures``);
+2. demodulate every phase-shift group; find the panel from the coarse fringes;
+3. seen panel coordinates X (subpixels) and Y (rows) for every camera pixel, unwrapped
+   coarse to fine and smoothed (``phase``) -- no camera model is needed for this;
+4. the lens alias of the fine groups gives psi = (w* - N/2)/N per pixel; one plane fits
+   them all (``model``), with block-jackknife uncertainties;
+5. red-only and blue-only photos against that plane give the subpixel order;
+6. quality gates: coherence, residual, uncertainty; then the profile and its provenance.
+
+The fit reads only the photos and ``patterns.json``: nothing the simulator knows.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from typing import Callable
+
+import numpy as np
+
+from ..errors import CalibrationError, CaptureError
+from ..profile import PanelProfile, make_provenance
+from . import model, phase
+from .camera import estimate_camera, load_camera_model
+from .captures import CaptureSet, Photo, check_exposure, load_photo, open_capture_set
+from .patterns import FINE_PERIODS, PERIOD_RANGE
+
+ProgressFn = Callable[[str], None]
+
+# Quality gates (views unless stated).  A fit failing one is reported as untrustworthy.
+MAX_BLOCK_RESIDUAL_RMS = 0.12  # systematic misfit of the plane, RMS over panel blocks
+MAX_PREDICTED_ERROR = 0.10  # 1-sigma of w at the worst panel corner from the uncertainties
+MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
+MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
+MAX_CLIPPED_FRACTION = 0.02
+MIN_PANEL_FRACTION = 0.04
+MAX_ALIAS = 0.42  # |T/Delta_r - 1| ... a fine group aliasing beyond this is not used
+
+
+@dataclasses.dataclass
+class FitResult:
+    """A fitted profile, whether it passed the quality gates, and everything the report shows."""
+
+    profile: PanelProfile
+    trusted: bool
+    problems: list[str]
+    quality: dict
+    maps: dict
+    seconds: float
+
+
+def _group_photos(capture: CaptureSet, group: str, shape: tuple[int, int] | None, progress: ProgressFn | None,
+                  keep_rgb: bool = False) -> list[Photo]:
+    photos = []
+    for pattern in capture.patterns.group(group):
+        if progress:
+            progress(f"reading {capture.photo(pattern.name).name}")
+        photo = load_photo(pattern.name, capture.photo(pattern.name), keep_rgb=keep_rgb)
+        if shape is not None and photo.shape != shape:
+            raise CaptureError(f"is {photo.shape[1]}x{photo.shape[0]} pixels, the other photos are "
+                               f"{shape[1]}x{shape[0]}", source=str(photo.path),
+                               hint="take every photo with the same camera, zoom and orientation")
+        check_exposure(photo)
+        photos.append(photo)
+    return photos
+
+
+@dataclasses.dataclass
+class _Group:
+    name: str
+    period: float
+    z: np.ndarray
+    dc: np.ndarray
+    photos: list[Photo]
+
+
+def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group:
+    photos = _group_photos(capture, name, shape, progress)
+    patterns = capture.patterns.group(name)
+    z, dc = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
+    pat = patterns[0]
+    if pat.group[0] in "xy":
+        # A camera pixel may see no lit (green) subpixel; average the complex fringe over an
+        # eighth of a fringe (the panel spans at least ~half the frame), which keeps the phase.
+        extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
+        frame = z.shape[1] if pat.axis == "x" else z.shape[0]
+        sigma = min(frame / 300.0, pat.period / extent * 0.5 * frame / 8.0)
+        z = phase.smooth_complex(z, sigma)
+    for p in photos:  # keep memory bounded: luma is needed only for the per-photo checks
+        p.luma = p.luma.astype(np.float16)
+    return _Group(name, patterns[0].period, z, dc, photos)
+
+
+def _check_photo_steps(group: _Group, predicted_cycles: np.ndarray, mask: np.ndarray, capture: CaptureSet,
+                       what: str) -> None:
+    """Each photo of a group must show its own phase step of the predicted fringe."""
+    patterns = capture.patterns.group(group.name)
+    sel = mask & np.isfinite(predicted_cycles)
+    carrier = np.exp(-2j * math.pi * predicted_cycles[sel])
+    ref = float(np.mean(np.abs(group.z[sel])))
+    for photo, pattern in zip(group.photos, patterns):
+        signal = (photo.luma[sel].astype(np.float32) - group.dc[sel]) * carrier
+        q = complex(np.mean(signal)) * 2.0
+        amp = abs(q) / max(ref, 1e-9)
+        step_error = abs(float(model.wrap(math.atan2(q.imag, q.real) / (2 * math.pi) - pattern.step / pattern.steps)))
+        if amp < 0.35 or step_error > 0.11:
+            raise CaptureError(f"does not show pattern {pattern.name} (fringe contrast {amp:.2f} of the group's, "
+                               f"phase off by {step_error * 360:.0f} degrees) {what}",
+                               source=str(photo.path),
+                               hint=f"show {pattern.file} full screen, keep the camera still and in focus, "
+                                    "and photograph it again (or these photos belong to another pattern set)")
+
+
+def _check_clipping(groups: list[_Group], mask: np.ndarray) -> None:
+    import cv2
+
+    for group in groups:
+        for photo in group.photos:
+            clipped = photo.clipped
+            if clipped.shape != mask.shape:
+                clipped = cv2.resize(clipped, mask.shape[::-1], interpolation=cv2.INTER_AREA)
+            fraction = float(clipped[mask].mean())
+            if fraction > MAX_CLIPPED_FRACTION:
+                raise CaptureError(f"is overexposed: {100 * fraction:.0f}% of the panel is clipped",
+                                   source=str(photo.path),
+                                   hint="lower the exposure (or ISO) until no part of the panel is pure white, "
+                                        "and retake every photo with that exposure")
+
+
+def _mask_checks(mask: np.ndarray, capture: CaptureSet) -> None:
+    frac = float(mask.mean())
+    first = capture.photo(capture.patterns.group("x1")[0].name)
+    if frac < MIN_PANEL_FRACTION:
+        raise CaptureError(f"the panel was not found ({100 * frac:.1f}% of the frame shows fringes)",
+                           source=str(first.parent),
+                           hint="fill most of the frame with the panel, show the patterns full screen, "
+                                "and check that the photos are of the patterns")
+    edge = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
+    if edge.mean() > 0.10:
+        raise CaptureError("the panel is cut off by the edge of the photos", source=str(first.parent),
+                           hint="step back or zoom out so the whole panel is inside every photo")
+
+
+def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.ndarray):
+    ps = capture.patterns
+    h, w = mask.shape
+    sub, rows = 3 * ps.width, ps.height
+    x0 = phase.coordinate_from_single_period(phase.phase_cycles(groups["x0"].z), groups["x0"].period, sub)
+    y0 = phase.coordinate_from_single_period(phase.phase_cycles(groups["y0"].z), groups["y0"].period, rows)
+    cols, rws = np.meshgrid(np.arange(w), np.arange(h))
+    for name, coord, along, extent in (("x0", x0, cols, sub), ("y0", y0, rws, rows)):
+        c = coord[mask]
+        span = np.percentile(c, 99) - np.percentile(c, 1)
+        corr = np.corrcoef(c[::97], along[mask][::97])[0, 1] if c.size > 200 else 0.0
+        if not (0.45 * extent < span < 1.15 * extent) or abs(corr) < 0.8:
+            names = ", ".join(p.name for p in ps.group(name))
+            raise CaptureError(f"photos {names} do not show a fringe across the panel as expected",
+                               source=str(capture.directory / "captures"),
+                               hint="retake them with the patterns shown full screen, in order, and the camera "
+                                    "upright (less than 45 degrees of roll)")
+        if corr < 0:
+            raise CaptureError(f"photos of group {name} are mirrored or in the wrong order",
+                               source=str(capture.directory / "captures"),
+                               hint="do not mirror the photos (selfie camera) and name each photo like its pattern")
+    _check_photo_steps(groups["x0"], x0 / groups["x0"].period, mask, capture, "")
+    _check_photo_steps(groups["y0"], y0 / groups["y0"].period, mask, capture, "")
+    coords = {}
+    for chain, start in ((("x1", "x2"), x0), (("y1",), y0)):
+        coarse, coarse_name = start, chain[0][0] + "0"
+        for name in chain:
+            g = groups[name]
+            _check_photo_steps(g, coarse / g.period, mask, capture, f"(checked against group {coarse_name})")
+            fine, residual = phase.unwrap(coarse, phase.phase_cycles(g.z), g.period)
+            bad = float(np.mean(np.abs(residual[mask]) > 0.3))
+            if bad > 0.2:
+                raise CaptureError(f"group {name} disagrees with group {coarse_name} on {100 * bad:.0f}% of the "
+                                   "panel", source=str(capture.directory / "captures"),
+                                   hint="the camera moved between photos, or photos are swapped; use a tripod "
+                                        "and retake the set")
+            coarse, coarse_name = fine, name
+        coords[chain[0][0]] = (coarse, groups[chain[-1]])
+    return coords
+
+
+def _modulation_weight(group: _Group, mask: np.ndarray) -> np.ndarray:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.abs(group.z) / np.maximum(group.dc, 1e-6)
+    return np.where(mask, np.clip(ratio, 0.0, 1.5), 0.0).astype(np.float32)
+
+
+def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
+                    camera_model: str | os.PathLike | None = None,
+                    progress: ProgressFn | None = None) -> FitResult:
+    """Fit the panel profile from the capture set in ``directory``; see the module docstring.
+
+    Raises CaptureError for unusable photos and CalibrationError when no plane fits.  A fit
+    that converges but fails a quality gate is returned with ``trusted=False`` and the
+    reasons in ``problems``.
+    """
+    start = time.perf_counter()
+    given_camera = load_camera_model(camera_model) if camera_model else None
+    capture = open_capture_set(directory)
+    ps = capture.patterns
+    n_views = views or ps.views
+    groups: dict[str, _Group] = {}
+    shape = None
+    for name in ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in FINE_PERIODS):
+        groups[name] = _demodulate_group(capture, name, shape, progress)
+        shape = groups[name].photos[0].shape
+    if progress:
+        progress("finding the panel")
+    mask = phase.panel_mask([np.abs(groups["x1"].z), np.abs(groups["y1"].z)])
+    _mask_checks(mask, capture)
+    _check_clipping(list(groups.values()), mask)
+
+    if progress:
+        progress("measuring seen panel coordinates")
+    coords = _coordinate_maps(capture, groups, mask)
+    h, w = mask.shape
+    sigma = max(3.0, w / 300.0)
+    x_raw, xg = coords["x"]
+    y_raw, yg = coords["y"]
+    x_sm = phase.smooth_coordinate(x_raw, _modulation_weight(xg, mask), sigma)
+    y_sm = phase.smooth_coordinate(y_raw, _modulation_weight(yg, mask), sigma)
+    valid = mask & np.isfinite(x_sm) & np.isfinite(y_sm)
+    valid &= (x_sm >= 0) & (x_sm < 3 * ps.width) & (y_sm >= 0) & (y_sm < ps.height)
+
+    if progress:
+        progress("fitting the view-coordinate plane")
+    stride = max(1, int(math.sqrt(valid.sum() / 1_500_000)))
+    sub = np.zeros_like(valid)
+    sub[::stride, ::stride] = True
+    take = valid & sub
+    xs, ys = x_sm[take], y_sm[take]
+    parts = []
+    for gi, period in enumerate(FINE_PERIODS):
+        g = groups[f"f{period:g}"]
+        psi = model.wrap(phase.phase_cycles(g.z)[take] - xs / period)
+        weight = _modulation_weight(g, mask)[take]
+        parts.append(model.PlaneSamples(xs, ys, psi, weight, np.full(xs.shape, gi)))
+    all_samples = model.PlaneSamples(*(np.concatenate([getattr(p, f) for p in parts])
+                                       for f in ("x", "y", "psi", "weight", "group")))
+    a0, b0 = model.fft_search(all_samples, ps.width, ps.height, PERIOD_RANGE)
+    xc, yc = 1.5 * ps.width, 0.5 * ps.height
+    first, _ = model.fit_plane(all_samples, a0, b0, xc, yc)
+    period0 = -1.0 / first.a
+    group_fits, used = [], []
+    for gi, period in enumerate(FINE_PERIODS):
+        alias = period0 / period - 1.0 if period0 / period < 1.5 else 9.0
+        gfit, _ = model.fit_plane(parts[gi], first.a, first.b, xc, yc)
+        group_fits.append((period, alias, gfit))
+        if abs(alias) <= MAX_ALIAS and gfit.coherence >= MIN_COHERENCE:
+            used.append(gi)
+    if not used:
+        best = max(group_fits, key=lambda t: t[2].coherence)
+        raise CalibrationError(f"no fine group gives a usable phase (best coherence {best[2].coherence:.2f}, "
+                               f"lens period near {period0:.2f} subpixels)", source=str(capture.directory),
+                               hint=f"the fine patterns resolve lens periods of {PERIOD_RANGE[0]:g} to "
+                                    f"{PERIOD_RANGE[1]:g} subpixels; check focus (the fine fringes must be sharp)")
+    keep = np.isin(all_samples.group, used)
+    samples = model.PlaneSamples(*(getattr(all_samples, f)[keep] for f in ("x", "y", "psi", "weight", "group")))
+    fit, final_weights = model.fit_plane(samples, first.a, first.b, xc, yc)
+    cov = model.block_jackknife(samples, fit, final_weights, ps.width, ps.height)
+    if len(used) > 1:
+        diffs = np.array([[g.a - fit.a, g.b - fit.b, float(model.wrap(g.c0 - fit.c0))]
+                          for _, _, g in (group_fits[i] for i in used)])
+        cov = cov + np.diag(np.mean(diffs ** 2, axis=0))
+
+    if progress:
+        progress("subpixel order")
+    order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress)
+    _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
+
+    camera = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera)
+    constants, sigmas = _constants_with_uncertainty(fit, cov)
+    quality = _quality(fit, samples, final_weights, cov, ps, n_views)
+    quality.update({
+        "fine_groups": [{"period": p, "alias": round(al, 4), "coherence": round(g.coherence, 4),
+                         "used": i in used, "period_estimate": -1.0 / g.a} for i, (p, al, g) in enumerate(group_fits)],
+        "subpixel_order": dataclasses.asdict(order),
+        "panel_fraction_of_frame": float(mask.mean()),
+        "working_resolution": [w, h],
+        "photo_resolution": [shape[1], shape[0]],
+        "camera": camera,
+    })
+    block_map = quality.pop("block_residual_map")
+    problems = []
+    if quality["block_residual_rms_views"] > MAX_BLOCK_RESIDUAL_RMS:
+        problems.append(f"the plane misfits the measurement by {quality['block_residual_rms_views']:.3f} views RMS "
+                        f"(limit {MAX_BLOCK_RESIDUAL_RMS})")
+    if quality["predicted_error_worst_views"] > MAX_PREDICTED_ERROR:
+        problems.append(f"1-sigma uncertainty of the view coordinate reaches "
+                        f"{quality['predicted_error_worst_views']:.3f} views at a corner (limit {MAX_PREDICTED_ERROR})")
+    if quality["coherence"] < MIN_COHERENCE:
+        problems.append(f"fine fringes are weak (coherence {quality['coherence']:.2f}, limit {MIN_COHERENCE})")
+    if order.margin < MIN_ORDER_MARGIN:
+        problems.append(f"subpixel order is ambiguous (margin {order.margin:.2f}, limit {MIN_ORDER_MARGIN})")
+
+    seconds = time.perf_counter() - start
+    provenance = make_provenance(
+        "lenticalib fit: phase-shifted sinusoids seen through the lens sheet; plane fit of the lens alias",
+        capture.inputs, pattern_set=ps.set_id, quality=quality, seconds=round(seconds, 2),
+        convention="w(x_s, y) = w*(x_s + 0.5, y + 0.5); calibration camera at w* = N/2")
+    profile = PanelProfile(views=n_views, slant=constants["slant"], period=constants["period"],
+                           offset=constants["offset"], reference_view=n_views / 2.0,
+                           width=ps.width, height=ps.height, subpixel_order=order.order,
+                           uncertainty=sigmas, provenance=provenance)
+    maps = {"block_residual_map": block_map, "mask": mask, "x": x_sm, "y": y_sm, "valid": valid, "fit": fit,
+            "dc": groups["y1"].dc, "samples": samples, "weights": final_weights,
+            "psi_pixels": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
+    return FitResult(profile, not problems, problems, quality, maps, seconds)
+
+
+def _constants_with_uncertainty(fit: model.PlaneFit, cov: np.ndarray) -> tuple[dict, dict]:
+    """Profile constants and their 1-sigma, propagating the (a, b, c0) covariance numerically."""
+    base = model.profile_constants(fit)
+    params = np.array([fit.a, fit.b, fit.c0])
+    steps = np.sqrt(np.maximum(np.diag(cov), 1e-30)) * 1e-2 + np.array([1e-12, 1e-12, 1e-9])
+    jac = np.zeros((3, 3))
+    keys = ("period", "slant", "offset")
+    for j in range(3):
+        p = params.copy()
+        p[j] += steps[j]
+        shifted = model.profile_constants(dataclasses.replace(fit, a=p[0], b=p[1], c0=p[2]))
+        for i, k in enumerate(keys):
+            d = shifted[k] - base[k]
+            if k == "offset":
+                d = (d + base["period"] / 2) % base["period"] - base["period"] / 2
+            jac[i, j] = d / steps[j]
+    out = jac @ cov @ jac.T
+    sigmas = {k: float(math.sqrt(max(out[i, i], 0.0))) for i, k in enumerate(keys)}
+    sigmas["reference_view"] = 0.0
+    return base, sigmas
+
+
+def _quality(fit, samples, weights, cov, ps, n_views) -> dict:
+    r = fit.residual(samples)
+    # systematic misfit: weighted mean residual in panel blocks of ~1/24 x 1/14 of the panel
+    bx = np.clip((samples.x / (3 * ps.width) * 24).astype(int), 0, 23)
+    by = np.clip((samples.y / ps.height * 14).astype(int), 0, 13)
+    block = by * 24 + bx
+    wsum = np.bincount(block, weights=weights, minlength=24 * 14)
+    rsum = np.bincount(block, weights=weights * r, minlength=24 * 14)
+    ok = wsum > np.percentile(wsum[wsum > 0], 10) * 0.5 if np.any(wsum > 0) else wsum > 0
+    block_mean = np.where(ok, rsum / np.maximum(wsum, 1e-12), np.nan)
+    bm = block_mean[ok]
+    bm = bm - np.average(bm, weights=wsum[ok])
+    corners = np.array([[0, 0], [3 * ps.width, 0], [0, ps.height], [3 * ps.width, ps.height],
+                        [1.5 * ps.width, 0.5 * ps.height]], dtype=float)
+    grads = np.stack([corners[:, 0] - fit.x0, corners[:, 1] - fit.y0, np.ones(len(corners))], axis=1)
+    sig = np.sqrt(np.einsum("ij,jk,ik->i", grads, cov, grads)) * n_views
+    return {
+        "coherence": float(fit.coherence),
+        "pixel_residual_rms_views": float(np.sqrt(np.average(r ** 2, weights=weights)) * n_views),
+        "block_residual_rms_views": float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views),
+        "block_residual_worst_views": float(np.max(np.abs(bm)) * n_views),
+        "predicted_error_centre_views": float(sig[-1]),
+        "predicted_error_worst_views": float(np.max(sig)),
+        "samples": int(samples.x.size),
+        "block_residual_map": block_mean.reshape(14, 24) * n_views,
+    }
+
+
+def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray, block: int = 48) -> complex:
+    """Sum over blocks of the complex fringe amplitude (relative to the block's mean level).
+
+    In each block, ``luma ~ A + Re(m exp(2 pi i predicted))`` by least squares; returns the
+    sum of m / A over blocks (its angle: the photo's phase offset from the prediction).
+    """
+    h, w = luma.shape
+    total = 0j
+    for r0 in range(0, h - block + 1, block):
+        for c0 in range(0, w - block + 1, block):
+            sel = valid[r0:r0 + block, c0:c0 + block]
+            if sel.sum() < block * block // 2:
+                continue
+            ph = 2 * math.pi * predicted_cycles[r0:r0 + block, c0:c0 + block][sel]
+            val = luma[r0:r0 + block, c0:c0 + block][sel].astype(np.float64)
+            design = np.stack([np.ones_like(ph), np.cos(ph), np.sin(ph)], axis=1)
+            coef, *_ = np.linalg.lstsq(design, val, rcond=None)
+            if coef[0] <= 0:
+                continue
+            total += complex(coef[1], -coef[2]) / coef[0]
+    return total
+
+
+def _predicted_fine_cycles(fit, x_sm, y_sm, valid, period):
+    out = np.zeros(x_sm.shape)
+    out[valid] = x_sm[valid] / period + fit.psi(x_sm[valid], y_sm[valid])
+    return out
+
+
+def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress) -> model.OrderDecision:
+    period = capture.patterns.group("order-r")[0].period
+    pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
+    f_ref = groups[f"f{period:g}"]
+    ref_amp = float(np.mean(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
+    offsets, amps = {}, {}
+    for name, channel in (("order-r", 0), ("order-b", 2)):
+        photo = _group_photos(capture, name, shape, progress, keep_rgb=True)[0]
+        rgb_mean = photo.rgb[valid].mean(axis=0)
+        other = 2 - channel
+        if rgb_mean[channel] <= rgb_mean[other]:
+            colour = "red" if channel == 0 else "blue"
+            raise CaptureError(f"should show a {colour} pattern but its panel is not {colour}",
+                               source=str(photo.path),
+                               hint=f"photograph {name}.png (swapped with the other order photo?)")
+        q = _block_amplitude(photo.luma, pred, valid)
+        blocks = max(1, int(valid.sum() / (48 * 48)))
+        amps[name] = abs(q) / blocks / max(ref_amp, 1e-9)
+        offsets[name] = math.atan2(q.imag, q.real) / (2 * math.pi)
+        if amps[name] < 0.15:
+            raise CaptureError(f"shows almost no fringes of pattern {name} (contrast {amps[name]:.2f} of the fine "
+                               "green group)", source=str(photo.path),
+                               hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
+    return model.decide_order(offsets["order-r"], offsets["order-b"], period, amps["order-r"], amps["order-b"])
+
+
+def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:
+    """Each fine photo must show its phase step of the fringe the fitted plane predicts."""
+    for gi, period in enumerate(FINE_PERIODS):
+        if gi not in used:
+            continue
+        g = groups[f"f{period:g}"]
+        pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
+        _check_photo_steps(g, pred, valid, capture, "(checked against the fitted panel model)")
+
+
+def _camera(photo: Photo, x_sm, y_sm, valid, ps, given) -> dict:
+    """Camera estimate from ~2500 correspondences on a grid over the measured panel."""
+    rows, cols = np.nonzero(valid)
+    step = max(1, rows.size // 2500)
+    rows, cols = rows[::step], cols[::step]
+    pixels = np.column_stack([(cols + 0.5) / photo.scale - 0.5, (rows + 0.5) / photo.scale - 0.5])
+    panel = np.column_stack([x_sm[rows, cols] / 3.0 - ps.width / 2.0, y_sm[rows, cols] - ps.height / 2.0])
+    try:
+        return estimate_camera(pixels, panel, (photo.shape[1], photo.shape[0]), given)
+    except Exception as exc:  # the estimate is informative only; never fail a fit on it
+        return {"source": "not estimated", "reason": str(exc)}

@@ -1,0 +1,234 @@
+"""The calibration test patterns lenticalib draws, and their manifest ``patterns.json``.
+
+Every pattern is a phase-shifted sinusoid in *linear light* (sRGB-encoded into the PNG), a
+function of one panel coordinate, evaluated at subpixel or row centres:
+
+    axis "x":  L(x_s) = 0.5 + 0.45 cos(2 pi (x_s + 0.5) / T + theta)   T in subpixels
+    axis "y":  L(y)   = 0.5 + 0.45 cos(2 pi (y + 0.5) / T + theta)     T in rows
+
+with ``x_s = 3 x + position`` and ``position`` the subpixel slot (0, 1, 2) of the lit channel.
+
+Why these patterns (the physics is in ``../shared/optics.md``):
+
+* Through the lens sheet a camera sees, in every lens, one blurred point of the pixel plane.
+  A sinusoid of long period ``T`` (much longer than a lens) is seen unchanged, only
+  magnified, so the coarse groups ``x0 x1 x2`` and ``y0 y1`` measure, for every camera
+  pixel, *which panel point it sees* (multi-frequency phase shifting, unwrapped coarse to
+  fine; no camera model needed).
+* The fine groups ``f16 f22`` (T = 16 and 22 subpixels, close to the lens period) are
+  sampled by the lenses: what the camera sees is their alias, and the alias phase minus
+  ``2 pi x / T`` is the view coordinate of the seen point (``psi`` in :mod:`.model`).
+* The x-patterns light only the green subpixel, which sits in the middle slot for both
+  subpixel orders, so the coordinate they measure never depends on the order or on how
+  the camera weighs red against blue.  Rows are order-free, so the y-patterns are white.
+* ``order-r`` and ``order-b`` draw the fine sinusoid in red only and in blue only, at the
+  slots red and blue have in RGB order; their phase against the fitted model tells
+  whether red really is on the left.
+
+21 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
+fine periods cover lens periods Delta_r from 8 to 33 subpixels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from ..errors import InputError
+
+FORMAT_NAME = "lenticalib.patterns"
+FORMAT_VERSION = 1
+MANIFEST_NAME = "patterns.json"
+MEAN_LEVEL = 0.5  # linear light
+AMPLITUDE = 0.45  # linear light
+FINE_PERIODS = (16.0, 22.0)  # subpixels
+PERIOD_RANGE = (8.0, 33.0)  # lens periods Delta_r (subpixels) the fine groups can measure
+CHANNEL_SLOT_RGB = {"R": 0, "G": 1, "B": 2}
+
+
+@dataclasses.dataclass(frozen=True)
+class Pattern:
+    """One test image: a sinusoid along ``axis`` with ``period`` and phase step ``step`` of ``steps``.
+
+    ``channels`` lists the lit channels ("G", "RGB", "R", "B"); for axis "x" each lit
+    channel is evaluated at its RGB-order slot.  ``theta`` (radians) = 2 pi step / steps.
+    """
+
+    name: str
+    group: str
+    axis: str
+    period: float
+    step: int
+    steps: int
+    channels: str
+
+    @property
+    def file(self) -> str:
+        return f"{self.name}.png"
+
+    @property
+    def theta(self) -> float:
+        return 2.0 * math.pi * self.step / self.steps
+
+    def to_dict(self) -> dict[str, Any]:
+        data = dataclasses.asdict(self)
+        data["file"] = self.file
+        return data
+
+
+@dataclasses.dataclass(frozen=True)
+class PatternSet:
+    """All patterns for one panel raster, with an id that changes when any of them changes."""
+
+    width: int
+    height: int
+    views: int
+    patterns: tuple[Pattern, ...]
+
+    @property
+    def set_id(self) -> str:
+        body = json.dumps([self.width, self.height, self.views, FORMAT_VERSION,
+                           [p.to_dict() for p in self.patterns]], sort_keys=True)
+        return hashlib.sha256(body.encode()).hexdigest()[:16]
+
+    def group(self, name: str) -> list[Pattern]:
+        return [p for p in self.patterns if p.group == name]
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.patterns]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "set_id": self.set_id,
+                "width": self.width, "height": self.height, "views": self.views,
+                "period_range": list(PERIOD_RANGE), "mean_level": MEAN_LEVEL, "amplitude": AMPLITUDE,
+                "encoding": "sRGB", "patterns": [p.to_dict() for p in self.patterns]}
+
+
+def _group(name: str, axis: str, period: float, steps: int, channels: str) -> list[Pattern]:
+    return [Pattern(f"{name}-{k}", name, axis, float(period), k, steps, channels) for k in range(steps)]
+
+
+def design_patterns(width: int, height: int, views: int) -> PatternSet:
+    """The pattern set for a ``width`` x ``height`` panel with ``views`` views.
+
+    Coarse periods: 1.25 panel widths/heights (one unambiguous phase over the panel), then
+    a twelfth of the width (a sixteenth of the height), then 96 subpixels (at most a third
+    of a cycle per lens up to Delta_r = 32, so the lenses do not alias it).
+    """
+    if not (isinstance(width, int) and isinstance(height, int) and width >= 64 and height >= 64):
+        raise InputError(f"panel size {width}x{height} is too small", source="--width/--height",
+                         hint="give the panel raster in pixels, at least 64x64")
+    if not (isinstance(views, int) and 2 <= views <= 254):
+        raise InputError(f"views must be an integer from 2 to 254, got {views}", source="--views")
+    sub = 3 * width
+    t1 = sub / 12.0
+    t2 = min(96.0, t1 / 2.0)
+    patterns: list[Pattern] = []
+    patterns += _group("x0", "x", 1.25 * sub, 3, "G")
+    patterns += _group("x1", "x", t1, 3, "G")
+    patterns += _group("x2", "x", t2, 3, "G")
+    patterns += _group("y0", "y", 1.25 * height, 3, "RGB")
+    patterns += _group("y1", "y", height / 16.0, 3, "RGB")
+    for period in FINE_PERIODS:
+        patterns += _group(f"f{period:g}", "x", period, 3, "G")
+    patterns.append(Pattern("order-r", "order-r", "x", FINE_PERIODS[0], 0, 1, "R"))
+    patterns.append(Pattern("order-b", "order-b", "x", FINE_PERIODS[0], 0, 1, "B"))
+    return PatternSet(width, height, views, tuple(patterns))
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """Linear light in [0, 1] -> sRGB-encoded values in [0, 1] (IEC 61966-2-1)."""
+    linear = np.clip(linear, 0.0, 1.0)
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] -> linear light in [0, 1]."""
+    encoded = np.clip(encoded, 0.0, 1.0)
+    return np.where(encoded <= 0.04045, encoded / 12.92, np.power((encoded + 0.055) / 1.055, 2.4))
+
+
+def pattern_linear(pattern: Pattern, coordinate: np.ndarray) -> np.ndarray:
+    """Linear light of ``pattern`` at panel coordinates (subpixel or row *indices*, any shape)."""
+    phase = 2.0 * math.pi * (np.asarray(coordinate, dtype=np.float64) + 0.5) / pattern.period + pattern.theta
+    return MEAN_LEVEL + AMPLITUDE * np.cos(phase)
+
+
+def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
+    """The pattern as the panel shows it: uint8 RGB, shape (height, width, 3)."""
+    image = np.zeros((height, width, 3), dtype=np.uint8)
+    for ci, channel in enumerate("RGB"):
+        if channel not in pattern.channels:
+            continue
+        if pattern.axis == "x":
+            coordinate = 3 * np.arange(width) + CHANNEL_SLOT_RGB[channel]
+            values = np.rint(255.0 * srgb_encode(pattern_linear(pattern, coordinate))).astype(np.uint8)
+            image[:, :, ci] = values[None, :]
+        else:
+            values = np.rint(255.0 * srgb_encode(pattern_linear(pattern, np.arange(height)))).astype(np.uint8)
+            image[:, :, ci] = values[:, None]
+    return image
+
+
+def write_patterns(directory: str | os.PathLike, pattern_set: PatternSet,
+                   progress: Iterable | None = None) -> Path:
+    """Write every pattern as ``DIR/NAME.png`` and the manifest ``DIR/patterns.json``.
+
+    Refuses to overwrite a manifest of a *different* pattern set when ``DIR/captures`` holds
+    photos (they would no longer match).  Returns the manifest path.
+    """
+    from ..atomic import write_text_atomic
+    from ..imageio import write_image
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    manifest_path = directory / MANIFEST_NAME
+    if manifest_path.exists() and any((directory / "captures").glob("*")):
+        try:
+            old = json.loads(manifest_path.read_text())
+            old_id = old.get("set_id")
+        except (OSError, ValueError, AttributeError):
+            old_id = None
+        if old_id != pattern_set.set_id:
+            raise InputError("holds photos of another pattern set", source=str(directory / "captures"),
+                             hint="write the patterns into an empty folder")
+    items = pattern_set.patterns if progress is None else progress
+    for pattern in items:
+        write_image(directory / pattern.file, render_pattern(pattern, pattern_set.width, pattern_set.height))
+    write_text_atomic(manifest_path, json.dumps(pattern_set.to_dict(), indent=2) + "\n")
+    return manifest_path
+
+
+def read_manifest(directory: str | os.PathLike) -> PatternSet:
+    """The pattern set described by ``DIR/patterns.json``; InputError naming the file if unusable."""
+    from ..profile import read_json_file
+
+    path = Path(directory) / MANIFEST_NAME
+    data = read_json_file(path, "pattern manifest",
+                          "run 'lenticalib patterns' to write the patterns and their manifest first")
+    source = str(path)
+    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
+        raise InputError("is not a lenticalib pattern manifest", source=source,
+                         hint="point at the folder 'lenticalib patterns' wrote")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise InputError(f"pattern format version {data.get('format_version')!r} is not supported "
+                         f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
+                         hint="write the patterns again with this lenticalib and photograph them")
+    try:
+        expected = design_patterns(int(data["width"]), int(data["height"]), int(data["views"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"field {exc} is missing or wrong", source=source,
+                         hint="write the patterns again with 'lenticalib patterns'") from None
+    if data.get("set_id") != expected.set_id or [p.get("name") for p in data.get("patterns", [])] != expected.names:
+        raise InputError("describes patterns this lenticalib did not draw (edited, or from another version)",
+                         source=source, hint="write the patterns again with 'lenticalib patterns' and "
+                                             "photograph them")
+    return expected

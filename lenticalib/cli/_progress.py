@@ -1,0 +1,42 @@
+"""Progress display for long CLI steps: tqdm on stderr when it is installed and stderr is a terminal."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+
+
+class _Bar:
+    def __init__(self, total: int, desc: str):
+        self._bar = None
+        if sys.stderr.isatty():
+            try:
+                from tqdm import tqdm
+            except ImportError:  # tqdm is a declared dependency; degrade quietly if absent
+                tqdm = None
+            if tqdm is not None:
+                self._bar = tqdm(total=total, desc=desc, unit="step", leave=False, file=sys.stderr)
+
+    def wrap(self, items):
+        for item in items:
+            yield item
+            self.update()
+
+    def update(self, message: str | None = None) -> None:
+        if self._bar is not None:
+            if message:
+                self._bar.set_postfix_str(message, refresh=False)
+            self._bar.update(1)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+@contextlib.contextmanager
+def progress_bar(total: int, desc: str):
+    bar = _Bar(total, desc)
+    try:
+        yield bar
+    finally:
+        bar.close()
