@@ -133,4 +133,7 @@ def estimate_camera(pixels: np.ndarray, panel_points: np.ndarray, image_size: tu
             "focal_px": float(matrix[0, 0]), "principal_point_px": [float(matrix[0, 2]), float(matrix[1, 2])],
             "distortion": [float(v) for v in np.asarray(dist).ravel()[:5]],
             "centre_panel_px": centre, "roll_deg": float(math.degrees(math.atan2(rot[1, 0], rot[0, 0]))),
-            "points": int(len(obj))}
+            "points": int(len(obj)),
+            "note": None if model is not None else
+            "without a camera model the focal length, and with it the distance, of a near-frontal view "
+            "is poorly determined; pass --camera for a metric pose"}

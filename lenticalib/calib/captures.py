@@ -97,8 +97,8 @@ class Photo:
     shape: tuple[int, int]
 
 
-def read_photo_rgb(path: Path) -> np.ndarray:
-    """A photo as sRGB-encoded float32 RGB in [0, 1], EXIF orientation applied."""
+def read_photo_raw(path: Path) -> np.ndarray:
+    """A photo as stored: uint8 or uint16 (or float) RGB (h, w, 3), EXIF orientation applied."""
     import cv2
 
     data = np.fromfile(path, dtype=np.uint8) if path.exists() else None
@@ -108,21 +108,36 @@ def read_photo_rgb(path: Path) -> np.ndarray:
     if image is None or image.ndim != 3:
         raise CaptureError("is not a readable colour image", source=str(path),
                            hint="save the photo as JPEG, PNG or TIFF")
-    scale = 65535.0 if image.dtype == np.uint16 else 255.0 if image.dtype == np.uint8 else 1.0
-    return image[:, :, ::-1].astype(np.float32) / np.float32(scale)
+    return image[:, :, ::-1]
+
+
+_DECODE_LUT8 = None
+
+
+def _linear_rgb(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(linear float32 RGB, clipped float32 mask) of a raw photo; 8-bit through a lookup table."""
+    global _DECODE_LUT8
+    if raw.dtype == np.uint8:
+        if _DECODE_LUT8 is None:
+            _DECODE_LUT8 = srgb_decode(np.arange(256) / 255.0).astype(np.float32)
+        clipped = (raw.max(axis=2) >= round(CLIP_LEVEL * 255)).astype(np.float32)
+        return _DECODE_LUT8[raw], clipped
+    scale = 65535.0 if raw.dtype == np.uint16 else 1.0
+    encoded = raw.astype(np.float32) / np.float32(scale)
+    clipped = (encoded.max(axis=2) >= CLIP_LEVEL).astype(np.float32)
+    return srgb_decode(encoded).astype(np.float32), clipped
 
 
 def load_photo(name: str, path: Path, keep_rgb: bool = False, max_width: int = MAX_WORKING_WIDTH) -> Photo:
     """Load, linearise (sRGB) and area-average one photo; CaptureError if it is unusable."""
     import cv2
 
-    encoded = read_photo_rgb(path)
-    h, w = encoded.shape[:2]
+    raw = read_photo_raw(path)
+    h, w = raw.shape[:2]
     if h * w < MIN_PHOTO_PIXELS:
         raise CaptureError(f"is only {w}x{h} pixels", source=str(path),
                            hint="photograph at full camera resolution (at least 0.3 megapixels)")
-    clipped = (encoded.max(axis=2) >= CLIP_LEVEL).astype(np.float32)
-    linear = srgb_decode(encoded).astype(np.float32)
+    linear, clipped = _linear_rgb(raw)
     scale = min(1.0, max_width / w)
     if scale < 1.0:
         size = (max(1, round(w * scale)), max(1, round(h * scale)))

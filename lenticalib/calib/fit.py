@@ -83,12 +83,20 @@ class _Group:
 def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group:
     photos = _group_photos(capture, name, shape, progress)
     patterns = capture.patterns.group(name)
-    z, dc = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
     pat = patterns[0]
+    extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
+    if pat.period < extent / 4:
+        # many fringes across the panel: every step has the same mean light, so differences in
+        # mean between the photos are exposure changes (phone auto-exposure); undo them
+        means = [float(np.mean(p.luma, dtype=np.float64)) for p in photos]
+        target = float(np.mean(means))
+        for p, m in zip(photos, means):
+            if m > 0:
+                p.luma = p.luma * np.float32(target / m)
+    z, dc = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
     if pat.group[0] in "xy":
         # A camera pixel may see no lit (green) subpixel; average the complex fringe over an
         # eighth of a fringe (the panel spans at least ~half the frame), which keeps the phase.
-        extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
         frame = z.shape[1] if pat.axis == "x" else z.shape[0]
         sigma = min(frame / 300.0, pat.period / extent * 0.5 * frame / 8.0)
         z = phase.smooth_complex(z, sigma)
@@ -233,7 +241,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
 
     if progress:
         progress("fitting the view-coordinate plane")
-    stride = max(1, int(math.sqrt(valid.sum() / 1_500_000)))
+    stride = max(1, int(round(math.sqrt(valid.sum() / 800_000))))
     sub = np.zeros_like(valid)
     sub[::stride, ::stride] = True
     take = valid & sub
@@ -267,6 +275,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     samples = model.PlaneSamples(*(getattr(all_samples, f)[keep] for f in ("x", "y", "psi", "weight", "group")))
     fit, final_weights = model.fit_plane(samples, first.a, first.b, xc, yc)
     cov = model.block_jackknife(samples, fit, final_weights, ps.width, ps.height)
+    cov = cov + model.systematic_floor(n_views, ps.width, ps.height)
     if len(used) > 1:
         diffs = np.array([[g.a - fit.a, g.b - fit.b, float(model.wrap(g.c0 - fit.c0))]
                           for _, _, g in (group_fits[i] for i in used)])
@@ -367,27 +376,33 @@ def _quality(fit, samples, weights, cov, ps, n_views) -> dict:
     }
 
 
-def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray, block: int = 48) -> complex:
+def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
+                     block: int = 48) -> tuple[complex, int]:
     """Sum over blocks of the complex fringe amplitude (relative to the block's mean level).
 
-    In each block, ``luma ~ A + Re(m exp(2 pi i predicted))`` by least squares; returns the
-    sum of m / A over blocks (its angle: the photo's phase offset from the prediction).
+    In each ``block`` x ``block`` pixel square, ``luma ~ A + Re(m exp(2 pi i predicted))`` by
+    least squares; returns (sum of m / A over blocks, number of blocks).  The angle of the
+    sum is the photo's phase offset from the prediction.
     """
     h, w = luma.shape
-    total = 0j
-    for r0 in range(0, h - block + 1, block):
-        for c0 in range(0, w - block + 1, block):
-            sel = valid[r0:r0 + block, c0:c0 + block]
-            if sel.sum() < block * block // 2:
-                continue
-            ph = 2 * math.pi * predicted_cycles[r0:r0 + block, c0:c0 + block][sel]
-            val = luma[r0:r0 + block, c0:c0 + block][sel].astype(np.float64)
-            design = np.stack([np.ones_like(ph), np.cos(ph), np.sin(ph)], axis=1)
-            coef, *_ = np.linalg.lstsq(design, val, rcond=None)
-            if coef[0] <= 0:
-                continue
-            total += complex(coef[1], -coef[2]) / coef[0]
-    return total
+    rows, cols = np.nonzero(valid)
+    nbx = (w + block - 1) // block
+    index = (rows // block) * nbx + cols // block
+    nb = ((h + block - 1) // block) * nbx
+    ph = 2 * math.pi * predicted_cycles[rows, cols]
+    basis = (np.ones_like(ph), np.cos(ph), np.sin(ph))
+    val = luma[rows, cols].astype(np.float64)
+    gram = np.empty((nb, 3, 3))
+    rhs = np.empty((nb, 3))
+    for i in range(3):
+        rhs[:, i] = np.bincount(index, weights=basis[i] * val, minlength=nb)
+        for j in range(i, 3):
+            gram[:, i, j] = gram[:, j, i] = np.bincount(index, weights=basis[i] * basis[j], minlength=nb)
+    full = gram[:, 0, 0] >= block * block // 2
+    coef = np.linalg.solve(gram[full] + 1e-9 * np.eye(3), rhs[full][:, :, None])[:, :, 0]
+    good = coef[:, 0] > 0
+    coef = coef[good]
+    return complex(np.sum((coef[:, 1] - 1j * coef[:, 2]) / coef[:, 0])), int(good.sum())
 
 
 def _predicted_fine_cycles(fit, x_sm, y_sm, valid, period):
@@ -411,8 +426,8 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress) ->
             raise CaptureError(f"should show a {colour} pattern but its panel is not {colour}",
                                source=str(photo.path),
                                hint=f"photograph {name}.png (swapped with the other order photo?)")
-        q = _block_amplitude(photo.luma, pred, valid)
-        blocks = max(1, int(valid.sum() / (48 * 48)))
+        q, blocks = _block_amplitude(photo.luma, pred, valid)
+        blocks = max(1, blocks)
         amps[name] = abs(q) / blocks / max(ref_amp, 1e-9)
         offsets[name] = math.atan2(q.imag, q.real) / (2 * math.pi)
         if amps[name] < 0.15:
@@ -434,6 +449,8 @@ def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:
 
 def _camera(photo: Photo, x_sm, y_sm, valid, ps, given) -> dict:
     """Camera estimate from ~2500 correspondences on a grid over the measured panel."""
+    import cv2
+
     rows, cols = np.nonzero(valid)
     step = max(1, rows.size // 2500)
     rows, cols = rows[::step], cols[::step]
@@ -441,5 +458,5 @@ def _camera(photo: Photo, x_sm, y_sm, valid, ps, given) -> dict:
     panel = np.column_stack([x_sm[rows, cols] / 3.0 - ps.width / 2.0, y_sm[rows, cols] - ps.height / 2.0])
     try:
         return estimate_camera(pixels, panel, (photo.shape[1], photo.shape[0]), given)
-    except Exception as exc:  # the estimate is informative only; never fail a fit on it
-        return {"source": "not estimated", "reason": str(exc)}
+    except (cv2.error, np.linalg.LinAlgError, ValueError) as exc:  # informative only: never fail the fit
+        return {"source": "not estimated", "reason": str(exc).strip().splitlines()[-1][:200]}

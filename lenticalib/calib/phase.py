@@ -93,8 +93,12 @@ def smooth_coordinate(coordinate: np.ndarray, weight: np.ndarray, sigma: float,
     coef = _robust_lstsq(terms, target, wts)
     uu = (np.arange(w) - w / 2) / w
     vv = (np.arange(h) - h / 2) / w
-    grid_u, grid_v = np.meshgrid(uu, vv)
-    model = _poly_terms(grid_u, grid_v, degree) @ coef
+    # sum_k coef_k u^i v^j over the grid = V @ M @ U^T with M[j, i] = coef of u^i v^j
+    powers = [(i, j) for i in range(degree + 1) for j in range(degree + 1 - i)]
+    mat = np.zeros((degree + 1, degree + 1))
+    for (i, j), value in zip(powers, coef):
+        mat[j, i] = value
+    model = (vv[:, None] ** np.arange(degree + 1)) @ mat @ (uu[:, None] ** np.arange(degree + 1)).T
     residual = np.where(weight > 0, coordinate - model, 0.0)
     wmap = np.where(weight > 0, weight, 0.0).astype(np.float32)
     num = cv2.GaussianBlur((residual * wmap).astype(np.float32), (0, 0), sigma)

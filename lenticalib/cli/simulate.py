@@ -1,0 +1,129 @@
+"""``lenticalib simulate``: photograph the test patterns on a virtual panel (a synthetic capture set).
+
+Reads ``DIR/patterns.json`` (from ``lenticalib patterns``), draws a random but plausible panel
+and camera (or loads one with ``--scene``), writes ``DIR/captures/NAME.jpg`` for every pattern,
+``DIR/truth.json`` (the ideal profile for the camera position) and ``DIR/simulation.json``
+(everything needed to reproduce the set).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+
+_RESOLUTION = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("directory", metavar="DIR", help="pattern folder written by 'lenticalib patterns'")
+    parser.add_argument("--seed", type=int, metavar="N", help="seed of the random scene (default: a fresh one, "
+                        "recorded in simulation.json)")
+    parser.add_argument("--resolution", metavar="WxH", help="camera resolution in pixels (default 4000x3000)")
+    parser.add_argument("--scene", metavar="FILE", help="reuse a scene: a simulation.json or scene JSON "
+                        "(not combinable with --seed/--resolution/--slant/--period/--order/--distance)")
+    parser.add_argument("--slant", type=float, metavar="C", help="lens slant C_r in pixels per row (signed)")
+    parser.add_argument("--period", type=float, metavar="D", help="lens period Delta_r in subpixels at the "
+                        "camera distance")
+    parser.add_argument("--order", choices=("RGB", "BGR"), help="subpixel order of the panel")
+    parser.add_argument("--distance", type=float, metavar="MM", help="camera distance to the panel in mm")
+    parser.add_argument("--jpeg-quality", type=int, metavar="Q", help="JPEG quality 1..100 (default: random "
+                        "80..95)")
+    parser.add_argument("--subsamples", type=int, default=3, metavar="K",
+                        help="rays per sensor pixel side, K x K per pixel (default 3)")
+    parser.add_argument("--json", action="store_true", help="print a JSON summary instead of sentences")
+    parser.set_defaults(run=run)
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """``"4000x3000"`` -> (4000, 3000); InputError naming ``--resolution`` otherwise."""
+    from ..errors import InputError
+
+    match = _RESOLUTION.match(text or "")
+    if not match or not (16 <= int(match.group(1)) <= 20000 and 16 <= int(match.group(2)) <= 20000):
+        raise InputError(f"bad resolution {text!r}", source="--resolution",
+                         hint="write it as WIDTHxHEIGHT in pixels, e.g. 4000x3000 (16..20000 each)")
+    return int(match.group(1)), int(match.group(2))
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    import math
+
+    from ..errors import InputError
+
+    if args.slant is not None and not (math.isfinite(args.slant) and abs(args.slant) < 1.5):
+        raise InputError(f"slant {args.slant} is out of range", source="--slant",
+                         hint="give C_r in pixels per row, |C_r| < 1.5 (typical panels 0.1..0.35)")
+    if args.period is not None and not (math.isfinite(args.period) and 2.0 <= args.period <= 200.0):
+        raise InputError(f"period {args.period} is out of range", source="--period",
+                         hint="give Delta_r in subpixels, 2..200 (typical panels 14..24)")
+    if args.distance is not None and not (math.isfinite(args.distance) and 100.0 <= args.distance <= 10000.0):
+        raise InputError(f"distance {args.distance} is out of range", source="--distance",
+                         hint="give the camera distance in mm, 100..10000 (typical 450..800)")
+    if args.jpeg_quality is not None and not 1 <= args.jpeg_quality <= 100:
+        raise InputError(f"JPEG quality {args.jpeg_quality} is out of range", source="--jpeg-quality",
+                         hint="use 1..100")
+    if args.resolution is not None:
+        parse_resolution(args.resolution)
+    if not 1 <= args.subsamples <= 16:
+        raise InputError(f"{args.subsamples} subsamples is out of range", source="--subsamples", hint="use 1..16")
+
+
+def build_scene(args: argparse.Namespace, pattern_set):
+    """The scene the options ask for: loaded with --scene, else drawn by random_scene."""
+    import secrets
+
+    from ..errors import InputError
+    from ..profile import read_json_file
+    from ..sim.scene import Scene, random_scene
+
+    if args.scene:
+        clashing = [flag for flag, value in (("--seed", args.seed), ("--resolution", args.resolution),
+                                             ("--slant", args.slant), ("--period", args.period),
+                                             ("--order", args.order), ("--distance", args.distance))
+                    if value is not None]
+        if clashing:
+            raise InputError(f"cannot be combined with {', '.join(clashing)}", source="--scene",
+                             hint="the scene file fixes the panel and the camera; drop those options")
+        data = read_json_file(args.scene, "scene", "check the --scene path")
+        scene = Scene.from_dict(data, source=args.scene)
+        changes = {}
+        if args.jpeg_quality is not None:
+            changes["jpeg_quality"] = args.jpeg_quality
+        if args.subsamples != scene.camera.subsamples:
+            changes["subsamples"] = args.subsamples
+        return scene.replace_camera(**changes) if changes else scene
+    seed = args.seed if args.seed is not None else secrets.randbelow(2 ** 31)
+    resolution = parse_resolution(args.resolution) if args.resolution else None
+    return random_scene(seed, width=pattern_set.width, height=pattern_set.height, resolution=resolution,
+                        period=args.period, slant=args.slant, order=args.order, distance=args.distance,
+                        jpeg_quality=args.jpeg_quality, subsamples=args.subsamples)
+
+
+def run(args: argparse.Namespace) -> int:
+    import time
+
+    from ..calib.patterns import read_manifest
+    from ..sim.capture import simulate_capture_set
+    from ._progress import progress_bar
+
+    _check_options(args)
+    pattern_set = read_manifest(args.directory)
+    scene = build_scene(args, pattern_set)
+    start = time.perf_counter()
+    with progress_bar(len(pattern_set.patterns), "photographing") as bar:
+        summary = simulate_capture_set(args.directory, scene, progress=bar.wrap)
+    summary["seconds"] = round(time.perf_counter() - start, 2)
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    p = summary["profile"]
+    cam = scene.camera
+    print(f"wrote {summary['photos']} photos to {summary['captures']} ({cam.width}x{cam.height}, seed "
+          f"{scene.seed}, camera at x={cam.position[0]:.1f} y={cam.position[1]:.1f} mm, "
+          f"{cam.distance:.1f} mm away; {summary['seconds']:.1f} s)")
+    print(f"truth: {summary['truth']}: slant {p['slant']:.6f}, period {p['period']:.6f}, "
+          f"offset {p['offset']:.6f}, reference view {p['reference_view']:g}, order {p['subpixel_order']}, "
+          f"{p['views']} views")
+    print(f"scene: {summary['simulation']} (reproduce with: lenticalib simulate DIR --scene {summary['simulation']})")
+    return 0
