@@ -141,6 +141,37 @@ def _check_clipping(groups: list[_Group], mask: np.ndarray) -> None:
                                         "and retake every photo with that exposure")
 
 
+MAX_GROUP_SHIFT = 0.5  # working pixels; smaller moves show up as fine groups disagreeing
+
+
+def _check_motion(groups: dict[str, "_Group"], capture: CaptureSet) -> None:
+    """CaptureError if the camera moved between groups.
+
+    The mean image of a green-only group with many fringes across the panel is the evenly lit
+    panel; its
+    edges (panel border, bezel) must sit at the same place in every group.  Shifts are measured
+    by phase correlation of edge images against group x1.
+    """
+    import cv2
+
+    def edges(dc):
+        blurred = cv2.GaussianBlur(dc.astype(np.float32), (0, 0), 1.0)
+        gx = cv2.Sobel(blurred, cv2.CV_32F, 1, 0)
+        gy = cv2.Sobel(blurred, cv2.CV_32F, 0, 1)
+        return np.sqrt(gx * gx + gy * gy)
+
+    reference = edges(groups["x1"].dc)
+    window = cv2.createHanningWindow(reference.shape[::-1], cv2.CV_32F)
+    for name in ("x2",) + tuple(f"f{t:g}" for t in FINE_PERIODS):  # green-only, like x1
+        (dx, dy), _ = cv2.phaseCorrelate(reference, edges(groups[name].dc), window)
+        shift = math.hypot(dx, dy) / groups[name].photos[0].scale
+        if math.hypot(dx, dy) > MAX_GROUP_SHIFT:
+            raise CaptureError(f"the camera moved between photos: group {name} is shifted by {shift:.1f} pixels "
+                               "against group x1", source=str(capture.directory / "captures"),
+                               hint="put the camera on a tripod, use a remote or timer shutter, and retake "
+                                    "every photo")
+
+
 def _mask_checks(mask: np.ndarray, capture: CaptureSet) -> None:
     frac = float(mask.mean())
     first = capture.photo(capture.patterns.group("x1")[0].name)
@@ -225,6 +256,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         progress("finding the panel")
     mask = phase.panel_mask([np.abs(groups["x1"].z), np.abs(groups["y1"].z)])
     _mask_checks(mask, capture)
+    _check_motion(groups, capture)
     _check_clipping(list(groups.values()), mask)
 
     if progress:

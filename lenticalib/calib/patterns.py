@@ -25,7 +25,7 @@ Why these patterns (the physics is in ``../shared/optics.md``):
   slots red and blue have in RGB order; their phase against the fitted model tells
   whether red really is on the left.
 
-21 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
+23 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
 fine periods cover lens periods Delta_r from 8 to 33 subpixels.
 """
 

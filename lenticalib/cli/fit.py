@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
                "uncertainty": unc, "report": str(report_dir),
                "quality": {k: v for k, v in result.quality.items() if not isinstance(v, (list, dict))}}
     if result.trusted or args.force:
+        output.parent.mkdir(parents=True, exist_ok=True)
         save_profile(profile, output)
         summary["output"] = str(output)
     if args.json:
