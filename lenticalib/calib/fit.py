@@ -307,7 +307,6 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     samples = model.PlaneSamples(*(getattr(all_samples, f)[keep] for f in ("x", "y", "psi", "weight", "group")))
     fit, final_weights = model.fit_plane(samples, first.a, first.b, xc, yc)
     cov = model.block_jackknife(samples, fit, final_weights, ps.width, ps.height)
-    cov = cov + model.systematic_floor(n_views, ps.width, ps.height)
     if len(used) > 1:
         diffs = np.array([[g.a - fit.a, g.b - fit.b, float(model.wrap(g.c0 - fit.c0))]
                           for _, _, g in (group_fits[i] for i in used)])
@@ -319,8 +318,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
 
     camera = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera)
+    quality, cov = _quality(fit, samples, final_weights, cov, ps, n_views)
     constants, sigmas = _constants_with_uncertainty(fit, cov)
-    quality = _quality(fit, samples, final_weights, cov, ps, n_views)
     quality.update({
         "fine_groups": [{"period": p, "alias": round(al, 4), "coherence": round(g.coherence, 4),
                          "used": i in used, "period_estimate": -1.0 / g.a} for i, (p, al, g) in enumerate(group_fits)],
@@ -380,7 +379,13 @@ def _constants_with_uncertainty(fit: model.PlaneFit, cov: np.ndarray) -> tuple[d
     return base, sigmas
 
 
-def _quality(fit, samples, weights, cov, ps, n_views) -> dict:
+def _quality(fit, samples, weights, cov, ps, n_views) -> tuple[dict, np.ndarray]:
+    """Quality numbers and the final covariance of (a, b, c0).
+
+    The covariance gets the systematic floor of :func:`model.systematic_floor`, at least
+    ``model.SYSTEMATIC_FLOOR_VIEWS`` and at least the block residual RMS: a trend as large as
+    the local scatter of w could hide in it.
+    """
     r = fit.residual(samples)
     # systematic misfit: weighted mean residual in panel blocks of ~1/24 x 1/14 of the panel
     bx = np.clip((samples.x / (3 * ps.width) * 24).astype(int), 0, 23)
@@ -392,6 +397,8 @@ def _quality(fit, samples, weights, cov, ps, n_views) -> dict:
     block_mean = np.where(ok, rsum / np.maximum(wsum, 1e-12), np.nan)
     bm = block_mean[ok]
     bm = bm - np.average(bm, weights=wsum[ok])
+    block_rms = float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views)
+    cov = cov + model.systematic_floor(n_views, ps.width, ps.height, max(model.SYSTEMATIC_FLOOR_VIEWS, block_rms))
     corners = np.array([[0, 0], [3 * ps.width, 0], [0, ps.height], [3 * ps.width, ps.height],
                         [1.5 * ps.width, 0.5 * ps.height]], dtype=float)
     grads = np.stack([corners[:, 0] - fit.x0, corners[:, 1] - fit.y0, np.ones(len(corners))], axis=1)
@@ -399,13 +406,13 @@ def _quality(fit, samples, weights, cov, ps, n_views) -> dict:
     return {
         "coherence": float(fit.coherence),
         "pixel_residual_rms_views": float(np.sqrt(np.average(r ** 2, weights=weights)) * n_views),
-        "block_residual_rms_views": float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views),
+        "block_residual_rms_views": block_rms,
         "block_residual_worst_views": float(np.max(np.abs(bm)) * n_views),
         "predicted_error_centre_views": float(sig[-1]),
         "predicted_error_worst_views": float(np.max(sig)),
         "samples": int(samples.x.size),
         "block_residual_map": block_mean.reshape(14, 24) * n_views,
-    }
+    }, cov
 
 
 def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
