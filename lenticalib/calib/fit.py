@@ -62,7 +62,8 @@ def _group_photos(capture: CaptureSet, group: str, shape: tuple[int, int] | None
         if progress:
             progress(f"reading {capture.photo(pattern.name).name}")
         photo = load_photo(pattern.name, capture.photo(pattern.name), keep_rgb=keep_rgb)
-        if shape is not None and photo.shape != shape:
+        shape = shape or photo.shape
+        if photo.shape != shape:
             raise CaptureError(f"is {photo.shape[1]}x{photo.shape[0]} pixels, the other photos are "
                                f"{shape[1]}x{shape[0]}", source=str(photo.path),
                                hint="take every photo with the same camera, zoom and orientation")
@@ -83,6 +84,8 @@ class _Group:
 def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group:
     photos = _group_photos(capture, name, shape, progress)
     patterns = capture.patterns.group(name)
+    if len(photos) > 1:
+        _check_distinct(_Group(name, patterns[0].period, None, None, photos), capture)
     pat = patterns[0]
     extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
     if pat.period < extent / 4:
@@ -107,22 +110,61 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
 
 def _check_photo_steps(group: _Group, predicted_cycles: np.ndarray, mask: np.ndarray, capture: CaptureSet,
                        what: str) -> None:
-    """Each photo of a group must show its own phase step of the predicted fringe."""
+    """Each photo of a group must show its own phase step of the predicted fringe, as clearly as
+    the others.
+
+    A photo is compared with the mean of the *other* photos of its group, ``I_k - mean_j I_j =
+    (K/(K-1)) B cos(Phi + theta_k)`` for a right photo, so a blank, blurred or swapped photo
+    cannot hide behind a group average it is part of.  When every photo of the group is off,
+    the fault is the set's (another pattern set, a moved camera), not one photo's.
+    """
     patterns = capture.patterns.group(group.name)
     sel = mask & np.isfinite(predicted_cycles)
-    carrier = np.exp(-2j * math.pi * predicted_cycles[sel])
-    ref = float(np.mean(np.abs(group.z[sel])))
-    for photo, pattern in zip(group.photos, patterns):
-        signal = (photo.luma[sel].astype(np.float32) - group.dc[sel]) * carrier
-        q = complex(np.mean(signal)) * 2.0
-        amp = abs(q) / max(ref, 1e-9)
-        step_error = abs(float(model.wrap(math.atan2(q.imag, q.real) / (2 * math.pi) - pattern.step / pattern.steps)))
-        if amp < 0.35 or step_error > 0.11:
-            raise CaptureError(f"does not show pattern {pattern.name} (fringe contrast {amp:.2f} of the group's, "
-                               f"phase off by {step_error * 360:.0f} degrees) {what}",
+    stride = max(1, int(sel.sum() // 400_000))
+    index = np.flatnonzero(sel)[::stride]
+    carrier = np.exp(-2j * math.pi * predicted_cycles.ravel()[index])
+    values = [p.luma.ravel()[index].astype(np.float32) for p in group.photos]
+    total = np.sum(values, axis=0)
+    k = len(values)
+    amps, steps = [], []
+    for value, pattern in zip(values, patterns):
+        others = (total - value) / (k - 1)
+        q = complex(np.mean((value - others) * carrier))
+        amps.append(abs(q))
+        steps.append(abs(float(model.wrap(math.atan2(q.imag, q.real) / (2 * math.pi) - pattern.step / pattern.steps))))
+    reference = float(np.median(amps))
+    if all(step > 0.11 for step in steps) or reference <= 0:
+        raise CaptureError(f"no photo of group {group.name} shows its pattern where the other groups say it "
+                           f"should be {what}".rstrip(), source=str(capture.directory / "captures"),
+                           hint="the photos belong to another pattern set, or the camera moved between "
+                                "groups; photograph this folder's patterns with the camera on a tripod")
+    for photo, pattern, amp, step in zip(group.photos, patterns, amps, steps):
+        if amp < 0.6 * reference or step > 0.11:
+            raise CaptureError(f"does not show pattern {pattern.name} clearly (fringe contrast {amp / reference:.2f} "
+                               f"of its group's, phase off by {step * 360:.0f} degrees) {what}".rstrip(),
                                source=str(photo.path),
                                hint=f"show {pattern.file} full screen, keep the camera still and in focus, "
-                                    "and photograph it again (or these photos belong to another pattern set)")
+                                    "and photograph it again")
+
+
+def _check_distinct(group: _Group, capture: CaptureSet) -> None:
+    """Two photos of one phase-shift group must differ (a pattern photographed twice, or a copy)."""
+    import cv2
+
+    small = [cv2.resize(p.luma.astype(np.float32), None, fx=0.25, fy=0.25, interpolation=cv2.INTER_AREA)
+             for p in group.photos]
+    pairs = [(i, j) for i in range(len(small)) for j in range(i + 1, len(small))]
+    energy = [float(np.mean((small[i] - small[j]) ** 2)) for i, j in pairs]
+    level = float(np.mean([np.mean(s ** 2) for s in small]))
+    if max(energy) < 0.01 * level:
+        return  # hardly any fringes in any photo (blur, no panel): later checks name that
+    # a visible fringe makes two different steps differ by ~0.1 level; a duplicate by noise only
+    same = [e < min(0.002 * level, 0.05 * max(energy)) for e in energy]
+    for (i, j), e, is_same in zip(pairs, energy, same):
+        if is_same:
+            raise CaptureError(f"shows the same pattern as {group.photos[i].path.name}", source=str(group.photos[j].path),
+                               hint=f"photograph {capture.patterns.group(group.name)[j].file} (each phase step is a "
+                                    "different image)")
 
 
 def _check_clipping(groups: list[_Group], mask: np.ndarray) -> None:

@@ -207,6 +207,9 @@ def write_patterns(directory: str | os.PathLike, pattern_set: PatternSet,
     return manifest_path
 
 
+_FREE_KEYS = ("created", "lenticalib_version", "note")
+
+
 def read_manifest(directory: str | os.PathLike) -> PatternSet:
     """The pattern set described by ``DIR/patterns.json``; InputError naming the file if unusable."""
     from ..profile import read_json_file
@@ -227,7 +230,7 @@ def read_manifest(directory: str | os.PathLike) -> PatternSet:
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"field {exc} is missing or wrong", source=source,
                          hint="write the patterns again with 'lenticalib patterns'") from None
-    if data.get("set_id") != expected.set_id or [p.get("name") for p in data.get("patterns", [])] != expected.names:
+    if data != {**expected.to_dict(), **{k: data[k] for k in _FREE_KEYS if k in data}}:
         raise InputError("describes patterns this lenticalib did not draw (edited, or from another version)",
                          source=source, hint="write the patterns again with 'lenticalib patterns' and "
                                              "photograph them")

@@ -1,0 +1,130 @@
+"""Photographing a pattern folder on the virtual panel: a synthetic capture set with its truth.
+
+Layout written into the pattern folder ``DIR`` (the one ``lenticalib patterns`` wrote):
+
+    DIR/captures/NAME.jpg   one camera JPEG per pattern NAME.png (nothing else goes here)
+    DIR/simulation.json     the scene (every optics and camera parameter), its seed, the
+                            per-photo noise seeds, the pattern set id and the lenticalib
+                            version: enough to reproduce every photo bit for bit
+    DIR/truth.json          the ideal profile for the camera position (provenance "simulation")
+
+``simulation.json`` is written first with ``"status": "in progress"`` and rewritten with
+``"complete"`` at the end, so an interrupted run is recognisable.  A ``captures`` folder that
+holds files but no ``simulation.json`` (real photos, presumably) is never written into.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import zlib
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ..atomic import write_bytes_atomic, write_text_atomic
+from ..errors import ImageError, InputError
+from .scene import Scene
+
+SIMULATION_NAME = "simulation.json"
+TRUTH_NAME = "truth.json"
+CAPTURE_FOLDER = "captures"
+
+
+def noise_seed(scene: Scene, pattern_name: str) -> list[int]:
+    """The seed of the sensor noise of one photo: ``[scene seed (0 if None), crc32(name)]``."""
+    return [int(scene.seed or 0), zlib.crc32(pattern_name.encode("utf-8"))]
+
+
+def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[dict[str, Any]],
+                       truth: dict[str, Any] | None) -> dict[str, Any]:
+    from .. import __version__
+
+    record: dict[str, Any] = {
+        "format": "lenticalib.simulation-run", "format_version": 1, "status": status,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "lenticalib_version": __version__, "seed": scene.seed,
+        "pattern_set": {"set_id": pattern_set.set_id, "width": pattern_set.width,
+                        "height": pattern_set.height, "views": pattern_set.views},
+        "camera_position_mm": list(scene.eye),
+        "view_zone_width_mm": scene.optics.view_zone_width(scene.camera.distance, pattern_set.views),
+        "scene": scene.to_dict(), "captures": captures,
+    }
+    if truth is not None:
+        record["truth"] = truth
+    return record
+
+
+def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
+                         progress: Callable[[Iterable], Iterable] | None = None) -> dict[str, Any]:
+    """Photograph every pattern of ``pattern_dir`` on the virtual panel of ``scene``.
+
+    ARGUMENTS
+    pattern_dir   folder with ``patterns.json`` and the pattern PNGs
+    scene         panel + camera; the panel raster size must equal the pattern set's
+    progress      optional wrapper of the pattern iterable (e.g. ``tqdm.tqdm``), called once
+
+    RETURNED VALUE
+    dict: ``directory``, ``captures`` (folder), ``photos`` (count), ``truth`` (path of
+    truth.json), ``simulation`` (path of simulation.json), ``profile`` (the truth constants),
+    ``resolution`` [w, h], ``seed``.
+
+    Raises InputError (file named) for a missing or foreign manifest, a scene of another panel
+    size, a captures folder with foreign files, or an unreadable pattern image.
+    """
+    from ..calib.patterns import MANIFEST_NAME, read_manifest
+    from ..imageio import read_image
+    from ..profile import make_provenance, save_profile
+    from .render import photograph_jpeg
+
+    directory = Path(pattern_dir)
+    pattern_set = read_manifest(directory)
+    manifest = directory / MANIFEST_NAME
+    optics = scene.optics
+    if (optics.width, optics.height) != (pattern_set.width, pattern_set.height):
+        raise InputError(f"patterns are for a {pattern_set.width}x{pattern_set.height} panel, the scene "
+                         f"simulates {optics.width}x{optics.height}", source=str(manifest),
+                         hint="simulate a panel of the pattern set's size")
+    captures = directory / CAPTURE_FOLDER
+    simulation_path = directory / SIMULATION_NAME
+    if captures.is_dir() and any(captures.iterdir()) and not simulation_path.exists():
+        raise InputError("holds files that the simulator did not write (real photos?)", source=str(captures),
+                         hint="simulate into a fresh copy of the pattern folder")
+    if captures.exists() and not captures.is_dir():
+        raise InputError("is not a folder", source=str(captures))
+    try:
+        captures.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create: {exc.strerror}", source=str(captures),
+                         hint="choose a writable pattern folder") from None
+
+    records = [{"pattern": p.name, "file": f"{CAPTURE_FOLDER}/{p.name}.jpg", "noise_seed": noise_seed(scene, p.name)}
+               for p in pattern_set.patterns]
+    write_text_atomic(simulation_path, json.dumps(
+        _simulation_record(scene, pattern_set, "in progress", records, None), indent=2) + "\n")
+
+    items: Iterable = pattern_set.patterns if progress is None else progress(pattern_set.patterns)
+    for pattern in items:
+        source = directory / pattern.file
+        raster = read_image(source)
+        if raster.dtype != np.uint8 or raster.shape != (optics.height, optics.width, 3):
+            raise ImageError(f"expected an 8-bit {optics.width}x{optics.height} pattern, got {raster.dtype} "
+                             f"{raster.shape[1]}x{raster.shape[0]}", source=str(source),
+                             hint="write the patterns again with 'lenticalib patterns'")
+        rng = np.random.default_rng(noise_seed(scene, pattern.name))
+        write_bytes_atomic(captures / f"{pattern.name}.jpg", photograph_jpeg(raster, scene, rng))
+
+    provenance = make_provenance("simulation", inputs=[manifest], seed=scene.seed,
+                                 simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))
+    profile = scene.truth_profile(pattern_set.views, name="simulation truth", provenance=provenance)
+    truth_path = save_profile(profile, directory / TRUTH_NAME)
+    constants = {k: getattr(profile, k) for k in ("views", "slant", "period", "offset", "reference_view",
+                                                   "width", "height", "subpixel_order")}
+    write_text_atomic(simulation_path, json.dumps(
+        _simulation_record(scene, pattern_set, "complete", records, {"file": TRUTH_NAME, **constants}),
+        indent=2) + "\n")
+    return {"directory": str(directory), "captures": str(captures), "photos": len(records),
+            "truth": str(truth_path), "simulation": str(simulation_path), "profile": constants,
+            "resolution": [scene.camera.width, scene.camera.height], "seed": scene.seed}

@@ -1,0 +1,260 @@
+"""The virtual panel: truth profile vs ray-traced w*, renderer physics, determinism, CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from lenticalib.errors import InputError
+from lenticalib.profile import load_profile
+from lenticalib.routing import view_coordinate
+from lenticalib.sim import Scene, random_scene, view_coordinate_truth
+from lenticalib.sim.render import photograph, photograph_jpeg
+
+N = 32
+
+
+def _circular(d, n=N):
+    return (np.asarray(d) + n / 2) % n - n / 2
+
+
+# 1. The truth profile's w at subpixel x_s equals the ray-traced w* at the subpixel's centre ----------
+@pytest.mark.parametrize("seed, slant, order", [(0, 0.31, "RGB"), (1, -0.12, "RGB"), (2, 0.19, "BGR"),
+                                               (3, -0.35, "BGR"), (4, None, None), (5, None, None)])
+def test_truth_profile_matches_ray_traced_view_coordinate(seed, slant, order):
+    scene = random_scene(seed, slant=slant, order=order, resolution=(640, 480))
+    o = scene.optics
+    profile = scene.truth_profile(N)
+    assert profile.slant == pytest.approx(np.tan(o.slant_angle), abs=1e-15)
+    assert profile.period == pytest.approx(3 * o.lens_pitch * (1 + o.gap / scene.camera.distance) / o.pixel_pitch)
+    assert 0 <= profile.offset < profile.period and profile.reference_view == N / 2
+    assert profile.subpixel_order == o.subpixel_order and (profile.width, profile.height) == (3840, 2160)
+    rows = np.r_[np.arange(0, 2160, 61), 2159]
+    cols = np.r_[np.arange(0, 3 * 3840, 37), 3 * 3840 - 1]
+    w = view_coordinate(profile, rows)[:, cols]
+    w_star = view_coordinate_truth(o, scene.eye, cols[None, :] + 0.5, rows[:, None] + 0.5, N)
+    assert np.abs(_circular(w - w_star)).max() < 1e-6
+    if slant is not None:  # requested routing constants come out exactly
+        assert profile.slant == pytest.approx(slant, rel=1e-12)
+
+
+def test_requested_period_is_exact_at_the_camera_distance():
+    scene = random_scene(11, period=17.25, distance=612.0, resolution=(640, 480))
+    assert scene.truth_profile(N).period == pytest.approx(17.25, rel=1e-12)
+    assert 1.0 <= scene.optics.gap / scene.optics.lens_pitch_u <= 1.6  # kappa range
+
+
+# 3. Seen-point formula ----------------------------------------------------------------------------
+def test_seen_point_of_any_ray_lies_at_the_centre_of_the_view_cone():
+    scene = random_scene(7, resolution=(640, 480))
+    o, eye = scene.optics, scene.eye
+    rng = np.random.default_rng(0)
+    k = rng.integers(-250, 250, 200)
+    v = rng.uniform(-150, 150, 200)
+    u_c = o.lens_centre(k)
+    lx, ly = o.from_uv(u_c, v)  # on lens centre lines
+    xp, yp = o.seen_point(eye, lx, ly)
+    # the chief ray: E, the lens-centre point L and the seen point P are collinear
+    ex, ey, ez = eye
+    t = -ez / (o.gap - ez)
+    np.testing.assert_allclose(ex + (xp - ex) * t, lx, atol=1e-9)
+    np.testing.assert_allclose(ey + (yp - ey) * t, ly, atol=1e-9)
+    w = view_coordinate_truth(o, eye, *o.world_to_raster(xp, yp), N)
+    assert np.abs(_circular(w - N / 2)).max() < 1e-9
+    # any other point of the same lens shows the same u, hence the same view
+    du = rng.uniform(-0.49, 0.49, 200) * o.lens_pitch_u
+    xq, yq = o.seen_point(eye, *o.from_uv(u_c + du, v))
+    w = view_coordinate_truth(o, eye, *o.world_to_raster(xq, yq), N)
+    assert np.abs(_circular(w - N / 2)).max() < 1e-9
+
+
+def test_camera_rays_and_projection_are_inverse():
+    cam = random_scene(8, resolution=(640, 480)).camera
+    px, py = np.meshgrid(np.linspace(-0.5, 639.5, 17), np.linspace(-0.5, 479.5, 13))
+    lx, ly = cam.lens_plane_points(px, py)
+    back = cam.project(np.stack([lx.ravel(), ly.ravel(), np.zeros(lx.size)], 1))
+    assert np.abs(back - np.stack([px.ravel(), py.ravel()], 1)).max() < 1e-6
+
+
+# 2. Physical consistency of the renderer with the truth ----------------------------------------------
+def _band_raster(profile, lo, hi):
+    """Light (255) every subpixel whose true view frac(w/N) N lies in [lo, hi), else 0."""
+    v = np.mod(view_coordinate(profile), profile.views)
+    lit = ((v >= lo) & (v < hi)).astype(np.uint8) * 255
+    raster = np.zeros((profile.height, profile.width, 3), np.uint8)
+    for channel, position in enumerate(profile.rho):
+        raster[:, :, channel] = lit[:, position::3]
+    return raster
+
+
+def _panel_brightness(scene, photo):
+    """Mean brightness (sum of RGB) of the camera pixels that see the inner 80% of the panel."""
+    cam, o = scene.camera, scene.optics
+    px, py = np.meshgrid(np.arange(cam.width, dtype=float), np.arange(cam.height, dtype=float))
+    lx, ly = cam.lens_plane_points(px, py)
+    half_w, half_h = o.panel_size[0] / 2, o.panel_size[1] / 2
+    inside = (np.abs(lx) < 0.8 * half_w) & (np.abs(ly) < 0.8 * half_h)
+    assert inside.sum() > 0.08 * inside.size
+    values = photo.astype(np.float64).sum(axis=2)[inside]
+    return values.mean(), values.std()
+
+
+@pytest.fixture(scope="module")
+def small_scene():
+    # A 1280 x 720 raster (big pixels, so the camera sees ~3 pixels per lens at 800 x 600)
+    scene = random_scene(21, width=1280, height=720, resolution=(800, 600), slant=-0.23)
+    return Scene(scene.optics, scene.camera.clean(), scene.seed)
+
+
+def test_views_around_the_camera_look_bright_and_others_dark(small_scene):
+    profile = small_scene.truth_profile(N)
+    rng = np.random.default_rng(0)
+    centred = photograph(_band_raster(profile, N / 2 - 2, N / 2 + 2), small_scene, rng)
+    aside = photograph(_band_raster(profile, N / 2 + 6, N / 2 + 10), small_scene, rng)
+    bright, spread = _panel_brightness(small_scene, centred)
+    dark, _ = _panel_brightness(small_scene, aside)
+    assert bright >= 5 * dark, (bright, dark)
+    assert spread < 0.12 * bright, (bright, spread)  # uniformly bright over the panel
+    assert bright > 300  # of 765: the camera sees the lit subpixels, not the black matrix
+
+    # Move the camera right by 8 view zones: the bright band follows (higher views to the right).
+    o, cam = small_scene.optics, small_scene.camera
+    shift = 8 * o.view_zone_width(cam.distance, N)
+    moved = small_scene.replace_camera(position=(cam.position[0] + shift, cam.position[1], cam.position[2]))
+    moved_profile = moved.truth_profile(N)
+    rows = np.arange(0, 720, 53)
+    np.testing.assert_allclose(_circular(view_coordinate(moved_profile, rows) - view_coordinate(profile, rows)),
+                               -8.0, atol=1e-9)
+    now_bright, now_spread = _panel_brightness(moved, photograph(_band_raster(profile, N / 2 + 6, N / 2 + 10),
+                                                                  moved, rng))
+    now_dark, _ = _panel_brightness(moved, photograph(_band_raster(profile, N / 2 - 2, N / 2 + 2), moved, rng))
+    assert now_bright >= 5 * now_dark, (now_bright, now_dark)
+    assert now_spread < 0.12 * now_bright
+
+
+def test_crosstalk_profile_is_centred_on_the_camera(small_scene):
+    """A one-view band swept across the views: the camera sees it brightest, symmetrically, at N/2.
+
+    A half-subpixel slip between the renderer and the truth would move the centroid by
+    N / (2 Delta_r) ~ 0.75 views."""
+    from lenticalib.sim.render import render_radiance
+
+    profile = small_scene.truth_profile(N)
+    cam, o = small_scene.camera, small_scene.optics
+    px, py = np.meshgrid(np.arange(cam.width, dtype=float), np.arange(cam.height, dtype=float))
+    lx, ly = cam.lens_plane_points(px, py)
+    inside = (np.abs(lx) < 0.4 * o.panel_size[0]) & (np.abs(ly) < 0.4 * o.panel_size[1])
+    shifts = np.arange(-3.0, 3.01, 0.5)
+    light = np.array([render_radiance(_band_raster(profile, N / 2 + d - 0.5, N / 2 + d + 0.5), small_scene)
+                      .sum(axis=2)[inside].mean() for d in shifts])
+    assert shifts[light.argmax()] == 0.0
+    above = light - light.min()
+    assert abs((above * shifts).sum() / above.sum()) < 0.05  # views
+    np.testing.assert_allclose(light, light[::-1], rtol=0.03)  # symmetric crosstalk
+
+
+# 4. Determinism and JSON --------------------------------------------------------------------------
+def test_same_seed_gives_identical_photo_bytes_and_scene_json_round_trips():
+    scene = random_scene(5, width=640, height=360, resolution=(320, 240))
+    assert random_scene(5, width=640, height=360, resolution=(320, 240)) == scene
+    raster = np.random.default_rng(1).integers(0, 256, (360, 640, 3), dtype=np.uint8)
+    a = photograph_jpeg(raster, scene, np.random.default_rng([5, 1]))
+    b = photograph_jpeg(raster, scene, np.random.default_rng([5, 1]))
+    c = photograph_jpeg(raster, scene, np.random.default_rng([5, 2]))
+    assert a == b and a != c and a[:2] == b"\xff\xd8"
+    again = Scene.from_dict(json.loads(json.dumps(scene.to_dict())))
+    assert again == scene and again.to_dict() == scene.to_dict()
+    with pytest.raises(InputError, match="unknown camera field"):
+        data = scene.to_dict()
+        data["camera"]["zoom"] = 2
+        Scene.from_dict(data)
+
+
+def test_noise_free_settings_are_honoured():
+    scene = random_scene(6, width=640, height=360, resolution=(320, 240))
+    clean = Scene(scene.optics, scene.camera.clean(), scene.seed)
+    raster = np.full((360, 640, 3), 128, np.uint8)
+    a = photograph(raster, clean, np.random.default_rng(1))
+    b = photograph(raster, clean, np.random.default_rng(2))
+    np.testing.assert_array_equal(a, b)  # no noise, no JPEG
+    assert a.shape == (240, 320, 3) and a.dtype == np.uint8
+
+
+# 5. The CLI end to end ------------------------------------------------------------------------------
+@pytest.fixture
+def simulate_main(monkeypatch):
+    import lenticalib.cli as cli
+
+    monkeypatch.setattr(cli, "_COMMANDS", {"simulate": cli._COMMANDS["simulate"]})
+    return cli.main
+
+
+def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, capsys):
+    from lenticalib.calib.patterns import design_patterns, write_patterns
+
+    pattern_set = design_patterns(3840, 2160, 32)
+    write_patterns(tmp_path, pattern_set)
+    code = simulate_main(["simulate", str(tmp_path), "--seed", "3", "--resolution", "320x240", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    summary = json.loads(out)
+    captures = sorted(p.name for p in (tmp_path / "captures").iterdir())
+    assert captures == sorted(f"{name}.jpg" for name in pattern_set.names)  # photos only
+    assert summary["photos"] == len(pattern_set.patterns)
+    truth = load_profile(tmp_path / "truth.json")
+    expected = random_scene(3, resolution=(320, 240)).truth_profile(32)
+    assert truth.routing_key() == expected.routing_key()
+    assert truth.provenance["method"] == "simulation"
+    record = json.loads((tmp_path / "simulation.json").read_text())
+    assert record["status"] == "complete" and record["seed"] == 3 and record["lenticalib_version"]
+    assert Scene.from_dict(record) == random_scene(3, resolution=(320, 240))
+    from lenticalib.imageio import read_image
+
+    assert read_image(tmp_path / "captures" / "f16-0.jpg").shape == (240, 320, 3)
+
+    # simulation.json holds everything needed to reproduce a photo byte for byte
+    entry = record["captures"][5]
+    raster = read_image(tmp_path / f"{entry['pattern']}.png")
+    again = photograph_jpeg(raster, Scene.from_dict(record), np.random.default_rng(entry["noise_seed"]))
+    assert again == (tmp_path / entry["file"]).read_bytes()
+
+    # --scene reuses it; it fixes the scene, so --seed cannot come with it
+    code = simulate_main(["simulate", str(tmp_path), "--scene", str(tmp_path / "simulation.json"), "--seed", "4"])
+    assert code == 2 and "--scene" in capsys.readouterr().err
+
+
+def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
+    from lenticalib.calib.patterns import design_patterns, write_patterns
+
+    write_patterns(tmp_path / "set", design_patterns(640, 360, 8))
+    scene = random_scene(9, width=640, height=360, resolution=(160, 120))
+    (tmp_path / "scene.json").write_text(json.dumps(scene.to_dict()))
+    args = ["simulate", str(tmp_path / "set"), "--scene", str(tmp_path / "scene.json"), "--jpeg-quality", "90"]
+    real = tmp_path / "set" / "captures" / "IMG_0001.jpg"  # someone's real photos: never touched
+    real.parent.mkdir()
+    real.write_bytes(b"photo")
+    assert simulate_main(args) == 2 and "captures" in capsys.readouterr().err
+    assert real.read_bytes() == b"photo" and not (tmp_path / "set" / "simulation.json").exists()
+    real.unlink()
+    code = simulate_main(args)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "truth" in out and "160x120" in out
+    record = json.loads((tmp_path / "set" / "simulation.json").read_text())
+    assert Scene.from_dict(record) == scene.replace_camera(jpeg_quality=90)
+    assert load_profile(tmp_path / "set" / "truth.json").routing_key() == scene.truth_profile(8).routing_key()
+    # a scene for another panel size is refused, naming the manifest
+    other = random_scene(9, width=1280, height=720, resolution=(160, 120))
+    (tmp_path / "other.json").write_text(json.dumps(other.to_dict()))
+    code = simulate_main(["simulate", str(tmp_path / "set"), "--scene", str(tmp_path / "other.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "patterns.json" in err and "640x360" in err
+
+
+def test_simulate_cli_without_patterns_fails_with_one_line(tmp_path, simulate_main, capsys):
+    code = simulate_main(["simulate", str(tmp_path), "--seed", "1"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "patterns.json" in err and "Traceback" not in err
+    code = simulate_main(["simulate", str(tmp_path), "--resolution", "big"])
+    assert code == 2 and "--resolution" in capsys.readouterr().err
