@@ -230,8 +230,8 @@ def test_pattern_set_design(width, height, views):
     assert len(set(ps.names)) == len(ps.names)
     sub = 3 * width
     expected = {"x0": ("x", 1.25 * sub, 3, "G"), "x1": ("x", sub / 12, 3, "G"),
-                "x2": ("x", min(96.0, sub / 24), 3, "G"), "y0": ("y", 1.25 * height, 3, "RGB"),
-                "y1": ("y", height / 16, 3, "RGB"), "f16": ("x", 16.0, 3, "G"), "f22": ("x", 22.0, 3, "G"),
+                "x2": ("x", min(96.0, sub / 24), 3, "G"), "y0": ("y", 1.25 * height, 3, "G"),
+                "y1": ("y", height / 16, 3, "G"), "f16": ("x", 16.0, 3, "G"), "f22": ("x", 22.0, 3, "G"),
                 "order-r": ("x", 16.0, 1, "R"), "order-b": ("x", 16.0, 1, "B")}
     assert sorted({p.group for p in ps.patterns}) == sorted(expected)
     for group, (axis, period, steps, channels) in expected.items():

@@ -441,6 +441,7 @@ def _quality(fit, samples, weights, cov, ps, n_views) -> tuple[dict, np.ndarray]
     bm = bm - np.average(bm, weights=wsum[ok])
     block_rms = float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views)
     cov = cov + model.systematic_floor(n_views, ps.width, ps.height, max(model.SYSTEMATIC_FLOOR_VIEWS, block_rms))
+    cov[1, 1] += (model.SLANT_RELATIVE_FLOOR * fit.b) ** 2
     corners = np.array([[0, 0], [3 * ps.width, 0], [0, ps.height], [3 * ps.width, ps.height],
                         [1.5 * ps.width, 0.5 * ps.height]], dtype=float)
     grads = np.stack([corners[:, 0] - fit.x0, corners[:, 1] - fit.y0, np.ones(len(corners))], axis=1)

@@ -18,9 +18,11 @@ Why these patterns (the physics is in ``../shared/optics.md``):
 * The fine groups ``f16 f22`` (T = 16 and 22 subpixels, close to the lens period) are
   sampled by the lenses: what the camera sees is their alias, and the alias phase minus
   ``2 pi x / T`` is the view coordinate of the seen point (``psi`` in :mod:`.model`).
-* The x-patterns light only the green subpixel, which sits in the middle slot for both
-  subpixel orders, so the coordinate they measure never depends on the order or on how
-  the camera weighs red against blue.  Rows are order-free, so the y-patterns are white.
+* The x- and y-patterns light only the green subpixel, which sits in the middle slot for
+  both subpixel orders, so the coordinate they measure never depends on the order or on how
+  the camera weighs red against blue; and every coordinate is measured in the same colour,
+  so a camera's lateral chromatic aberration (red, green and blue imaged at slightly
+  different magnifications) cannot put X and Y on different scales.
 * ``order-r`` and ``order-b`` draw the fine sinusoid in red only and in blue only, at the
   slots red and blue have in RGB order; their phase against the fitted model tells
   whether red really is on the left.
@@ -135,8 +137,8 @@ def design_patterns(width: int, height: int, views: int) -> PatternSet:
     patterns += _group("x0", "x", 1.25 * sub, 3, "G")
     patterns += _group("x1", "x", t1, 3, "G")
     patterns += _group("x2", "x", t2, 3, "G")
-    patterns += _group("y0", "y", 1.25 * height, 3, "RGB")
-    patterns += _group("y1", "y", height / 16.0, 3, "RGB")
+    patterns += _group("y0", "y", 1.25 * height, 3, "G")
+    patterns += _group("y1", "y", height / 16.0, 3, "G")
     for period in FINE_PERIODS:
         patterns += _group(f"f{period:g}", "x", period, 3, "G")
     patterns.append(Pattern("order-r", "order-r", "x", FINE_PERIODS[0], 0, 1, "R"))
