@@ -20,8 +20,11 @@ WRITE_FORMATS = {".png": (np.uint8, np.uint16), ".tif": (np.uint8, np.uint16, np
                  ".tiff": (np.uint8, np.uint16, np.float32), ".npy": None}
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file as ``(H, W, 3)`` RGB (uint8, uint16 or float32).  ``.npy`` is loaded as is."""
+def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> np.ndarray:
+    """Read an image file as ``(H, W, 3)`` RGB (uint8, uint16 or float32).  ``.npy`` is loaded as is.
+
+    ``camera_orientation``: turn the image as its EXIF orientation says (camera photos).
+    """
     import cv2
 
     p = Path(path)
@@ -39,7 +42,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
             data = np.fromfile(p, dtype=np.uint8)
         except OSError as exc:
             raise ImageError(f"cannot read: {exc.strerror}", source=str(p)) from None
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+        flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH if camera_orientation else cv2.IMREAD_UNCHANGED
+        img = cv2.imdecode(data, flags) if data.size else None
         if img is None:
             raise ImageError("not a readable image (corrupt or unsupported format)", source=str(p),
                              hint="use PNG, TIFF or JPEG")

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CaptureError
+from ..imageio import read_image
 from .patterns import PatternSet, read_manifest, srgb_decode
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
@@ -97,20 +98,6 @@ class Photo:
     shape: tuple[int, int]
 
 
-def read_photo_raw(path: Path) -> np.ndarray:
-    """A photo as stored: uint8 or uint16 (or float) RGB (h, w, 3), EXIF orientation applied."""
-    import cv2
-
-    data = np.fromfile(path, dtype=np.uint8) if path.exists() else None
-    if data is None or data.size == 0:
-        raise CaptureError("cannot be read (missing or empty)", source=str(path), hint="copy the photo again")
-    image = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
-    if image is None or image.ndim != 3:
-        raise CaptureError("is not a readable colour image", source=str(path),
-                           hint="save the photo as JPEG, PNG or TIFF")
-    return image[:, :, ::-1]
-
-
 _DECODE_LUT8 = None
 
 
@@ -132,7 +119,7 @@ def load_photo(name: str, path: Path, keep_rgb: bool = False, max_width: int = M
     """Load, linearise (sRGB) and area-average one photo; CaptureError if it is unusable."""
     import cv2
 
-    raw = read_photo_raw(path)
+    raw = read_image(path, camera_orientation=True)
     h, w = raw.shape[:2]
     if h * w < MIN_PHOTO_PIXELS:
         raise CaptureError(f"is only {w}x{h} pixels", source=str(path),
