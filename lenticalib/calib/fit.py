@@ -395,7 +395,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
                            uncertainty=sigmas, provenance=provenance)
     maps = {"block_residual_map": block_map, "mask": mask, "x": x_sm, "y": y_sm, "valid": valid, "fit": fit,
             "dc": groups["y1"].dc, "samples": samples, "weights": final_weights,
-            "psi_pixels": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
+            "fine_z": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
     return FitResult(profile, not problems, problems, quality, maps, seconds)
 
 

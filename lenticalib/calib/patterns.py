@@ -28,7 +28,7 @@ Why these patterns (the physics is in ``../shared/optics.md``):
   whether red really is on the left.
 
 23 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
-fine periods cover lens periods Delta_r from 8 to 33 subpixels.
+fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ MANIFEST_NAME = "patterns.json"
 MEAN_LEVEL = 0.5  # linear light
 AMPLITUDE = 0.45  # linear light
 FINE_PERIODS = (16.0, 22.0)  # subpixels
-PERIOD_RANGE = (8.0, 33.0)  # lens periods Delta_r (subpixels) the fine groups can measure
+PERIOD_RANGE = (9.5, 31.0)  # lens periods Delta_r (subpixels) the fine groups measure (alias <= 0.42)
 CHANNEL_SLOT_RGB = {"R": 0, "G": 1, "B": 2}
 
 

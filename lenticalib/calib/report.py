@@ -59,7 +59,7 @@ def write_report(result, directory: str | os.PathLike, capture_dir: str | os.Pat
     plt.close(fig)
 
     # 2. view maps: measured (per pixel, from the fine group used first) and model
-    fine = next(iter(maps["psi_pixels"].items()))
+    fine = next(iter(maps["fine_z"].items()))
     period = float(fine[0][1:])
     measured = np.full(mask.shape, np.nan)
     cycles = np.angle(fine[1][valid]) / (2 * math.pi)
