@@ -11,7 +11,12 @@ exits non-zero.  Anything else escaping the library is a bug.
     │   └── CaptureError                 a capture set (photos of the test patterns) that cannot be used
     ├── CalibrationError                 a fit that fails or cannot be trusted
     ├── ConfigurationError (ValueError)  a valid-looking setup the encoder cannot honour
-    └── BackendUnavailableError (ImportError)  a registered backend whose module will not load
+    ├── BackendUnavailableError (ImportError)  a registered backend whose module will not load
+    └── DeviceError                      a panel controller that cannot be reached or misbehaves
+        ├── DeviceNotFoundError          no device at that URL (unplugged, no permission, bad URL)
+        ├── DeviceTimeoutError (TimeoutError)  no valid reply within the timeout, after retries
+        ├── DeviceDisconnectedError      the link went away mid-transfer (cable, power)
+        └── DeviceProtocolError          the controller answered with an error code or a bad record
 """
 
 from __future__ import annotations
@@ -70,3 +75,38 @@ class ConfigurationError(LenticalibError, ValueError):
 
 class BackendUnavailableError(LenticalibError, ImportError):
     """A registered backend (encoder, transport) whose implementation cannot be loaded."""
+
+
+class DeviceError(LenticalibError):
+    """A panel controller that cannot be reached, times out or answers with an error.
+
+    ``code`` is the firmware status code when the controller sent one (else ``None``).
+    """
+
+    def __init__(self, message: str, *, source: str | None = None, hint: str | None = None,
+                 code: int | None = None):
+        super().__init__(message, source=source, hint=hint)
+        self.code = code
+
+    def __reduce__(self):
+        return (_rebuild_device, (type(self), self.message, self.source, self.hint, self.code))
+
+
+def _rebuild_device(cls, message, source, hint, code):
+    return cls(message, source=source, hint=hint, code=code)
+
+
+class DeviceNotFoundError(DeviceError):
+    """No device at the URL: unplugged, no permission, no such path, or a malformed URL."""
+
+
+class DeviceTimeoutError(DeviceError, TimeoutError):
+    """No valid reply within the command's timeout, after every retry."""
+
+
+class DeviceDisconnectedError(DeviceError):
+    """The link went away during a transfer (cable pulled, controller lost power)."""
+
+
+class DeviceProtocolError(DeviceError):
+    """The controller answered with an error status, or sent a record that does not decode."""

@@ -1,0 +1,246 @@
+"""The host's protocol engine: requests, retries, stale-reply rejection, flash with read-back.
+
+:class:`PanelController` speaks protocol v1 (``drivers/protocol-v1.md``) over any
+:class:`~lenticalib.device.transports.base.Transport`.  Every request waits for its reply at
+most the family's timeout and is resent (same SEQ, so the firmware answers a duplicate from
+its cache instead of executing it twice) up to ``retries`` times; a reply with another SEQ or
+command, or a corrupt frame, is discarded.  :meth:`PanelController.flash` reports success
+only when the record read back from the controller is byte-for-byte the record it meant to
+write.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import random
+import time
+import zlib
+from typing import Callable
+
+from ..errors import DeviceDisconnectedError, DeviceError, DeviceProtocolError, DeviceTimeoutError
+from ..profile import PanelProfile
+from .framing import MAX_FRAME, REPLY_BIT, FrameParser, encode_frame
+from .protocol import (BEGIN_WRITE, CHUNK_HEADER, SLOT_SEQUENCE, STATUS_HELP, VERIFY_REPLY, Command,
+                       Identity, Status, status_name)
+from .record import (LAYOUT_VERSION, RECORD_SIZE, CalibrationRecord, decode_record, encode_record,
+                     record_from_profile)
+from .transports import open_transport
+from .transports.base import Transport
+
+Progress = Callable[[int, int], None]
+
+
+@dataclasses.dataclass(frozen=True)
+class FlashResult:
+    """A verified flash: the record now current on the controller, and in which slot."""
+
+    record: CalibrationRecord
+    slot: int
+    retries: int
+
+
+@dataclasses.dataclass(frozen=True)
+class VerifyResult:
+    """``matches`` when the device holds ``profile``; ``differences`` lists field: device vs file."""
+
+    matches: bool
+    differences: tuple[str, ...]
+    record: CalibrationRecord
+
+
+class PanelController:
+    """One controller reached through ``transport`` (opened).  Use as a context manager."""
+
+    def __init__(self, transport: Transport, *, retries: int | None = None):
+        self.transport = transport
+        family = transport.family
+        self.retries = family.retries if retries is None else retries
+        self.command_timeout = family.command_timeout_s
+        self.flash_timeout = family.flash_timeout_s
+        self._parser = FrameParser()
+        self._seq = random.randrange(256)  # a fresh session never matches an old session's replies
+        self.resends = 0       # requests sent again after a timeout or a corrupt/stale reply
+        self.discarded = 0     # frames thrown away (wrong SEQ/command, or corrupt)
+
+    @classmethod
+    def open(cls, url: str, **kwargs) -> "PanelController":
+        return cls(open_transport(url), **kwargs)
+
+    @property
+    def url(self) -> str:
+        return str(self.transport.url)
+
+    def close(self) -> None:
+        self.transport.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # --- one request ---
+
+    def request(self, command: Command, payload: bytes = b"", *, timeout: float | None = None,
+                accept: tuple[Status, ...] = (Status.OK,)) -> tuple[Status, bytes]:
+        """Send one request and return (status, reply body after the status byte).
+
+        Raises DeviceTimeoutError after ``retries`` resends without a valid reply, and
+        DeviceProtocolError for a status not in ``accept``.
+        """
+        timeout = self.command_timeout if timeout is None else timeout
+        self._seq = (self._seq + 1) & 0xFF
+        seq = self._seq
+        frame = encode_frame(command, seq, payload)
+        self.transport.discard_input()
+        self._parser.reset()
+        errors_before = self._parser.errors
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.resends += 1
+            self.transport.write(frame)
+            deadline = time.monotonic() + timeout
+            while True:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                for reply in self._parser.feed(self.transport.read(MAX_FRAME, left)):
+                    if reply.cmd != (command | REPLY_BIT) or reply.seq != seq or not reply.payload:
+                        self.discarded += 1
+                        continue
+                    code = reply.payload[0]
+                    self.discarded += self._parser.errors - errors_before
+                    if code not in [int(s) for s in accept]:
+                        raise self._status_error(command, code)
+                    return Status(code), reply.payload[1:]
+        self.discarded += self._parser.errors - errors_before
+        raise DeviceTimeoutError(f"no valid reply to {command.name} within {timeout:g} s "
+                                 f"({self.retries + 1} attempts)", source=self.url,
+                                 hint="check the cable, the URL and that the controller is powered")
+
+    def _status_error(self, command: Command, code: int) -> DeviceProtocolError:
+        try:
+            hint = STATUS_HELP.get(Status(code))
+        except ValueError:
+            hint = "unknown status code: update lenticalib"
+        return DeviceProtocolError(f"{command.name} refused by the controller: {status_name(code)}",
+                                   source=self.url, hint=hint, code=code)
+
+    # --- commands ---
+
+    def identify(self) -> Identity:
+        _, body = self.request(Command.IDENTIFY)
+        try:
+            return Identity.unpack(body)
+        except ValueError as exc:
+            raise DeviceProtocolError(f"malformed IDENTIFY reply: {exc}", source=self.url) from None
+
+    def read_record(self) -> CalibrationRecord | None:
+        """The current record, or None when the controller holds none."""
+        status, body = self.request(Command.READ_RECORD, accept=(Status.OK, Status.NO_RECORD))
+        if status is Status.NO_RECORD:
+            return None
+        if len(body) != 1 + RECORD_SIZE:
+            raise DeviceProtocolError(f"READ_RECORD returned {len(body)} bytes, expected {1 + RECORD_SIZE}",
+                                      source=self.url)
+        return decode_record(body[1:], self.url)
+
+    def read_raw_record(self) -> bytes | None:
+        status, body = self.request(Command.READ_RECORD, accept=(Status.OK, Status.NO_RECORD))
+        return None if status is Status.NO_RECORD else body[1:]
+
+    def read_profile(self) -> PanelProfile:
+        record = self.read_record()
+        if record is None:
+            raise DeviceProtocolError("the panel holds no calibration record", source=self.url,
+                                      hint="flash one with 'lenticalib device flash URL profile.json'",
+                                      code=int(Status.NO_RECORD))
+        return record.to_profile(device_url=self.url)
+
+    def verify_crc(self) -> tuple[int, int, int] | None:
+        """(slot, sequence, CRC-32) of the current record, or None when there is none."""
+        status, body = self.request(Command.VERIFY, accept=(Status.OK, Status.NO_RECORD))
+        if status is Status.NO_RECORD:
+            return None
+        if len(body) != VERIFY_REPLY.size:
+            raise DeviceProtocolError("malformed VERIFY reply", source=self.url)
+        return VERIFY_REPLY.unpack(body)
+
+    def reboot(self) -> None:
+        self.request(Command.REBOOT)
+
+    def flash(self, profile: PanelProfile, progress: Progress | None = None) -> FlashResult:
+        """Write ``profile`` as the next record; success only after a byte-exact read-back.
+
+        Steps: IDENTIFY (serial, layout, chunk size), VERIFY (current sequence), BEGIN_WRITE
+        (erases the inactive slot), WRITE_CHUNK x n, COMMIT (firmware checks and activates),
+        READ_RECORD and VERIFY (the host compares).  ``progress(done, total)`` after each.
+        """
+        resends_before = self.resends
+        identity = self.identify()
+        if LAYOUT_VERSION != identity.layout_version:
+            raise DeviceProtocolError(f"controller uses record layout {identity.layout_version}, lenticalib "
+                                      f"writes {LAYOUT_VERSION}", source=self.url,
+                                      hint="update lenticalib or the controller firmware")
+        if identity.record_size != RECORD_SIZE:
+            raise DeviceProtocolError(f"controller record size {identity.record_size} != {RECORD_SIZE}",
+                                      source=self.url)
+        chunk = max(1, min(identity.max_chunk, 64))
+        current = self.verify_crc()
+        sequence = (current[1] if current else 0) + 1
+        record = record_from_profile(profile, serial=identity.serial, sequence=sequence)
+        data = encode_record(record)
+        crc = zlib.crc32(data)
+        offsets = list(range(0, RECORD_SIZE, chunk))
+        total = len(offsets) + 4
+        done = 0
+
+        def step():
+            nonlocal done
+            done += 1
+            if progress:
+                progress(done, total)
+
+        _, body = self.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(LAYOUT_VERSION, RECORD_SIZE, crc, sequence),
+                               timeout=self.flash_timeout)
+        step()
+        for offset in offsets:
+            self.request(Command.WRITE_CHUNK, CHUNK_HEADER.pack(offset) + data[offset:offset + chunk])
+            step()
+        try:
+            _, body = self.request(Command.COMMIT, timeout=self.flash_timeout)
+        except DeviceProtocolError as exc:
+            # A COMMIT whose reply was lost and whose retry found the session already closed
+            # (BAD_STATE) may have succeeded: the read-back below decides, nothing else.
+            if exc.code != Status.BAD_STATE:
+                raise
+        step()
+        back = self.read_raw_record()
+        step()
+        if back != data:
+            raise DeviceProtocolError("flash verification failed: the record read back differs from the one "
+                                      "written", source=self.url,
+                                      hint="the panel keeps its previous record; flash again")
+        check = self.verify_crc()
+        step()
+        if check is None or check[2] != crc or check[1] != sequence:
+            raise DeviceProtocolError("flash verification failed: VERIFY reports another record", source=self.url,
+                                      hint="the panel keeps its previous record; flash again")
+        return FlashResult(decode_record(back, self.url), check[0], self.resends - resends_before)
+
+    def verify(self, profile: PanelProfile) -> VerifyResult:
+        """Does the controller hold ``profile``'s routing constants exactly?"""
+        record = self.read_record()
+        if record is None:
+            raise DeviceProtocolError("the panel holds no calibration record", source=self.url,
+                                      hint="flash one with 'lenticalib device flash URL profile.json'",
+                                      code=int(Status.NO_RECORD))
+        held = record.to_profile()
+        differences = tuple(f"{key}: device {getattr(held, key)!r}, file {getattr(profile, key)!r}"
+                            for key in ("views", "slant", "period", "offset", "reference_view", "width",
+                                        "height", "subpixel_order")
+                            if getattr(held, key) != getattr(profile, key))
+        return VerifyResult(not differences, differences, record)
+
+
+__all__ = ["PanelController", "FlashResult", "VerifyResult", "DeviceError", "DeviceDisconnectedError"]

@@ -1,0 +1,190 @@
+"""One emulated panel controller: firmware, flash image and fault injection behind a byte link.
+
+:class:`EmulatedController` is what every emulated transport sits on: the pseudo-terminal and
+TCP servers (:mod:`.serve`), the pyserial ``emu://`` handler, the hidapi-style device and the
+pyusb backend.  The host side writes request bytes with :meth:`host_write` and reads reply
+bytes with :meth:`host_read`; faults (:mod:`.faults`) act per frame on the way in and out.
+
+After a power cut or an injected disconnect the controller is *dead*: every further call
+raises :class:`LinkDown` and the flash image keeps exactly what reached it.  Restarting
+means constructing a new controller on the same image.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from pathlib import Path
+
+from ..framing import FrameParser, encode_frame
+from .faults import FaultPlan
+from .firmware import Firmware
+from .flash import FlashImage, PowerCut, create_image
+
+DEFAULT_MODEL = "LC-32 (emulated)"
+DEFAULT_FIRMWARE = "1.0.0-emu"
+
+
+class LinkDown(Exception):
+    """The emulated link is gone (``reason``: "power cut" or "disconnected")."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
+def default_image_dir() -> Path:
+    """Where ``emu://NAME`` keeps NAME.flash: $LENTICALIB_EMULATOR_DIR or ~/.local/state/lenticalib/emulators."""
+    env = os.environ.get("LENTICALIB_EMULATOR_DIR")
+    if env:
+        return Path(env)
+    state = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
+    return Path(state) / "lenticalib" / "emulators"
+
+
+def ensure_image(path: str | os.PathLike, *, serial: str | None = None, model: str = DEFAULT_MODEL,
+                 firmware_version: str = DEFAULT_FIRMWARE) -> Path:
+    """Create the flash image at ``path`` if it does not exist (serial from its name by default)."""
+    path = Path(path)
+    if not path.exists():
+        name = path.stem.upper().replace("-", "")[:10] or "EMU"
+        create_image(path, model=model, serial=serial or f"EMU-{name}", firmware_version=firmware_version)
+    return path
+
+
+class EmulatedController:
+    """Firmware + flash + faults, thread-safe, reached through host_write / host_read."""
+
+    def __init__(self, image: str | os.PathLike, faults: FaultPlan | None = None):
+        self.faults = faults or FaultPlan()
+        self.flash = FlashImage(image, power_cut_after=self.faults.power_cut_after, torn=self.faults.torn)
+        self.firmware = Firmware(self.flash)
+        self._inbound = FrameParser()
+        self._outbox: list[tuple[float, bytes]] = []  # (ready time, bytes)
+        self._previous_reply: bytes | None = None
+        self._requests = 0
+        self._lock = threading.Condition()
+        self.down: str | None = None
+
+    @property
+    def identity(self):
+        return self.firmware.identity
+
+    def close(self) -> None:
+        with self._lock:
+            self.flash.close()
+            if self.down is None:
+                self.down = "disconnected"
+            self._lock.notify_all()
+
+    def _die(self, reason: str) -> None:
+        self.down = reason
+        self.flash.close()
+        self._outbox.clear()
+        self._lock.notify_all()
+
+    def host_write(self, data: bytes) -> None:
+        """Bytes from the host.  Raises LinkDown when the controller is gone."""
+        with self._lock:
+            if self.down:
+                raise LinkDown(self.down)
+            faults = self.faults
+            for frame in self._inbound.feed(data):
+                if frame.is_reply:
+                    continue
+                self._requests += 1
+                if faults.hit(faults.drop_rate):
+                    continue
+                raw = encode_frame(frame.cmd, frame.seq, frame.payload)
+                if faults.hit(faults.corrupt_rate):
+                    raw = faults.corrupt(raw)
+                try:
+                    replies = self.firmware.receive(raw)
+                except PowerCut:
+                    self._die("power cut")
+                    raise LinkDown("power cut") from None
+                for reply in replies:
+                    self._send(reply)
+                if faults.disconnect_after is not None and self._requests >= faults.disconnect_after:
+                    self._die("disconnected")
+                    raise LinkDown("disconnected")
+            self._lock.notify_all()
+
+    def _send(self, reply: bytes) -> None:
+        faults, now = self.faults, time.monotonic()
+        if faults.hit(faults.stale_rate) and self._previous_reply is not None:
+            self._outbox.append((now, self._previous_reply))
+        self._previous_reply = reply
+        if faults.hit(faults.drop_rate):
+            return
+        ready = now + (faults.delay_s if faults.hit(faults.delay_rate) else 0.0)
+        out = faults.corrupt(reply) if faults.hit(faults.corrupt_rate) else reply
+        self._outbox.append((ready, out))
+        if faults.hit(faults.duplicate_rate):
+            self._outbox.append((ready, reply))
+        self._outbox.sort(key=lambda item: item[0])
+
+    def next_ready(self) -> float | None:
+        """Monotonic time at which the next reply byte becomes readable (None: nothing queued)."""
+        with self._lock:
+            return self._outbox[0][0] if self._outbox else None
+
+    def host_read(self, max_bytes: int, timeout: float) -> bytes:
+        """Up to ``max_bytes`` reply bytes, waiting at most ``timeout`` s; b"" when none came."""
+        deadline = time.monotonic() + max(0.0, timeout)
+        with self._lock:
+            while True:
+                if self.down:
+                    raise LinkDown(self.down)
+                now = time.monotonic()
+                out = bytearray()
+                while self._outbox and self._outbox[0][0] <= now and len(out) < max_bytes:
+                    ready, data = self._outbox.pop(0)
+                    take = data[:max_bytes - len(out)]
+                    out += take
+                    if len(take) < len(data):
+                        self._outbox.insert(0, (ready, data[len(take):]))
+                if out:
+                    return bytes(out)
+                if now >= deadline:
+                    return b""
+                wake = deadline if not self._outbox else min(deadline, self._outbox[0][0])
+                self._lock.wait(max(0.0, wake - now))
+
+
+_URL_FAULTS = {"drop": "drop_rate", "corrupt": "corrupt_rate", "duplicate": "duplicate_rate",
+               "delay": "delay_rate", "delay-s": "delay_s", "stale": "stale_rate",
+               "disconnect-after": "disconnect_after", "power-cut-after": "power_cut_after",
+               "torn": "torn", "seed": "seed"}
+URL_OPTIONS = ("via", *_URL_FAULTS)
+
+
+def controller_for_url(url) -> EmulatedController:
+    """The in-process controller an ``emu://NAME[?options]`` URL names (a DeviceURL).
+
+    The flash image is NAME.flash in :func:`default_image_dir` (created blank on first use);
+    fault options (``drop=0.1``, ``power-cut-after=3``, ``torn=1``, ``seed=7``, ...) map onto
+    :class:`FaultPlan` fields.  Raises InputError naming an unknown or malformed option.
+    """
+    from ...errors import InputError
+
+    values = {}
+    for key, text in url.options:
+        if key not in URL_OPTIONS:
+            raise InputError(f"unknown option '{key}'", source=str(url),
+                             hint=f"emu:// options: {', '.join(URL_OPTIONS)}")
+        if key == "via":
+            continue
+        field = _URL_FAULTS[key]
+        try:
+            if field == "torn":
+                values[field] = text.lower() in ("1", "true", "yes")
+            elif field in ("disconnect_after", "power_cut_after", "seed"):
+                values[field] = int(text)
+            else:
+                values[field] = float(text)
+        except ValueError:
+            raise InputError(f"option '{key}' must be a number, got '{text}'", source=str(url)) from None
+    image = ensure_image(default_image_dir() / f"{url.target}.flash")
+    return EmulatedController(image, FaultPlan(**values))

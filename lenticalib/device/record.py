@@ -1,0 +1,223 @@
+"""The calibration record: the binary form of a panel profile kept in the controller's flash.
+
+Layout version 1, 128 bytes, little-endian (``drivers/protocol-v1.md`` section 4 is the
+normative table; this module and the emulated firmware both implement it):
+
+    offset size  field
+         0    4  magic b"LTCR"
+         4    2  layout_version (u16) = 1
+         6    2  record_size (u16) = 128
+         8    4  sequence (u32): 1 for the first record, +1 for each flash; higher wins
+        12   16  serial (ASCII, NUL-padded): the panel's serial number
+        28    2  width (u16, pixels, 1..65535)
+        30    2  height (u16, pixels, 1..65535)
+        32    2  views N (u16, 2..254)
+        34    1  subpixel_order (u8): 0 = RGB, 1 = BGR
+        35    1  flags (u8): bit 0 = the four sigmas below are present
+        36    8  slant C_r (f64, pixels per row, |C_r| <= 4)
+        44    8  period Delta_r (f64, subpixels, 0 < Delta_r <= 4096)
+        52    8  offset s_ref (f64, subpixels, |s_ref| <= 1e6)
+        60    8  reference_view i_ref (f64, views, |i_ref| <= 65535)
+        68   16  1-sigma of slant, period, offset, reference_view (4 x f32, >= 0)
+        84    8  written (u64): Unix time in seconds when the host built the record
+        92    8  profile digest: first 8 bytes of SHA-256 of the routing constants
+       100   24  reserved, zero
+       124    4  CRC-32 (IEEE 802.3, as zlib.crc32) of bytes 0..123
+
+Floats are stored as f64 so a profile survives the round trip exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import struct
+import time
+import zlib
+
+from ..errors import DeviceProtocolError, ProfileError
+from ..profile import MAX_VIEWS, PanelProfile
+
+MAGIC = b"LTCR"
+LAYOUT_VERSION = 1
+KNOWN_LAYOUT_VERSIONS = (1,)
+RECORD_SIZE = 128
+SERIAL_BYTES = 16
+FLAG_SIGMAS = 0x01
+KNOWN_FLAGS = FLAG_SIGMAS
+
+_STRUCT = struct.Struct("<4sHHI16sHHHBBddddffffQ8s24s")
+_CRC_OFFSET = RECORD_SIZE - 4
+assert _STRUCT.size == _CRC_OFFSET
+
+# Allowed ranges (inclusive), shared by the host's validation and the firmware's commit check.
+SLANT_LIMIT = 4.0
+PERIOD_LIMIT = 4096.0
+OFFSET_LIMIT = 1.0e6
+REFERENCE_VIEW_LIMIT = 65535.0
+_ORDERS = ("RGB", "BGR")
+_SIGMA_KEYS = ("slant", "period", "offset", "reference_view")
+
+
+class RecordRangeError(ValueError):
+    """A record field outside its allowed range; ``field`` names it."""
+
+    def __init__(self, field: str, message: str):
+        super().__init__(f"field '{field}': {message}")
+        self.field = field
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationRecord:
+    """The decoded fields of one record (units as in the module docstring)."""
+
+    sequence: int
+    serial: str
+    width: int
+    height: int
+    views: int
+    subpixel_order: str
+    slant: float
+    period: float
+    offset: float
+    reference_view: float
+    sigmas: tuple[float, float, float, float] | None = None
+    written: int = 0
+    digest: bytes = b"\0" * 8
+    layout_version: int = LAYOUT_VERSION
+
+    def to_profile(self, **provenance) -> PanelProfile:
+        """The record as a :class:`PanelProfile`; ``provenance`` is stored with it."""
+        uncertainty = dict(zip(_SIGMA_KEYS, self.sigmas)) if self.sigmas else None
+        prov = {"method": "read from device", "record_sequence": self.sequence,
+                "panel_serial": self.serial, "record_written": self.written, **provenance}
+        return PanelProfile(views=self.views, slant=self.slant, period=self.period, offset=self.offset,
+                            reference_view=self.reference_view, width=self.width, height=self.height,
+                            subpixel_order=self.subpixel_order, uncertainty=uncertainty, provenance=prov)
+
+
+def profile_digest(profile: PanelProfile) -> bytes:
+    """First 8 bytes of SHA-256 over the routing constants (repr of each, in a fixed order)."""
+    text = "|".join(repr(v) for v in profile.routing_key())
+    return hashlib.sha256(text.encode()).digest()[:8]
+
+
+def record_from_profile(profile: PanelProfile, *, serial: str, sequence: int,
+                        written: int | None = None) -> CalibrationRecord:
+    """A record carrying ``profile``; raises ProfileError naming the field if it cannot be stored."""
+    sigmas = None
+    if profile.uncertainty and all(k in profile.uncertainty for k in _SIGMA_KEYS):
+        sigmas = tuple(float(profile.uncertainty[k]) for k in _SIGMA_KEYS)
+    record = CalibrationRecord(
+        sequence=sequence, serial=serial, width=profile.width, height=profile.height,
+        views=profile.views, subpixel_order=profile.subpixel_order, slant=float(profile.slant),
+        period=float(profile.period), offset=float(profile.offset),
+        reference_view=float(profile.reference_view), sigmas=sigmas,
+        written=int(time.time()) if written is None else written, digest=profile_digest(profile))
+    try:
+        check_ranges(record)
+    except RecordRangeError as exc:
+        raise ProfileError(f"cannot be stored in the panel: {exc}", source="profile",
+                           hint="fix the profile; the ranges are in drivers/protocol-v1.md") from None
+    return record
+
+
+def check_ranges(record: CalibrationRecord) -> None:
+    """Raise RecordRangeError for the first field outside its range (see the module docstring)."""
+
+    def need(ok: bool, field: str, message: str):
+        if not ok:
+            raise RecordRangeError(field, message)
+
+    need(0 <= record.sequence <= 0xFFFFFFFF, "sequence", "must fit in 32 bits")
+    need(len(record.serial.encode("ascii", "replace")) <= SERIAL_BYTES
+         and record.serial.isascii() and record.serial.isprintable(),
+         "serial", f"must be printable ASCII of at most {SERIAL_BYTES} characters")
+    need(1 <= record.width <= 65535, "width", f"must be 1..65535 pixels, got {record.width}")
+    need(1 <= record.height <= 65535, "height", f"must be 1..65535 pixels, got {record.height}")
+    need(2 <= record.views <= MAX_VIEWS, "views", f"must be 2..{MAX_VIEWS}, got {record.views}")
+    need(record.subpixel_order in _ORDERS, "subpixel_order", "must be RGB or BGR")
+    need(math.isfinite(record.slant) and abs(record.slant) <= SLANT_LIMIT, "slant",
+         f"must be finite with |slant| <= {SLANT_LIMIT} pixels/row, got {record.slant!r}")
+    need(math.isfinite(record.period) and 0 < record.period <= PERIOD_LIMIT, "period",
+         f"must be in (0, {PERIOD_LIMIT:g}] subpixels, got {record.period!r}")
+    need(math.isfinite(record.offset) and abs(record.offset) <= OFFSET_LIMIT, "offset",
+         f"must be finite with |offset| <= {OFFSET_LIMIT:g} subpixels, got {record.offset!r}")
+    need(math.isfinite(record.reference_view) and abs(record.reference_view) <= REFERENCE_VIEW_LIMIT,
+         "reference_view", f"must be finite with |i_ref| <= {REFERENCE_VIEW_LIMIT:g}, "
+         f"got {record.reference_view!r}")
+    if record.sigmas is not None:
+        for key, value in zip(_SIGMA_KEYS, record.sigmas):
+            need(math.isfinite(value) and 0 <= value <= 3.0e38, f"uncertainty.{key}",
+                 f"must be a finite number >= 0, got {value!r}")
+    need(0 <= record.written <= 0xFFFFFFFFFFFFFFFF, "written", "must fit in 64 bits")
+
+
+def encode_record(record: CalibrationRecord) -> bytes:
+    """The 128 bytes of ``record`` (ranges are checked first)."""
+    check_ranges(record)
+    sigmas = record.sigmas if record.sigmas is not None else (0.0, 0.0, 0.0, 0.0)
+    body = _STRUCT.pack(MAGIC, record.layout_version, RECORD_SIZE, record.sequence,
+                        record.serial.encode("ascii"), record.width, record.height, record.views,
+                        _ORDERS.index(record.subpixel_order),
+                        FLAG_SIGMAS if record.sigmas is not None else 0,
+                        record.slant, record.period, record.offset, record.reference_view,
+                        *sigmas, record.written, record.digest, b"\0" * 24)
+    return body + struct.pack("<I", zlib.crc32(body))
+
+
+class RecordFormatError(ValueError):
+    """Bytes that are not a valid record; ``status`` is the firmware status name that fits."""
+
+    def __init__(self, message: str, status: str):
+        super().__init__(message)
+        self.status = status
+
+
+def parse_record(data: bytes) -> CalibrationRecord:
+    """Decode and check 128 bytes; raise RecordFormatError (never anything else) when invalid.
+
+    Status names: ``BAD_LENGTH``, ``BAD_RECORD`` (magic or CRC), ``BAD_LAYOUT`` (unknown
+    layout version), ``OUT_OF_RANGE`` (a field outside its range).
+    """
+    if len(data) != RECORD_SIZE:
+        raise RecordFormatError(f"record is {len(data)} bytes, expected {RECORD_SIZE}", "BAD_LENGTH")
+    body, (crc,) = data[:_CRC_OFFSET], struct.unpack_from("<I", data, _CRC_OFFSET)
+    if body[:4] != MAGIC:
+        raise RecordFormatError("no record magic (blank or foreign data)", "BAD_RECORD")
+    if zlib.crc32(body) != crc:
+        raise RecordFormatError("record CRC-32 does not match (corrupt or half-written)", "BAD_RECORD")
+    (_, version, size, sequence, serial, width, height, views, order, flags, slant, period, offset,
+     ref, s0, s1, s2, s3, written, digest, _reserved) = _STRUCT.unpack(body)
+    if version not in KNOWN_LAYOUT_VERSIONS:
+        raise RecordFormatError(f"unknown record layout version {version}", "BAD_LAYOUT")
+    if size != RECORD_SIZE:
+        raise RecordFormatError(f"record_size field says {size}, expected {RECORD_SIZE}", "BAD_LAYOUT")
+    if order > 1:
+        raise RecordFormatError(f"field 'subpixel_order': unknown code {order}", "OUT_OF_RANGE")
+    if flags & ~KNOWN_FLAGS:
+        raise RecordFormatError(f"field 'flags': unknown bits 0x{flags:02x}", "OUT_OF_RANGE")
+    try:
+        serial_text = serial.rstrip(b"\0").decode("ascii")
+    except UnicodeDecodeError:
+        raise RecordFormatError("field 'serial': not ASCII", "OUT_OF_RANGE") from None
+    record = CalibrationRecord(sequence=sequence, serial=serial_text, width=width, height=height,
+                               views=views, subpixel_order=_ORDERS[order], slant=slant, period=period,
+                               offset=offset, reference_view=ref,
+                               sigmas=(s0, s1, s2, s3) if flags & FLAG_SIGMAS else None,
+                               written=written, digest=digest, layout_version=version)
+    try:
+        check_ranges(record)
+    except RecordRangeError as exc:
+        raise RecordFormatError(str(exc), "OUT_OF_RANGE") from None
+    return record
+
+
+def decode_record(data: bytes, source: str) -> CalibrationRecord:
+    """:func:`parse_record` for the host: a bad record becomes a DeviceProtocolError naming ``source``."""
+    try:
+        return parse_record(data)
+    except RecordFormatError as exc:
+        raise DeviceProtocolError(f"the calibration record read back is invalid: {exc}", source=source,
+                                  hint="flash a profile again with 'lenticalib device flash'") from None

@@ -1,0 +1,80 @@
+"""USB HID transport (hidapi): the protocol's byte stream in 64-byte numbered reports.
+
+Host to controller: output reports ``[out_report_id, n, n stream bytes, zero padding]``;
+controller to host: input reports ``[in_report_id, n, ...]`` (``drivers/protocol-v1.md``
+section 6.2).  ``report_size`` counts the report-ID byte, so each report carries at most
+``report_size - 2`` stream bytes.  An input report with another ID or an impossible length is
+dropped (the frame CRC above catches what is left).
+"""
+
+from __future__ import annotations
+
+import time
+
+from ...errors import DeviceNotFoundError
+from .base import Transport
+
+
+class HidTransport(Transport):
+    kind = "hid"
+
+    def __init__(self, url, family, description=None, *, device_factory=None):
+        super().__init__(url, family, description)
+        self._factory = device_factory
+        self._pending = bytearray()
+        self.dropped_reports = 0
+        self.device = None
+
+    def _open(self) -> None:
+        vid, pid, serial_number = self.url.vid_pid_serial() if self.url.scheme == "hid" else (
+            self.description.vid, self.description.pid, None)
+        if self._factory is None:
+            import hid
+
+            device = hid.device()
+        else:
+            device = self._factory()
+        try:
+            device.open(vid, pid, serial_number)
+        except OSError:
+            raise DeviceNotFoundError(f"no HID device {vid:04x}:{pid:04x}"
+                                      + (f" with serial {serial_number}" if serial_number else ""),
+                                      source=str(self.url), hint=self.open_hint()) from None
+        device.set_nonblocking(False)
+        self.device = device
+
+    def _close(self) -> None:
+        self.device.close()
+
+    def _write(self, data: bytes) -> None:
+        size = self.description.report_size
+        room = size - 2
+        for start in range(0, len(data), room):
+            piece = data[start:start + room]
+            report = bytes([self.description.out_report_id, len(piece)]) + piece
+            report += bytes(size - len(report))
+            if self.device.write(report) != size:
+                raise OSError("HID write failed (device gone?)")
+
+    def _read(self, max_bytes: int, timeout: float) -> bytes:
+        deadline = time.monotonic() + timeout
+        size = self.description.report_size
+        while not self._pending:
+            ms = max(1, int(round((deadline - time.monotonic()) * 1000)))
+            report = self.device.read(size, ms)
+            if report:
+                if report[0] != self.description.in_report_id or len(report) < 2 or report[1] > min(
+                        size, len(report)) - 2:
+                    self.dropped_reports += 1
+                else:
+                    self._pending += bytes(report[2:2 + report[1]])
+                    break
+            if time.monotonic() >= deadline:
+                return b""
+        out = bytes(self._pending[:max_bytes])
+        del self._pending[:max_bytes]
+        return out
+
+    def discard_input(self) -> None:
+        self._pending.clear()
+        super().discard_input()

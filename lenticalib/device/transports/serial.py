@@ -1,0 +1,68 @@
+"""Serial transport (pyserial): USB CDC ports, pseudo-terminals and ``socket://`` TCP links.
+
+``serial:///dev/ttyACM0`` opens the port path, ``socket://HOST:PORT`` goes to pyserial's own
+socket handler, and the emulator's ``emu://NAME`` is reached through a pyserial URL handler
+(:mod:`lenticalib.device.emulator.protocol_emu`).  The protocol's byte stream is carried as
+is, 8N1, no flow control.
+"""
+
+from __future__ import annotations
+
+import time
+
+import serial
+
+from ...errors import DeviceDisconnectedError
+from .base import Transport
+
+
+class SerialTransport(Transport):
+    kind = "serial"
+
+    def __init__(self, url, family, description=None, *, port_url: str | None = None):
+        super().__init__(url, family, description)
+        if port_url is None:
+            port_url = url.target if url.scheme == "serial" else f"{url.scheme}://{url.target}"
+        self.port_url = port_url
+        self.port = None
+
+    def _open(self) -> None:
+        baudrate = int(self.url.option("baudrate", self.description.baudrate))
+        try:
+            self.port = serial.serial_for_url(self.port_url, baudrate=baudrate, timeout=0,
+                                              write_timeout=self.family.flash_timeout_s, exclusive=True)
+        except TypeError:  # URL handlers that do not take 'exclusive'
+            self.port = serial.serial_for_url(self.port_url, baudrate=baudrate, timeout=0,
+                                              write_timeout=self.family.flash_timeout_s)
+        except serial.SerialException as exc:
+            raise OSError(str(exc)) from None
+
+    def _close(self) -> None:
+        self.port.close()
+
+    def _write(self, data: bytes) -> None:
+        try:
+            self.port.write(data)
+            self.port.flush()
+        except serial.SerialTimeoutException:
+            raise DeviceDisconnectedError("write timed out (the controller stopped reading)",
+                                          source=str(self.url)) from None
+        except serial.SerialException as exc:
+            raise OSError(str(exc)) from None
+
+    def _read(self, max_bytes: int, timeout: float) -> bytes:
+        deadline = time.monotonic() + timeout
+        try:
+            while True:
+                self.port.timeout = max(0.0, deadline - time.monotonic())
+                first = self.port.read(1)
+                if not first:
+                    if time.monotonic() >= deadline:
+                        return b""
+                    continue
+                self.port.timeout = 0
+                waiting = self.port.in_waiting
+                rest = self.port.read(min(max_bytes - 1, waiting)) if waiting and max_bytes > 1 else b""
+                return first + rest
+        except serial.SerialException as exc:
+            raise OSError(str(exc)) from None

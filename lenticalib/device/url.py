@@ -1,0 +1,67 @@
+"""Device URLs: how a panel controller is named on the command line and in code.
+
+    serial:///dev/ttyACM0          USB CDC serial port (any pyserial port path)
+    socket://127.0.0.1:7000        the same byte protocol over TCP (pyserial's socket handler)
+    hid://1209:0002[/SERIAL]       USB HID, vendor:product in hex, optional serial number
+    usb://1209:0003[/SERIAL]       USB vendor control transfers (pyusb)
+    emu://NAME[?via=serial|hid|usb]  an in-process emulated controller whose flash image is
+                                   NAME.flash in the emulator directory (see
+                                   lenticalib.device.emulator.controller.default_image_dir)
+
+Options after ``?`` (``&``-separated ``key=value``) are passed to the transport: ``via`` for
+``emu://``, ``baudrate`` for serial ports.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from urllib.parse import parse_qsl
+
+from ..errors import DeviceNotFoundError
+
+_HINT = "write it like serial:///dev/ttyACM0, socket://HOST:PORT, hid://VID:PID, usb://VID:PID or emu://NAME"
+_VIDPID = re.compile(r"^([0-9a-fA-F]{4}):([0-9a-fA-F]{4})(?:/(.+))?$")
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceURL:
+    """A parsed device URL: ``scheme``, ``target`` (path, host:port, VID:PID or name), options."""
+
+    text: str
+    scheme: str
+    target: str
+    options: tuple[tuple[str, str], ...] = ()
+
+    def option(self, key: str, default: str | None = None) -> str | None:
+        return dict(self.options).get(key, default)
+
+    def vid_pid_serial(self) -> tuple[int, int, str | None]:
+        """For hid:// and usb://: (vendor id, product id, serial number or None)."""
+        match = _VIDPID.match(self.target)
+        if not match:
+            raise DeviceNotFoundError(f"'{self.target}' is not VID:PID in hex", source=self.text,
+                                      hint="e.g. hid://1209:0002 or usb://1209:0003/SERIAL")
+        return int(match[1], 16), int(match[2], 16), match[3]
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def parse_device_url(text: str) -> DeviceURL:
+    """Parse ``text``; raises DeviceNotFoundError naming it when it is not a device URL."""
+    if "://" not in text:
+        raise DeviceNotFoundError("not a device URL", source=text, hint=_HINT)
+    scheme, rest = text.split("://", 1)
+    scheme = scheme.lower()
+    target, _, query = rest.partition("?")
+    if scheme not in ("socket",) and not target:
+        raise DeviceNotFoundError("the URL names no device", source=text, hint=_HINT)
+    options = tuple(parse_qsl(query, keep_blank_values=True)) if query else ()
+    url = DeviceURL(text, scheme, target, options)
+    if scheme in ("hid", "usb"):
+        url.vid_pid_serial()
+    if scheme == "emu" and not re.fullmatch(r"[A-Za-z0-9_.-]+", target):
+        raise DeviceNotFoundError(f"emulator name '{target}' must be letters, digits, '.', '_' or '-'",
+                                  source=text, hint="e.g. emu://bench")
+    return url
