@@ -22,6 +22,7 @@ import os
 import time
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from ..errors import CalibrationError, CaptureError
@@ -79,6 +80,7 @@ class _Group:
     z: np.ndarray
     dc: np.ndarray
     photos: list[Photo]
+    sigma: float = 0.0  # Gaussian (working pixels) the complex fringe was averaged with
 
 
 def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group:
@@ -87,6 +89,7 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
     if len(photos) > 1:
         _check_distinct(_Group(name, patterns[0].period, None, None, photos), capture)
     pat = patterns[0]
+    sigma = 0.0
     extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
     if pat.period < extent / 4:
         # many fringes across the panel: every step has the same mean light, so differences in
@@ -105,7 +108,7 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
         z = phase.smooth_complex(z, sigma)
     for p in photos:  # keep memory bounded: luma is needed only for the per-photo checks
         p.luma = p.luma.astype(np.float16)
-    return _Group(name, patterns[0].period, z, dc, photos)
+    return _Group(name, patterns[0].period, z, dc, photos, sigma if sigma >= 0.5 else 0.0)
 
 
 def _check_photo_steps(group: _Group, predicted_cycles: np.ndarray, mask: np.ndarray, capture: CaptureSet,
@@ -149,7 +152,6 @@ def _check_photo_steps(group: _Group, predicted_cycles: np.ndarray, mask: np.nda
 
 def _check_distinct(group: _Group, capture: CaptureSet) -> None:
     """Two photos of one phase-shift group must differ (a pattern photographed twice, or a copy)."""
-    import cv2
 
     small = [cv2.resize(p.luma.astype(np.float32), None, fx=0.25, fy=0.25, interpolation=cv2.INTER_AREA)
              for p in group.photos]
@@ -168,7 +170,6 @@ def _check_distinct(group: _Group, capture: CaptureSet) -> None:
 
 
 def _check_clipping(groups: list[_Group], mask: np.ndarray) -> None:
-    import cv2
 
     for group in groups:
         for photo in group.photos:
@@ -194,7 +195,6 @@ def _check_motion(groups: dict[str, "_Group"], capture: CaptureSet) -> None:
     edges (panel border, bezel) must sit at the same place in every group.  Shifts are measured
     by phase correlation of edge images against group x1.
     """
-    import cv2
 
     def edges(dc):
         blurred = cv2.GaussianBlur(dc.astype(np.float32), (0, 0), 1.0)
@@ -308,9 +308,17 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     sigma = max(3.0, w / 300.0)
     x_raw, xg = coords["x"]
     y_raw, yg = coords["y"]
-    x_sm = phase.smooth_coordinate(x_raw, _modulation_weight(xg, mask), sigma)
-    y_sm = phase.smooth_coordinate(y_raw, _modulation_weight(yg, mask), sigma)
-    valid = mask & np.isfinite(x_sm) & np.isfinite(y_sm)
+    # The finest x/y groups were Gaussian-averaged in _demodulate_group (y1: sigma = frame/300,
+    # ~16 rows).  Near the panel border that average is one-sided (the bezel has no fringe) and
+    # pulls the seen coordinate toward the panel centre: +-0.4..4 rows in the first rows inside
+    # the mask, which shrinks the Y map by ~5e-5 and makes |C_r| too large.  Use only pixels
+    # whose averaging window lies on the panel.
+    r = int(math.ceil(2.5 * max(xg.sigma, yg.sigma)))
+    inner = cv2.erode(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+                      ).astype(bool) if r > 0 else mask
+    x_sm = phase.smooth_coordinate(x_raw, _modulation_weight(xg, inner), sigma)
+    y_sm = phase.smooth_coordinate(y_raw, _modulation_weight(yg, inner), sigma)
+    valid = inner & np.isfinite(x_sm) & np.isfinite(y_sm)
     valid &= (x_sm >= 0) & (x_sm < 3 * ps.width) & (y_sm >= 0) & (y_sm < ps.height)
 
     if progress:
@@ -531,7 +539,6 @@ def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:
 
 def _camera(photo: Photo, x_sm, y_sm, valid, ps, given) -> dict:
     """Camera estimate from ~2500 correspondences on a grid over the measured panel."""
-    import cv2
 
     rows, cols = np.nonzero(valid)
     step = max(1, rows.size // 2500)
