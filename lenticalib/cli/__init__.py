@@ -20,6 +20,8 @@ _COMMANDS = {
     "patterns": ("lenticalib.cli.patterns", "write the calibration test patterns for a panel"),
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
+    "device": ("lenticalib.cli.device", "list panel controllers; read, flash and verify their calibration"),
+    "emulate": ("lenticalib.cli.emulate", "run an emulated panel controller (pseudo-terminal or TCP)"),
 }
 
 
@@ -43,6 +45,11 @@ def main(argv: list[str] | None = None) -> int:
     except LenticalibError as exc:
         print(f"lenticalib: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into e.g. head: not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except KeyboardInterrupt:
         print("lenticalib: interrupted", file=sys.stderr)
         return 130

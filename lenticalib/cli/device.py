@@ -1,0 +1,130 @@
+"""``lenticalib device list|info|read|flash|verify``: the calibration record in a panel controller."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="device_command", metavar="ACTION")
+    sub.required = True
+    lst = sub.add_parser("list", help="list connected controllers and emulators")
+    lst.add_argument("--json", action="store_true", help="print JSON")
+    lst.set_defaults(run=run_list)
+    info = sub.add_parser("info", help="identify a controller and show its current record")
+    info.add_argument("url", metavar="URL")
+    info.add_argument("--json", action="store_true", help="print JSON")
+    info.set_defaults(run=run_info)
+    read = sub.add_parser("read", help="read the calibration record into a profile file")
+    read.add_argument("url", metavar="URL")
+    read.add_argument("-o", "--output", required=True, metavar="PROFILE")
+    read.set_defaults(run=run_read)
+    flash = sub.add_parser("flash", help="write a profile into the controller (verified by read-back)")
+    flash.add_argument("url", metavar="URL")
+    flash.add_argument("profile", metavar="PROFILE")
+    flash.set_defaults(run=run_flash)
+    verify = sub.add_parser("verify", help="check that the controller holds a profile; exit 1 if not")
+    verify.add_argument("url", metavar="URL")
+    verify.add_argument("profile", metavar="PROFILE")
+    verify.set_defaults(run=run_verify)
+    for p in (lst, info, read, flash, verify):
+        p.epilog = ("URLs: serial:///dev/ttyACM0, socket://HOST:PORT, hid://VID:PID[/SERIAL], "
+                    "usb://VID:PID[/SERIAL], emu://NAME[?via=serial|hid|usb]")
+
+
+def run_list(args) -> int:
+    import dataclasses
+
+    from ..device.discovery import list_devices
+
+    found, notes = list_devices()
+    if args.json:
+        print(json.dumps({"devices": [dataclasses.asdict(d) for d in found], "notes": notes}, indent=2))
+        return 0
+    for d in found:
+        serial = f"  serial {d.serial}" if d.serial else ""
+        print(f"{d.url:<40} {d.family:<6} {d.description}{serial}")
+    if not found:
+        print("no controllers found (start one with 'lenticalib emulate')")
+    for note in notes:
+        print(f"note: {note}")
+    return 0
+
+
+def run_info(args) -> int:
+    from ..device import PanelController
+
+    with PanelController.open(args.url) as panel:
+        identity = panel.identify()
+        record = panel.read_record()
+        current = panel.verify_crc()
+    out = {"url": args.url, "model": identity.model, "firmware_version": identity.firmware_version,
+           "serial": identity.serial, "protocol_version": identity.protocol_version,
+           "record_layout_version": identity.layout_version, "capabilities": identity.capabilities,
+           "record": None}
+    if record is not None:
+        out["record"] = {"slot": current[0] if current else None, "sequence": record.sequence,
+                         "crc32": f"{current[2]:08x}" if current else None,
+                         **record.to_profile().to_dict()}
+        out["record"].pop("provenance", None)
+        out["record"].pop("format", None)
+        out["record"].pop("format_version", None)
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    print(f"{identity.model}, firmware {identity.firmware_version}, serial {identity.serial}")
+    print(f"protocol v{identity.protocol_version}, record layout v{identity.layout_version}")
+    if record is None:
+        print("no calibration record (flash one with 'lenticalib device flash')")
+    else:
+        r = out["record"]
+        print(f"record #{r['sequence']} in slot {r['slot']} (CRC-32 {r['crc32']}): {r['views']} views, "
+              f"slant {r['slant']}, period {r['period']}, offset {r['offset']}, i_ref {r['reference_view']}, "
+              f"{r['width']}x{r['height']} {r['subpixel_order']}")
+    return 0
+
+
+def run_read(args) -> int:
+    from ..device import PanelController
+    from ..profile import save_profile
+
+    with PanelController.open(args.url) as panel:
+        profile = panel.read_profile()
+    save_profile(profile, args.output)
+    print(f"read record #{profile.provenance['record_sequence']} from {args.url} into {args.output}")
+    return 0
+
+
+def run_flash(args) -> int:
+    from ..device import PanelController
+    from ..profile import load_profile
+    from ._progress import progress_bar
+
+    profile = load_profile(args.profile)  # validated before anything is sent
+    with PanelController.open(args.url) as panel, progress_bar(1, "flashing") as bar:
+        def progress(done, total):
+            if bar._bar is not None:
+                bar._bar.total = total
+            bar.update()
+
+        result = panel.flash(profile, progress=progress)
+    print(f"flashed {args.profile} to {args.url}: record #{result.record.sequence} in slot {result.slot}, "
+          f"verified by read-back" + (f" ({result.retries} resends)" if result.retries else ""))
+    return 0
+
+
+def run_verify(args) -> int:
+    from ..device import PanelController
+    from ..profile import load_profile
+
+    profile = load_profile(args.profile)
+    with PanelController.open(args.url) as panel:
+        result = panel.verify(profile)
+    if result.matches:
+        print(f"{args.url} holds {args.profile} (record #{result.record.sequence})")
+        return 0
+    print(f"{args.url} does not hold {args.profile}:")
+    for line in result.differences:
+        print(f"  {line}")
+    return 1

@@ -1,0 +1,64 @@
+"""``lenticalib emulate``: run an emulated panel controller on a pseudo-terminal or TCP port.
+
+Prints the device URL on the first line of stdout and serves until stopped (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--transport", choices=("pty", "tcp"), default="pty",
+                        help="pty: a serial device /dev/pts/N (default); tcp: socket://127.0.0.1:PORT")
+    parser.add_argument("--port", type=int, default=0, help="TCP port for --transport tcp (default: any free)")
+    parser.add_argument("--flash", metavar="IMAGE",
+                        help="flash image file, created blank if missing and kept across restarts "
+                             "(default: default.flash in the emulator directory)")
+    parser.add_argument("--serial", help="serial number for a new flash image (default: from its file name)")
+    faults = parser.add_argument_group("fault injection (rates are probabilities per frame)")
+    faults.add_argument("--power-cut-after", type=int, metavar="K",
+                        help="the power fails after the K-th flash operation (erase or program): the process "
+                             f"exits with status 75 and the image keeps what was written")
+    faults.add_argument("--torn", action="store_true",
+                        help="with --power-cut-after: the K-th operation is cut halfway through")
+    faults.add_argument("--drop", type=float, default=0.0, metavar="P", help="lose a request or a reply")
+    faults.add_argument("--corrupt", type=float, default=0.0, metavar="P", help="flip a bit in a request or reply")
+    faults.add_argument("--duplicate", type=float, default=0.0, metavar="P", help="send a reply twice")
+    faults.add_argument("--delay", type=float, default=0.0, metavar="P", help="hold a reply back by --delay-s")
+    faults.add_argument("--delay-s", type=float, default=0.2, metavar="S", help="delay in seconds (default 0.2)")
+    faults.add_argument("--stale", type=float, default=0.0, metavar="P",
+                        help="send the previous (stale) reply before the real one")
+    faults.add_argument("--disconnect-after", type=int, metavar="N",
+                        help="the link goes away after N request frames (exit status 76)")
+    faults.add_argument("--seed", type=int, default=0, help="random seed of the faults (default 0)")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..device.emulator.controller import EmulatedController, default_image_dir, ensure_image
+    from ..device.emulator.faults import FaultPlan
+    from ..device.emulator.serve import serve_pty, serve_tcp
+    from ..errors import InputError
+
+    if args.torn and args.power_cut_after is None:
+        raise InputError("--torn needs --power-cut-after K", source="--torn")
+    if not 0 <= args.port <= 65535:
+        raise InputError(f"must be 0..65535, got {args.port}", source="--port")
+    faults = FaultPlan(drop_rate=args.drop, corrupt_rate=args.corrupt, duplicate_rate=args.duplicate,
+                       delay_rate=args.delay, delay_s=args.delay_s, stale_rate=args.stale,
+                       disconnect_after=args.disconnect_after, power_cut_after=args.power_cut_after,
+                       torn=args.torn, seed=args.seed)
+    image = Path(args.flash) if args.flash else default_image_dir() / "default.flash"
+    try:
+        ensure_image(image, serial=args.serial)
+    except OSError as exc:
+        raise InputError(f"cannot create the flash image: {exc.strerror}", source=str(image)) from None
+    controller = EmulatedController(image, faults)
+    if args.transport == "pty":
+        serve_pty(controller)
+    else:
+        serve_tcp(controller, port=args.port)
+    return 0

@@ -1,0 +1,169 @@
+"""Serve an emulated controller on a pseudo-terminal or a loopback TCP port (``lenticalib emulate``).
+
+The first line written to stdout is the URL a client opens (``serial:///dev/pts/5`` or
+``socket://127.0.0.1:40123``); the server then runs until SIGINT/SIGTERM.  Exit status:
+0 when stopped, :data:`EXIT_POWER_CUT` after an injected power cut (the flash image keeps
+what was written), :data:`EXIT_DISCONNECT` after an injected disconnect.
+
+While it runs, a small JSON file in the runtime directory announces it, so
+``lenticalib device list`` shows running emulators.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import socket
+import sys
+import time
+import tty
+from pathlib import Path
+
+from .controller import EmulatedController, LinkDown
+
+EXIT_POWER_CUT = 75
+EXIT_DISCONNECT = 76
+
+
+def runtime_dir() -> Path:
+    base = os.environ.get("XDG_RUNTIME_DIR") or os.path.join("/tmp", f"lenticalib-{os.getuid()}")
+    return Path(base) / "lenticalib" / "emulators"
+
+
+def running_emulators() -> list[dict]:
+    """Announcements of emulators whose process is still alive."""
+    found = []
+    folder = runtime_dir()
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        try:
+            entry = json.loads(path.read_text())
+            os.kill(int(entry["pid"]), 0)
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        found.append(entry)
+    return found
+
+
+class _Announcement:
+    def __init__(self, url: str, controller: EmulatedController, transport: str):
+        self.path = runtime_dir() / f"{os.getpid()}.json"
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        identity = controller.identity
+        self.path.write_text(json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
+                                         "flash": str(controller.flash.path), "serial": identity.serial,
+                                         "model": identity.model}))
+
+    def remove(self):
+        try:
+            self.path.unlink()
+        except OSError:
+            pass
+
+
+def _stop_on_signals():
+    def stop(signum, frame):
+        raise SystemExit(0)
+
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+
+
+def _wait(controller: EmulatedController, fds: list[int]) -> list[int]:
+    ready_at = controller.next_ready()
+    timeout = 0.5 if ready_at is None else max(0.0, ready_at - time.monotonic())
+    return select.select(fds, [], [], timeout)[0]
+
+
+def _end(reason: str) -> None:
+    sys.stdout.flush()
+    print(f"lenticalib emulate: {reason}", file=sys.stderr, flush=True)
+    os._exit(EXIT_POWER_CUT if reason == "power cut" else EXIT_DISCONNECT)
+
+
+def serve_pty(controller: EmulatedController) -> None:
+    """Serve on a new pseudo-terminal until stopped (never returns normally)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no line discipline: the protocol's bytes pass untouched
+    url = f"serial://{os.ttyname(slave)}"
+    announcement = _Announcement(url, controller, "pty")
+    _stop_on_signals()
+    print(url, flush=True)
+    try:
+        while True:
+            if master in _wait(controller, [master]):
+                try:
+                    data = os.read(master, 4096)
+                except OSError:
+                    data = b""
+                if data:
+                    try:
+                        controller.host_write(data)
+                    except LinkDown as exc:
+                        announcement.remove()
+                        os.close(master)
+                        os.close(slave)
+                        _end(exc.reason)
+            _flush(controller, lambda out: os.write(master, out))
+    finally:
+        announcement.remove()
+        controller.close()
+
+
+def _flush(controller: EmulatedController, send) -> None:
+    while True:
+        try:
+            out = controller.host_read(4096, 0.0)
+        except LinkDown as exc:
+            _end(exc.reason)
+        if not out:
+            return
+        view = memoryview(out)
+        while view:
+            n = send(bytes(view))
+            view = view[n:]
+
+
+def serve_tcp(controller: EmulatedController, host: str = "127.0.0.1", port: int = 0) -> None:
+    """Serve on a TCP port (one client at a time) until stopped."""
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    server.bind((host, port))
+    server.listen(1)
+    url = f"socket://{host}:{server.getsockname()[1]}"
+    announcement = _Announcement(url, controller, "tcp")
+    _stop_on_signals()
+    print(url, flush=True)
+    client = None
+    try:
+        while True:
+            fds = [server.fileno()] + ([client.fileno()] if client else [])
+            ready = _wait(controller, fds)
+            if server.fileno() in ready:
+                new, _ = server.accept()
+                if client:
+                    client.close()  # a new connection replaces the old one, as a re-plugged cable
+                client = new
+                client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            elif client and client.fileno() in ready:
+                data = client.recv(4096)
+                if not data:
+                    client.close()
+                    client = None
+                    continue
+                try:
+                    controller.host_write(data)
+                except LinkDown as exc:
+                    announcement.remove()
+                    client.close()
+                    _end(exc.reason)
+            if client:
+                try:
+                    _flush(controller, client.send)
+                except OSError:
+                    client.close()
+                    client = None
+    finally:
+        announcement.remove()
+        controller.close()
