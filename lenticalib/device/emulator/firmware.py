@@ -112,6 +112,7 @@ class Firmware:
         return Status.OK, VERIFY_REPLY.pack(self.current_slot, self.current_sequence, zlib.crc32(raw))
 
     def _begin_write(self, payload: bytes):
+        self.session = None  # a new BEGIN_WRITE, even a refused one, ends any earlier session
         if len(payload) != BEGIN_WRITE.size:
             return Status.BAD_FRAME, b""
         layout, length, crc, sequence = BEGIN_WRITE.unpack(payload)
@@ -122,7 +123,6 @@ class Firmware:
         if sequence <= self.current_sequence and self.current_slot is not None:
             return Status.STALE_SEQUENCE, b""
         slot = 0 if self.current_slot is None else 1 - self.current_slot
-        self.session = None
         self.flash.erase_slot(slot)
         self.session = {"slot": slot, "crc": crc, "sequence": sequence, "written": 0}
         return Status.OK, bytes([slot])
@@ -152,6 +152,7 @@ class Firmware:
         if session is None or session["written"] != RECORD_SIZE:
             return Status.BAD_STATE, b""
         slot = session["slot"]
+        self.session = None  # committed or refused, the staged slot is not written to again
         raw = self.flash.read_slot(slot, 0, RECORD_SIZE)
         if zlib.crc32(raw) != session["crc"]:
             return Status.CRC_MISMATCH, b""
@@ -164,7 +165,6 @@ class Firmware:
         self.flash.program(slot, COMMIT_OFFSET, _WORD.pack(COMMIT_WORD))
         if self._valid_sequence(slot) != record.sequence:
             return Status.FLASH_ERROR, b""
-        self.session = None
         self.current_slot, self.current_sequence = slot, record.sequence
         return Status.OK, SLOT_SEQUENCE.pack(slot, record.sequence)
 

@@ -1,0 +1,116 @@
+"""Transport faults: every injected fault ends in a verified success (after retries) or a clear
+DeviceError; never a wrong record reported as good, never a hang."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from lenticalib.device import PanelController
+from lenticalib.errors import DeviceDisconnectedError, DeviceError, DeviceTimeoutError
+
+from .device_support import VIAS, emulator_process, profile_a, profile_b, same_constants
+
+FAULTS = {
+    "drop": "drop=0.3",
+    "corrupt": "corrupt=0.3",
+    "duplicate": "duplicate=0.5",
+    "delay": "delay=0.3&delay-s=0.25",   # longer than the command timeout below: stale replies
+    "stale": "stale=0.5",
+    "mixed": "drop=0.1&corrupt=0.1&duplicate=0.2&delay=0.1&delay-s=0.25&stale=0.2",
+}
+TIMEOUT, FLASH_TIMEOUT, RETRIES = 0.15, 0.3, 6
+# the longest a flash may take: every request times out on every attempt
+BOUND = 12 * (RETRIES + 1) * FLASH_TIMEOUT + 5
+
+
+@pytest.fixture(autouse=True)
+def emulator_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("LENTICALIB_EMULATOR_DIR", str(tmp_path / "emu"))
+
+
+def open_fast(url: str, retries: int = RETRIES) -> PanelController:
+    panel = PanelController.open(url, retries=retries)
+    panel.command_timeout, panel.flash_timeout = TIMEOUT, FLASH_TIMEOUT
+    return panel
+
+
+def check_device_holds_old_or_new(name: str, via: str):
+    with PanelController.open(f"emu://{name}?via={via}") as panel:
+        held = panel.read_record().to_profile()
+    assert same_constants(held, profile_a()) or same_constants(held, profile_b())
+    return held
+
+
+@pytest.mark.parametrize("via", VIAS)
+@pytest.mark.parametrize("fault", sorted(FAULTS))
+@pytest.mark.parametrize("seed", [1, 2])
+def test_faulty_link_gives_verified_success_or_clear_error(via, fault, seed):
+    name = f"{fault}-{seed}"
+    with PanelController.open(f"emu://{name}?via={via}") as panel:
+        panel.flash(profile_a())
+    start = time.monotonic()
+    with open_fast(f"emu://{name}?via={via}&{FAULTS[fault]}&seed={seed}") as panel:
+        try:
+            result = panel.flash(profile_b())
+        except DeviceError as exc:
+            assert str(exc) and "\n" not in str(exc)
+            outcome = "error"
+        else:
+            assert same_constants(result.record.to_profile(), profile_b())
+            outcome = "success"
+    assert time.monotonic() - start < BOUND
+    held = check_device_holds_old_or_new(name, via)
+    if outcome == "success":
+        assert same_constants(held, profile_b())  # never a wrong record reported as good
+
+
+@pytest.mark.parametrize("via", VIAS)
+def test_moderate_faults_are_absorbed_by_retries(via):
+    """With a few lost, corrupt and stale frames the flash succeeds after resends."""
+    with open_fast(f"emu://m?via={via}&drop=0.1&corrupt=0.1&stale=0.2&seed=5", retries=8) as panel:
+        result = panel.flash(profile_b())
+        assert result.retries > 0 and panel.discarded > 0
+        assert panel.verify(profile_b()).matches
+
+
+@pytest.mark.parametrize("via", VIAS)
+def test_disconnect_at_every_request_of_a_flash(via):
+    with PanelController.open(f"emu://d?via={via}") as panel:
+        panel.flash(profile_a())
+    for n in range(1, 11):  # a flash is 10 requests: identify, verify, begin, 4 chunks, commit, read, verify
+        with open_fast(f"emu://d?via={via}&disconnect-after={n}") as panel:
+            with pytest.raises(DeviceError) as info:
+                panel.flash(profile_b())
+            assert isinstance(info.value, (DeviceDisconnectedError, DeviceTimeoutError))
+        check_device_holds_old_or_new("d", via)
+    with open_fast(f"emu://d?via={via}&disconnect-after=11") as panel:
+        panel.flash(profile_a())  # the 11th request would be the first after a complete flash
+
+
+def test_silent_device_times_out_with_a_clear_message():
+    with open_fast("emu://s?drop=1.0", retries=2) as panel:
+        start = time.monotonic()
+        with pytest.raises(DeviceTimeoutError, match="no valid reply to IDENTIFY.*3 attempts"):
+            panel.identify()
+        assert time.monotonic() - start < 3 * TIMEOUT + 1
+
+
+def test_faults_over_tcp_and_pty_processes(tmp_path):
+    for transport in ("tcp", "pty"):
+        image = tmp_path / f"{transport}.flash"
+        with emulator_process("--transport", transport, "--flash", str(image), "--drop", "0.1",
+                              "--corrupt", "0.1", "--duplicate", "0.2", "--stale", "0.2", "--seed", "3") as (_, url):
+            with open_fast(url, retries=8) as panel:
+                panel.flash(profile_b())
+                assert panel.verify(profile_b()).matches
+
+
+def test_disconnect_of_the_pty_process(tmp_path):
+    image = tmp_path / "x.flash"
+    with emulator_process("--flash", str(image), "--disconnect-after", "4") as (proc, url):
+        with open_fast(url) as panel:
+            with pytest.raises(DeviceError):
+                panel.flash(profile_b())
+        assert proc.wait(timeout=10) == 76

@@ -1,0 +1,104 @@
+"""The calibration record, the frame format and the controller family files."""
+
+from __future__ import annotations
+
+import re
+import struct
+import zlib
+
+import pytest
+from hypothesis import given, strategies as st
+
+from lenticalib.device.drivers import families, family_for, load_family
+from lenticalib.device.framing import FrameParser, crc16, encode_frame
+from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record,
+                                      record_from_profile)
+from lenticalib.errors import InputError, ProfileError
+from lenticalib.profile import PanelProfile
+
+from .device_support import REPO, profile_b
+
+
+def test_crc16_is_ccitt_false():
+    assert crc16(b"123456789") == 0x29B1  # the catalogue check value of CRC-16/CCITT-FALSE
+
+
+def test_record_layout_is_little_endian_and_documented():
+    record = record_from_profile(profile_b(), serial="SN-1", sequence=0x01020304, written=5)
+    data = encode_record(record)
+    assert len(data) == RECORD_SIZE and data[:4] == b"LTCR"
+    assert struct.unpack_from("<HHI", data, 4) == (1, 128, 0x01020304)
+    assert data[12:28] == b"SN-1" + bytes(12)
+    assert struct.unpack_from("<HHHBB", data, 28) == (3840, 2160, 32, 1, 1)
+    assert struct.unpack_from("<dddd", data, 36) == (profile_b().slant, profile_b().period, 3.25, 16.0)
+    assert struct.unpack_from("<I", data, 124)[0] == zlib.crc32(data[:124])
+    back = parse_record(data)
+    assert back.to_profile().routing_key() == profile_b().routing_key()
+    assert back.sigmas == pytest.approx(record.sigmas, rel=1e-7)  # sigmas are stored as f32
+
+
+@given(slant=st.floats(-4, 4), period=st.floats(0.01, 4096), offset=st.floats(-1e6, 1e6),
+       views=st.integers(2, 254), order=st.sampled_from(["RGB", "BGR"]), seq=st.integers(0, 2**32 - 1))
+def test_any_valid_profile_round_trips_exactly(slant, period, offset, views, order, seq):
+    profile = PanelProfile(views=views, slant=slant, period=period, offset=offset, reference_view=views / 2,
+                           width=1920, height=1080, subpixel_order=order)
+    record = parse_record(encode_record(record_from_profile(profile, serial="S", sequence=seq)))
+    assert record.to_profile().routing_key() == profile.routing_key() and record.sequence == seq
+
+
+@pytest.mark.parametrize("change,field", [({"slant": 4.5}, "slant"), ({"period": 5000.0}, "period"),
+                                          ({"offset": 2e6}, "offset"), ({"reference_view": 1e6}, "reference_view")])
+def test_host_refuses_values_the_record_cannot_hold(change, field):
+    with pytest.raises(ProfileError, match=field):
+        record_from_profile(profile_b().replace(**change), serial="S", sequence=1)
+
+
+def test_corrupt_records_are_refused_with_a_status():
+    data = bytearray(encode_record(record_from_profile(profile_b(), serial="S", sequence=1)))
+    for index in (0, 10, 40, 100, 127):
+        bad = bytearray(data)
+        bad[index] ^= 0x01
+        with pytest.raises(RecordFormatError) as info:
+            parse_record(bytes(bad))
+        assert info.value.status == "BAD_RECORD"
+    with pytest.raises(RecordFormatError):
+        parse_record(bytes([0xFF]) * RECORD_SIZE)  # an erased slot
+
+
+def test_frame_parser_resynchronises_after_garbage():
+    frames = encode_frame(0x01, 7, b"") + b"\xa5\x05\x00garbage" + encode_frame(0x82, 8, b"\x00abc")
+    parser = FrameParser()
+    got = []
+    for i in range(len(frames)):  # one byte at a time, as a slow serial link delivers them
+        got += parser.feed(frames[i:i + 1])
+    assert [(f.cmd, f.seq, f.payload) for f in got] == [(0x01, 7, b""), (0x82, 8, b"\x00abc")]
+
+
+def test_family_file_loads():
+    family = family_for()
+    assert family.name == "lc32" and family.retries >= 1 and family.command_timeout_s > 0
+    assert {t.kind for t in family.transports} == {"serial", "hid", "usb"}
+    assert family.transport("hid").report_size == 64
+    assert family_for("usb", 0x1209, 0x0003) is family
+
+
+def test_bad_family_file_names_the_field(tmp_path):
+    text = (REPO / "drivers" / "lc32.toml").read_text().replace("retries = 3", "retries = \"three\"")
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(InputError, match="timeouts.retries") as info:
+        load_family(path)
+    assert str(path) in str(info.value)
+
+
+def test_udev_rules_cover_every_controller_and_use_uaccess():
+    rules_path = REPO / "drivers" / "70-lenticalib.rules"
+    assert rules_path.name < "73-seat-late.rules"  # uaccess is applied in 73-seat-late
+    rules = [line for line in rules_path.read_text().splitlines() if line.strip() and not line.startswith("#")]
+    assert rules and not any("MODE" in line for line in rules)
+    assert all('TAG+="uaccess"' in line for line in rules)
+    covered = {(m[1].lower(), m[2].lower()) for line in rules
+               for m in [re.search(r'idVendor}=="([0-9a-fA-F]{4})".*idProduct}=="([0-9a-fA-F]{4})"', line)] if m}
+    for family in families():
+        for t in family.transports:
+            assert (f"{t.vid:04x}", f"{t.pid:04x}") in covered, f"{family.name} {t.kind} has no udev rule"
