@@ -188,10 +188,12 @@ def systematic_floor(views: int, width: int, height: int, floor: float = SYSTEMA
     return np.diag([sa * sa, sb * sb, sc * sc])
 
 
-# On every simulated set so far the fitted |C_r| came out 1e-5 to 3.2e-5 (relative) too large, a
-# bias of the method not yet explained (it does not depend on the smoothing of the coordinate
-# maps, nor on the colour of the y-patterns).  It is below 0.06 view at the panel edges; until
-# it is understood, it is part of the reported slant uncertainty rather than corrected.
+# The measured panel coordinates can be shrunk slightly toward the panel centre, which makes the
+# fitted |C_r| too large: the one-sided fringe averaging at the bezel did this by ~5e-5 (fixed in
+# fit.py by fitting only pixels whose averaging window lies on the panel); brightness fall-off
+# across the panel and the camera's colour fringing still leave up to ~3e-5 (relative) on some
+# simulated sets (under 0.06 view at the panel edges).  That residue is part of the reported
+# slant uncertainty rather than corrected.
 SLANT_RELATIVE_FLOOR = 4e-5
 
 

@@ -28,6 +28,11 @@ class _Bar:
                 self._bar.set_postfix_str(message, refresh=False)
             self._bar.update(1)
 
+    def set_total(self, total: int) -> None:
+        if self._bar is not None and self._bar.total != total:
+            self._bar.total = total
+            self._bar.refresh()
+
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()

@@ -104,8 +104,7 @@ def run_flash(args) -> int:
     profile = load_profile(args.profile)  # validated before anything is sent
     with PanelController.open(args.url) as panel, progress_bar(1, "flashing") as bar:
         def progress(done, total):
-            if bar._bar is not None:
-                bar._bar.total = total
+            bar.set_total(total)
             bar.update()
 
         result = panel.flash(profile, progress=progress)
