@@ -19,7 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     faults = parser.add_argument_group("fault injection (rates are probabilities per frame)")
     faults.add_argument("--power-cut-after", type=int, metavar="K",
                         help="the power fails after the K-th flash operation (erase or program): the process "
-                             f"exits with status 75 and the image keeps what was written")
+                             "exits with status 75 and the image keeps what was written")
     faults.add_argument("--torn", action="store_true",
                         help="with --power-cut-after: the K-th operation is cut halfway through")
     faults.add_argument("--drop", type=float, default=0.0, metavar="P", help="lose a request or a reply")

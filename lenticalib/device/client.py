@@ -17,10 +17,10 @@ import time
 import zlib
 from typing import Callable
 
-from ..errors import DeviceDisconnectedError, DeviceError, DeviceProtocolError, DeviceTimeoutError
+from ..errors import DeviceProtocolError, DeviceTimeoutError
 from ..profile import PanelProfile
 from .framing import MAX_FRAME, REPLY_BIT, FrameParser, encode_frame
-from .protocol import (BEGIN_WRITE, CHUNK_HEADER, SLOT_SEQUENCE, STATUS_HELP, VERIFY_REPLY, Command,
+from .protocol import (BEGIN_WRITE, CHUNK_HEADER, STATUS_HELP, VERIFY_REPLY, Command,
                        Identity, Status, status_name)
 from .record import (LAYOUT_VERSION, RECORD_SIZE, CalibrationRecord, decode_record, encode_record,
                      record_from_profile)
@@ -135,19 +135,20 @@ class PanelController:
         except ValueError as exc:
             raise DeviceProtocolError(f"malformed IDENTIFY reply: {exc}", source=self.url) from None
 
-    def read_record(self) -> CalibrationRecord | None:
-        """The current record, or None when the controller holds none."""
+    def read_raw_record(self) -> bytes | None:
+        """The current record's 128 bytes as the controller sends them, or None when it holds none."""
         status, body = self.request(Command.READ_RECORD, accept=(Status.OK, Status.NO_RECORD))
         if status is Status.NO_RECORD:
             return None
         if len(body) != 1 + RECORD_SIZE:
             raise DeviceProtocolError(f"READ_RECORD returned {len(body)} bytes, expected {1 + RECORD_SIZE}",
                                       source=self.url)
-        return decode_record(body[1:], self.url)
+        return body[1:]
 
-    def read_raw_record(self) -> bytes | None:
-        status, body = self.request(Command.READ_RECORD, accept=(Status.OK, Status.NO_RECORD))
-        return None if status is Status.NO_RECORD else body[1:]
+    def read_record(self) -> CalibrationRecord | None:
+        """The current record, decoded and checked, or None when the controller holds none."""
+        raw = self.read_raw_record()
+        return None if raw is None else decode_record(raw, self.url)
 
     def read_profile(self) -> PanelProfile:
         record = self.read_record()
@@ -201,14 +202,14 @@ class PanelController:
             if progress:
                 progress(done, total)
 
-        _, body = self.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(LAYOUT_VERSION, RECORD_SIZE, crc, sequence),
-                               timeout=self.flash_timeout)
+        self.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(LAYOUT_VERSION, RECORD_SIZE, crc, sequence),
+                     timeout=self.flash_timeout)
         step()
         for offset in offsets:
             self.request(Command.WRITE_CHUNK, CHUNK_HEADER.pack(offset) + data[offset:offset + chunk])
             step()
         try:
-            _, body = self.request(Command.COMMIT, timeout=self.flash_timeout)
+            self.request(Command.COMMIT, timeout=self.flash_timeout)
         except DeviceProtocolError as exc:
             # A COMMIT whose reply was lost and whose retry found the session already closed
             # (BAD_STATE) may have succeeded: the read-back below decides, nothing else.
@@ -242,5 +243,3 @@ class PanelController:
                             if getattr(held, key) != getattr(profile, key))
         return VerifyResult(not differences, differences, record)
 
-
-__all__ = ["PanelController", "FlashResult", "VerifyResult", "DeviceError", "DeviceDisconnectedError"]

@@ -96,6 +96,7 @@ class EmulatedController:
                 self._requests += 1
                 if faults.hit(faults.drop_rate):
                     continue
+                # faults act per frame, so the firmware gets each parsed frame re-encoded
                 raw = encode_frame(frame.cmd, frame.seq, frame.payload)
                 if faults.hit(faults.corrupt_rate):
                     raw = faults.corrupt(raw)

@@ -60,9 +60,6 @@ class FaultPlan:
         out[index] ^= 1 << self.random.randrange(8)
         return bytes(out)
 
-    def to_dict(self) -> dict:
-        return {k: v for k, v in dataclasses.asdict(self).items() if k != "random"}
-
 
 def _opt(name: str) -> str:
     return name.replace("_rate", "").replace("_", "-")

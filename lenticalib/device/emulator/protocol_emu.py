@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, SerialTimeoutException
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from ..url import parse_device_url
 from .controller import LinkDown, controller_for_url
