@@ -1,8 +1,8 @@
 """Controller family descriptions: the TOML files in ``drivers/`` (data, not code).
 
 Search path, first match of a family name wins: ``$LENTICALIB_DRIVERS`` (``os.pathsep``
-separated), ``~/.config/lenticalib/drivers``, then the repository's ``drivers/`` next to the
-package.  See ``drivers/lc32.toml`` for the format.
+separated), ``~/.config/lenticalib/drivers``, the repository's ``drivers/`` next to the
+package, then ``<prefix>/share/lenticalib/drivers`` where a wheel installs them.  See ``drivers/lc32.toml`` for the format.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import sys
 import tomllib
 from pathlib import Path
 
@@ -57,7 +58,8 @@ class ControllerFamily:
 def search_path() -> list[Path]:
     paths = [Path(p) for p in os.environ.get("LENTICALIB_DRIVERS", "").split(os.pathsep) if p]
     paths.append(Path(os.path.expanduser("~")) / ".config" / "lenticalib" / "drivers")
-    paths.append(Path(__file__).resolve().parents[2] / "drivers")
+    paths.append(Path(__file__).resolve().parents[2] / "drivers")  # a source checkout / editable install
+    paths.append(Path(sys.prefix) / "share" / "lenticalib" / "drivers")  # a wheel install (data-files)
     return paths
 
 
