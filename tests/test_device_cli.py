@@ -82,9 +82,12 @@ def test_cli_power_cut_then_recover(tmp_path):
     (["device", "flash", "emu://x", "missing.json"], "missing.json"),
     (["emulate", "--drop", "2"], "--drop"),
     (["emulate", "--torn"], "--power-cut-after"),
+    (["emulate", "--flash", "DIR"], "cannot open the flash image"),
+    (["emulate", "--flash", "DIR/new.flash", "--serial", "\u00c4\u00d6"], "--serial"),
+    (["emulate", "--delay-s", "-1"], "--delay-s"),
 ])
 def test_user_errors_are_one_line(tmp_path, args, expect):
-    args = [a.replace("OUT", str(tmp_path / "o.json")) for a in args]
+    args = [a.replace("OUT", str(tmp_path / "o.json")).replace("DIR", str(tmp_path)) for a in args]
     result = cli(*args, env={"LENTICALIB_EMULATOR_DIR": str(tmp_path / "emu")})
     assert result.returncode == 2, result.stdout + result.stderr
     assert "Traceback" not in result.stderr
@@ -98,3 +101,31 @@ def test_flash_refuses_an_invalid_profile_before_sending(tmp_path):
     bad.write_text(json.dumps({**profile_a().to_dict(), "slant": 12.0}))
     result = cli("device", "flash", "emu://v", str(bad), env={"LENTICALIB_EMULATOR_DIR": str(tmp_path)})
     assert result.returncode == 2 and "slant" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_busy_tcp_port_is_a_clear_error(tmp_path):
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        result = cli("emulate", "--transport", "tcp", "--port", str(port), "--flash", str(tmp_path / "b.flash"))
+    assert result.returncode == 2 and "--port" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_emulator_survives_a_client_that_resets_or_never_reads(tmp_path):
+    import socket
+    import struct
+
+    from lenticalib.device.framing import encode_frame
+
+    with emulator_process("--transport", "tcp", "--flash", str(tmp_path / "r.flash")) as (proc, url):
+        host, port = url[len("socket://"):].split(":")
+        flood = encode_frame(0x01, 1, b"") * 20000  # IDENTIFY requests whose replies nobody reads
+        with socket.create_connection((host, int(port))) as rude:
+            rude.sendall(flood)
+            rude.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))  # close = reset
+        info = cli("device", "info", url)
+        assert info.returncode == 0, info.stderr
+        assert proc.poll() is None

@@ -63,6 +63,12 @@ def test_corrupt_records_are_refused_with_a_status():
         assert info.value.status == "BAD_RECORD"
     with pytest.raises(RecordFormatError):
         parse_record(bytes([0xFF]) * RECORD_SIZE)  # an erased slot
+    reserved = bytearray(data)
+    reserved[110] = 1
+    struct.pack_into("<I", reserved, 124, zlib.crc32(bytes(reserved[:124])))
+    with pytest.raises(RecordFormatError, match="reserved") as info:
+        parse_record(bytes(reserved))
+    assert info.value.status == "OUT_OF_RANGE"
 
 
 def test_frame_parser_resynchronises_after_garbage():

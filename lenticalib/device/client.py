@@ -186,6 +186,10 @@ class PanelController:
         if identity.record_size != RECORD_SIZE:
             raise DeviceProtocolError(f"controller record size {identity.record_size} != {RECORD_SIZE}",
                                       source=self.url)
+        if not (identity.serial.isascii() and identity.serial.isprintable() and len(identity.serial) <= 16):
+            raise DeviceProtocolError(f"the controller reports an unusable serial number {identity.serial!r}",
+                                      source=self.url, hint="the record stores up to 16 printable ASCII "
+                                      "characters; check the controller's factory data")
         chunk = max(1, min(identity.max_chunk, 64))
         current = self.verify_crc()
         sequence = (current[1] if current else 0) + 1

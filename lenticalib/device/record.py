@@ -150,7 +150,7 @@ def check_ranges(record: CalibrationRecord) -> None:
     if record.sigmas is not None:
         for key, value in zip(_SIGMA_KEYS, record.sigmas):
             need(math.isfinite(value) and 0 <= value <= 3.0e38, f"uncertainty.{key}",
-                 f"must be a finite number >= 0, got {value!r}")
+                 f"must be a number in [0, 3e38] (stored as f32), got {value!r}")
     need(0 <= record.written <= 0xFFFFFFFFFFFFFFFF, "written", "must fit in 64 bits")
 
 
@@ -189,13 +189,15 @@ def parse_record(data: bytes) -> CalibrationRecord:
     if zlib.crc32(body) != crc:
         raise RecordFormatError("record CRC-32 does not match (corrupt or half-written)", "BAD_RECORD")
     (_, version, size, sequence, serial, width, height, views, order, flags, slant, period, offset,
-     ref, s0, s1, s2, s3, written, digest, _reserved) = _STRUCT.unpack(body)
+     ref, s0, s1, s2, s3, written, digest, reserved) = _STRUCT.unpack(body)
     if version not in KNOWN_LAYOUT_VERSIONS:
         raise RecordFormatError(f"unknown record layout version {version}", "BAD_LAYOUT")
     if size != RECORD_SIZE:
         raise RecordFormatError(f"record_size field says {size}, expected {RECORD_SIZE}", "BAD_LAYOUT")
     if order > 1:
         raise RecordFormatError(f"field 'subpixel_order': unknown code {order}", "OUT_OF_RANGE")
+    if any(reserved):
+        raise RecordFormatError("field 'reserved': must be zero in layout 1", "OUT_OF_RANGE")
     if flags & ~KNOWN_FLAGS:
         raise RecordFormatError(f"field 'flags': unknown bits 0x{flags:02x}", "OUT_OF_RANGE")
     try:

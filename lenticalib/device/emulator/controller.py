@@ -12,6 +12,7 @@ means constructing a new controller on the same image.
 
 from __future__ import annotations
 
+import bisect
 import os
 import threading
 import time
@@ -23,6 +24,8 @@ from .firmware import Firmware
 from .flash import FlashImage, PowerCut, create_image
 
 DEFAULT_MODEL = "LC-32 (emulated)"
+TRANSMIT_BUFFER = 16384  # bytes of replies the controller holds for a host that does not read
+FRAME_GAP_S = 0.05  # a partial frame older than this when new bytes arrive is discarded (protocol 2.)
 DEFAULT_FIRMWARE = "1.0.0-emu"
 
 
@@ -48,7 +51,7 @@ def ensure_image(path: str | os.PathLike, *, serial: str | None = None, model: s
     """Create the flash image at ``path`` if it does not exist (serial from its name by default)."""
     path = Path(path)
     if not path.exists():
-        name = path.stem.upper().replace("-", "")[:10] or "EMU"
+        name = "".join(c for c in path.stem.upper() if c.isascii() and c.isalnum())[:12] or "EMU"
         create_image(path, model=model, serial=serial or f"EMU-{name}", firmware_version=firmware_version)
     return path
 
@@ -61,7 +64,9 @@ class EmulatedController:
         self.flash = FlashImage(image, power_cut_after=self.faults.power_cut_after, torn=self.faults.torn)
         self.firmware = Firmware(self.flash)
         self._inbound = FrameParser()
-        self._outbox: list[tuple[float, bytes]] = []  # (ready time, bytes)
+        self._outbox: list[tuple[float, bytes]] = []  # (ready time, bytes), sorted by time
+        self._queued = 0  # bytes in _outbox
+        self._last_rx = 0.0
         self._previous_reply: bytes | None = None
         self._requests = 0
         self._lock = threading.Condition()
@@ -82,6 +87,7 @@ class EmulatedController:
         self.down = reason
         self.flash.close()
         self._outbox.clear()
+        self._queued = 0
         self._lock.notify_all()
 
     def host_write(self, data: bytes) -> None:
@@ -89,7 +95,10 @@ class EmulatedController:
         with self._lock:
             if self.down:
                 raise LinkDown(self.down)
-            faults = self.faults
+            faults, now = self.faults, time.monotonic()
+            if now - self._last_rx > FRAME_GAP_S:
+                self._inbound.reset()  # the line was idle: a partial frame will never complete
+            self._last_rx = now
             for frame in self._inbound.feed(data):
                 if frame.is_reply:
                     continue
@@ -112,19 +121,30 @@ class EmulatedController:
                     raise LinkDown("disconnected")
             self._lock.notify_all()
 
+    def reset_link(self) -> None:
+        """A new connection: drop replies not yet read and any partial request frame."""
+        with self._lock:
+            self._outbox.clear()
+            self._queued = 0
+            self._inbound.reset()
+
     def _send(self, reply: bytes) -> None:
         faults, now = self.faults, time.monotonic()
+        if self._queued + len(reply) > TRANSMIT_BUFFER:
+            return  # transmit buffer full: the host is not reading, the reply is lost
         if faults.hit(faults.stale_rate) and self._previous_reply is not None:
-            self._outbox.append((now, self._previous_reply))
+            self._queue(now, self._previous_reply)
         self._previous_reply = reply
         if faults.hit(faults.drop_rate):
             return
         ready = now + (faults.delay_s if faults.hit(faults.delay_rate) else 0.0)
-        out = faults.corrupt(reply) if faults.hit(faults.corrupt_rate) else reply
-        self._outbox.append((ready, out))
+        self._queue(ready, faults.corrupt(reply) if faults.hit(faults.corrupt_rate) else reply)
         if faults.hit(faults.duplicate_rate):
-            self._outbox.append((ready, reply))
-        self._outbox.sort(key=lambda item: item[0])
+            self._queue(ready, reply)
+
+    def _queue(self, ready: float, data: bytes) -> None:
+        bisect.insort(self._outbox, (ready, data), key=lambda item: item[0])  # stable: FIFO per time
+        self._queued += len(data)
 
     def next_ready(self) -> float | None:
         """Monotonic time at which the next reply byte becomes readable (None: nothing queued)."""
@@ -144,6 +164,7 @@ class EmulatedController:
                     ready, data = self._outbox.pop(0)
                     take = data[:max_bytes - len(out)]
                     out += take
+                    self._queued -= len(take)
                     if len(take) < len(data):
                         self._outbox.insert(0, (ready, data[len(take):]))
                 if out:

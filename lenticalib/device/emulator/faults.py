@@ -44,7 +44,7 @@ class FaultPlan:
             if not 0.0 <= value <= 1.0:
                 raise InputError(f"must be a probability between 0 and 1, got {value}", source=f"--{_opt(name)}")
         if not 0.0 <= self.delay_s <= 60.0:
-            raise InputError(f"must be 0..60 seconds, got {self.delay_s}", source="--delay")
+            raise InputError(f"must be 0..60 seconds, got {self.delay_s}", source="--delay-s")
         for name in ("disconnect_after", "power_cut_after"):
             value = getattr(self, name)
             if value is not None and value < 1:

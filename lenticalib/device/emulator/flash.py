@@ -46,20 +46,33 @@ def slot_address(slot: int) -> int:
 
 
 def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_version: str) -> None:
-    """Write a new image (factory block, both slots erased) atomically; the file must not exist."""
+    """Write a new image (factory block, both slots erased); never replaces an existing file.
+
+    ``model`` (<= 32), ``serial`` (<= 16) and ``firmware_version`` (<= 16) are printable ASCII;
+    InputError names the one that is not.
+    """
     path = Path(path)
-    factory = _FACTORY.pack(FACTORY_MAGIC, FACTORY_VERSION, model.encode("ascii")[:32],
-                            serial.encode("ascii")[:16], firmware_version.encode("ascii")[:16])
+    fields = {"--serial": (serial, 16), "model": (model, 32), "firmware version": (firmware_version, 16)}
+    for name, (text, limit) in fields.items():
+        if not (text.isascii() and text.isprintable() and 1 <= len(text) <= limit):
+            raise InputError(f"must be 1 to {limit} printable ASCII characters, got {text!r}", source=name)
+    factory = _FACTORY.pack(FACTORY_MAGIC, FACTORY_VERSION, model.encode("ascii"), serial.encode("ascii"),
+                            firmware_version.encode("ascii"))
     factory += struct.pack("<I", zlib.crc32(factory))
     factory += bytes([ERASED]) * (FACTORY_SIZE - len(factory))
     data = factory + bytes([ERASED]) * (SLOT_COUNT * SLOT_SIZE)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     with open(tmp, "wb") as fh:
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        os.link(tmp, path)  # atomic and never clobbers: two emulators creating one image agree
+    except FileExistsError:
+        pass
+    finally:
+        os.unlink(tmp)
 
 
 class FlashImage:
@@ -77,6 +90,9 @@ class FlashImage:
         except FileNotFoundError:
             raise InputError("flash image not found", source=str(self.path),
                              hint="start 'lenticalib emulate' once to create it") from None
+        except OSError as exc:
+            raise InputError(f"cannot open the flash image: {exc.strerror}", source=str(self.path),
+                             hint="give --flash a writable file") from None
         try:
             fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

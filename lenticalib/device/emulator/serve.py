@@ -21,6 +21,7 @@ import time
 import tty
 from pathlib import Path
 
+from ...errors import InputError
 from .controller import EmulatedController, LinkDown
 
 EXIT_POWER_CUT = 75
@@ -86,6 +87,7 @@ def serve_pty(controller: EmulatedController) -> None:
     """Serve on a new pseudo-terminal until stopped (never returns normally)."""
     master, slave = os.openpty()
     tty.setraw(slave)  # no echo, no line discipline: the protocol's bytes pass untouched
+    os.set_blocking(master, False)
     url = f"serial://{os.ttyname(slave)}"
     announcement = _Announcement(url, controller, "pty")
     _stop_on_signals()
@@ -112,6 +114,8 @@ def serve_pty(controller: EmulatedController) -> None:
 
 
 def _flush(controller: EmulatedController, send) -> None:
+    """Send every reply byte that is ready.  ``send`` is non-blocking: what a host that does not
+    read cannot take is dropped, as a device's full transmit buffer drops it; never a wait."""
     while True:
         try:
             out = controller.host_read(4096, 0.0)
@@ -121,7 +125,10 @@ def _flush(controller: EmulatedController, send) -> None:
             return
         view = memoryview(out)
         while view:
-            n = send(bytes(view))
+            try:
+                n = send(bytes(view))
+            except BlockingIOError:
+                break
             view = view[n:]
 
 
@@ -129,7 +136,13 @@ def serve_tcp(controller: EmulatedController, host: str = "127.0.0.1", port: int
     """Serve on a TCP port (one client at a time) until stopped."""
     server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    server.bind((host, port))
+    try:
+        server.bind((host, port))
+    except OSError as exc:
+        server.close()
+        controller.close()
+        raise InputError(f"cannot listen on {host}:{port}: {exc.strerror}", source="--port",
+                         hint="choose another port, or 0 for any free one") from None
     server.listen(1)
     url = f"socket://{host}:{server.getsockname()[1]}"
     announcement = _Announcement(url, controller, "tcp")
@@ -144,13 +157,21 @@ def serve_tcp(controller: EmulatedController, host: str = "127.0.0.1", port: int
                 new, _ = server.accept()
                 if client:
                     client.close()  # a new connection replaces the old one, as a re-plugged cable
+                controller.reset_link()
                 client = new
                 client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                client.setblocking(False)
             elif client and client.fileno() in ready:
-                data = client.recv(4096)
+                try:
+                    data = client.recv(4096)
+                except BlockingIOError:
+                    continue
+                except OSError:  # reset by the client: like end of stream
+                    data = b""
                 if not data:
                     client.close()
                     client = None
+                    controller.reset_link()
                     continue
                 try:
                     controller.host_write(data)

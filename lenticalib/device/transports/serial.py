@@ -60,9 +60,7 @@ class SerialTransport(Transport):
                     if time.monotonic() >= deadline:
                         return b""
                     continue
-                self.port.timeout = 0
-                waiting = self.port.in_waiting
-                rest = self.port.read(min(max_bytes - 1, waiting)) if waiting and max_bytes > 1 else b""
-                return first + rest
+                self.port.timeout = 0  # then whatever else has arrived, without waiting
+                return first + (self.port.read(max_bytes - 1) if max_bytes > 1 else b"")
         except serial.SerialException as exc:
             raise OSError(str(exc)) from None
