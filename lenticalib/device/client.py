@@ -150,13 +150,16 @@ class PanelController:
         raw = self.read_raw_record()
         return None if raw is None else decode_record(raw, self.url)
 
-    def read_profile(self) -> PanelProfile:
+    def _require_record(self) -> CalibrationRecord:
         record = self.read_record()
         if record is None:
             raise DeviceProtocolError("the panel holds no calibration record", source=self.url,
                                       hint="flash one with 'lenticalib device flash URL profile.json'",
                                       code=int(Status.NO_RECORD))
-        return record.to_profile(device_url=self.url)
+        return record
+
+    def read_profile(self) -> PanelProfile:
+        return self._require_record().to_profile(device_url=self.url)
 
     def verify_crc(self) -> tuple[int, int, int] | None:
         """(slot, sequence, CRC-32) of the current record, or None when there is none."""
@@ -235,11 +238,7 @@ class PanelController:
 
     def verify(self, profile: PanelProfile) -> VerifyResult:
         """Does the controller hold ``profile``'s routing constants exactly?"""
-        record = self.read_record()
-        if record is None:
-            raise DeviceProtocolError("the panel holds no calibration record", source=self.url,
-                                      hint="flash one with 'lenticalib device flash URL profile.json'",
-                                      code=int(Status.NO_RECORD))
+        record = self._require_record()
         held = record.to_profile()
         differences = tuple(f"{key}: device {getattr(held, key)!r}, file {getattr(profile, key)!r}"
                             for key in ("views", "slant", "period", "offset", "reference_view", "width",

@@ -105,12 +105,12 @@ class EmulatedController:
                 self._requests += 1
                 if faults.hit(faults.drop_rate):
                     continue
-                # faults act per frame, so the firmware gets each parsed frame re-encoded
-                raw = encode_frame(frame.cmd, frame.seq, frame.payload)
-                if faults.hit(faults.corrupt_rate):
-                    raw = faults.corrupt(raw)
                 try:
-                    replies = self.firmware.receive(raw)
+                    if faults.hit(faults.corrupt_rate):  # the firmware's own parser meets the bad bytes
+                        replies = self.firmware.receive(faults.corrupt(encode_frame(frame.cmd, frame.seq,
+                                                                                      frame.payload)))
+                    else:
+                        replies = [self.firmware.handle(frame)]
                 except PowerCut:
                     self._die("power cut")
                     raise LinkDown("power cut") from None

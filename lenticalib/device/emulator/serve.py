@@ -77,7 +77,11 @@ def _wait(controller: EmulatedController, fds: list[int]) -> list[int]:
     return select.select(fds, [], [], timeout)[0]
 
 
-def _end(reason: str) -> None:
+def _end(reason: str, announcement: _Announcement) -> None:
+    """The link died (power cut, disconnect): exit at once, as the hardware would vanish.
+
+    ``os._exit`` closes the pty or socket, which is what the host sees."""
+    announcement.remove()
     sys.stdout.flush()
     print(f"lenticalib emulate: {reason}", file=sys.stderr, flush=True)
     os._exit(EXIT_POWER_CUT if reason == "power cut" else EXIT_DISCONNECT)
@@ -100,14 +104,10 @@ def serve_pty(controller: EmulatedController) -> None:
                 except OSError:
                     data = b""
                 if data:
-                    try:
-                        controller.host_write(data)
-                    except LinkDown as exc:
-                        announcement.remove()
-                        os.close(master)
-                        os.close(slave)
-                        _end(exc.reason)
+                    controller.host_write(data)
             _flush(controller, lambda out: os.write(master, out))
+    except LinkDown as exc:
+        _end(exc.reason, announcement)
     finally:
         announcement.remove()
         controller.close()
@@ -117,10 +117,7 @@ def _flush(controller: EmulatedController, send) -> None:
     """Send every reply byte that is ready.  ``send`` is non-blocking: what a host that does not
     read cannot take is dropped, as a device's full transmit buffer drops it; never a wait."""
     while True:
-        try:
-            out = controller.host_read(4096, 0.0)
-        except LinkDown as exc:
-            _end(exc.reason)
+        out = controller.host_read(4096, 0.0)  # LinkDown propagates to the server loop
         if not out:
             return
         view = memoryview(out)
@@ -173,18 +170,15 @@ def serve_tcp(controller: EmulatedController, host: str = "127.0.0.1", port: int
                     client = None
                     controller.reset_link()
                     continue
-                try:
-                    controller.host_write(data)
-                except LinkDown as exc:
-                    announcement.remove()
-                    client.close()
-                    _end(exc.reason)
+                controller.host_write(data)
             if client:
                 try:
                     _flush(controller, client.send)
                 except OSError:
                     client.close()
                     client = None
+    except LinkDown as exc:
+        _end(exc.reason, announcement)
     finally:
         announcement.remove()
         controller.close()

@@ -31,9 +31,6 @@ class SerialTransport(Transport):
         try:
             self.port = serial.serial_for_url(self.port_url, baudrate=baudrate, timeout=0,
                                               write_timeout=self.family.flash_timeout_s, exclusive=True)
-        except TypeError:  # URL handlers that do not take 'exclusive'
-            self.port = serial.serial_for_url(self.port_url, baudrate=baudrate, timeout=0,
-                                              write_timeout=self.family.flash_timeout_s)
         except serial.SerialException as exc:
             raise OSError(str(exc)) from None
 
