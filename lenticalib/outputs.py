@@ -1,0 +1,116 @@
+"""Where a command writes: checked before the work starts, folders staged so nothing is left partial.
+
+One rule for every command that writes:
+
+- a command creates its own output file or folder, never a missing parent folder (a typo in a
+  path must not grow a tree of folders); the parent must exist and be writable;
+- an output *file* must not name an existing folder, an output *folder* must not name an
+  existing file;
+- all checks run before the long work, so a wrong path costs seconds, not a whole fit;
+- files are written atomically (:mod:`lenticalib.atomic`); a folder of results is written into a
+  hidden sibling and moved into place when complete (:func:`staged_folder`), so a failed run
+  leaves an earlier folder intact and no half-written one.
+
+Every refusal is an :class:`~lenticalib.errors.InputError` naming the path and what to do.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from .errors import InputError
+
+
+def _check_parent(target: Path, what: str) -> None:
+    parent = target.parent if str(target.parent) else Path(".")
+    if not parent.exists():
+        raise InputError(f"the folder for the {what} does not exist", source=str(parent),
+                         hint=f"create it first, or choose another path for the {what}")
+    if not parent.is_dir():
+        raise InputError(f"is not a folder, so the {what} cannot go in it", source=str(parent),
+                         hint=f"choose another path for the {what}")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"folder is not writable, so the {what} cannot be written", source=str(parent),
+                         hint=f"choose a writable folder for the {what}")
+
+
+def check_output_file(path: str | os.PathLike, what: str = "output file") -> Path:
+    """Refuse, before any work, an output file path that cannot be written; return it as a Path.
+
+    An existing file is fine (it is replaced atomically at the end); an existing folder, a
+    missing or read-only parent folder is not.
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise InputError(f"is a folder, not a file name for the {what}", source=str(target),
+                         hint=f"give a file name for the {what}, e.g. {target / 'out'}")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise InputError(f"exists and is read-only, so the {what} cannot replace it", source=str(target),
+                         hint="choose another path or make the file writable")
+    _check_parent(target, what)
+    return target
+
+
+def check_output_folder(path: str | os.PathLike, what: str = "output folder") -> Path:
+    """Refuse, before any work, an output folder that cannot be written; return it as a Path.
+
+    The folder may exist (it must then be a writable folder) or not (its parent must exist and
+    be writable).
+    """
+    target = Path(path)
+    if target.exists():
+        if not target.is_dir():
+            raise InputError(f"is a file, not a folder for the {what}", source=str(target),
+                             hint=f"choose a folder path for the {what}, or remove the file")
+        if not os.access(target, os.W_OK | os.X_OK):
+            raise InputError(f"is not writable, so the {what} cannot be written", source=str(target),
+                             hint=f"choose a writable folder for the {what}")
+    _check_parent(target, what)
+    return target
+
+
+@contextlib.contextmanager
+def staged_folder(path: str | os.PathLike, what: str = "output folder") -> Iterator[Path]:
+    """Yield a fresh hidden sibling of ``path`` to write into; on success it replaces ``path``.
+
+    On an exception the staging folder is removed and ``path`` (if it existed) is untouched.  On
+    success an existing ``path`` is renamed aside, the staged folder renamed into place, and the
+    old one removed, so at every moment ``path`` is either the old folder or the complete new one
+    (a crash between the two renames leaves the old folder under ``.NAME.old-*``, never a partial
+    one at ``path``).
+    """
+    target = check_output_folder(path, what)
+    parent = target.parent if str(target.parent) else Path(".")
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=parent))
+    except OSError as exc:
+        raise InputError(f"cannot write here: {exc.strerror}", source=str(parent),
+                         hint=f"choose a writable folder for the {what}") from None
+    try:
+        yield stage
+        os.chmod(stage, 0o777 & ~_umask())
+        old = None
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
+            os.rmdir(old)
+            os.replace(target, old)
+        os.replace(stage, target)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException as exc:
+        shutil.rmtree(stage, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise InputError(f"cannot write the {what}: {exc.strerror}", source=str(target),
+                             hint="check free space and permissions") from None
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
