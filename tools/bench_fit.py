@@ -38,7 +38,7 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def run_one(seed: int, root: Path, resolution, reuse: bool = False) -> dict:
+def run_one(seed: int, root: Path, resolution, reuse: bool = False, conditions: str = "standard") -> dict:
     from lenticalib.calib.compare import compare_profiles
     from lenticalib.calib.fit import fit_capture_set
     from lenticalib.calib.patterns import design_patterns, write_patterns
@@ -46,8 +46,8 @@ def run_one(seed: int, root: Path, resolution, reuse: bool = False) -> dict:
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
-    folder = root / f"set-{seed:03d}"
-    scene = random_scene(seed, resolution=resolution)
+    folder = root / f"set-{conditions}-{seed:03d}"
+    scene = random_scene(seed, resolution=resolution, conditions=conditions)
     t_sim = 0.0
     done = folder / "simulation.json"
     if not (reuse and done.exists() and json.loads(done.read_text()).get("status") == "complete"
@@ -73,7 +73,7 @@ def run_one(seed: int, root: Path, resolution, reuse: bool = False) -> dict:
         return err / sig[name] if sig.get(name) else float("inf")
 
     cam = scene.camera
-    return {"seed": seed, "resolution": f"{resolution[0]}x{resolution[1]}", "period": truth.period,
+    return {"seed": seed, "conditions": conditions, "resolution": f"{resolution[0]}x{resolution[1]}", "period": truth.period,
             "slant": truth.slant, "order": truth.subpixel_order, "distance": cam.distance,
             "eye": [round(v, 1) for v in scene.eye], "rms": diff.rms, "worst": diff.worst,
             "centring": diff.centring, "order_ok": diff.order_match, "fit_s": t_fit, "sim_s": t_sim,

@@ -65,8 +65,17 @@ class Camera:
     full_well         electrons at saturation (shot noise); None = no noise at all
     read_noise        read noise, electrons RMS
     tone_gamma        exponent applied after the sRGB encoding (1.0 = plain sRGB)
+    tone_contrast     strength s in [0, 1] of a phone-style S-curve after that:
+                      v -> (1 - s) v + s (3 v^2 - 2 v^3)  (0 = none, 1 = a strong S)
     sharpen           unsharp-mask amount of the camera's processing (0 = none)
     jpeg_quality      JPEG quality (1..100); None = no JPEG compression
+
+    PER PHOTO (drawn afresh for every photo by :meth:`for_photo`; 0 = a locked, still camera)
+    exposure_jitter   bound of the relative exposure change from photo to photo (auto
+                      exposure that was not locked): exposure * (1 + U(-j, j))
+    shake             bound of the image shift from photo to photo, pixels (a tripod that
+                      shakes: a tiny rotation, modelled as a principal-point shift of
+                      U(0, shake) pixels in a uniformly random direction)
     """
 
     width: int
@@ -93,6 +102,9 @@ class Camera:
     tone_gamma: float = 1.0
     sharpen: float = 0.0
     jpeg_quality: int | None = 90
+    tone_contrast: float = 0.0
+    exposure_jitter: float = 0.0
+    shake: float = 0.0
 
     def __post_init__(self):
         def fail(field, message, hint=None):
@@ -123,9 +135,13 @@ class Camera:
         for key in ("exposure", "tone_gamma", "glare_sigma"):
             if not getattr(self, key) > 0:
                 fail(key, f"must be > 0, got {getattr(self, key)!r}")
-        for key in ("defocus_sigma", "glare_fraction", "flare", "read_noise", "sharpen"):
+        for key in ("defocus_sigma", "glare_fraction", "flare", "read_noise", "sharpen", "shake"):
             if not getattr(self, key) >= 0:
                 fail(key, f"must be >= 0, got {getattr(self, key)!r}")
+        if not 0 <= self.tone_contrast <= 1:
+            fail("tone_contrast", f"must be in [0, 1], got {self.tone_contrast!r}")
+        if not 0 <= self.exposure_jitter < 0.5:
+            fail("exposure_jitter", f"must be a fraction in [0, 0.5), got {self.exposure_jitter!r}")
         if not 0 <= self.glare_fraction < 1:
             fail("glare_fraction", f"must be a fraction in [0, 1), got {self.glare_fraction!r}")
         self._check_distortion_invertible()
@@ -229,6 +245,22 @@ class Camera:
         """A copy without noise, JPEG, vignetting, glare, flare and sharpening (for tests)."""
         return dataclasses.replace(self, full_well=None, read_noise=0.0, jpeg_quality=None,
                                    vignetting=(0.0, 0.0), glare_fraction=0.0, flare=0.0, sharpen=0.0)
+
+    def for_photo(self, rng: np.random.Generator) -> tuple["Camera", dict[str, float]]:
+        """This camera as it takes one photo: exposure drift and shake drawn from ``rng``.
+
+        Returns (camera, {"exposure_factor", "shift_x", "shift_y"}) -- the factor applied to
+        ``exposure`` and the principal-point shift in pixels.  Draws nothing from ``rng`` and
+        returns ``self`` unchanged when both ``exposure_jitter`` and ``shake`` are 0.
+        """
+        if not (self.exposure_jitter or self.shake):
+            return self, {"exposure_factor": 1.0, "shift_x": 0.0, "shift_y": 0.0}
+        factor = 1.0 + float(rng.uniform(-self.exposure_jitter, self.exposure_jitter))
+        radius = float(rng.uniform(0.0, self.shake))
+        angle = float(rng.uniform(0.0, 2.0 * math.pi))
+        dx, dy = radius * math.cos(angle), radius * math.sin(angle)
+        camera = dataclasses.replace(self, exposure=self.exposure * factor, cx=self.cx + dx, cy=self.cy + dy)
+        return camera, {"exposure_factor": factor, "shift_x": dx, "shift_y": dy}
 
     def replace(self, **changes: Any) -> "Camera":
         """A copy with some fields changed (validated again)."""

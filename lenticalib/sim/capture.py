@@ -38,6 +38,14 @@ def noise_seed(scene: Scene, pattern_name: str) -> list[int]:
     return [int(scene.seed or 0), zlib.crc32(pattern_name.encode("utf-8"))]
 
 
+def photo_scene(scene: Scene, pattern_name: str) -> tuple[Scene, dict[str, float]]:
+    """The scene as photo ``pattern_name`` is taken: the camera's per-photo exposure drift and shake
+    (:meth:`.camera.Camera.for_photo`) drawn from ``[*noise_seed, 1]``; returns (scene, the draws)."""
+    camera, draws = scene.camera.for_photo(np.random.default_rng([*noise_seed(scene, pattern_name), 1]))
+    return (scene if camera is scene.camera else scene.replace_camera(**{
+        k: getattr(camera, k) for k in ("exposure", "cx", "cy")})), draws
+
+
 def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[dict[str, Any]],
                        truth: dict[str, Any] | None) -> dict[str, Any]:
     from .. import __version__
@@ -100,8 +108,8 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
         raise InputError(f"cannot create: {exc.strerror}", source=str(captures),
                          hint="choose a writable pattern folder") from None
 
-    records = [{"pattern": p.name, "file": f"{CAPTURE_FOLDER}/{p.name}.jpg", "noise_seed": noise_seed(scene, p.name)}
-               for p in pattern_set.patterns]
+    records = [{"pattern": p.name, "file": f"{CAPTURE_FOLDER}/{p.name}.jpg", "noise_seed": noise_seed(scene, p.name),
+                "photo": photo_scene(scene, p.name)[1]} for p in pattern_set.patterns]
     write_text_atomic(simulation_path, json.dumps(
         _simulation_record(scene, pattern_set, "in progress", records, None), indent=2) + "\n")
 
@@ -114,7 +122,8 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
                              f"{raster.shape[1]}x{raster.shape[0]}", source=str(source),
                              hint="write the patterns again with 'lenticalib patterns'")
         rng = np.random.default_rng(noise_seed(scene, pattern.name))
-        write_bytes_atomic(captures / f"{pattern.name}.jpg", photograph_jpeg(raster, scene, rng))
+        write_bytes_atomic(captures / f"{pattern.name}.jpg",
+                           photograph_jpeg(raster, photo_scene(scene, pattern.name)[0], rng))
 
     provenance = make_provenance("simulation", inputs=[manifest], seed=scene.seed,
                                  simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))

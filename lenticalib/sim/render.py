@@ -26,7 +26,7 @@ Photometric chain (:func:`develop`)
     colour mixing -> exposure -> vignetting -> defocus -> lateral chromatic aberration ->
     veiling glare + flare -> Bayer RGGB mosaic -> shot (Gaussian approximation of Poisson) +
     read noise -> 16-bit raw -> demosaicing (OpenCV, edge-aware) -> sRGB tone curve with the
-    camera's gamma tweak -> sharpening -> 8 bit; then JPEG (:func:`photograph_jpeg`, OpenCV,
+    camera's gamma tweak and S-curve -> sharpening -> 8 bit; then JPEG (:func:`photograph_jpeg`, OpenCV,
     4:2:0 chroma).
 """
 
@@ -359,11 +359,12 @@ def _vignetting_map(width: int, height: int, cx: float, cy: float, a2: float, a4
 
 
 @functools.lru_cache(maxsize=8)
-def _tone_lut(gamma: float) -> np.ndarray:
-    """uint16 raw -> encoded value in [0, 1] (sRGB curve then ** gamma), float32 (65536,)."""
+def _tone_lut(gamma: float, contrast: float = 0.0) -> np.ndarray:
+    """uint16 raw -> encoded value in [0, 1] (sRGB curve, ** gamma, then the S-curve of strength
+    ``contrast``: v + contrast (3 v^2 - 2 v^3 - v)), float32 (65536,)."""
     v = np.arange(65536, dtype=np.float64) / 65535.0
-    enc = np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
-    out = np.power(enc, gamma).astype(np.float32)
+    enc = np.power(np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055), gamma)
+    out = (enc + contrast * (3 * enc ** 2 - 2 * enc ** 3 - enc)).astype(np.float32)
     out.setflags(write=False)
     return out
 
@@ -428,7 +429,7 @@ def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator) -> n
         raw = (electrons + rng.standard_normal((h, w), dtype=np.float32) * sigma) / fw
     raw16 = np.clip(raw * np.float32(65535.0) + np.float32(0.5), 0.0, 65535.0).astype(np.uint16)
     rgb16 = cv2.demosaicing(raw16, cv2.COLOR_BayerRGGB2RGB_EA)
-    enc = _tone_lut(float(camera.tone_gamma))[rgb16]
+    enc = _tone_lut(float(camera.tone_gamma), float(camera.tone_contrast))[rgb16]
     if camera.sharpen > 0:
         soft = cv2.GaussianBlur(enc, (0, 0), 1.0, borderType=cv2.BORDER_REFLECT)
         enc = cv2.addWeighted(enc, 1.0 + camera.sharpen, soft, -camera.sharpen, 0.0)

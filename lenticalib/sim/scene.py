@@ -44,6 +44,20 @@ RANGES (uniform unless noted)
     tone_gamma        exponent after the sRGB curve                         [0.92, 1.08]
     sharpen           unsharp-mask amount                                   [0.0, 0.5]
     jpeg_quality      integer                                               [80, 95]
+    tone_contrast     phone S-curve strength (see :class:`.camera.Camera`)  0
+    exposure_jitter   per-photo exposure drift bound, relative              0
+    shake             per-photo image shift bound, pixels                   0
+
+CONDITIONS: named sets of range overrides, ``random_scene(seed, conditions="hard")``
+    standard   the ranges above: a locked camera on a steady tripod, a near-sRGB tone curve
+    hard       what phones and consumer cameras do unless told not to: a tone curve from
+               near-sRGB to a strong S (tone_contrast [0.1, 1.0]), exposure drifting by up
+               to +-4 % from photo to photo, a tripod shaking by up to 0.3 pixel between
+               photos, and high-ISO noise (full_well [500, 2500] electrons, read_noise
+               [3, 10] electrons)
+
+The three per-photo keys were added after the others and are drawn last, so a seed draws the
+same scene under ``standard`` as before they existed.
 """
 
 from __future__ import annotations
@@ -75,6 +89,13 @@ RANGES: dict[str, tuple[float, float]] = {  # see the module docstring for units
     "vignetting": (0.1, 0.3), "defocus": (0.3, 1.0), "chromatic": (-0.0004, 0.0004), "glare": (0.01, 0.05),
     "glare_sigma": (0.03, 0.1), "flare": (0.002, 0.01), "full_well": (3000.0, 12000.0),
     "read_noise": (1.5, 5.0), "tone_gamma": (0.92, 1.08), "sharpen": (0.0, 0.5), "jpeg_quality": (80, 95),
+    "tone_contrast": (0.0, 0.0), "exposure_jitter": (0.0, 0.0), "shake": (0.0, 0.0),
+}
+
+CONDITIONS: dict[str, dict[str, tuple[float, float]]] = {  # see the module docstring
+    "standard": {},
+    "hard": {"tone_contrast": (0.1, 1.0), "exposure_jitter": (0.04, 0.04), "shake": (0.3, 0.3),
+             "full_well": (500.0, 2500.0), "read_noise": (3.0, 10.0)},
 }
 
 
@@ -178,7 +199,8 @@ def _place_camera(optics: PanelOptics, width: int, height: int, position, aim, r
 def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
                  resolution: tuple[int, int] | None = None, period: float | None = None,
                  slant: float | None = None, order: str | None = None, distance: float | None = None,
-                 jpeg_quality: int | None = None, subsamples: int = 3, **ranges: Any) -> Scene:
+                 jpeg_quality: int | None = None, subsamples: int = 3, conditions: str = "standard",
+                 **ranges: Any) -> Scene:
     """A random but plausible scene, fully determined by ``seed``.
 
     ARGUMENTS
@@ -191,7 +213,9 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
     distance       fixed camera distance D (mm)
     jpeg_quality   fixed JPEG quality (1..100)
     subsamples     rays per pixel side (n x n per sensor pixel)
+    conditions     a key of ``CONDITIONS``: "standard" or "hard" (phone-like camera behaviour)
     ranges         any key of ``RANGES`` -> (low, high) or a fixed number, overriding its range
+                   (and the conditions' range)
 
     Every parameter is drawn whether or not it is overridden, so fixing one parameter leaves all the
     others as the seed drew them.
@@ -200,10 +224,13 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
     if unknown:
         raise InputError(f"unknown range(s): {', '.join(unknown)}", source="random_scene",
                          hint="known: " + ", ".join(RANGES))
+    if conditions not in CONDITIONS:
+        raise InputError(f"unknown conditions {conditions!r}", source="--conditions",
+                         hint="known: " + ", ".join(CONDITIONS))
     if order is not None and order not in ("RGB", "BGR"):
         raise InputError(f"order must be RGB or BGR, got {order!r}", source="--order")
     cam_w, cam_h = resolution or DEFAULT_RESOLUTION
-    table = {**RANGES, **ranges}
+    table = {**RANGES, **CONDITIONS[conditions], **ranges}
     rng = np.random.default_rng(seed)
 
     def draw(key):
@@ -264,6 +291,8 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
     lo, hi = _range(table, "jpeg_quality")
     d_quality = int(rng.integers(int(round(lo)), int(round(hi)) + 1))
     photometry["jpeg_quality"] = d_quality if jpeg_quality is None else int(jpeg_quality)
+    for key in ("tone_contrast", "exposure_jitter", "shake"):  # drawn last: see the module docstring
+        photometry[key] = draw(key)
     for _ in range(20):  # a distortion that folds over inside the frame: soften k2 and try again
         try:
             camera = _place_camera(optics, int(cam_w), int(cam_h), position, aim, roll, fill, principal,
