@@ -1,3 +1,5 @@
+from fractions import Fraction
+
 import numpy as np
 from hypothesis import given, settings
 
@@ -5,7 +7,7 @@ from lenticalib.profile import PanelProfile
 from lenticalib.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
 
 from .exact import exact_view_map
-from .strategies import profiles
+from .strategies import profiles, tie_profiles
 
 
 @given(profiles(max_width=40, max_height=24))
@@ -15,6 +17,17 @@ def test_view_map_equals_exact_arithmetic_everywhere(profile):
     # view below a boundary (not on it) are beyond its resolution
     exact, near = exact_view_map(profile)
     np.testing.assert_array_equal(view_map(profile)[~near], exact[~near])
+
+
+@given(tie_profiles(max_width=40, max_height=24))
+@settings(max_examples=60)
+def test_view_map_resolves_constructed_exact_ties_like_exact_arithmetic(profile):
+    exact, near = exact_view_map(profile)
+    assert not near.any()  # w is a multiple of 1/k: nothing lies just below a boundary
+    p = Fraction(profile.period)
+    w0 = Fraction(profile.reference_view) + Fraction(profile.offset) * profile.views / p
+    assert (w0 - (w0.numerator // w0.denominator)) in (0, profile.views / p)  # (0, 0) is a tie
+    np.testing.assert_array_equal(view_map(profile), exact)
 
 
 @given(profiles())
