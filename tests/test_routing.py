@@ -6,6 +6,8 @@ from hypothesis import given, settings
 from lenticalib.profile import PanelProfile
 from lenticalib.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
 
+from lenticalib.sampling import NO_VIEW, sampling_tables
+
 from .exact import exact_view_map
 from .strategies import profiles, tie_profiles
 
@@ -69,3 +71,12 @@ def test_phase_constants_are_cached_and_read_only():
     z0, k, dark = phase_constants(p)
     assert phase_constants(p)[0] is z0
     assert not z0.flags.writeable and dark is None and k == (1 << 64) // 7
+
+
+@given(tie_profiles(max_width=30, max_height=12))
+@settings(max_examples=20)
+def test_sampling_table_is_the_canonical_view_map(profile):
+    tables = sampling_tables(profile, 4, 6)
+    expected = view_map(profile)
+    assert tables.view.dtype == np.uint8 and not tables.view.flags.writeable
+    np.testing.assert_array_equal(tables.view, np.where(expected < 0, NO_VIEW, expected))
