@@ -140,6 +140,8 @@ def test_encode_output_path_is_refused_before_encoding(files, capsys, monkeypatc
     line = _error_line(capsys, encode + [files])
     assert f"{files}: is a folder, not a file name for the panel raster" in line
     assert "cannot write .jpg" in _error_line(capsys, encode + [files / "o.jpg"])
+    line = _error_line(capsys, encode + [files / "o.png", "--encoder", "nope"])
+    assert "encoder: unknown encoder 'nope'" in line
     locked = files / "locked"
     locked.mkdir()
     locked.chmod(0o555)

@@ -22,13 +22,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import time
 
-    from ..encoders import encode
+    from ..encoders import encode, get_encoder
     from ..errors import ImageError
     from ..imageio import check_image_output, write_image
     from ..profile import load_profile
     from ..views import load_quilt, load_view_folder, parse_grid
 
     profile = load_profile(args.profile, "--profile")
+    get_encoder(args.encoder)  # an unknown --encoder is refused before the views are read
     check_image_output(args.output, what="panel raster")  # a wrong -o costs nothing
     if args.quilt:
         views, grid = load_quilt(args.quilt, profile.views, parse_grid(args.grid) if args.grid else None)
