@@ -6,7 +6,7 @@
 :func:`lenticalib.routing.view_map` (the seed's rule in exact-tie-safe fixed point; the tests check
 it against exact rational arithmetic); ``V_v(u_p)`` is view ``v`` bilinearly sampled in float64 at
 the subpixel's sample point (see :mod:`lenticalib.sampling`), in the subpixel's colour channel,
-then rounded half up (integer views).  Slow-ish (a second or two for a 4K panel).
+then rounded half up (integer views).  Slow (a few seconds for a 4K panel).
 """
 
 from __future__ import annotations
