@@ -2,6 +2,10 @@
 
 Arrays are ``(H, W, 3)`` RGB in uint8, uint16 or float32 (OpenCV's BGR order is converted
 at this boundary only).  Grey images are expanded to RGB; an alpha channel is dropped.
+
+OpenCV is imported through :func:`cv2_quiet`, which silences OpenCV's own logging once: its
+``[ WARN ... ]`` lines about a corrupt file would otherwise reach stderr beside our one-line
+error.  Output paths are checked before the work with :func:`check_image_output`.
 """
 
 from __future__ import annotations
@@ -14,10 +18,48 @@ import numpy as np
 
 from .atomic import write_bytes_atomic
 from .errors import ImageError
+from .outputs import check_output_file
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".npy")
 WRITE_FORMATS = {".png": (np.uint8, np.uint16), ".tif": (np.uint8, np.uint16, np.float32),
                  ".tiff": (np.uint8, np.uint16, np.float32), ".npy": None}
+
+
+def cv2_quiet():
+    """The ``cv2`` module, with OpenCV's logging turned off (errors are reported by lenticalib)."""
+    import cv2
+
+    global _CV2_SILENCED
+    if not _CV2_SILENCED:
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        _CV2_SILENCED = True
+    return cv2
+
+
+_CV2_SILENCED = False
+
+
+def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image") -> Path:
+    """Refuse, before any work, an image path that :func:`write_image` could not write.
+
+    Checks the path itself (:func:`lenticalib.outputs.check_output_file`: not a folder, parent
+    folder existing and writable), the suffix (``.png``, ``.tif``, ``.tiff``, ``.npy``) and that
+    ``dtype`` (when given) fits that format.  Returns the path.
+    """
+    p = check_output_file(path, what)
+    suffix = p.suffix.lower()
+    if suffix not in WRITE_FORMATS:
+        raise ImageError(f"cannot write {suffix or 'files without a suffix'}", source=str(p),
+                         hint="name the output .png, .tif or .npy")
+    allowed = WRITE_FORMATS[suffix]
+    if dtype is not None and allowed is not None:
+        dtype = np.dtype(dtype)
+        if dtype == np.float64:
+            dtype = np.dtype(np.float32)
+        if dtype.type not in allowed:
+            raise ImageError(f"{suffix} cannot hold {dtype} pixels", source=str(p),
+                             hint="write float rasters as .tif or .npy")
+    return p
 
 
 def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> np.ndarray:
@@ -25,13 +67,12 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
 
     ``camera_orientation``: turn the image as its EXIF orientation says (camera photos).
     """
-    import cv2
-
+    cv2 = cv2_quiet()
     p = Path(path)
     if not p.exists():
         raise ImageError("no such file", source=str(p), hint="check the path")
     if p.is_dir():
-        raise ImageError("is a folder, not an image", source=str(p))
+        raise ImageError("is a folder, not an image", source=str(p), hint="give an image file")
     if p.suffix.lower() == ".npy":
         try:
             img = np.load(p, allow_pickle=False)
@@ -43,7 +84,12 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
         except OSError as exc:
             raise ImageError(f"cannot read: {exc.strerror}", source=str(p)) from None
         flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH if camera_orientation else cv2.IMREAD_UNCHANGED
-        img = cv2.imdecode(data, flags) if data.size else None
+        if not data.size:
+            raise ImageError("is empty (0 bytes), not an image", source=str(p), hint="use PNG, TIFF or JPEG")
+        try:
+            img = cv2.imdecode(data, flags)
+        except cv2.error:  # e.g. a header promising more pixels than OpenCV accepts
+            img = None
         if img is None:
             raise ImageError("not a readable image (corrupt or unsupported format)", source=str(p),
                              hint="use PNG, TIFF or JPEG")
@@ -66,23 +112,15 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
 
 def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
     """Write ``(H, W, 3)`` RGB atomically; the format follows the suffix (.png, .tif, .npy)."""
-    import cv2
-
-    p = Path(path)
+    cv2 = cv2_quiet()
+    p = check_image_output(path, image.dtype)
     suffix = p.suffix.lower()
-    if suffix not in WRITE_FORMATS:
-        raise ImageError(f"cannot write {suffix or 'files without a suffix'}", source=str(p),
-                         hint="name the output .png, .tif or .npy")
-    allowed = WRITE_FORMATS[suffix]
     if suffix == ".npy":
         buf = io.BytesIO()
         np.save(buf, image, allow_pickle=False)
         return write_bytes_atomic(p, buf.getvalue())
     if image.dtype == np.float64:
         image = image.astype(np.float32)
-    if image.dtype.type not in allowed:
-        raise ImageError(f"{suffix} cannot hold {image.dtype} pixels", source=str(p),
-                         hint="write float rasters as .tif or .npy")
     ok, encoded = cv2.imencode(suffix, np.ascontiguousarray(image[:, :, ::-1]))
     if not ok:
         raise ImageError("image encoding failed", source=str(p))

@@ -197,18 +197,31 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
 def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any:
     """Parse a JSON file (data only: nothing in it is executed); non-finite numbers are refused.
 
-    Raises ProfileError naming the file for a missing, unreadable or invalid file; ``what`` names
-    the kind of file in messages, ``hint_missing`` says what to do when it does not exist.
+    The file must be UTF-8 text (a leading byte-order mark is accepted).  Raises ProfileError
+    naming the file for a missing, unreadable, empty, binary or non-UTF-8 file and for invalid
+    JSON; ``what`` names the kind of file in messages (e.g. ``"profile"``), ``hint_missing`` says
+    what to do when it does not exist.
     """
     src = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        raw = Path(path).read_bytes()
     except FileNotFoundError:
         raise ProfileError("no such file", source=src, hint=hint_missing) from None
     except IsADirectoryError:
-        raise ProfileError(f"is a folder, not a {what} file", source=src) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProfileError(f"cannot read: {getattr(exc, 'strerror', None) or exc}", source=src) from None
+        raise ProfileError(f"is a folder, not a {what} file", source=src, hint=hint_missing) from None
+    except OSError as exc:
+        raise ProfileError(f"cannot read: {exc.strerror or exc}", source=src) from None
+    if not raw.strip():
+        raise ProfileError(f"is empty, not a JSON {what}", source=src, hint=hint_missing)
+    kind = _binary_kind(raw)
+    if kind:
+        raise ProfileError(f"is {kind}, not a JSON {what}", source=src, hint=hint_missing)
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ProfileError(f"is not a JSON {what}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at "
+                           f"offset {exc.start})", source=src,
+                           hint=f"save the {what} as UTF-8 JSON") from None
     try:
         return json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
@@ -218,9 +231,29 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any
         raise ProfileError(f"not usable JSON: {exc}", source=src, hint="use finite numbers") from None
 
 
-def load_profile(path: str | os.PathLike) -> PanelProfile:
-    """Read and validate a profile JSON file.  Raises ProfileError naming the file and field."""
-    data = read_json_file(path, "profile", "check the --profile path")
+_MAGIC = ((b"\x89PNG\r\n\x1a\n", "a PNG image"), (b"\xff\xd8\xff", "a JPEG image"),
+          (b"II*\x00", "a TIFF image"), (b"MM\x00*", "a TIFF image"),
+          (b"\x93NUMPY", "a numpy array"), (b"PK\x03\x04", "a ZIP archive"))
+
+
+def _binary_kind(raw: bytes) -> str | None:
+    """What a file that cannot be JSON text looks like: a known image/array signature or binary."""
+    for magic, kind in _MAGIC:
+        if raw.startswith(magic):
+            return kind
+    if b"\x00" in raw[:4096]:
+        return "a binary file"
+    return None
+
+
+def load_profile(path: str | os.PathLike, argument: str | None = None) -> PanelProfile:
+    """Read and validate a profile JSON file.  Raises ProfileError naming the file and field.
+
+    ``argument``: how the user gave the path (e.g. ``"--profile"`` or ``"PROFILE"``), named in
+    the hint for a missing file; without it the hint speaks of "the profile path".
+    """
+    hint = f"check the path given as {argument}" if argument else "check the profile path"
+    data = read_json_file(path, "profile", hint)
     return profile_from_dict(data, source=str(path))
 
 

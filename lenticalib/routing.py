@@ -20,8 +20,13 @@ phase ``Z0[y]`` is rounded *up* from the exact rational value and the per-subpix
 ``K = 2**64 / Delta`` is rounded *down*, so ``Z = Z0[y] - x_s * K (mod 2**64)`` never falls below
 the exact phase and exceeds it by less than ``(1 + x_s) * 2**-64`` cycles.  Exact ties (``w`` an
 integer, ``frac(w) == N/Delta``) are therefore resolved exactly as exact arithmetic resolves them;
-only a value within ~1e-14 view *below* a boundary can come out on the other side.  The fast
-kernels, the view map and the sampling tables all use this arithmetic, so they agree bit for bit.
+only a value within ~1e-14 view *below* a boundary can come out on the other side.
+
+Every encoder routes by this arithmetic: the fast kernels evaluate it on the fly (same constants,
+same uint64 operations), the reference encoder and the sampling tables take :func:`view_map`.  So
+all of them choose the same view for every subpixel, ties included.  :func:`rule_views` (the
+seed's rule literally, in float64) is kept only as a cross-check; on exact ties it can disagree
+or light two views.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from .profile import PanelProfile
 
 _TWO64 = 1 << 64
 _MASK32 = np.uint64(0xFFFFFFFF)
+_ROWS_PER_CHUNK = 256
 
 
 @functools.lru_cache(maxsize=16)
@@ -81,15 +87,18 @@ def view_map(profile: PanelProfile, rows: slice | None = None) -> np.ndarray:
     z0, k, dark = phase_constants(profile)
     if rows is not None:
         z0 = z0[rows]
-    xs = np.arange(profile.subpixels_per_row, dtype=np.uint64)
+    views = np.empty((z0.shape[0], profile.subpixels_per_row), dtype=np.int16)
+    xs_k = np.arange(profile.subpixels_per_row, dtype=np.uint64) * np.uint64(k)  # wraps mod 2**64
     n = np.uint64(profile.views)
     with np.errstate(over="ignore"):
-        z = z0[:, None] - xs[None, :] * np.uint64(k)
-        hi = (z >> np.uint64(32)) * n
-        lo = (z & _MASK32) * n
-        views = ((hi + (lo >> np.uint64(32))) >> np.uint64(32)).astype(np.int16)
-        if dark is not None:
-            views[(z * n) >= np.uint64(dark)] = -1
+        for start in range(0, z0.shape[0], _ROWS_PER_CHUNK):  # bounded uint64 temporaries
+            z = z0[start:start + _ROWS_PER_CHUNK, None] - xs_k[None, :]
+            hi = (z >> np.uint64(32)) * n
+            lo = (z & _MASK32) * n
+            chunk = views[start:start + _ROWS_PER_CHUNK]
+            chunk[...] = (hi + (lo >> np.uint64(32))) >> np.uint64(32)
+            if dark is not None:
+                chunk[(z * n) >= np.uint64(dark)] = -1
     return views
 
 

@@ -11,8 +11,11 @@ clamped to the view (edge pixels are repeated).  The view is sampled between pix
 ``x0, x0 + 1`` with weight ``fx = u - x0`` (and likewise in y); ``x0`` is kept at most
 ``W_v - 2`` so that ``x0 + 1`` is always a valid pixel.
 
-Tables.  :class:`SamplingTables` holds, per subpixel, the primary and secondary view lit by the
-seed's rule (255 = none) and the bilinear geometry; built once per (profile, view size) and cached.
+Tables.  :class:`SamplingTables` holds, per subpixel, the view the canonical routing of
+:mod:`lenticalib.routing` gives it (255 = none) and the bilinear geometry; built once per
+(profile, view size) and cached.  The canonical routing lights at most one view per subpixel, so
+one view table replaces the seed system's primary/secondary pair (its second view only ever
+came from float64 ties).
 """
 
 from __future__ import annotations
@@ -22,9 +25,8 @@ import functools
 
 import numpy as np
 
-from .errors import ConfigurationError
 from .profile import PanelProfile
-from .routing import rule_views
+from .routing import view_map
 
 NO_VIEW = 255
 
@@ -69,50 +71,30 @@ def row_sampling(profile: PanelProfile, view_height: int) -> AxisSampling:
 
 @dataclasses.dataclass(frozen=True)
 class SamplingTables:
-    """Precomputed masks and sample points for one profile and one view size.
+    """Precomputed view table and sample points for one profile and one view size.
 
-    ``primary``, ``secondary``: uint8 ``(height, 3 * width)`` indexed ``[y, x_s]`` (panel subpixel
-    order), the views lit by the seed's rule, ``NO_VIEW`` (255) where none.  ``columns`` has
-    ``3 * width`` entries (per ``x_s``), ``rows`` has ``height`` entries.
+    ``view``: uint8 ``(height, 3 * width)`` indexed ``[y, x_s]`` (panel subpixel order), the view
+    :func:`lenticalib.routing.view_map` gives the subpixel, ``NO_VIEW`` (255) where none.
+    ``columns`` has ``3 * width`` entries (per ``x_s``), ``rows`` has ``height`` entries.
     """
 
     profile: PanelProfile
     view_size: tuple[int, int]  # (H_v, W_v)
-    primary: np.ndarray
-    secondary: np.ndarray
+    view: np.ndarray
     columns: AxisSampling
     rows: AxisSampling
 
 
-def pack_views(count: np.ndarray, views: np.ndarray, profile: PanelProfile) -> tuple[np.ndarray, np.ndarray]:
-    """Primary and secondary view per subpixel from a rule evaluation; reject > 2 views.
-
-    ``count`` (H, 3W) number of lit views, ``views`` (k >= 2, H, 3W) lit views in slots.
-    Raises ConfigurationError naming the first subpixel that more than two views light.
-    """
-    over = np.argwhere(count > 2)
-    if over.size:
-        y, xs = (int(v) for v in over[0])
-        raise ConfigurationError(
-            f"{int(count[y, xs])} views light subpixel x_s={xs} of row {y} "
-            f"({len(over)} subpixels have more than two views)",
-            source="profile",
-            hint="the sampling tables hold a primary and a secondary view per subpixel; "
-                 "check 'views' and 'period'")
-    return views[0].copy(), views[1].copy()
-
-
 @functools.lru_cache(maxsize=4)
 def _build(profile: PanelProfile, view_height: int, view_width: int) -> SamplingTables:
-    count, views = rule_views(profile, max_views=3)
-    primary, secondary = pack_views(count, views, profile)
-    for arr in (primary, secondary):
-        arr.setflags(write=False)
-    return SamplingTables(profile, (view_height, view_width), primary, secondary,
+    canonical = view_map(profile)  # int16, -1 where dark; N <= 254 fits uint8 beside NO_VIEW
+    view = np.where(canonical < 0, NO_VIEW, canonical).astype(np.uint8)
+    view.setflags(write=False)
+    return SamplingTables(profile, (view_height, view_width), view,
                           column_sampling(profile, view_width), row_sampling(profile, view_height))
 
 
 def sampling_tables(profile: PanelProfile, view_height: int, view_width: int) -> SamplingTables:
-    """Masks (primary/secondary view) and bilinear geometry for ``profile`` and views of
+    """View table (canonical routing) and bilinear geometry for ``profile`` and views of
     ``view_height x view_width`` pixels.  Built once per profile and view size, then cached."""
     return _build(profile, int(view_height), int(view_width))

@@ -74,8 +74,13 @@ def make_quilt(views: np.ndarray, grid: QuiltGrid) -> np.ndarray:
 
 
 def load_quilt(path: str | os.PathLike, views: int, grid: QuiltGrid | None = None) -> tuple[np.ndarray, QuiltGrid]:
-    """Read a quilt and split it into ``views`` views; the grid comes from ``grid`` or the file name."""
+    """Read a quilt and split it into ``views`` views; the grid comes from ``grid`` or the file name.
+
+    Returns ``(views (N, H/rows, W/cols, 3), grid)``.  The file is read first, so a missing or
+    unreadable file is reported as such rather than as a grid problem.
+    """
     src = str(path)
+    quilt = read_image(path)
     named = parse_quilt_name(src)
     grid = grid or named
     if grid is None:
@@ -86,7 +91,7 @@ def load_quilt(path: str | os.PathLike, views: int, grid: QuiltGrid | None = Non
     if grid.tiles != views:
         raise ImageError(f"quilt has {grid.cols}x{grid.rows} = {grid.tiles} tiles, the profile has {views} views",
                          source=src, hint="use a quilt rendered for this panel's view count")
-    return split_quilt(read_image(path), grid, source=src), grid
+    return split_quilt(quilt, grid, source=src), grid
 
 
 def _natural_key(path: Path):
@@ -99,8 +104,11 @@ def load_view_folder(folder: str | os.PathLike, views: int) -> np.ndarray:
     Natural order compares digit runs as numbers, so ``view2`` sorts before ``view10``.
     """
     root = Path(folder)
-    if not root.is_dir():
+    if not root.exists():
         raise ImageError("no such folder", source=str(root), hint="--views takes a folder of images")
+    if not root.is_dir():
+        raise ImageError("is a file, not a folder of views", source=str(root),
+                         hint="--views takes a folder of images; use --quilt for a quilt image")
     files = sorted((f for f in root.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES
                     and not f.name.startswith(".")), key=_natural_key)
     if len(files) != views:

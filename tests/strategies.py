@@ -19,3 +19,24 @@ def profiles(draw, views=st.sampled_from(VIEW_COUNTS), max_width=61, max_height=
         reference_view=draw(st.floats(0.0, float(n), allow_subnormal=False)),
         width=draw(st.integers(3, max_width)), height=draw(st.integers(2, max_height)),
         subpixel_order=draw(st.sampled_from(["RGB", "BGR"])))
+
+
+@st.composite
+def tie_profiles(draw, views=st.sampled_from(VIEW_COUNTS), min_width=3, max_width=61, max_height=40):
+    """Profiles built so that ``w`` lands exactly on decision boundaries (exact ties).
+
+    ``period = N k / 16``, ``slant = c / 16``, ``offset = (k t + e) / 16``, integer ``i_ref``: all
+    exact binary floats, and ``w(x_s, y) = i_ref + t + (3 c y + e - 16 x_s) / k`` is a multiple of
+    ``1/k``, so many subpixels sit exactly on a boundary.  With ``e = 0`` subpixel ``(0, 0)`` has an
+    integer ``w`` (a view boundary); with ``e = 16`` (drawn only when ``k > 16``, i.e.
+    ``period > N``) it sits exactly on the dark boundary ``frac(w) = N / period``.
+    """
+    n = draw(views)
+    k = draw(st.integers(max(1, -(-8 // n)), 32))  # period >= 0.5 subpixel
+    e = draw(st.sampled_from([0, 16])) if k > 16 else 0
+    t = draw(st.integers(-20, 20))
+    return PanelProfile(
+        views=n, slant=draw(st.integers(-6, 6)) / 16, period=n * k / 16, offset=(k * t + e) / 16,
+        reference_view=float(draw(st.integers(0, n))),
+        width=draw(st.integers(min_width, max_width)), height=draw(st.integers(2, max_height)),
+        subpixel_order=draw(st.sampled_from(["RGB", "BGR"])))

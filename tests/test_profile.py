@@ -1,11 +1,9 @@
 import json
 
-import numpy as np
 import pytest
 
-from lenticalib.errors import ConfigurationError, ProfileError
+from lenticalib.errors import ProfileError
 from lenticalib.profile import PanelProfile, load_profile, make_provenance, save_profile
-from lenticalib.sampling import pack_views
 
 EIGHT = {"views": 32, "slant": -0.138, "period": 18.668, "offset": 5.25, "reference_view": 16,
          "width": 3840, "height": 2160, "subpixel_order": "RGB"}
@@ -77,14 +75,3 @@ def test_failed_save_leaves_the_old_file(tmp_path):
         save_profile(PanelProfile(**EIGHT), tmp_path / "missing" / "p.json")
     assert path.read_text() == before
     assert [f.name for f in tmp_path.iterdir()] == ["p.json"]
-
-
-def test_more_than_two_views_on_a_subpixel_is_rejected():
-    p = PanelProfile(**{**EIGHT, "width": 4, "height": 2})
-    count = np.ones((2, 12), np.uint8)
-    views = np.zeros((3, 2, 12), np.uint8)
-    primary, secondary = pack_views(count, views, p)
-    assert primary.shape == (2, 12)
-    count[1, 5] = 3
-    with pytest.raises(ConfigurationError, match="3 views light subpixel x_s=5 of row 1"):
-        pack_views(count, views, p)

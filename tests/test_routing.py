@@ -1,11 +1,15 @@
+from fractions import Fraction
+
 import numpy as np
 from hypothesis import given, settings
 
 from lenticalib.profile import PanelProfile
 from lenticalib.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
 
+from lenticalib.sampling import NO_VIEW, sampling_tables
+
 from .exact import exact_view_map
-from .strategies import profiles
+from .strategies import profiles, tie_profiles
 
 
 @given(profiles(max_width=40, max_height=24))
@@ -15,6 +19,17 @@ def test_view_map_equals_exact_arithmetic_everywhere(profile):
     # view below a boundary (not on it) are beyond its resolution
     exact, near = exact_view_map(profile)
     np.testing.assert_array_equal(view_map(profile)[~near], exact[~near])
+
+
+@given(tie_profiles(max_width=40, max_height=24))
+@settings(max_examples=60)
+def test_view_map_resolves_constructed_exact_ties_like_exact_arithmetic(profile):
+    exact, near = exact_view_map(profile)
+    assert not near.any()  # w is a multiple of 1/k: nothing lies just below a boundary
+    p = Fraction(profile.period)
+    w0 = Fraction(profile.reference_view) + Fraction(profile.offset) * profile.views / p
+    assert (w0 - (w0.numerator // w0.denominator)) in (0, profile.views / p)  # (0, 0) is a tie
+    np.testing.assert_array_equal(view_map(profile), exact)
 
 
 @given(profiles())
@@ -56,3 +71,12 @@ def test_phase_constants_are_cached_and_read_only():
     z0, k, dark = phase_constants(p)
     assert phase_constants(p)[0] is z0
     assert not z0.flags.writeable and dark is None and k == (1 << 64) // 7
+
+
+@given(tie_profiles(max_width=30, max_height=12))
+@settings(max_examples=20)
+def test_sampling_table_is_the_canonical_view_map(profile):
+    tables = sampling_tables(profile, 4, 6)
+    expected = view_map(profile)
+    assert tables.view.dtype == np.uint8 and not tables.view.flags.writeable
+    np.testing.assert_array_equal(tables.view, np.where(expected < 0, NO_VIEW, expected))

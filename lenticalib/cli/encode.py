@@ -22,13 +22,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import time
 
-    from ..encoders import encode
+    from ..encoders import encode, get_encoder
     from ..errors import ImageError
-    from ..imageio import write_image
+    from ..imageio import check_image_output, write_image
     from ..profile import load_profile
     from ..views import load_quilt, load_view_folder, parse_grid
 
-    profile = load_profile(args.profile)
+    profile = load_profile(args.profile, "--profile")
+    get_encoder(args.encoder)  # an unknown --encoder is refused before the views are read
+    check_image_output(args.output, what="panel raster")  # a wrong -o costs nothing
     if args.quilt:
         views, grid = load_quilt(args.quilt, profile.views, parse_grid(args.grid) if args.grid else None)
         panel_aspect = profile.width / profile.height
@@ -38,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
                              hint="use the profile of the panel the quilt was made for, or --stretch")
     else:
         views = load_view_folder(args.views, profile.views)
+    check_image_output(args.output, views.dtype, what="panel raster")  # e.g. float views into a .png
     start = time.perf_counter()
     raster = encode(views, profile, args.encoder, allow_stretch=args.stretch)
     elapsed = time.perf_counter() - start

@@ -21,6 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     imp.add_argument("--views", type=int, required=True, metavar="N",
                      help="number of views (a visual.json does not record it)")
     imp.add_argument("-o", "--output", required=True, metavar="PROFILE")
+    imp.add_argument("--json", action="store_true", help="print a JSON summary instead of the constants")
     imp.set_defaults(run=run_import)
     exp = sub.add_parser("export-lkg", help="write a profile as a Looking Glass visual.json")
     exp.add_argument("profile", metavar="PROFILE")
@@ -34,13 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     cmp_.set_defaults(run=run_compare)
 
 
-def run_show(args) -> int:
-    from ..profile import load_profile
-
-    profile = load_profile(args.profile)
-    if args.json:
-        print(profile.to_json(), end="")
-        return 0
+def _print_profile(profile) -> None:
+    """The constants of ``profile``, one per line with units and 1-sigma (``profile show``)."""
     unc = profile.uncertainty or {}
     rows = [("views", profile.views, ""), ("slant", profile.slant, "pixels/row"),
             ("period", profile.period, "subpixels"), ("offset", profile.offset, "subpixels"),
@@ -53,13 +49,23 @@ def run_show(args) -> int:
         prov = profile.provenance
         print(f"{'made by':>15}  {prov.get('method', '?')} on {prov.get('created', '?')} "
               f"(lenticalib {prov.get('lenticalib_version', '?')})")
+
+
+def run_show(args) -> int:
+    from ..profile import load_profile
+
+    profile = load_profile(args.profile, "PROFILE")
+    if args.json:
+        print(profile.to_json(), end="")
+        return 0
+    _print_profile(profile)
     return 0
 
 
 def run_validate(args) -> int:
     from ..profile import load_profile
 
-    profile = load_profile(args.profile)
+    profile = load_profile(args.profile, "PROFILE")
     print(f"{args.profile}: valid ({profile.views} views, {profile.width}x{profile.height})")
     return 0
 
@@ -67,22 +73,31 @@ def run_validate(args) -> int:
 def run_import(args) -> int:
     from ..errors import InputError
     from ..lkg import import_visual_json
+    from ..outputs import check_output_file
     from ..profile import MAX_VIEWS, save_profile
 
     if not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be between 2 and {MAX_VIEWS}, got {args.views}", source="--views")
+    check_output_file(args.output, "profile")
     profile = import_visual_json(args.visual, args.views)
     save_profile(profile, args.output)
-    print(json.dumps({"output": args.output, "period": profile.period, "slant": profile.slant,
-                      "offset": profile.offset, "reference_view": profile.reference_view}))
+    if args.json:
+        print(json.dumps({"output": args.output, "period": profile.period, "slant": profile.slant,
+                          "offset": profile.offset, "reference_view": profile.reference_view}))
+        return 0
+    print(f"wrote {args.output} from {args.visual} ({args.views} views):")
+    _print_profile(profile)
     return 0
 
 
 def run_export(args) -> int:
     from ..lkg import export_visual_json
+    from ..outputs import check_output_file
     from ..profile import load_profile
 
-    export_visual_json(load_profile(args.profile), args.output, dpi=args.dpi)
+    profile = load_profile(args.profile, "PROFILE")
+    check_output_file(args.output, "visual.json")
+    export_visual_json(profile, args.output, dpi=args.dpi)
     print(f"wrote {args.output}")
     return 0
 
@@ -91,7 +106,7 @@ def run_compare(args) -> int:
     from ..calib.compare import compare_profiles
     from ..profile import load_profile
 
-    a, b = load_profile(args.profile), load_profile(args.reference)
+    a, b = load_profile(args.profile, "A"), load_profile(args.reference, "B")
     diff = compare_profiles(a, b)
     if args.json:
         out = diff.to_dict()

@@ -7,8 +7,8 @@ row taps; per output column one packed int32 (byte offset of the left tap | x we
   :mod:`._simd` (``_simd.LANES`` subpixels per step, two gathers each), threads over rows;
   weights are 11-bit fixed point, so values are within 1 LSB of the float64 reference.
 * uint16 and float views, and layouts the block kernel cannot address (a view 1 pixel wide, a
-  stack of 2 GiB or more), go through a scalar numba kernel with float64 weights, which matches
-  the reference to float rounding.
+  stack of 2 GiB or more), go through a scalar numba kernel with float64 weights and the
+  reference's operations in the same order, so its values equal the reference's (tested).
 
 Routing (which view) is identical to :func:`lenticalib.routing.view_map` in every case.
 """

@@ -1,4 +1,4 @@
-"""Table encoder: the seed system's precomputed masks (primary + secondary view per subpixel)."""
+"""Table encoder: a precomputed view table per subpixel (canonical routing) plus sample points."""
 
 from __future__ import annotations
 
@@ -14,7 +14,11 @@ ROWS_PER_CHUNK = 64
 def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
     """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.sampling.SamplingTables`.
 
-    Vectorized numpy over chunks of ``ROWS_PER_CHUNK`` rows, so temporaries stay bounded.
+    Returns the raster ``(height, width, 3)`` in the views' dtype.  Routing is the table's view
+    (the canonical :func:`lenticalib.routing.view_map`); sampling is the reference encoder's
+    float64 bilinear blend in the same order of operations, so the result equals
+    :func:`~lenticalib.encoders.reference.encode_reference` bit for bit.  Vectorized numpy over
+    chunks of ``ROWS_PER_CHUNK`` rows, so temporaries stay bounded.
     """
     n, hv, wv, _ = views.shape
     tables = sampling_tables(profile, hv, wv)
@@ -32,15 +36,11 @@ def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
         y0 = rows.lo[rows_now, None]
         y1 = rows.hi[rows_now, None]
         fy = rows.weight[rows_now, None]
-        acc = np.zeros((y0.shape[0], width * 3), dtype=np.float64)
-        for table in (tables.primary, tables.secondary):
-            view = table[rows_now][:, xs].astype(np.int64)  # (rows, 3W) in output order
-            lit = view != NO_VIEW
-            if not lit.any():
-                continue
-            v = np.where(lit, view, 0)
-            top = views[v, y0, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y0, x1, chan] * fx
-            bottom = views[v, y1, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y1, x1, chan] * fx
-            acc += np.where(lit, top * (1.0 - fy) + bottom * fy, 0.0)
+        view = tables.view[rows_now][:, xs].astype(np.int64)  # (rows, 3W) in output order
+        lit = view != NO_VIEW
+        v = np.where(lit, view, 0)
+        top = views[v, y0, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y0, x1, chan] * fx
+        bottom = views[v, y1, x0, chan].astype(np.float64) * (1.0 - fx) + views[v, y1, x1, chan] * fx
+        acc = np.where(lit, top * (1.0 - fy) + bottom * fy, 0.0)
         out[rows_now] = finish(acc, views.dtype).reshape(-1, width, 3)
     return out
