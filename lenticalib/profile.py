@@ -273,6 +273,40 @@ def save_profile(profile: PanelProfile, path: str | os.PathLike) -> Path:
     return write_text_atomic(path, profile.to_json())
 
 
+# Decimals shown for each constant: finer than any calibration resolves (slant 1e-7 px/row is
+# 2e-4 px over 2160 rows; period 1e-6 subpixel), coarse enough to read.
+_DISPLAY_DECIMALS = {"slant": 7, "period": 6, "offset": 4, "reference_view": 4}
+
+
+def format_constant(name: str, value) -> str:
+    """``value`` of constant ``name`` for people: fixed decimals per constant (slant 7, period 6,
+    offset and reference view 4), trailing zeros dropped (``19.47``, ``-0.2871235``, ``16.0``).
+    Integers and strings are shown as they are.  The file keeps the full precision."""
+    if name not in _DISPLAY_DECIMALS or not _is_number(value):
+        return str(value)
+    text = f"{float(value):.{_DISPLAY_DECIMALS[name]}f}".rstrip("0")
+    text = text + "0" if text.endswith(".") else text
+    return "0.0" if text in ("-0.0",) else text
+
+
+def describe_provenance(prov: Mapping[str, Any]) -> list[str]:
+    """Lines saying how a profile was made: method, when, with which lenticalib, from what.
+
+    ``created`` (ISO 8601) is when the constants were made: for a profile read from a panel,
+    when the record was written; such a profile also names the device, panel serial, record
+    number and when it was read.
+    """
+    lines = [f"{prov.get('method') or 'unknown method'} on {prov.get('created') or 'an unknown date'}"
+             f" (lenticalib {prov.get('lenticalib_version') or 'version unknown'})"]
+    if prov.get("device_url") or prov.get("panel_serial"):
+        parts = [f"device {prov['device_url']}" if prov.get("device_url") else None,
+                 f"panel serial {prov['panel_serial']}" if prov.get("panel_serial") else None,
+                 f"record #{prov['record_sequence']}" if prov.get("record_sequence") is not None else None,
+                 f"read on {prov['read']}" if prov.get("read") else None]
+        lines.append(", ".join(p for p in parts if p))
+    return lines
+
+
 def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) -> dict[str, Any]:
     """A provenance record: what made the profile, when, from which files (with SHA-256)."""
     from . import __version__

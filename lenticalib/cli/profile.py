@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_show(args) -> int:
-    from ..profile import load_profile
+    from ..profile import describe_provenance, format_constant, load_profile
 
     profile = load_profile(args.profile)
     if args.json:
@@ -48,11 +48,10 @@ def run_show(args) -> int:
             ("panel", f"{profile.width}x{profile.height}", "pixels"), ("subpixel_order", profile.subpixel_order, "")]
     for name, value, unit in rows:
         sigma = f" +- {unc[name]:.3g}" if name in unc else ""
-        print(f"{name:>15}  {value}{sigma} {unit}".rstrip())
+        print(f"{name:>15}  {format_constant(name, value)}{sigma} {unit}".rstrip())
     if profile.provenance:
-        prov = profile.provenance
-        print(f"{'made by':>15}  {prov.get('method', '?')} on {prov.get('created', '?')} "
-              f"(lenticalib {prov.get('lenticalib_version', '?')})")
+        for label, line in zip(("made by", "from"), describe_provenance(profile.provenance)):
+            print(f"{label:>15}  {line}")
     return 0
 
 

@@ -165,6 +165,27 @@ def check_ranges(record: CalibrationRecord) -> None:
     need(0 <= record.written <= 0xFFFFFFFFFFFFFFFF, "written", "must fit in 64 bits")
 
 
+# zlib.crc32 of *any* 128 bytes whose last four hold the CRC-32 of the first 124 (the CRC-32
+# residue): what protocol 1.0 firmware answered in VERIFY for every valid record.
+LEGACY_CRC_RESIDUE = 0x2144DF1C
+
+
+def record_crc(data: bytes) -> int:
+    """The record's identity: CRC-32 of bytes 0..123, i.e. the CRC it stores at 124..127.
+
+    What protocol 1.1 announces in BEGIN_WRITE and answers in VERIFY; two records that differ
+    in any byte differ here (up to CRC-32 collisions, 2**-32 for random changes).
+    """
+    return zlib.crc32(data[:_CRC_OFFSET])
+
+
+def wire_crc(data: bytes, protocol_minor: int) -> int:
+    """The CRC-32 that BEGIN_WRITE and VERIFY carry for ``data`` at this protocol minor version:
+    :func:`record_crc` from 1.1 on; 1.0 firmware computes it over all 128 bytes, which for a valid
+    record is always :data:`LEGACY_CRC_RESIDUE`."""
+    return record_crc(data) if protocol_minor >= 1 else zlib.crc32(data)
+
+
 def encode_record(record: CalibrationRecord) -> bytes:
     """The 128 bytes of ``record`` (ranges are checked first)."""
     check_ranges(record)
@@ -175,7 +196,7 @@ def encode_record(record: CalibrationRecord) -> bytes:
                         FLAG_SIGMAS if record.sigmas is not None else 0,
                         record.slant, record.period, record.offset, record.reference_view,
                         *sigmas, record.written, record.digest, b"\0" * 24)
-    return body + struct.pack("<I", zlib.crc32(body))
+    return body + struct.pack("<I", record_crc(body))
 
 
 class RecordFormatError(ValueError):
