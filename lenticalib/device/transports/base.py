@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import re
 
-from ...errors import DeviceDisconnectedError, DeviceError, DeviceNotFoundError, LenticalibError
+from ...errors import DeviceDisconnectedError, DeviceNotFoundError, LenticalibError
 from ..drivers import ControllerFamily, TransportDescription
 from ..url import DeviceURL
 
 
-_LIBRARY_PREFIXES = re.compile(r"^(?:(?:read|write) failed: |could not open port \S+: |\[errno \d+\] )+",
+_LIBRARY_PREFIXES = re.compile(r"^(?:(?:read|write) failed: |could not open port (?:\S+: )?|\[errno \d+\] )+",
                                re.IGNORECASE)
 
 
@@ -77,7 +77,7 @@ class Transport:
         self._require_open()
         try:
             self._write(bytes(data))
-        except DeviceError:
+        except LenticalibError:  # already one line (a device error, a bad emu:// parameter met on first use)
             raise
         except (OSError, ValueError) as exc:
             raise DeviceDisconnectedError(f"write failed: {reason(exc)}", source=str(self.url),
@@ -88,7 +88,7 @@ class Transport:
         self._require_open()
         try:
             return self._read(max_bytes, max(0.0, timeout))
-        except DeviceError:
+        except LenticalibError:
             raise
         except (OSError, ValueError) as exc:
             raise DeviceDisconnectedError(f"read failed: {reason(exc)}", source=str(self.url),
