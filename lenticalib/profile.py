@@ -37,6 +37,18 @@ FORMAT_VERSION = 1
 MAX_VIEWS = 254  # view indices are stored as uint8 with 255 meaning "no view"
 MAX_SIDE = 65535
 
+# Physical ranges of the constants, enforced for every profile (load, construction, device
+# record).  Beyond them a profile describes no real lens sheet: a slant over 4 pixels/row is a
+# lens lying almost flat; a period above 4096 subpixels or wider than a whole panel row
+# (3 * width subpixels) is less than one lens across the panel, and the seed's rule then lights
+# only a fraction N / period of the subpixels (period 1e9: an all-black raster); offsets and
+# reference views beyond these bounds are far outside any reduction of them (s_ref is
+# meaningful modulo the period, i_ref modulo N).
+SLANT_LIMIT = 4.0            # |C_r| <= 4 pixels per row
+PERIOD_LIMIT = 4096.0        # 0 < Delta_r <= 4096 subpixels, and Delta_r <= 3 * width
+OFFSET_LIMIT = 1.0e6         # |s_ref| <= 1e6 subpixels
+REFERENCE_VIEW_LIMIT = 65535.0  # |i_ref| <= 65535 views
+
 SUBPIXEL_ORDERS = ("RGB", "BGR")
 CONSTANT_KEYS = ("views", "slant", "period", "offset", "reference_view", "width", "height",
                  "subpixel_order")
@@ -120,31 +132,59 @@ def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def constants_problem(data: Mapping[str, Any]) -> tuple[str, str] | None:
+    """The first of the eight constants outside its type or physical range, else None.
+
+    Returns ``(field, message)``.  ``data`` maps the names of :data:`CONSTANT_KEYS` to values
+    (units as in the module docstring).  The one definition of a valid profile: used by
+    :func:`profile_from_dict`, :class:`PanelProfile` and the device record's range check.
+    """
+    for key in ("views", "width", "height"):
+        if not _is_int(data[key]):
+            return key, f"must be a whole number, got {data[key]!r}"
+    for key in ("slant", "period", "offset", "reference_view"):
+        value = data[key]
+        if not _is_number(value):
+            return key, f"must be a number, got {value!r}"
+        if not math.isfinite(value):
+            return key, f"must be finite, got {value!r}"
+    if not 2 <= data["views"] <= MAX_VIEWS:
+        return "views", f"must be between 2 and {MAX_VIEWS}, got {data['views']}"
+    for key in ("width", "height"):
+        if not 1 <= data[key] <= MAX_SIDE:
+            return key, f"must be between 1 and {MAX_SIDE} pixels, got {data[key]}"
+    if data["subpixel_order"] not in SUBPIXEL_ORDERS:
+        return "subpixel_order", f"must be \"RGB\" or \"BGR\", got {data['subpixel_order']!r}"
+    if not abs(data["slant"]) <= SLANT_LIMIT:
+        return "slant", f"must be within +-{SLANT_LIMIT:g} pixels/row, got {data['slant']!r}"
+    period, row = data["period"], 3 * data["width"]
+    if not period > 0:
+        return "period", f"must be > 0 subpixels, got {period!r}"
+    if period > PERIOD_LIMIT:
+        return "period", f"must be at most {PERIOD_LIMIT:g} subpixels, got {period!r}"
+    if period > row:
+        return "period", (f"{period!r} subpixels is wider than the {data['width']}-pixel panel's row "
+                          f"({row} subpixels)")
+    if not abs(data["offset"]) <= OFFSET_LIMIT:
+        return "offset", f"must be within +-{OFFSET_LIMIT:g} subpixels, got {data['offset']!r}"
+    if not abs(data["reference_view"]) <= REFERENCE_VIEW_LIMIT:
+        return "reference_view", (f"must be within +-{REFERENCE_VIEW_LIMIT:g} views, "
+                                  f"got {data['reference_view']!r}")
+    return None
+
+
 def _validate_constants(data: Mapping[str, Any], source: str) -> None:
     """Check types and ranges of the eight constants; raise ProfileError naming the field."""
 
     def fail(field, message, hint=None):
         raise ProfileError(f"field '{field}': {message}", source=source, hint=hint)
 
-    for key in ("views", "width", "height"):
-        if not _is_int(data[key]):
-            fail(key, f"must be a whole number, got {data[key]!r}")
-    for key in ("slant", "period", "offset", "reference_view"):
-        value = data[key]
-        if not _is_number(value):
-            fail(key, f"must be a number, got {value!r}")
-        if not math.isfinite(value):
-            fail(key, f"must be finite, got {value!r}")
-    if not 2 <= data["views"] <= MAX_VIEWS:
-        fail("views", f"must be between 2 and {MAX_VIEWS}, got {data['views']}")
-    if not data["period"] > 0:
-        fail("period", f"must be > 0 subpixels, got {data['period']}",
-             "the period is the lens pitch in subpixels, about 3 * lens pitch / pixel pitch")
-    for key in ("width", "height"):
-        if not 1 <= data[key] <= MAX_SIDE:
-            fail(key, f"must be between 1 and {MAX_SIDE} pixels, got {data[key]}")
-    if data["subpixel_order"] not in SUBPIXEL_ORDERS:
-        fail("subpixel_order", f"must be \"RGB\" or \"BGR\", got {data['subpixel_order']!r}")
+    problem = constants_problem(data)
+    if problem is not None:
+        field = problem[0]
+        hint = ("the period is the lens pitch in subpixels, about 3 * lens pitch / pixel pitch"
+                if field == "period" else None)
+        fail(*problem, hint)
     # The seed's rule lights view i on x_s when x_s <= b < x_s + min(1, period/N) for one of the
     # lattice points b = 3*C_r*y + s_ref + (i_ref - j)*period/N (j integer).  The lattice spacing
     # is period/N, so for any period > 0 at most one lattice point falls into that window: no
@@ -264,6 +304,40 @@ def _reject_constant(name: str):
 def save_profile(profile: PanelProfile, path: str | os.PathLike) -> Path:
     """Write ``profile`` as JSON atomically (an existing file is replaced only on success)."""
     return write_text_atomic(path, profile.to_json())
+
+
+# Decimals shown for each constant: finer than any calibration resolves (slant 1e-7 px/row is
+# 2e-4 px over 2160 rows; period 1e-6 subpixel), coarse enough to read.
+_DISPLAY_DECIMALS = {"slant": 7, "period": 6, "offset": 4, "reference_view": 4}
+
+
+def format_constant(name: str, value) -> str:
+    """``value`` of constant ``name`` for people: fixed decimals per constant (slant 7, period 6,
+    offset and reference view 4), trailing zeros dropped (``19.47``, ``-0.2871235``, ``16.0``).
+    Integers and strings are shown as they are.  The file keeps the full precision."""
+    if name not in _DISPLAY_DECIMALS or not _is_number(value):
+        return str(value)
+    text = f"{float(value):.{_DISPLAY_DECIMALS[name]}f}".rstrip("0")
+    text = text + "0" if text.endswith(".") else text
+    return "0.0" if text in ("-0.0",) else text
+
+
+def describe_provenance(prov: Mapping[str, Any]) -> list[str]:
+    """Lines saying how a profile was made: method, when, with which lenticalib, from what.
+
+    ``created`` (ISO 8601) is when the constants were made: for a profile read from a panel,
+    when the record was written; such a profile also names the device, panel serial, record
+    number and when it was read.
+    """
+    lines = [f"{prov.get('method') or 'unknown method'} on {prov.get('created') or 'an unknown date'}"
+             f" (lenticalib {prov.get('lenticalib_version') or 'version unknown'})"]
+    if prov.get("device_url") or prov.get("panel_serial"):
+        parts = [f"device {prov['device_url']}" if prov.get("device_url") else None,
+                 f"panel serial {prov['panel_serial']}" if prov.get("panel_serial") else None,
+                 f"record #{prov['record_sequence']}" if prov.get("record_sequence") is not None else None,
+                 f"read on {prov['read']}" if prov.get("read") else None]
+        lines.append(", ".join(p for p in parts if p))
+    return lines
 
 
 def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) -> dict[str, Any]:

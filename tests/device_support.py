@@ -21,8 +21,10 @@ def profile_a() -> PanelProfile:
 
 
 def profile_b() -> PanelProfile:
+    """Another calibration of the same panel as :func:`profile_a` (the emulator's default panel,
+    3840x2160 RGB, 32 views: a controller refuses profiles for another panel)."""
     return PanelProfile(views=32, slant=-0.2871234567, period=17.123456789, offset=3.25, reference_view=16.0,
-                        width=3840, height=2160, subpixel_order="BGR",
+                        width=3840, height=2160, subpixel_order="RGB",
                         uncertainty={"slant": 1e-5, "period": 2e-4, "offset": 0.01, "reference_view": 0.0})
 
 

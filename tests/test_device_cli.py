@@ -4,6 +4,7 @@ verify, compare with the original profile; and every user error as one line, exi
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -76,7 +77,7 @@ def test_cli_power_cut_then_recover(tmp_path):
     (["device", "info", "hid://12:34"], "VID:PID"),
     (["device", "info", "carrier-pigeon://x"], "unknown transport"),
     (["device", "info", "emu://x?via=bluetooth"], "unknown via"),
-    (["device", "info", "emu://x?explode=1"], "unknown option"),
+    (["device", "info", "emu://x?explode=1"], "unknown URL parameter 'explode'"),
     (["device", "info", "usb://1209:0003"], "usb://1209:0003"),
     (["device", "read", "emu://blank", "-o", "OUT"], "no calibration record"),
     (["device", "flash", "emu://x", "missing.json"], "missing.json"),
@@ -129,3 +130,110 @@ def test_emulator_survives_a_client_that_resets_or_never_reads(tmp_path):
         info = cli("device", "info", url)
         assert info.returncode == 0, info.stderr
         assert proc.poll() is None
+
+
+@pytest.mark.parametrize("args,expect,absent", [
+    # pyserial's "socket://<host>:<port>[?logging={debug|info|warning|error}]" never reaches the user
+    (["device", "info", "socket://127.0.0.1:99999"], "socket://127.0.0.1:99999: TCP port 99999 is not in 1..65535",
+     ["debug|info", "Could not open port"]),
+    (["device", "info", "socket://127.0.0.1"], "is not HOST:PORT", ["debug|info"]),
+    # a bad emu:// parameter speaks of the URL parameter and its range, not of --drop or udev
+    (["device", "info", "emu://x?drop=2"], "emu://x?drop=2: URL parameter 'drop' must be a probability between 0 and 1",
+     ["--drop", "udev", "cannot open"]),
+    (["device", "info", "emu://x?via=usb&corrupt=-1"], "URL parameter 'corrupt' must be a probability",
+     ["--corrupt", "udev", "read failed"]),
+    (["device", "info", "emu://x?via=hid&panel=4k"], "URL parameter 'panel' must be WIDTHxHEIGHT", ["udev"]),
+    (["device", "info", "emu://x?protocol=2.0"], "URL parameter 'protocol' must be 1.0 or 1.1", ["udev"]),
+    # output paths: a missing folder is refused, never created, before the device is opened
+    (["emulate", "--flash", "DIR/missing/x.flash"], "DIR/missing: the folder for the flash image does not exist", []),
+    (["device", "read", "socket://127.0.0.1:1", "-o", "DIR/missing/p.json"],
+     "DIR/missing: the folder for the profile does not exist", ["refused"]),
+    (["device", "read", "emu://blank", "-o", "DIR"], "is a folder, not a file name for the profile", ["no calibration"]),
+    (["emulate", "--panel", "4k"], "--panel: must be WIDTHxHEIGHT", []),
+    (["emulate", "--views", "1"], "--views: must be 1 to 32 view counts in 2..254", []),
+    (["emulate", "--protocol", "0.9"], "--protocol: must be 1.0 or 1.1", []),
+])
+def test_device_user_errors_name_the_real_cause(tmp_path, args, expect, absent):
+    args = [a.replace("DIR", str(tmp_path)) for a in args]
+    result = cli(*args, env={"LENTICALIB_EMULATOR_DIR": str(tmp_path / "emu")})
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and expect.replace("DIR", str(tmp_path)) in lines[0], result.stderr
+    assert not [text for text in absent if text in lines[0]], lines[0]
+    assert not (tmp_path / "missing").exists()
+
+
+def test_a_disconnect_is_one_line_without_doubled_prefixes(tmp_path):
+    for transport in ("tcp", "pty"):
+        with emulator_process("--transport", transport, "--flash", str(tmp_path / f"{transport}.flash"),
+                              "--disconnect-after", "1") as (_, url):
+            result = cli("device", "info", url)
+        assert result.returncode == 2 and "Traceback" not in result.stderr
+        (line,) = result.stderr.strip().splitlines()
+        # the link died under a read or a resend: either way one prefix, the URL once
+        assert re.match(f"lenticalib: error: {re.escape(url)}: (read|write) failed: [^:]", line), line
+        assert line.count("failed") == 1 and line.count(url) == 1, line
+
+
+def test_info_shows_a_crc_per_record_and_readable_constants(tmp_path):
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    save_profile(profile_a(), a)
+    save_profile(profile_b(), b)
+    env = {"LENTICALIB_EMULATOR_DIR": str(tmp_path / "emu")}
+    crcs = []
+    for path in (a, b, a):
+        assert cli("device", "flash", "emu://two", str(path), env=env).returncode == 0
+        info = cli("device", "info", "emu://two", env=env)
+        record_line = info.stdout.splitlines()[-1]
+        crcs.append(record_line.split("CRC-32 ")[1][:8])
+        assert "2144df1c" not in record_line
+    assert crcs[0] != crcs[1] and crcs[0] != crcs[2]  # the third record differs in sequence and time
+    info = cli("device", "info", "emu://two?protocol=1.0", env=env)
+    assert f"CRC-32 {crcs[2]}, from the bytes read back" in info.stdout and "panel not reported" in info.stdout
+    flash_b = cli("device", "flash", "emu://two", str(b), env=env)
+    assert flash_b.returncode == 0
+    line = cli("device", "info", "emu://two", env=env).stdout.splitlines()[-1]
+    # profile_b: slant -0.2871234567, period 17.123456789; no 17-digit floats
+    assert "slant -0.2871235," in line and "period 17.123457," in line and "offset 3.25," in line
+    data = json.loads(cli("device", "info", "emu://two", "--json", env=env).stdout)
+    assert data["record"]["slant"] == profile_b().slant and data["protocol_version"] == "1.1"
+    assert data["panel"] == {"width": 3840, "height": 2160, "subpixel_order": "RGB", "view_counts": [32]}
+
+
+def test_a_profile_read_from_a_device_says_where_when_and_by_what(tmp_path):
+    import datetime
+
+    from lenticalib import __version__
+
+    env = {"LENTICALIB_EMULATOR_DIR": str(tmp_path / "emu")}
+    original = tmp_path / "p.json"
+    save_profile(profile_a(), original)
+    assert cli("device", "flash", "emu://prov", str(original), env=env).returncode == 0
+    back = tmp_path / "back.json"
+    assert cli("device", "read", "emu://prov", "-o", str(back), env=env).returncode == 0
+    prov = load_profile(back).provenance
+    written = datetime.datetime.fromisoformat(prov["created"])
+    assert written.tzinfo is not None and abs(written - datetime.datetime.now(datetime.timezone.utc)).total_seconds() < 120
+    assert prov["device_url"] == "emu://prov" and prov["panel_serial"] == "EMU-PROV"
+    assert prov["lenticalib_version"] == __version__ and prov["record_sequence"] == 1 and prov["read"]
+    shown = cli("profile", "show", str(back)).stdout
+    assert f"made by  read from device on {prov['created']} (lenticalib {__version__})" in shown
+    assert "device emu://prov, panel serial EMU-PROV, record #1" in shown and "?" not in shown
+
+
+def test_flash_refuses_a_profile_for_another_panel_unless_forced(tmp_path):
+    profile = tmp_path / "4k.json"
+    save_profile(profile_a(), profile)
+    with emulator_process("--flash", str(tmp_path / "hd.flash"), "--panel", "1920x1080", "--views", "8,32") as (_, url):
+        refused = cli("device", "flash", url, str(profile))
+        assert refused.returncode == 2 and "Traceback" not in refused.stderr
+        (line,) = refused.stderr.strip().splitlines()
+        assert f"{profile}: made for another panel" in line and "profile 3840x2160 pixels, panel 1920x1080" in line
+        assert "--force" in line
+        assert "no calibration record" in cli("device", "info", url).stdout
+        forced = cli("device", "flash", url, str(profile), "--force")
+        assert forced.returncode == 0, forced.stderr
+        (warning,) = forced.stderr.strip().splitlines()
+        assert warning.startswith("lenticalib: warning: ") and "3840x2160" in warning and "1920x1080" in warning
+        assert "verified by read-back" in forced.stdout
+        assert cli("device", "verify", url, str(profile)).returncode == 0

@@ -13,7 +13,7 @@ import pytest
 
 from lenticalib.device import PanelController
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, Command, Status
-from lenticalib.device.record import RECORD_SIZE, encode_record, record_from_profile
+from lenticalib.device.record import RECORD_SIZE, encode_record, record_crc, record_from_profile
 from lenticalib.errors import DeviceProtocolError, ProfileError
 
 from .device_support import emulator_process, profile_a, profile_b, same_constants
@@ -86,7 +86,7 @@ def test_host_validates_before_writing(url):
 def write_raw(panel: PanelController, data: bytes, *, layout: int = 1, sequence: int | None = None) -> None:
     """BEGIN_WRITE / WRITE_CHUNK / COMMIT with raw record bytes, bypassing host validation."""
     sequence = sequence if sequence is not None else (panel.verify_crc() or (0, 0))[1] + 1
-    panel.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(layout, RECORD_SIZE, zlib.crc32(data), sequence))
+    panel.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(layout, RECORD_SIZE, record_crc(data), sequence))
     for offset in range(0, RECORD_SIZE, 32):
         panel.request(Command.WRITE_CHUNK, CHUNK_HEADER.pack(offset) + data[offset:offset + 32])
     panel.request(Command.COMMIT)
@@ -138,7 +138,7 @@ def test_crc_mismatch_is_refused(url):
         panel.flash(profile_a())
         current = panel.verify_crc()
         data = encode_record(record_from_profile(profile_b(), serial="X", sequence=current[1] + 1))
-        panel.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(1, RECORD_SIZE, zlib.crc32(data) ^ 1, current[1] + 1))
+        panel.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(1, RECORD_SIZE, record_crc(data) ^ 1, current[1] + 1))
         for offset in range(0, RECORD_SIZE, 32):
             panel.request(Command.WRITE_CHUNK, CHUNK_HEADER.pack(offset) + data[offset:offset + 32])
         with pytest.raises(DeviceProtocolError) as info:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import random
 import signal
 import struct
-import zlib
 
 import pytest
 from hypothesis import given, strategies as st
@@ -16,7 +15,8 @@ from lenticalib.device.emulator.flash import FACTORY_SIZE, IMAGE_SIZE
 from lenticalib.device.emulator.hid_device import EmulatedHidDevice
 from lenticalib.device.framing import MAX_FRAME, FrameParser, encode_frame
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, VERIFY_REPLY, Command, Identity
-from lenticalib.device.record import RECORD_SIZE, RecordFormatError, encode_record, parse_record, record_from_profile
+from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record, record_crc,
+                                      record_from_profile)
 from lenticalib.device.drivers import family_for
 from lenticalib.device.url import parse_device_url
 
@@ -43,7 +43,7 @@ def valid_requests(rng: random.Random) -> list[bytes]:
     payloads = {
         Command.IDENTIFY: b"", Command.READ_RECORD: b"", Command.VERIFY: b"", Command.COMMIT: b"",
         Command.REBOOT: b"",
-        Command.BEGIN_WRITE: BEGIN_WRITE.pack(1, RECORD_SIZE, zlib.crc32(record), rng.randrange(1, 12)),
+        Command.BEGIN_WRITE: BEGIN_WRITE.pack(1, RECORD_SIZE, record_crc(record), rng.randrange(1, 12)),
         Command.WRITE_CHUNK: CHUNK_HEADER.pack(rng.randrange(0, 160, 32)) + record[:32],
     }
     return [encode_frame(cmd, rng.randrange(256), payload) for cmd, payload in payloads.items()]
@@ -71,7 +71,7 @@ def mutate(rng: random.Random, data: bytes) -> bytes:
 def flash_session(rng: random.Random, sequence: int) -> bytes:
     """A complete, valid BEGIN_WRITE, 4 x WRITE_CHUNK, COMMIT exchange for record ``sequence``."""
     record = encode_record(record_from_profile(profile_a(), serial="FUZZ", sequence=sequence))
-    out = encode_frame(Command.BEGIN_WRITE, rng.randrange(256), BEGIN_WRITE.pack(1, RECORD_SIZE, zlib.crc32(record),
+    out = encode_frame(Command.BEGIN_WRITE, rng.randrange(256), BEGIN_WRITE.pack(1, RECORD_SIZE, record_crc(record),
                                                                                   sequence))
     for offset in range(0, RECORD_SIZE, 32):
         out += encode_frame(Command.WRITE_CHUNK, rng.randrange(256), CHUNK_HEADER.pack(offset) + record[offset:offset + 32])

@@ -24,7 +24,8 @@ def test_crc16_is_ccitt_false():
 
 
 def test_record_layout_is_little_endian_and_documented():
-    record = record_from_profile(profile_b(), serial="SN-1", sequence=0x01020304, written=5)
+    bgr = profile_b().replace(subpixel_order="BGR")
+    record = record_from_profile(bgr, serial="SN-1", sequence=0x01020304, written=5)
     data = encode_record(record)
     assert len(data) == RECORD_SIZE and data[:4] == b"LTCR"
     assert struct.unpack_from("<HHI", data, 4) == (1, 128, 0x01020304)
@@ -33,7 +34,7 @@ def test_record_layout_is_little_endian_and_documented():
     assert struct.unpack_from("<dddd", data, 36) == (profile_b().slant, profile_b().period, 3.25, 16.0)
     assert struct.unpack_from("<I", data, 124)[0] == zlib.crc32(data[:124])
     back = parse_record(data)
-    assert back.to_profile().routing_key() == profile_b().routing_key()
+    assert back.to_profile().routing_key() == bgr.routing_key()
     assert back.sigmas == pytest.approx(record.sigmas, rel=1e-7)  # sigmas are stored as f32
 
 

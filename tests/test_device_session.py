@@ -9,8 +9,8 @@ import json
 from lenticalib.device.emulator.firmware import Firmware
 from lenticalib.device.emulator.flash import FlashImage, create_image
 from lenticalib.device.framing import FrameParser
-from lenticalib.device.protocol import SLOT_SEQUENCE, VERIFY_REPLY, Identity
-from lenticalib.device.record import decode_record
+from lenticalib.device.protocol import SLOT_SEQUENCE, VERIFY_REPLY, Identity, PanelGeometry
+from lenticalib.device.record import LEGACY_CRC_RESIDUE, decode_record, record_crc
 from lenticalib.profile import load_profile
 
 from .device_support import REPO
@@ -24,7 +24,9 @@ def test_firmware_replays_the_recorded_session(tmp_path):
     image = tmp_path / "replay.flash"
     create_image(image, model=ctrl["model"], serial=ctrl["serial"], firmware_version=ctrl["firmware_version"])
     flash = FlashImage(image)
-    firmware = Firmware(flash)
+    panel = ctrl["panel"]
+    firmware = Firmware(flash, PanelGeometry(panel["width"], panel["height"], panel["subpixel_order"],
+                                             tuple(panel["view_counts"])), protocol_minor=session["protocol_minor"])
     for exchange in session["exchanges"]:
         replies = firmware.receive(bytes.fromhex(exchange["request"]))
         assert [r.hex() for r in replies] == [exchange["reply"]], exchange["command"]
@@ -42,11 +44,16 @@ def test_host_decodes_the_recorded_replies():
         replies.setdefault(exchange["command"], []).append(frame.payload)
     identity = Identity.unpack(replies["IDENTIFY"][0][1:])
     assert identity.serial == session["controller"]["serial"] and identity.protocol_version == 1
+    assert identity.protocol_minor == session["protocol_minor"] == 1
+    assert identity.panel == PanelGeometry(3840, 2160, "RGB", (32,))
     assert replies["VERIFY"][0][0] == 0x0A  # NO_RECORD on the blank controller
     assert SLOT_SEQUENCE.unpack(replies["COMMIT"][0][1:]) == (0, 1)
     for payload in replies["READ_RECORD"]:  # before and after the reboot
         assert payload[0] == 0 and payload[1] == 0
         record = decode_record(payload[2:], "session")
         assert record.to_profile().routing_key() == profile.routing_key()
-    slot, sequence, _ = VERIFY_REPLY.unpack(replies["VERIFY"][1][1:])
+    slot, sequence, crc = VERIFY_REPLY.unpack(replies["VERIFY"][1][1:])
     assert (slot, sequence) == (0, 1)
+    # protocol 1.1: VERIFY identifies the record (its stored CRC over bytes 0..123), not the residue
+    record_bytes = replies["READ_RECORD"][0][2:]
+    assert crc == record_crc(record_bytes) == int.from_bytes(record_bytes[124:], "little") != LEGACY_CRC_RESIDUE

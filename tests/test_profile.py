@@ -1,3 +1,4 @@
+import dataclasses
 import json
 
 import pytest
@@ -75,3 +76,43 @@ def test_failed_save_leaves_the_old_file(tmp_path):
         save_profile(PanelProfile(**EIGHT), tmp_path / "missing" / "p.json")
     assert path.read_text() == before
     assert [f.name for f in tmp_path.iterdir()] == ["p.json"]
+    assert primary.shape == (2, 21)
+    count[1, 5] = 3
+    with pytest.raises(ConfigurationError, match="3 views light subpixel x_s=5 of row 1"):
+        pack_views(count, views, p)
+
+
+@pytest.mark.parametrize("change,field", [
+    ({"period": 1e9}, "period"),                    # the encoder would write an all-black raster
+    ({"period": 4097.0, "width": 3840}, "period"),  # above the absolute bound
+    ({"period": 40.0, "width": 10}, "period"),      # a lens wider than the panel row (30 subpixels)
+    ({"slant": 4.5}, "slant"),
+    ({"offset": -2e6}, "offset"),
+    ({"reference_view": 70000.0}, "reference_view"),
+])
+def test_physical_ranges_are_enforced_for_every_profile(tmp_path, change, field):
+    path = _write(tmp_path, {**EIGHT, **change})
+    with pytest.raises(ProfileError, match=f"field '{field}'"):
+        load_profile(path)
+    with pytest.raises(ProfileError, match=f"field '{field}'"):
+        PanelProfile(**{**EIGHT, **change})
+
+
+def test_profile_validate_refuses_a_period_of_1e9_in_one_line(tmp_path, capsys):
+    from lenticalib.cli import main
+
+    path = _write(tmp_path, {**EIGHT, "period": 1e9})
+    assert main(["profile", "validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"lenticalib: error: {path}: field 'period': ")
+    assert "1000000000.0" in err
+
+
+def test_device_record_uses_the_profile_ranges():
+    from lenticalib.device.record import CalibrationRecord, RecordRangeError, check_ranges
+
+    record = CalibrationRecord(sequence=1, serial="S", width=10, height=10, views=8, subpixel_order="RGB",
+                               slant=0.1, period=31.0, offset=0.0, reference_view=0.0)
+    with pytest.raises(RecordRangeError, match="field 'period': 31.0 subpixels is wider"):
+        check_ranges(record)
+    check_ranges(dataclasses.replace(record, period=30.0))

@@ -15,18 +15,18 @@ same way.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import tempfile
-import zlib
 from pathlib import Path
 
 from lenticalib.atomic import write_text_atomic
-from lenticalib.device.emulator.controller import DEFAULT_FIRMWARE, DEFAULT_MODEL
+from lenticalib.device.emulator.controller import DEFAULT_FIRMWARE, DEFAULT_MODEL, default_panel
 from lenticalib.device.emulator.firmware import Firmware
 from lenticalib.device.emulator.flash import FlashImage, create_image
 from lenticalib.device.framing import encode_frame
-from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, Command
-from lenticalib.device.record import RECORD_SIZE, encode_record, record_from_profile
+from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, PROTOCOL_MINOR, PROTOCOL_VERSION, Command
+from lenticalib.device.record import RECORD_SIZE, encode_record, record_crc, record_from_profile
 from lenticalib.profile import load_profile
 
 REPO = Path(__file__).resolve().parents[1]
@@ -38,7 +38,7 @@ def session_requests(profile_path: Path) -> list[tuple[Command, bytes]]:
     record = encode_record(record_from_profile(load_profile(profile_path), serial=SERIAL, sequence=1,
                                                written=WRITTEN))
     requests = [(Command.IDENTIFY, b""), (Command.VERIFY, b""),
-                (Command.BEGIN_WRITE, BEGIN_WRITE.pack(1, RECORD_SIZE, zlib.crc32(record), 1))]
+                (Command.BEGIN_WRITE, BEGIN_WRITE.pack(1, RECORD_SIZE, record_crc(record), 1))]
     requests += [(Command.WRITE_CHUNK, CHUNK_HEADER.pack(o) + record[o:o + 32]) for o in range(0, RECORD_SIZE, 32)]
     requests += [(Command.COMMIT, b""), (Command.READ_RECORD, b""), (Command.VERIFY, b""), (Command.REBOOT, b""),
                  (Command.READ_RECORD, b"")]
@@ -50,15 +50,17 @@ def record_session(profile_path: Path) -> dict:
         image = Path(tmp) / "golden.flash"
         create_image(image, model=DEFAULT_MODEL, serial=SERIAL, firmware_version=DEFAULT_FIRMWARE)
         flash = FlashImage(image)
-        firmware = Firmware(flash)
+        firmware = Firmware(flash, default_panel())
         exchanges = []
         for seq, (command, payload) in enumerate(session_requests(profile_path), start=1):
             request = encode_frame(command, seq, payload)
             (reply,) = firmware.receive(request)
             exchanges.append({"command": command.name, "request": request.hex(), "reply": reply.hex()})
         flash.close()
-    return {"format": "lenticalib.device-session", "format_version": 1, "protocol_version": 1,
-            "controller": {"model": DEFAULT_MODEL, "serial": SERIAL, "firmware_version": DEFAULT_FIRMWARE},
+    return {"format": "lenticalib.device-session", "format_version": 1, "protocol_version": PROTOCOL_VERSION,
+            "protocol_minor": PROTOCOL_MINOR,
+            "controller": {"model": DEFAULT_MODEL, "serial": SERIAL, "firmware_version": DEFAULT_FIRMWARE,
+                           "panel": dataclasses.asdict(default_panel())},
             "profile": str(profile_path.relative_to(REPO)), "exchanges": exchanges}
 
 
@@ -67,7 +69,6 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=REPO / "fixtures" / "device-sessions" / "lc32-flash.json")
     args = parser.parse_args()
     session = record_session(REPO / "fixtures" / "panel-4k-32.json")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(args.out, json.dumps(session, indent=1) + "\n")
     print(f"wrote {args.out} ({len(session['exchanges'])} exchanges)")
 

@@ -23,6 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     flash = sub.add_parser("flash", help="write a profile into the controller (verified by read-back)")
     flash.add_argument("url", metavar="URL")
     flash.add_argument("profile", metavar="PROFILE")
+    flash.add_argument("--force", action="store_true",
+                       help="flash a profile made for another panel (size, subpixel order or view count) "
+                            "anyway, for panel bring-up")
     flash.set_defaults(run=run_flash)
     verify = sub.add_parser("verify", help="check that the controller holds a profile; exit 1 if not")
     verify.add_argument("url", metavar="URL")
@@ -54,46 +57,65 @@ def run_list(args) -> int:
 
 def run_info(args) -> int:
     from ..device import PanelController
+    from ..profile import format_constant
 
     with PanelController.open(args.url) as panel:
         identity = panel.identify()
-        record = panel.read_record()
-        current = panel.verify_crc()
+        current = panel.current(identity)
+    geometry = identity.panel
     out = {"url": args.url, "model": identity.model, "firmware_version": identity.firmware_version,
-           "serial": identity.serial, "protocol_version": identity.protocol_version,
+           "serial": identity.serial, "protocol_version": identity.version,
            "record_layout_version": identity.layout_version, "capabilities": identity.capabilities,
+           "panel": None if geometry is None else {"width": geometry.width, "height": geometry.height,
+                                                    "subpixel_order": geometry.subpixel_order,
+                                                    "view_counts": list(geometry.view_counts)},
            "record": None}
-    if record is not None:
-        out["record"] = {"slot": current[0] if current else None, "sequence": record.sequence,
-                         "crc32": f"{current[2]:08x}" if current else None,
-                         **record.to_profile().to_dict()}
-        out["record"].pop("provenance", None)
-        out["record"].pop("format", None)
-        out["record"].pop("format_version", None)
+    if current is not None:
+        out["record"] = {"slot": current.slot, "sequence": current.record.sequence, "crc32": f"{current.crc:08x}",
+                         "crc32_reported_by_device": current.crc_from_device,
+                         "written": current.record.written_iso,
+                         **current.record.to_profile().to_dict()}
+        for key in ("provenance", "format", "format_version"):
+            out["record"].pop(key, None)
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
     print(f"{identity.model}, firmware {identity.firmware_version}, serial {identity.serial}")
-    print(f"protocol v{identity.protocol_version}, record layout v{identity.layout_version}")
-    if record is None:
+    print(f"protocol v{identity.version}, record layout v{identity.layout_version}")
+    if geometry is not None:
+        print(f"panel {geometry.describe()}")
+    else:
+        print(f"panel not reported (protocol {identity.version} firmware)")
+    if current is None:
         print("no calibration record (flash one with 'lenticalib device flash')")
     else:
         r = out["record"]
-        print(f"record #{r['sequence']} in slot {r['slot']} (CRC-32 {r['crc32']}): {r['views']} views, "
-              f"slant {r['slant']}, period {r['period']}, offset {r['offset']}, i_ref {r['reference_view']}, "
+        crc = r["crc32"] + ("" if current.crc_from_device else ", from the bytes read back")
+        print(f"record #{r['sequence']} in slot {r['slot']} (CRC-32 {crc}), written {r['written'] or '?'}: "
+              f"{r['views']} views, slant {format_constant('slant', r['slant'])}, "
+              f"period {format_constant('period', r['period'])}, offset {format_constant('offset', r['offset'])}, "
+              f"i_ref {format_constant('reference_view', r['reference_view'])}, "
               f"{r['width']}x{r['height']} {r['subpixel_order']}")
     return 0
 
 
 def run_read(args) -> int:
     from ..device import PanelController
+    from ..outputs import check_output_file
     from ..profile import save_profile
 
+    check_output_file(args.output, "profile")  # before talking to the device
     with PanelController.open(args.url) as panel:
         profile = panel.read_profile()
     save_profile(profile, args.output)
     print(f"read record #{profile.provenance['record_sequence']} from {args.url} into {args.output}")
     return 0
+
+
+def _warn(line: str) -> None:
+    import sys
+
+    print(f"lenticalib: warning: {line}", file=sys.stderr, flush=True)
 
 
 def run_flash(args) -> int:
@@ -107,7 +129,7 @@ def run_flash(args) -> int:
             bar.set_total(total)
             bar.update()
 
-        result = panel.flash(profile, progress=progress)
+        result = panel.flash(profile, progress=progress, force=args.force, warn=_warn, source=args.profile)
     print(f"flashed {args.profile} to {args.url}: record #{result.record.sequence} in slot {result.slot}, "
           f"verified by read-back" + (f" ({result.retries} resends)" if result.retries else ""))
     return 0

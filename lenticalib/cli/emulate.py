@@ -16,6 +16,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="flash image file, created blank if missing and kept across restarts "
                              "(default: default.flash in the emulator directory)")
     parser.add_argument("--serial", help="serial number for a new flash image (default: from its file name)")
+    panel = parser.add_argument_group("the panel the controller drives (reported in IDENTIFY; default: the "
+                                      "family's, drivers/lc32.toml)")
+    panel.add_argument("--panel", metavar="WxH", help="panel size in pixels, e.g. 3840x2160")
+    panel.add_argument("--subpixel-order", metavar="RGB|BGR", help="colour at subpixel positions 0, 1, 2")
+    panel.add_argument("--views", metavar="N[,N...]", help="view counts the controller supports, e.g. 32 or 16,32")
+    parser.add_argument("--protocol", default=None, metavar="1.0|1.1",
+                        help="firmware generation to emulate (default 1.1; 1.0: CRCs over all 128 record bytes, "
+                             "no panel in IDENTIFY)")
     faults = parser.add_argument_group("fault injection (rates are probabilities per frame)")
     faults.add_argument("--power-cut-after", type=int, metavar="K",
                         help="the power fails after the K-th flash operation (erase or program): the process "
@@ -38,10 +46,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..device.emulator.controller import EmulatedController, default_image_dir, ensure_image
+    from ..device.emulator import config
+    from ..device.emulator.controller import EmulatedController, default_image_dir, default_panel, ensure_image
     from ..device.emulator.faults import FaultPlan
     from ..device.emulator.serve import serve_pty, serve_tcp
     from ..errors import InputError
+    from ..outputs import check_output_file
 
     if args.torn and args.power_cut_after is None:
         raise InputError("--torn needs --power-cut-after K", source="--torn")
@@ -51,12 +61,30 @@ def run(args: argparse.Namespace) -> int:
                        delay_rate=args.delay, delay_s=args.delay_s, stale_rate=args.stale,
                        disconnect_after=args.disconnect_after, power_cut_after=args.power_cut_after,
                        torn=args.torn, seed=args.seed)
-    image = Path(args.flash) if args.flash else default_image_dir() / "default.flash"
+    try:
+        minor = config.parse_protocol(args.protocol or config.CURRENT_PROTOCOL)
+    except ValueError as exc:
+        raise InputError(str(exc), source="--protocol") from None
+    panel = default_panel()
+    for option, argument, text in (("--panel", "size", args.panel), ("--subpixel-order", "order", args.subpixel_order),
+                                   ("--views", "views", args.views)):
+        if text is not None:
+            try:
+                panel = config.panel_geometry(panel, **{argument: text})
+            except ValueError as exc:
+                raise InputError(str(exc), source=option) from None
+    if args.flash:
+        image = Path(args.flash)
+        if not image.exists():
+            check_output_file(image, "flash image")  # a missing folder is refused, never created
+    else:
+        image = default_image_dir() / "default.flash"
+        image.parent.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder
     try:
         ensure_image(image, serial=args.serial)
     except OSError as exc:
         raise InputError(f"cannot create the flash image: {exc.strerror}", source=str(image)) from None
-    controller = EmulatedController(image, faults)
+    controller = EmulatedController(image, faults, panel=panel, protocol_minor=minor)
     if args.transport == "pty":
         serve_pty(controller)
     else:

@@ -37,6 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _print_profile(profile) -> None:
     """The constants of ``profile``, one per line with units and 1-sigma (``profile show``)."""
+    from ..profile import describe_provenance, format_constant
+
     unc = profile.uncertainty or {}
     rows = [("views", profile.views, ""), ("slant", profile.slant, "pixels/row"),
             ("period", profile.period, "subpixels"), ("offset", profile.offset, "subpixels"),
@@ -44,11 +46,10 @@ def _print_profile(profile) -> None:
             ("panel", f"{profile.width}x{profile.height}", "pixels"), ("subpixel_order", profile.subpixel_order, "")]
     for name, value, unit in rows:
         sigma = f" +- {unc[name]:.3g}" if name in unc else ""
-        print(f"{name:>15}  {value}{sigma} {unit}".rstrip())
+        print(f"{name:>15}  {format_constant(name, value)}{sigma} {unit}".rstrip())
     if profile.provenance:
-        prov = profile.provenance
-        print(f"{'made by':>15}  {prov.get('method', '?')} on {prov.get('created', '?')} "
-              f"(lenticalib {prov.get('lenticalib_version', '?')})")
+        for label, line in zip(("made by", "from"), describe_provenance(profile.provenance)):
+            print(f"{label:>15}  {line}")
 
 
 def run_show(args) -> int:

@@ -6,7 +6,15 @@ most the family's timeout and is resent (same SEQ, so the firmware answers a dup
 its cache instead of executing it twice) up to ``retries`` times; a reply with another SEQ or
 command, or a corrupt frame, is discarded.  :meth:`PanelController.flash` reports success
 only when the record read back from the controller is byte-for-byte the record it meant to
-write.
+write, and refuses (before writing anything) a profile made for another panel than the one the
+controller reports.
+
+Protocol 1.1 controllers identify a record by the CRC-32 of its bytes 0..123 (its stored CRC)
+in BEGIN_WRITE and VERIFY.  A 1.0 controller (its IDENTIFY reply ends after the serial number)
+computes both over all 128 bytes, which for every valid record is the constant
+:data:`~.record.LEGACY_CRC_RESIDUE`: the host then sends the CRC that firmware expects,
+requires VERIFY to answer that constant, identifies the record by the bytes it reads back, and
+checks the panel against the record the controller already holds (1.0 does not report it).
 """
 
 from __future__ import annotations
@@ -14,20 +22,20 @@ from __future__ import annotations
 import dataclasses
 import random
 import time
-import zlib
 from typing import Callable
 
-from ..errors import DeviceProtocolError, DeviceTimeoutError
+from ..errors import DeviceProtocolError, DeviceTimeoutError, ProfileError
 from ..profile import PanelProfile
 from .framing import MAX_FRAME, REPLY_BIT, FrameParser, encode_frame
 from .protocol import (BEGIN_WRITE, CHUNK_HEADER, STATUS_HELP, VERIFY_REPLY, Command,
-                       Identity, Status, status_name)
-from .record import (LAYOUT_VERSION, RECORD_SIZE, CalibrationRecord, decode_record, encode_record,
-                     record_from_profile)
+                       Identity, PanelGeometry, Status, panel_mismatches, status_name)
+from .record import (LAYOUT_VERSION, LEGACY_CRC_RESIDUE, RECORD_SIZE, CalibrationRecord, decode_record,
+                     encode_record, record_crc, record_from_profile, wire_crc)
 from .transports import open_transport
 from .transports.base import Transport
 
 Progress = Callable[[int, int], None]
+Warn = Callable[[str], None]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +45,18 @@ class FlashResult:
     record: CalibrationRecord
     slot: int
     retries: int
+
+
+@dataclasses.dataclass(frozen=True)
+class CurrentRecord:
+    """The controller's current record: ``slot``, ``record``, its identity ``crc`` (CRC-32 of
+    bytes 0..123), and whether the controller itself reported that CRC (``crc_from_device``:
+    protocol 1.1) or the host computed it from the bytes read back (1.0 firmware)."""
+
+    slot: int
+    record: CalibrationRecord
+    crc: int
+    crc_from_device: bool
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,6 +155,36 @@ class PanelController:
         except ValueError as exc:
             raise DeviceProtocolError(f"malformed IDENTIFY reply: {exc}", source=self.url) from None
 
+    def current(self, identity: Identity) -> CurrentRecord | None:
+        """The current record and its identity CRC, cross-checked with VERIFY; None when none.
+
+        Raises DeviceProtocolError when VERIFY's CRC does not identify the record read back (a
+        1.1 controller answering another CRC, e.g. the constant of 1.0) or, for a 1.0 controller,
+        is not the constant that firmware answers for every valid record.
+        """
+        raw = self.read_raw_record()
+        check = self.verify_crc()
+        if raw is None or check is None:
+            if raw is None and check is None:
+                return None
+            raise DeviceProtocolError("READ_RECORD and VERIFY disagree on whether the panel holds a record",
+                                      source=self.url, hint="run the command again")
+        record = decode_record(raw, self.url)
+        expected = wire_crc(raw, identity.protocol_minor)
+        if check[2] != expected or check[1] != record.sequence:
+            raise DeviceProtocolError(self._crc_complaint(identity, check[2], expected), source=self.url,
+                                      hint="run the command again; if it persists, the controller's firmware "
+                                           "is faulty")
+        return CurrentRecord(check[0], record, record_crc(raw), identity.protocol_minor >= 1)
+
+    @staticmethod
+    def _crc_complaint(identity: Identity, got: int, expected: int) -> str:
+        if identity.protocol_minor >= 1 and got == LEGACY_CRC_RESIDUE:
+            return (f"VERIFY answers CRC-32 {got:08x}, the constant every valid record gives over all 128 bytes, "
+                    f"not the record's CRC {expected:08x}: the controller claims protocol {identity.version} "
+                    "but computes its CRCs as 1.0 firmware did, so it cannot tell records apart")
+        return f"VERIFY reports CRC-32 {got:08x} and another sequence or record than read back ({expected:08x})"
+
     def read_raw_record(self) -> bytes | None:
         """The current record's 128 bytes as the controller sends them, or None when it holds none."""
         status, body = self.request(Command.READ_RECORD, accept=(Status.OK, Status.NO_RECORD))
@@ -173,32 +223,42 @@ class PanelController:
     def reboot(self) -> None:
         self.request(Command.REBOOT)
 
-    def flash(self, profile: PanelProfile, progress: Progress | None = None) -> FlashResult:
+    def flash(self, profile: PanelProfile, progress: Progress | None = None, *, force: bool = False,
+              warn: Warn | None = None, source: str = "profile") -> FlashResult:
         """Write ``profile`` as the next record; success only after a byte-exact read-back.
 
-        Steps: IDENTIFY (serial, layout, chunk size), VERIFY (current sequence), BEGIN_WRITE
-        (erases the inactive slot), WRITE_CHUNK x n, COMMIT (firmware checks and activates),
-        READ_RECORD and VERIFY (the host compares).  ``progress(done, total)`` after each.
+        Steps: IDENTIFY (serial, layout, chunk size, panel), VERIFY (current sequence; a 1.0
+        controller also READ_RECORD, its record standing in for the panel it does not report),
+        the panel check, BEGIN_WRITE (erases the inactive slot), WRITE_CHUNK x n, COMMIT
+        (firmware checks and activates), READ_RECORD and VERIFY (the host compares).
+        ``progress(done, total)`` after each write step.
+
+        A profile made for another panel (size, subpixel order, view count) is refused with a
+        ProfileError naming ``source`` and both values before anything is written; ``force``
+        flashes it anyway (panel bring-up) and says so through ``warn(line)``, which also hears
+        when a 1.0 controller gives nothing to check against.
         """
         resends_before = self.resends
         identity = self.identify()
-        if LAYOUT_VERSION != identity.layout_version:
-            raise DeviceProtocolError(f"controller uses record layout {identity.layout_version}, lenticalib "
-                                      f"writes {LAYOUT_VERSION}", source=self.url,
-                                      hint="update lenticalib or the controller firmware")
-        if identity.record_size != RECORD_SIZE:
-            raise DeviceProtocolError(f"controller record size {identity.record_size} != {RECORD_SIZE}",
-                                      source=self.url)
-        if not (identity.serial.isascii() and identity.serial.isprintable() and len(identity.serial) <= 16):
-            raise DeviceProtocolError(f"the controller reports an unusable serial number {identity.serial!r}",
-                                      source=self.url, hint="the record stores up to 16 printable ASCII "
-                                      "characters; check the controller's factory data")
+        self._check_identity(identity)
         chunk = max(1, min(identity.max_chunk, 64))
-        current = self.verify_crc()
+        if identity.panel is not None:
+            current = self.verify_crc()
+            self._check_panel(profile, identity.panel, f"the panel of {self.url}", "panel", force, warn, source)
+        else:  # 1.0: no panel reported; the record it holds was made for its panel
+            held = self._legacy_record()
+            current = self.verify_crc()
+            if held is not None:
+                panel = PanelGeometry(held.width, held.height, held.subpixel_order, (held.views,))
+                self._check_panel(profile, panel, f"the record held by {self.url} (protocol {identity.version} "
+                                  "firmware does not report its panel)", "record", force, warn, source)
+            elif warn:
+                warn(f"{self.url}: protocol {identity.version} firmware does not report its panel and holds no "
+                     f"record, so the profile's {profile.width}x{profile.height} panel cannot be checked")
         sequence = (current[1] if current else 0) + 1
         record = record_from_profile(profile, serial=identity.serial, sequence=sequence)
         data = encode_record(record)
-        crc = zlib.crc32(data)
+        crc = wire_crc(data, identity.protocol_minor)
         offsets = list(range(0, RECORD_SIZE, chunk))
         total = len(offsets) + 4
         done = 0
@@ -232,9 +292,50 @@ class PanelController:
         check = self.verify_crc()
         step()
         if check is None or check[2] != crc or check[1] != sequence:
-            raise DeviceProtocolError("flash verification failed: VERIFY reports another record", source=self.url,
-                                      hint="the panel keeps its previous record; flash again")
+            got, reason = "no record", ""
+            if check is not None:
+                got = f"CRC-32 {check[2]:08x}, sequence {check[1]}"
+                if check[2] == LEGACY_CRC_RESIDUE != crc:
+                    reason = "; " + self._crc_complaint(identity, check[2], crc)
+            raise DeviceProtocolError(f"flash verification failed: VERIFY reports {got}, expected CRC-32 "
+                                      f"{crc:08x}, sequence {sequence}{reason}", source=self.url,
+                                      hint="do not trust this controller's record; read it back with "
+                                           "'lenticalib device read' and flash again")
         return FlashResult(decode_record(back, self.url), check[0], self.resends - resends_before)
+
+    def _check_identity(self, identity: Identity) -> None:
+        if LAYOUT_VERSION != identity.layout_version:
+            raise DeviceProtocolError(f"controller uses record layout {identity.layout_version}, lenticalib "
+                                      f"writes {LAYOUT_VERSION}", source=self.url,
+                                      hint="update lenticalib or the controller firmware")
+        if identity.record_size != RECORD_SIZE:
+            raise DeviceProtocolError(f"controller record size {identity.record_size} != {RECORD_SIZE}",
+                                      source=self.url)
+        if not (identity.serial.isascii() and identity.serial.isprintable() and len(identity.serial) <= 16):
+            raise DeviceProtocolError(f"the controller reports an unusable serial number {identity.serial!r}",
+                                      source=self.url, hint="the record stores up to 16 printable ASCII "
+                                      "characters; check the controller's factory data")
+
+    def _legacy_record(self) -> CalibrationRecord | None:
+        """The record a 1.0 controller holds, or None (none, or one that does not decode)."""
+        try:
+            return self.read_record()
+        except DeviceProtocolError as exc:
+            if exc.code is not None:  # the controller refused READ_RECORD: a real error
+                raise
+            return None  # a corrupt record tells nothing about the panel; flashing replaces it
+
+    def _check_panel(self, profile: PanelProfile, panel: PanelGeometry, what: str, other: str, force: bool,
+                     warn: Warn | None, source: str) -> None:
+        mismatches = panel_mismatches(profile, panel, other)
+        if not mismatches:
+            return
+        text = f"made for another panel than {what}: {'; '.join(mismatches)}"
+        if not force:
+            raise ProfileError(text, source=source, hint="flash a profile calibrated on this panel, or use "
+                                                         "--force for panel bring-up")
+        if warn:
+            warn(f"{source}: {text}; flashing anyway (--force)")
 
     def verify(self, profile: PanelProfile) -> VerifyResult:
         """Does the controller hold ``profile``'s routing constants exactly?"""

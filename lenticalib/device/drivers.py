@@ -15,6 +15,7 @@ import tomllib
 from pathlib import Path
 
 from ..errors import InputError
+from .protocol import PanelGeometry
 
 FORMAT_NAME = "lenticalib.driver"
 TRANSPORT_KINDS = ("serial", "hid", "usb")
@@ -39,7 +40,8 @@ class TransportDescription:
 
 @dataclasses.dataclass(frozen=True)
 class ControllerFamily:
-    """A controller family: protocol, record layouts, timeouts (seconds), transports."""
+    """A controller family: protocol, record layouts, timeouts (seconds), transports, and the
+    default panel (``panel``, None when the file has no ``[panel]`` table)."""
 
     name: str
     description: str
@@ -50,6 +52,7 @@ class ControllerFamily:
     retries: int
     transports: tuple[TransportDescription, ...]
     source: str
+    panel: PanelGeometry | None = None
 
     def transport(self, kind: str) -> TransportDescription | None:
         return next((t for t in self.transports if t.kind == kind), None)
@@ -102,12 +105,23 @@ def load_family(path: str | os.PathLike) -> ControllerFamily:
     if not (0 < command <= 60 and 0 < flash <= 600 and 0 <= retries <= 20):
         raise InputError("timeouts out of range (0 < command_s <= 60, 0 < flash_s <= 600, retries 0..20)",
                          source=source)
+    panel = None
+    if "panel" in data:
+        table = data["panel"] if isinstance(data["panel"], dict) else {}
+        counts = table.get("view_counts")
+        if not isinstance(counts, list) or not all(isinstance(n, int) and not isinstance(n, bool) for n in counts):
+            raise InputError("field 'panel.view_counts' must be a list of integers", source=source)
+        try:
+            panel = PanelGeometry(field(table, "width", int, "panel."), field(table, "height", int, "panel."),
+                                  field(table, "subpixel_order", str, "panel."), tuple(counts))
+        except ValueError as exc:
+            raise InputError(f"table 'panel': {exc}", source=source) from None
     layouts = family.get("record_layout_versions")
     if not isinstance(layouts, list) or not all(isinstance(v, int) for v in layouts):
         raise InputError("field 'family.record_layout_versions' must be a list of integers", source=source)
     return ControllerFamily(field(family, "name", str, "family."), family.get("description", ""),
                             field(family, "protocol_version", int, "family."), tuple(layouts),
-                            float(command), float(flash), retries, tuple(transports), source)
+                            float(command), float(flash), retries, tuple(transports), source, panel)
 
 
 @functools.cache

@@ -12,7 +12,9 @@ import enum
 import struct
 
 PROTOCOL_VERSION = 1
+PROTOCOL_MINOR = 1  # 1.1: CRCs identify the record, IDENTIFY reports the panel (protocol-v1.md 1.1)
 MAX_CHUNK = 32  # bytes of record data per WRITE_CHUNK (one flash program operation)
+MAX_VIEW_COUNTS = 32  # at most this many supported view counts in an IDENTIFY reply
 
 
 class Command(enum.IntEnum):
@@ -70,14 +72,66 @@ CHUNK_HEADER = struct.Struct("<H")       # offset
 SLOT_SEQUENCE = struct.Struct("<BI")     # slot, sequence
 VERIFY_REPLY = struct.Struct("<BII")     # slot, sequence, crc32
 _IDENTIFY_FIXED = struct.Struct("<BHIHH")  # protocol, layout, capabilities, max_chunk, record_size
+_IDENTIFY_PANEL = struct.Struct("<BHHBB")  # 1.1 tail: minor, width, height, subpixel order, n view counts
+_ORDERS = ("RGB", "BGR")
 
 CAP_TWO_SLOTS = 0x01
 CAP_READ_BACK_COMMIT = 0x02
 
 
 @dataclasses.dataclass(frozen=True)
+class PanelGeometry:
+    """The panel a controller drives: raster ``width`` x ``height`` in pixels, the colour at
+    subpixel positions 0, 1, 2 (``subpixel_order`` "RGB" or "BGR"), and the view counts N its
+    renderer supports (``view_counts``, each 2..254, ascending)."""
+
+    width: int
+    height: int
+    subpixel_order: str
+    view_counts: tuple[int, ...]
+
+    def __post_init__(self):
+        if not (1 <= self.width <= 0xFFFF and 1 <= self.height <= 0xFFFF):
+            raise ValueError(f"panel size {self.width}x{self.height} is not 1..65535 pixels per side")
+        if self.subpixel_order not in _ORDERS:
+            raise ValueError(f"subpixel order {self.subpixel_order!r} is not RGB or BGR")
+        if not (1 <= len(self.view_counts) <= MAX_VIEW_COUNTS and all(2 <= n <= 254 for n in self.view_counts)):
+            raise ValueError(f"view counts {list(self.view_counts)} are not 1 to {MAX_VIEW_COUNTS} numbers "
+                             "in 2..254")
+
+    @property
+    def size(self) -> str:
+        return f"{self.width}x{self.height}"
+
+    def describe(self) -> str:
+        """e.g. ``3840x2160 RGB, 32 views``."""
+        counts = ", ".join(map(str, self.view_counts))
+        return f"{self.size} {self.subpixel_order}, {counts} views"
+
+
+def panel_mismatches(profile, panel: PanelGeometry, other: str = "panel") -> list[str]:
+    """What makes ``profile`` (a PanelProfile) unfit for ``panel``: one phrase per mismatch, naming
+    both values (size, subpixel order, view count), ``other`` naming the panel's side; empty when
+    it fits."""
+    out = []
+    if (profile.width, profile.height) != (panel.width, panel.height):
+        out.append(f"profile {profile.width}x{profile.height} pixels, {other} {panel.size}")
+    if profile.subpixel_order != panel.subpixel_order:
+        out.append(f"profile subpixel order {profile.subpixel_order}, {other} {panel.subpixel_order}")
+    if profile.views not in panel.view_counts:
+        counts = ", ".join(map(str, panel.view_counts))
+        out.append(f"profile {profile.views} views, " + (f"controller supports {counts}" if other == "panel"
+                                                           else f"{other} {counts}"))
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
 class Identity:
-    """What IDENTIFY returns: versions, capabilities and the controller's names."""
+    """What IDENTIFY returns: versions, capabilities, the controller's names and (1.1) its panel.
+
+    ``protocol_minor`` is 0 for a 1.0 reply (which ends after the serial number): such a
+    controller reports no ``panel`` and its CRCs are over all 128 record bytes (a constant).
+    """
 
     protocol_version: int
     layout_version: int
@@ -87,6 +141,12 @@ class Identity:
     model: str
     firmware_version: str
     serial: str
+    protocol_minor: int = 0
+    panel: PanelGeometry | None = None
+
+    @property
+    def version(self) -> str:
+        return f"{self.protocol_version}.{self.protocol_minor}"
 
     def pack(self) -> bytes:
         out = _IDENTIFY_FIXED.pack(self.protocol_version, self.layout_version, self.capabilities,
@@ -94,11 +154,20 @@ class Identity:
         for text in (self.model, self.firmware_version, self.serial):
             raw = text.encode("ascii")[:32]
             out += bytes([len(raw)]) + raw
+        if self.protocol_minor >= 1:  # a 1.0 reply ends here
+            panel = self.panel
+            out += _IDENTIFY_PANEL.pack(self.protocol_minor, panel.width, panel.height,
+                                        _ORDERS.index(panel.subpixel_order), len(panel.view_counts))
+            out += bytes(panel.view_counts)
         return out
 
     @classmethod
     def unpack(cls, data: bytes) -> "Identity":
-        """Decode an IDENTIFY reply body; raises ValueError when malformed."""
+        """Decode an IDENTIFY reply body; raises ValueError when malformed.
+
+        A reply ending after the serial number is protocol 1.0 (minor 0, no panel); bytes after
+        the 1.1 tail (a later minor version's additions) are ignored.
+        """
         fixed = _IDENTIFY_FIXED.size
         if len(data) < fixed:
             raise ValueError("identify reply too short")
@@ -114,4 +183,13 @@ class Identity:
                 raise ValueError("identify reply truncated")
             texts.append(raw.decode("ascii", "replace"))
             pos += 1 + n
-        return cls(*values, *texts)
+        if pos == len(data):
+            return cls(*values, *texts)
+        if len(data) < pos + _IDENTIFY_PANEL.size:
+            raise ValueError("identify reply: panel description truncated")
+        minor, width, height, order, count = _IDENTIFY_PANEL.unpack_from(data, pos)
+        pos += _IDENTIFY_PANEL.size
+        counts = tuple(data[pos:pos + count])
+        if minor < 1 or order >= len(_ORDERS) or len(counts) != count:
+            raise ValueError("identify reply: malformed panel description")
+        return cls(*values, *texts, minor, PanelGeometry(width, height, _ORDERS[order], counts))

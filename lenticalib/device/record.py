@@ -14,22 +14,26 @@ normative table; this module and the emulated firmware both implement it):
         32    2  views N (u16, 2..254)
         34    1  subpixel_order (u8): 0 = RGB, 1 = BGR
         35    1  flags (u8): bit 0 = the four sigmas below are present
-        36    8  slant C_r (f64, pixels per row, |C_r| <= 4)
-        44    8  period Delta_r (f64, subpixels, 0 < Delta_r <= 4096)
-        52    8  offset s_ref (f64, subpixels, |s_ref| <= 1e6)
-        60    8  reference_view i_ref (f64, views, |i_ref| <= 65535)
+        36    8  slant C_r (f64, pixels per row)
+        44    8  period Delta_r (f64, subpixels)
+        52    8  offset s_ref (f64, subpixels)
+        60    8  reference_view i_ref (f64, views)
         68   16  1-sigma of slant, period, offset, reference_view (4 x f32, >= 0)
         84    8  written (u64): Unix time in seconds when the host built the record
         92    8  profile digest: first 8 bytes of SHA-256 of the routing constants
        100   24  reserved, zero
        124    4  CRC-32 (IEEE 802.3, as zlib.crc32) of bytes 0..123
 
-Floats are stored as f64 so a profile survives the round trip exactly.
+Floats are stored as f64 so a profile survives the round trip exactly.  The constants' ranges
+(views, width, height, slant, period, offset, reference view) are those of every profile,
+:func:`lenticalib.profile.constants_problem`; this module adds only what the encoding itself
+needs (16-bit sizes, f32 sigmas, the serial's 16 ASCII bytes, 32/64-bit counters).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import datetime as _dt
 import hashlib
 import math
 import struct
@@ -37,7 +41,8 @@ import time
 import zlib
 
 from ..errors import DeviceProtocolError, ProfileError
-from ..profile import MAX_VIEWS, PanelProfile
+from ..profile import (MAX_VIEWS, OFFSET_LIMIT, PERIOD_LIMIT, REFERENCE_VIEW_LIMIT,  # noqa: F401 (re-exported)
+                       SLANT_LIMIT, PanelProfile, constants_problem, make_provenance)
 
 MAGIC = b"LTCR"
 LAYOUT_VERSION = 1
@@ -51,11 +56,7 @@ _STRUCT = struct.Struct("<4sHHI16sHHHBBddddffffQ8s24s")
 _CRC_OFFSET = RECORD_SIZE - 4
 assert _STRUCT.size == _CRC_OFFSET
 
-# Allowed ranges (inclusive), shared by the host's validation and the firmware's commit check.
-SLANT_LIMIT = 4.0
-PERIOD_LIMIT = 4096.0
-OFFSET_LIMIT = 1.0e6
-REFERENCE_VIEW_LIMIT = 65535.0
+F32_MAX = 3.0e38  # sigmas are stored as f32
 _ORDERS = ("RGB", "BGR")
 _SIGMA_KEYS = ("slant", "period", "offset", "reference_view")
 
@@ -87,11 +88,29 @@ class CalibrationRecord:
     digest: bytes = b"\0" * 8
     layout_version: int = LAYOUT_VERSION
 
-    def to_profile(self, **provenance) -> PanelProfile:
-        """The record as a :class:`PanelProfile`; ``provenance`` is stored with it."""
+    @property
+    def written_iso(self) -> str | None:
+        """``written`` as an ISO 8601 UTC time (seconds), or None when the record has none (0)."""
+        if not self.written:
+            return None
+        try:
+            return _dt.datetime.fromtimestamp(self.written, _dt.timezone.utc).isoformat(timespec="seconds")
+        except (OverflowError, OSError, ValueError):
+            return None
+
+    def to_profile(self, *, device_url: str | None = None) -> PanelProfile:
+        """The record as a :class:`PanelProfile`, with the provenance of a read from ``device_url``.
+
+        Provenance: ``method`` "read from device", ``created`` the record's ``written`` time
+        (when the host built it, ISO 8601 UTC), ``read`` the time of this read,
+        ``lenticalib_version`` of the reader, the device URL, the panel serial and the record's
+        sequence number.
+        """
         uncertainty = dict(zip(_SIGMA_KEYS, self.sigmas)) if self.sigmas else None
-        prov = {"method": "read from device", "record_sequence": self.sequence,
-                "panel_serial": self.serial, "record_written": self.written, **provenance}
+        prov = make_provenance("read from device", device_url=device_url, panel_serial=self.serial,
+                               record_sequence=self.sequence)
+        prov["read"] = prov["created"]
+        prov["created"] = self.written_iso
         return PanelProfile(views=self.views, slant=self.slant, period=self.period, offset=self.offset,
                             reference_view=self.reference_view, width=self.width, height=self.height,
                             subpixel_order=self.subpixel_order, uncertainty=uncertainty, provenance=prov)
@@ -134,24 +153,37 @@ def check_ranges(record: CalibrationRecord) -> None:
     need(len(record.serial.encode("ascii", "replace")) <= SERIAL_BYTES
          and record.serial.isascii() and record.serial.isprintable(),
          "serial", f"must be printable ASCII of at most {SERIAL_BYTES} characters")
-    need(1 <= record.width <= 65535, "width", f"must be 1..65535 pixels, got {record.width}")
-    need(1 <= record.height <= 65535, "height", f"must be 1..65535 pixels, got {record.height}")
-    need(2 <= record.views <= MAX_VIEWS, "views", f"must be 2..{MAX_VIEWS}, got {record.views}")
-    need(record.subpixel_order in _ORDERS, "subpixel_order", "must be RGB or BGR")
-    need(math.isfinite(record.slant) and abs(record.slant) <= SLANT_LIMIT, "slant",
-         f"must be finite with |slant| <= {SLANT_LIMIT} pixels/row, got {record.slant!r}")
-    need(math.isfinite(record.period) and 0 < record.period <= PERIOD_LIMIT, "period",
-         f"must be in (0, {PERIOD_LIMIT:g}] subpixels, got {record.period!r}")
-    need(math.isfinite(record.offset) and abs(record.offset) <= OFFSET_LIMIT, "offset",
-         f"must be finite with |offset| <= {OFFSET_LIMIT:g} subpixels, got {record.offset!r}")
-    need(math.isfinite(record.reference_view) and abs(record.reference_view) <= REFERENCE_VIEW_LIMIT,
-         "reference_view", f"must be finite with |i_ref| <= {REFERENCE_VIEW_LIMIT:g}, "
-         f"got {record.reference_view!r}")
+    problem = constants_problem({key: getattr(record, key) for key in
+                                 ("views", "slant", "period", "offset", "reference_view", "width", "height",
+                                  "subpixel_order")})
+    if problem is not None:
+        raise RecordRangeError(*problem)
     if record.sigmas is not None:
         for key, value in zip(_SIGMA_KEYS, record.sigmas):
-            need(math.isfinite(value) and 0 <= value <= 3.0e38, f"uncertainty.{key}",
+            need(math.isfinite(value) and 0 <= value <= F32_MAX, f"uncertainty.{key}",
                  f"must be a number in [0, 3e38] (stored as f32), got {value!r}")
     need(0 <= record.written <= 0xFFFFFFFFFFFFFFFF, "written", "must fit in 64 bits")
+
+
+# zlib.crc32 of *any* 128 bytes whose last four hold the CRC-32 of the first 124 (the CRC-32
+# residue): what protocol 1.0 firmware answered in VERIFY for every valid record.
+LEGACY_CRC_RESIDUE = 0x2144DF1C
+
+
+def record_crc(data: bytes) -> int:
+    """The record's identity: CRC-32 of bytes 0..123, i.e. the CRC it stores at 124..127.
+
+    What protocol 1.1 announces in BEGIN_WRITE and answers in VERIFY; two records that differ
+    in any byte differ here (up to CRC-32 collisions, 2**-32 for random changes).
+    """
+    return zlib.crc32(data[:_CRC_OFFSET])
+
+
+def wire_crc(data: bytes, protocol_minor: int) -> int:
+    """The CRC-32 that BEGIN_WRITE and VERIFY carry for ``data`` at this protocol minor version:
+    :func:`record_crc` from 1.1 on; 1.0 firmware computes it over all 128 bytes, which for a valid
+    record is always :data:`LEGACY_CRC_RESIDUE`."""
+    return record_crc(data) if protocol_minor >= 1 else zlib.crc32(data)
 
 
 def encode_record(record: CalibrationRecord) -> bytes:
@@ -164,7 +196,7 @@ def encode_record(record: CalibrationRecord) -> bytes:
                         FLAG_SIGMAS if record.sigmas is not None else 0,
                         record.slant, record.period, record.offset, record.reference_view,
                         *sigmas, record.written, record.digest, b"\0" * 24)
-    return body + struct.pack("<I", zlib.crc32(body))
+    return body + struct.pack("<I", record_crc(body))
 
 
 class RecordFormatError(ValueError):

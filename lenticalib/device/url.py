@@ -55,12 +55,20 @@ def parse_device_url(text: str) -> DeviceURL:
     scheme, rest = text.split("://", 1)
     scheme = scheme.lower()
     target, _, query = rest.partition("?")
-    if scheme not in ("socket",) and not target:
+    if not target:
         raise DeviceNotFoundError("the URL names no device", source=text, hint=_HINT)
     options = tuple(parse_qsl(query, keep_blank_values=True)) if query else ()
     url = DeviceURL(text, scheme, target, options)
     if scheme in ("hid", "usb"):
         url.vid_pid_serial()
+    if scheme == "socket":
+        host, sep, port = target.rpartition(":")
+        if not sep or not host or not port.isdigit():
+            raise DeviceNotFoundError(f"'{target}' is not HOST:PORT", source=text,
+                                      hint="write it like socket://127.0.0.1:7000")
+        if not 1 <= int(port) <= 65535:
+            raise DeviceNotFoundError(f"TCP port {port} is not in 1..65535", source=text,
+                                      hint="use the port 'lenticalib emulate --transport tcp' printed")
     if scheme == "emu" and not re.fullmatch(r"[A-Za-z0-9_.-]+", target):
         raise DeviceNotFoundError(f"emulator name '{target}' must be letters, digits, '.', '_' or '-'",
                                   source=text, hint="e.g. emu://bench")

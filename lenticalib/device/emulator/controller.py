@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from ..framing import FrameParser, encode_frame
+from ..protocol import PROTOCOL_MINOR, PanelGeometry
 from .faults import FaultPlan
 from .firmware import Firmware
 from .flash import FlashImage, PowerCut, create_image
@@ -56,13 +57,32 @@ def ensure_image(path: str | os.PathLike, *, serial: str | None = None, model: s
     return path
 
 
-class EmulatedController:
-    """Firmware + flash + faults, thread-safe, reached through host_write / host_read."""
+def default_panel() -> PanelGeometry:
+    """The panel of the default controller family's ``[panel]`` table (``drivers/lc32.toml``)."""
+    from ..drivers import family_for
 
-    def __init__(self, image: str | os.PathLike, faults: FaultPlan | None = None):
+    family = family_for()
+    if family.panel is None:
+        from ...errors import InputError
+
+        raise InputError("the controller description has no [panel] table", source=family.source,
+                         hint="add one as in drivers/lc32.toml, or give the emulator --panel")
+    return family.panel
+
+
+class EmulatedController:
+    """Firmware + flash + faults, thread-safe, reached through host_write / host_read.
+
+    ``panel`` is the panel the controller drives (default: the family's, :func:`default_panel`);
+    ``protocol_minor`` 0 emulates protocol 1.0 firmware (see :class:`.firmware.Firmware`).
+    """
+
+    def __init__(self, image: str | os.PathLike, faults: FaultPlan | None = None, *,
+                 panel: PanelGeometry | None = None, protocol_minor: int = PROTOCOL_MINOR):
         self.faults = faults or FaultPlan()
+        panel = panel or default_panel()
         self.flash = FlashImage(image, power_cut_after=self.faults.power_cut_after, torn=self.faults.torn)
-        self.firmware = Firmware(self.flash)
+        self.firmware = Firmware(self.flash, panel, protocol_minor=protocol_minor)
         self._inbound = FrameParser()
         self._outbox: list[tuple[float, bytes]] = []  # (ready time, bytes), sorted by time
         self._queued = 0  # bytes in _outbox
@@ -179,24 +199,35 @@ _URL_FAULTS = {"drop": "drop_rate", "corrupt": "corrupt_rate", "duplicate": "dup
                "delay": "delay_rate", "delay-s": "delay_s", "stale": "stale_rate",
                "disconnect-after": "disconnect_after", "power-cut-after": "power_cut_after",
                "torn": "torn", "seed": "seed"}
-URL_OPTIONS = ("via", *_URL_FAULTS)
+_URL_SETUP = ("panel", "order", "views", "protocol")
+URL_OPTIONS = ("via", *_URL_SETUP, *_URL_FAULTS)
 
 
 def controller_for_url(url) -> EmulatedController:
     """The in-process controller an ``emu://NAME[?options]`` URL names (a DeviceURL).
 
     The flash image is NAME.flash in :func:`default_image_dir` (created blank on first use);
-    fault options (``drop=0.1``, ``power-cut-after=3``, ``torn=1``, ``seed=7``, ...) map onto
-    :class:`FaultPlan` fields.  Raises InputError naming an unknown or malformed option.
+    ``panel=WxH``, ``order=RGB|BGR``, ``views=N[,N...]`` set the panel it drives (default: the
+    family's) and ``protocol=1.0|1.1`` the firmware generation; fault options (``drop=0.1``,
+    ``power-cut-after=3``, ``torn=1``, ``seed=7``, ...) map onto :class:`FaultPlan` fields.
+    Raises InputError naming the URL and the bad parameter.
     """
     from ...errors import InputError
+    from . import config
 
-    values = {}
+    def bad(key: str, message: str):
+        return InputError(f"URL parameter '{key}' {message}", source=str(url),
+                          hint=f"emu:// parameters: {', '.join(URL_OPTIONS)}")
+
+    values, setup = {}, {}
     for key, text in url.options:
         if key not in URL_OPTIONS:
-            raise InputError(f"unknown option '{key}'", source=str(url),
-                             hint=f"emu:// options: {', '.join(URL_OPTIONS)}")
+            raise InputError(f"unknown URL parameter '{key}'", source=str(url),
+                             hint=f"emu:// parameters: {', '.join(URL_OPTIONS)}")
         if key == "via":
+            continue
+        if key in _URL_SETUP:
+            setup[key] = text
             continue
         field = _URL_FAULTS[key]
         try:
@@ -207,6 +238,23 @@ def controller_for_url(url) -> EmulatedController:
             else:
                 values[field] = float(text)
         except ValueError:
-            raise InputError(f"option '{key}' must be a number, got '{text}'", source=str(url)) from None
-    image = ensure_image(default_image_dir() / f"{url.target}.flash")
-    return EmulatedController(image, FaultPlan(**values))
+            raise bad(key, f"must be a number, got '{text}'") from None
+    try:
+        faults = FaultPlan(**values)
+    except InputError as exc:  # FaultPlan names the emulate option (--drop); here it is a URL parameter
+        raise bad(exc.source.lstrip("-"), exc.message) from None
+    try:
+        minor = config.parse_protocol(setup.get("protocol", config.CURRENT_PROTOCOL))
+    except ValueError as exc:
+        raise bad("protocol", str(exc)) from None
+    panel = default_panel()
+    for key, argument in (("panel", "size"), ("order", "order"), ("views", "views")):
+        if key in setup:
+            try:
+                panel = config.panel_geometry(panel, **{argument: setup[key]})
+            except ValueError as exc:
+                raise bad(key, str(exc)) from None
+    folder = default_image_dir()
+    folder.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder, not a user's output path
+    image = ensure_image(folder / f"{url.target}.flash")
+    return EmulatedController(image, faults, panel=panel, protocol_minor=minor)

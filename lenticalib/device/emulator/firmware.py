@@ -9,17 +9,23 @@ half-written or corrupt slot is simply not valid, so it never hides the good one
 
 A repeated request (same SEQ, same CMD and payload as the last one, i.e. a host retry after a
 lost reply) is answered from the cached reply without executing it again.
+
+``protocol_minor`` picks the firmware generation: 1 (current, protocol 1.1) identifies records
+by the CRC-32 of bytes 0..123 and reports its panel in IDENTIFY; 0 behaves as 1.0 firmware did
+(CRC-32 over all 128 bytes, a constant for valid records; no panel in IDENTIFY), so the host's
+fallback for old controllers is tested against it.
 """
 
 from __future__ import annotations
 
 import struct
-import zlib
 
 from ..framing import REPLY_BIT, Frame, FrameParser, encode_frame
 from ..protocol import (BEGIN_WRITE, CAP_READ_BACK_COMMIT, CAP_TWO_SLOTS, CHUNK_HEADER, MAX_CHUNK,
-                        PROTOCOL_VERSION, SLOT_SEQUENCE, VERIFY_REPLY, Command, Identity, Status)
-from ..record import KNOWN_LAYOUT_VERSIONS, LAYOUT_VERSION, RECORD_SIZE, RecordFormatError, parse_record
+                        PROTOCOL_MINOR, PROTOCOL_VERSION, SLOT_SEQUENCE, VERIFY_REPLY, Command, Identity,
+                        PanelGeometry, Status)
+from ..record import (KNOWN_LAYOUT_VERSIONS, LAYOUT_VERSION, RECORD_SIZE, RecordFormatError, parse_record,
+                      wire_crc)
 from .flash import SLOT_COUNT, FlashImage
 
 COMMIT_WORD = 0x4C43_4D54  # b"TMCL" little-endian; programmed over the erased 0xFFFFFFFF
@@ -28,10 +34,14 @@ _WORD = struct.Struct("<I")
 
 
 class Firmware:
-    """Controller state over one :class:`FlashImage` (closed by the caller)."""
+    """Controller state over one :class:`FlashImage` (closed by the caller), driving ``panel``."""
 
-    def __init__(self, flash: FlashImage):
+    def __init__(self, flash: FlashImage, panel: PanelGeometry, *, protocol_minor: int = PROTOCOL_MINOR):
+        if protocol_minor not in (0, 1):
+            raise ValueError(f"protocol minor version {protocol_minor} is not 0 or 1")
         self.flash = flash
+        self.panel = panel
+        self.protocol_minor = protocol_minor
         self.parser = FrameParser()
         self.boot()
 
@@ -60,7 +70,7 @@ class Firmware:
     def identity(self) -> Identity:
         return Identity(PROTOCOL_VERSION, LAYOUT_VERSION, CAP_TWO_SLOTS | CAP_READ_BACK_COMMIT,
                         MAX_CHUNK, RECORD_SIZE, self.flash.model, self.flash.firmware_version,
-                        self.flash.serial)
+                        self.flash.serial, self.protocol_minor, self.panel if self.protocol_minor else None)
 
     def receive(self, data: bytes) -> list[bytes]:
         """Feed host bytes; return the encoded reply frames (may raise flash.PowerCut)."""
@@ -109,7 +119,8 @@ class Firmware:
         if self.current_slot is None:
             return Status.NO_RECORD, b""
         raw = self.flash.read_slot(self.current_slot, 0, RECORD_SIZE)
-        return Status.OK, VERIFY_REPLY.pack(self.current_slot, self.current_sequence, zlib.crc32(raw))
+        return Status.OK, VERIFY_REPLY.pack(self.current_slot, self.current_sequence,
+                                            wire_crc(raw, self.protocol_minor))
 
     def _begin_write(self, payload: bytes):
         self.session = None  # a new BEGIN_WRITE, even a refused one, ends any earlier session
@@ -154,7 +165,7 @@ class Firmware:
         slot = session["slot"]
         self.session = None  # committed or refused, the staged slot is not written to again
         raw = self.flash.read_slot(slot, 0, RECORD_SIZE)
-        if zlib.crc32(raw) != session["crc"]:
+        if wire_crc(raw, self.protocol_minor) != session["crc"]:
             return Status.CRC_MISMATCH, b""
         try:
             record = parse_record(raw)

@@ -48,7 +48,8 @@ def slot_address(slot: int) -> int:
 def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_version: str) -> None:
     """Write a new image (factory block, both slots erased); never replaces an existing file.
 
-    ``model`` (<= 32), ``serial`` (<= 16) and ``firmware_version`` (<= 16) are printable ASCII;
+    The folder must exist (a missing one is an InputError naming it; nothing is created but the
+    file).  ``model`` (<= 32), ``serial`` (<= 16) and ``firmware_version`` (<= 16) are printable ASCII;
     InputError names the one that is not.
     """
     path = Path(path)
@@ -61,7 +62,10 @@ def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_v
     factory += struct.pack("<I", zlib.crc32(factory))
     factory += bytes([ERASED]) * (FACTORY_SIZE - len(factory))
     data = factory + bytes([ERASED]) * (SLOT_COUNT * SLOT_SIZE)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError("the folder for the flash image does not exist", source=str(folder),
+                         hint="create it first, or choose another --flash path")
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     with open(tmp, "wb") as fh:
         fh.write(data)

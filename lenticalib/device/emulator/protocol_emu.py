@@ -12,6 +12,7 @@ import time
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
+from ...errors import LenticalibError
 from ..url import parse_device_url
 from .controller import LinkDown, controller_for_url
 
@@ -26,6 +27,8 @@ class Serial(SerialBase):
             raise SerialException("Port must be configured before it can be used.")
         try:
             self.controller = controller_for_url(parse_device_url(self.portstr))
+        except LenticalibError:
+            raise  # a bad URL parameter or flash image: already one line naming it
         except Exception as exc:  # pyserial's contract: opening failures are SerialException
             raise SerialException(str(exc)) from exc
         self.is_open = True
@@ -63,7 +66,7 @@ class Serial(SerialBase):
         try:
             self.controller.host_write(bytes(data))
         except LinkDown as exc:
-            raise SerialException(f"write failed: controller gone ({exc.reason})")
+            raise SerialException(f"controller gone ({exc.reason})")
         return len(data)
 
     def flush(self):

@@ -50,7 +50,7 @@ def running_emulators() -> list[dict]:
 class _Announcement:
     def __init__(self, url: str, controller: EmulatedController, transport: str):
         self.path = runtime_dir() / f"{os.getpid()}.json"
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.path.parent.mkdir(parents=True, exist_ok=True)  # lenticalib's own runtime folder, not a user path
         identity = controller.identity
         self.path.write_text(json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
                                          "flash": str(controller.flash.path), "serial": identity.serial,

@@ -10,9 +10,28 @@ as is, HID packs it into 64-byte reports, USB into control transfers).
 
 from __future__ import annotations
 
-from ...errors import DeviceDisconnectedError, DeviceError, DeviceNotFoundError
+import re
+
+from ...errors import DeviceDisconnectedError, DeviceNotFoundError, LenticalibError
 from ..drivers import ControllerFamily, TransportDescription
 from ..url import DeviceURL
+
+
+_LIBRARY_PREFIXES = re.compile(r"^(?:(?:read|write) failed: |could not open port (?:\S+: )?|\[errno \d+\] )+",
+                               re.IGNORECASE)
+
+
+def reason(exc: BaseException, url: str | None = None) -> str:
+    """The cause in a library's exception text, without the prefixes our own messages add again.
+
+    pyserial says "read failed: socket disconnected" or "Could not open port URL: [Errno 111]
+    Connection refused"; the transport's message already says what failed and its source the
+    URL, so this keeps "socket disconnected" and "Connection refused".
+    """
+    text = str(exc) or type(exc).__name__
+    if url:
+        text = text.replace(f"{url}: ", "")
+    return _LIBRARY_PREFIXES.sub("", text).strip() or type(exc).__name__
 
 
 class Transport:
@@ -37,10 +56,10 @@ class Transport:
             return self
         try:
             self._open()
-        except DeviceError:
+        except LenticalibError:  # already says what is wrong (a bad URL parameter, a busy flash image)
             raise
         except (OSError, ValueError) as exc:
-            raise DeviceNotFoundError(f"cannot open the device: {exc}", source=str(self.url),
+            raise DeviceNotFoundError(f"cannot open the device: {reason(exc, str(self.url))}", source=str(self.url),
                                       hint=self.open_hint()) from None
         self.is_open = True
         return self
@@ -58,10 +77,10 @@ class Transport:
         self._require_open()
         try:
             self._write(bytes(data))
-        except DeviceError:
+        except LenticalibError:  # already one line (a device error, a bad emu:// parameter met on first use)
             raise
         except (OSError, ValueError) as exc:
-            raise DeviceDisconnectedError(f"write failed: {exc}", source=str(self.url),
+            raise DeviceDisconnectedError(f"write failed: {reason(exc)}", source=str(self.url),
                                           hint="check the cable and the controller's power") from None
 
     def read(self, max_bytes: int, timeout: float) -> bytes:
@@ -69,10 +88,10 @@ class Transport:
         self._require_open()
         try:
             return self._read(max_bytes, max(0.0, timeout))
-        except DeviceError:
+        except LenticalibError:
             raise
         except (OSError, ValueError) as exc:
-            raise DeviceDisconnectedError(f"read failed: {exc}", source=str(self.url),
+            raise DeviceDisconnectedError(f"read failed: {reason(exc)}", source=str(self.url),
                                           hint="check the cable and the controller's power") from None
 
     def discard_input(self) -> None:

@@ -12,6 +12,12 @@ import time
 
 import serial
 
+try:
+    from termios import error as _TermiosError  # tcdrain on a vanished pseudo-terminal raises it
+except ImportError:  # not POSIX
+    class _TermiosError(Exception):
+        pass
+
 from ...errors import DeviceDisconnectedError
 from .base import Transport
 
@@ -34,6 +40,11 @@ class SerialTransport(Transport):
         except serial.SerialException as exc:
             raise OSError(str(exc)) from None
 
+    def open_hint(self) -> str:
+        if self.url.scheme == "socket":
+            return "check the host and port, and that the controller or 'lenticalib emulate --transport tcp' is running"
+        return super().open_hint()
+
     def _close(self) -> None:
         self.port.close()
 
@@ -46,6 +57,8 @@ class SerialTransport(Transport):
                                           source=str(self.url)) from None
         except serial.SerialException as exc:
             raise OSError(str(exc)) from None
+        except _TermiosError as exc:  # (errno, text): the port went away under the write
+            raise OSError(exc.args[-1] if exc.args else "the port went away") from None
 
     def _read(self, max_bytes: int, timeout: float) -> bytes:
         deadline = time.monotonic() + timeout
