@@ -6,10 +6,15 @@ One rule for every command that writes:
   path must not grow a tree of folders); the parent must exist and be writable;
 - an output *file* must not name an existing folder, an output *folder* must not name an
   existing file;
+- an existing output folder is replaced only when it holds nothing but what the command itself
+  writes there (``contents``), so a mistyped ``--report ~/Documents`` cannot wipe a folder;
 - all checks run before the long work, so a wrong path costs seconds, not a whole fit;
 - files are written atomically (:mod:`lenticalib.atomic`); a folder of results is written into a
   hidden sibling and moved into place when complete (:func:`staged_folder`), so a failed run
-  leaves an earlier folder intact and no half-written one.
+  leaves an earlier folder intact and no half-written one;
+- results that a library function writes in place (several files and folders at fixed names)
+  are guarded by :func:`restored_on_failure`: the earlier ones are moved aside first and put
+  back if the run fails, so a failed run leaves the earlier results and nothing of its own.
 
 Every refusal is an :class:`~lenticalib.errors.InputError` naming the path and what to do.
 """
@@ -20,7 +25,7 @@ import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from .errors import InputError
@@ -56,11 +61,14 @@ def check_output_file(path: str | os.PathLike, what: str = "output file") -> Pat
     return target
 
 
-def check_output_folder(path: str | os.PathLike, what: str = "output folder") -> Path:
+def check_output_folder(path: str | os.PathLike, what: str = "output folder",
+                        contents: Iterable[str] | None = None) -> Path:
     """Refuse, before any work, an output folder that cannot be written; return it as a Path.
 
     The folder may exist (it must then be a writable folder) or not (its parent must exist and
-    be writable).
+    be writable).  ``contents``: when given, the names an existing folder may hold for the
+    command to replace it (what the command writes there); a folder holding anything else is
+    refused, naming the first such entry.
     """
     target = Path(path)
     if target.exists():
@@ -70,12 +78,20 @@ def check_output_folder(path: str | os.PathLike, what: str = "output folder") ->
         if not os.access(target, os.W_OK | os.X_OK):
             raise InputError(f"is not writable, so the {what} cannot be written", source=str(target),
                              hint=f"choose a writable folder for the {what}")
+        if contents is not None:
+            allowed = set(contents)
+            foreign = sorted(p.name for p in target.iterdir() if p.name not in allowed)
+            if foreign:
+                raise InputError(f"holds {foreign[0]!r}, which is not part of a {what}, so it will not be "
+                                 "replaced", source=str(target),
+                                 hint=f"choose a new or empty folder for the {what}")
     _check_parent(target, what)
     return target
 
 
 @contextlib.contextmanager
-def staged_folder(path: str | os.PathLike, what: str = "output folder") -> Iterator[Path]:
+def staged_folder(path: str | os.PathLike, what: str = "output folder",
+                  contents: Iterable[str] | None = None) -> Iterator[Path]:
     """Yield a fresh hidden sibling of ``path`` to write into; on success it replaces ``path``.
 
     On an exception the staging folder is removed and ``path`` (if it existed) is untouched.  On
@@ -84,7 +100,7 @@ def staged_folder(path: str | os.PathLike, what: str = "output folder") -> Itera
     (a crash between the two renames leaves the old folder under ``.NAME.old-*``, never a partial
     one at ``path``).
     """
-    target = check_output_folder(path, what)
+    target = check_output_folder(path, what, contents)
     parent = target.parent if str(target.parent) else Path(".")
     try:
         stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=parent))
@@ -108,6 +124,56 @@ def staged_folder(path: str | os.PathLike, what: str = "output folder") -> Itera
             raise InputError(f"cannot write the {what}: {exc.strerror}", source=str(target),
                              hint="check free space and permissions") from None
         raise
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    elif os.path.lexists(path):
+        path.unlink()
+
+
+@contextlib.contextmanager
+def restored_on_failure(paths: Iterable[str | os.PathLike], what: str = "results") -> Iterator[None]:
+    """Guard results written in place at ``paths`` (files or folders): all or nothing.
+
+    Every existing path is first moved aside to a hidden sibling ``.NAME.*.old``; then the body
+    runs.  On success the moved-aside copies are removed.  On any exception (Ctrl-C included)
+    whatever the body left at ``paths`` is removed and the earlier ones are moved back, so the
+    caller sees the earlier results untouched and nothing of the failed run.  (A process killed
+    outright leaves the earlier results under ``.NAME.*.old``, never mixed with the new ones.)
+    The paths' parent folders must exist; check them first (:func:`check_output_folder`).
+    """
+    targets = [Path(p) for p in paths]
+    moved: list[tuple[Path, Path]] = []
+
+    def put_back() -> None:
+        for target in targets:
+            _remove(target)
+        for target, aside in reversed(moved):
+            os.replace(aside, target)
+
+    try:
+        for target in targets:
+            if os.path.lexists(target):
+                parent = target.parent if str(target.parent) else Path(".")
+                aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
+                os.rmdir(aside)
+                os.replace(target, aside)
+                moved.append((target, aside))
+    except OSError as exc:
+        for target, aside in reversed(moved):
+            os.replace(aside, target)
+        raise InputError(f"cannot set the earlier {what} aside: {exc.strerror}",
+                         source=str(exc.filename or targets[0]),
+                         hint="check the folder's permissions") from None
+    try:
+        yield
+    except BaseException:
+        put_back()
+        raise
+    for _, aside in moved:
+        _remove(aside)
 
 
 def _umask() -> int:
