@@ -13,7 +13,7 @@ One rule for every command that writes:
   hidden sibling and moved into place when complete (:func:`staged_folder`), so a failed run
   leaves an earlier folder intact and no half-written one;
 - results that a library function writes in place (several files and folders at fixed names)
-  are guarded by :func:`restored_on_failure`: the earlier ones are moved aside first and put
+  are guarded by :func:`restored_on_failure`: the earlier ones are copied aside first and put
   back if the run fails, so a failed run leaves the earlier results and nothing of its own.
 
 Every refusal is an :class:`~lenticalib.errors.InputError` naming the path and what to do.
@@ -44,16 +44,17 @@ def _check_parent(target: Path, what: str) -> None:
                          hint=f"choose a writable folder for the {what}")
 
 
-def check_output_file(path: str | os.PathLike, what: str = "output file") -> Path:
+def check_output_file(path: str | os.PathLike, what: str = "output file", example: str = "out") -> Path:
     """Refuse, before any work, an output file path that cannot be written; return it as a Path.
 
     An existing file is fine (it is replaced atomically at the end); an existing folder, a
-    missing or read-only parent folder is not.
+    missing or read-only parent folder is not.  ``example``: a file name the hint suggests
+    inside a folder given by mistake.
     """
     target = Path(path)
     if target.is_dir():
         raise InputError(f"is a folder, not a file name for the {what}", source=str(target),
-                         hint=f"give a file name for the {what}, e.g. {target / 'out'}")
+                         hint=f"give a file name for the {what}, e.g. {target / example}")
     if target.exists() and not os.access(target, os.W_OK):
         raise InputError(f"exists and is read-only, so the {what} cannot replace it", source=str(target),
                          hint="choose another path or make the file writable")
@@ -135,45 +136,45 @@ def _remove(path: Path) -> None:
 
 @contextlib.contextmanager
 def restored_on_failure(paths: Iterable[str | os.PathLike], what: str = "results") -> Iterator[None]:
-    """Guard results written in place at ``paths`` (files or folders): all or nothing.
+    """Guard results that a library function writes in place at ``paths`` (files or folders).
 
-    Every existing path is first moved aside to a hidden sibling ``.NAME.*.old``; then the body
-    runs.  On success the moved-aside copies are removed.  On any exception (Ctrl-C included)
-    whatever the body left at ``paths`` is removed and the earlier ones are moved back, so the
-    caller sees the earlier results untouched and nothing of the failed run.  (A process killed
-    outright leaves the earlier results under ``.NAME.*.old``, never mixed with the new ones.)
-    The paths' parent folders must exist; check them first (:func:`check_output_folder`).
+    Every existing path is first copied to a hidden sibling ``.NAME.*.old`` (the body still sees
+    and may check or rewrite the original).  On success the copies are removed.  On any
+    exception (Ctrl-C included) each path is put back as it was, from its copy, or removed when
+    it did not exist, so the caller sees the earlier results and nothing of the failed run.  (A
+    process killed outright leaves the earlier results in the ``.NAME.*.old`` copies.)  The
+    paths' parent folders must exist; check them first (:func:`check_output_folder`).
     """
     targets = [Path(p) for p in paths]
-    moved: list[tuple[Path, Path]] = []
-
-    def put_back() -> None:
-        for target in targets:
-            _remove(target)
-        for target, aside in reversed(moved):
-            os.replace(aside, target)
-
+    copies: dict[Path, Path] = {}
     try:
         for target in targets:
             if os.path.lexists(target):
                 parent = target.parent if str(target.parent) else Path(".")
-                aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
-                os.rmdir(aside)
-                os.replace(target, aside)
-                moved.append((target, aside))
+                copy = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
+                copies[target] = copy
+                if target.is_dir() and not target.is_symlink():
+                    os.rmdir(copy)
+                    shutil.copytree(target, copy, symlinks=True)
+                else:
+                    os.rmdir(copy)
+                    shutil.copy2(target, copy, follow_symlinks=False)
     except OSError as exc:
-        for target, aside in reversed(moved):
-            os.replace(aside, target)
-        raise InputError(f"cannot set the earlier {what} aside: {exc.strerror}",
+        for copy in copies.values():
+            _remove(copy)
+        raise InputError(f"cannot keep a copy of the earlier {what}: {exc.strerror}",
                          source=str(exc.filename or targets[0]),
-                         hint="check the folder's permissions") from None
+                         hint="check free space and the folder's permissions") from None
     try:
         yield
     except BaseException:
-        put_back()
+        for target in targets:
+            _remove(target)
+            if target in copies:
+                os.replace(copies[target], target)
         raise
-    for _, aside in moved:
-        _remove(aside)
+    for copy in copies.values():
+        _remove(copy)
 
 
 def _umask() -> int:

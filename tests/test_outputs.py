@@ -1,5 +1,6 @@
 """lenticalib.outputs: output paths checked before work, staged folders, all-or-nothing results."""
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -98,13 +99,18 @@ def test_restored_on_failure_is_all_or_nothing(tmp_path, earlier):
     for exc in (RuntimeError("failed"), KeyboardInterrupt()):
         with pytest.raises(type(exc)):
             with restored_on_failure([folder, result]):
-                assert not folder.exists() and not result.exists()  # the body starts afresh
-                folder.mkdir()
+                assert folder.exists() == result.exists() == earlier  # the body sees the earlier ones
+                folder.mkdir(exist_ok=True)
                 (folder / "b.jpg").write_bytes(b"half")
+                if earlier:
+                    (folder / "a.jpg").write_bytes(b"overwritten")
+                    result.write_text("half truth")
                 raise exc
         assert _tree(tmp_path) == before
 
     with restored_on_failure([folder, result]):
+        if folder.exists():
+            shutil.rmtree(folder)
         folder.mkdir()
         (folder / "b.jpg").write_bytes(b"new photo")
         result.write_text("new truth")
