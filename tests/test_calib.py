@@ -396,6 +396,69 @@ def test_fit_cli_writes_profile_and_report(demo_fit, capsys):
     assert data["rms"] <= MAX_RMS and data["worst"] <= MAX_WORST and abs(data["centring"]) <= MAX_CENTRING
 
 
+def _png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data.startswith(PNG_SIGNATURE) and data[12:16] == b"IHDR", path
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def test_report_figures_are_readable_sizes(demo_fit):
+    from lenticalib.calib.report import FIGURE_SIZES, REPORT_FILES as FILES
+
+    report = demo_fit.out / "profile-report"
+    assert sorted(FILES) == sorted(REPORT_FILES)
+    for name, size in FIGURE_SIZES.items():
+        assert _png_size(report / name) == size, name
+        assert size[0] >= 1600, name
+        # a figure, not a blank canvas: many distinct colours
+        image = cv2.imread(str(report / name))
+        assert len(np.unique(image.reshape(-1, 3), axis=0)) > 500, name
+
+
+def _fit_returning(monkeypatch, result):
+    """``lenticalib fit`` with the (slow) fit replaced by an earlier result."""
+    monkeypatch.setattr(fit_module, "fit_capture_set", lambda *args, **kwargs: result)
+
+
+def test_summary_json_is_what_fit_json_prints(demo_fit, tmp_path, capsys, monkeypatch):
+    _fit_returning(monkeypatch, demo_fit.result)
+    code, out, err = _run(["fit", demo_fit.directory, "-o", tmp_path / "p.json", "--json"], capsys)
+    assert code == 0, err
+    text = (tmp_path / "p-report" / "summary.json").read_text()
+    assert json.loads(out) == json.loads(text)
+    assert text.count('"quality"') == 1  # once, not also inside the profile's provenance
+    summary = json.loads(text)
+    assert summary["output"] == str(tmp_path / "p.json") and summary["report"] == str(tmp_path / "p-report")
+    assert summary["quality"]["block_residual_rms_views"] == demo_fit.result.quality["block_residual_rms_views"]
+    assert summary["profile"]["period"] == load_profile(tmp_path / "p.json").period
+    # the report of the session's plain run says the same
+    plain = json.loads((demo_fit.out / "profile-report" / "summary.json").read_text())
+    assert plain["quality"] == summary["quality"] and plain["output"] == str(demo_fit.profile_path)
+
+
+@pytest.mark.parametrize("earlier", [False, True], ids=["fresh", "over-earlier-results"])
+def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, capsys, monkeypatch, earlier):
+    import lenticalib.calib.report as report_module
+
+    _fit_returning(monkeypatch, demo_fit.result)
+    out = tmp_path / "out"
+    out.mkdir()
+    if earlier:
+        _old_profile(out / "profile.json")
+        shutil.copytree(demo_fit.out / "profile-report", out / "profile-report")
+    before = {str(p.relative_to(out)): p.read_bytes() if p.is_file() else None for p in sorted(out.rglob("*"))}
+
+    def full_disk(fig, result):
+        raise InputError("cannot write output: No space left on device", source="residual.png")
+
+    monkeypatch.setattr(report_module, "_residual_figure", full_disk)  # after two figures were written
+    code, _, err = _run(["fit", demo_fit.directory, "-o", out / "profile.json"], capsys)
+    assert code == 2, err
+    assert "No space left" in _one_error_line(err)
+    after = {str(p.relative_to(out)): p.read_bytes() if p.is_file() else None for p in sorted(out.rglob("*"))}
+    assert after == before  # no profile, no half report, nothing hidden left; earlier results intact
+
+
 # ---------------------------------------------------------------------------------------------
 # 4. a fresh simulated capture set: BGR, negative slant, small camera
 # ---------------------------------------------------------------------------------------------
@@ -472,6 +535,19 @@ def _resized(name):
     return mutate
 
 
+def _too_small_set(d):
+    """Every photo below captures.MIN_PHOTO_PIXELS: named by the set's first photo (x0-0)."""
+    for path in sorted((d / "captures").iterdir()):
+        _write_jpeg(path, cv2.resize(_read_bgr(path), (1000, 667), interpolation=cv2.INTER_AREA))
+    return d / "captures" / "x0-0.jpg", ["1000x667", "megapixel"]
+
+
+def _one_small_photo(d):
+    path = d / "captures" / "y1-1.jpg"
+    _write_jpeg(path, cv2.resize(_read_bgr(path), (900, 600), interpolation=cv2.INTER_AREA))
+    return path, ["900x600", "megapixel"]
+
+
 def _notes_file(d):
     (d / "captures" / "notes.txt").write_text("exposure 1/60 s, ISO 100\n")
     return d / "captures" / "notes.txt", []
@@ -505,6 +581,8 @@ FAILURES = {
     "another-pattern-set": (_another_pattern_set, False),
     "different-size-x0-0": (_resized("x0-0"), True),
     "different-size-x1-1": (_resized("x1-1"), False),
+    "too-small-set": (_too_small_set, True),
+    "one-small-photo-y1-1": (_one_small_photo, False),
     "non-photo-file": (_notes_file, True),
     "corrupt-jpeg": (_corrupt_jpeg, False),
     "no-captures-folder": (_no_captures_folder, True),
@@ -601,8 +679,10 @@ def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, capsys, monkeypatch):
     assert code == 3, (code, err)
     line = _one_error_line(err)
     assert "--force" in line and "not trustworthy" in line, line
+    assert f"report in {out / 'profile-report'}" in line, line  # kept, and the user is told where
     assert not profile_path.exists()
-    assert json.loads((out / "profile-report" / "summary.json").read_text())["trusted"] is False
+    summary = json.loads((out / "profile-report" / "summary.json").read_text())
+    assert summary["trusted"] is False and summary["output"] is None
 
     code, _, err = _run(["fit", demo_fit.directory, "-o", profile_path, "--force"], capsys)
     assert code == 0, err

@@ -194,7 +194,9 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, c
 
     pattern_set = design_patterns(3840, 2160, 32)
     write_patterns(tmp_path, pattern_set)
-    code = simulate_main(["simulate", str(tmp_path), "--seed", "3", "--resolution", "320x240", "--json"])
+    # the smallest camera the fit takes (captures.MIN_PHOTO_PIXELS), one ray per pixel for speed
+    code = simulate_main(["simulate", str(tmp_path), "--seed", "3", "--resolution", "1250x800", "--subsamples", "1",
+                          "--json"])
     out, err = capsys.readouterr()
     assert code == 0, err
     summary = json.loads(out)
@@ -202,15 +204,15 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, c
     assert captures == sorted(f"{name}.jpg" for name in pattern_set.names)  # photos only
     assert summary["photos"] == len(pattern_set.patterns)
     truth = load_profile(tmp_path / "truth.json")
-    expected = random_scene(3, resolution=(320, 240)).truth_profile(32)
+    expected = random_scene(3, resolution=(1250, 800), subsamples=1).truth_profile(32)
     assert truth.routing_key() == expected.routing_key()
     assert truth.provenance["method"] == "simulation"
     record = json.loads((tmp_path / "simulation.json").read_text())
     assert record["status"] == "complete" and record["seed"] == 3 and record["lenticalib_version"]
-    assert Scene.from_dict(record) == random_scene(3, resolution=(320, 240))
+    assert Scene.from_dict(record) == random_scene(3, resolution=(1250, 800), subsamples=1)
     from lenticalib.imageio import read_image
 
-    assert read_image(tmp_path / "captures" / "f16-0.jpg").shape == (240, 320, 3)
+    assert read_image(tmp_path / "captures" / "f16-0.jpg").shape == (800, 1250, 3)
 
     # simulation.json holds everything needed to reproduce a photo byte for byte
     entry = record["captures"][5]
@@ -227,7 +229,7 @@ def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
     from lenticalib.calib.patterns import design_patterns, write_patterns
 
     write_patterns(tmp_path / "set", design_patterns(640, 360, 8))
-    scene = random_scene(9, width=640, height=360, resolution=(160, 120))
+    scene = random_scene(9, width=640, height=360, resolution=(1250, 800), subsamples=1)
     (tmp_path / "scene.json").write_text(json.dumps(scene.to_dict()))
     args = ["simulate", str(tmp_path / "set"), "--scene", str(tmp_path / "scene.json"), "--jpeg-quality", "90"]
     real = tmp_path / "set" / "captures" / "IMG_0001.jpg"  # someone's real photos: never touched
@@ -239,12 +241,12 @@ def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
     code = simulate_main(args)
     out, err = capsys.readouterr()
     assert code == 0, err
-    assert "truth" in out and "160x120" in out
+    assert "truth" in out and "1250x800" in out
     record = json.loads((tmp_path / "set" / "simulation.json").read_text())
     assert Scene.from_dict(record) == scene.replace_camera(jpeg_quality=90)
     assert load_profile(tmp_path / "set" / "truth.json").routing_key() == scene.truth_profile(8).routing_key()
     # a scene for another panel size is refused, naming the manifest
-    other = random_scene(9, width=1280, height=720, resolution=(160, 120))
+    other = random_scene(9, width=1280, height=720, resolution=(1250, 800))
     (tmp_path / "other.json").write_text(json.dumps(other.to_dict()))
     code = simulate_main(["simulate", str(tmp_path / "set"), "--scene", str(tmp_path / "other.json")])
     err = capsys.readouterr().err

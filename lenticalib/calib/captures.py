@@ -19,7 +19,10 @@ from .patterns import PatternSet, read_manifest, srgb_decode
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
 MAX_WORKING_WIDTH = 2560  # photos wider than this are area-averaged down (linear light)
-MIN_PHOTO_PIXELS = 300_000
+# The smallest photo the fit accepts (pixels, width x height); the simulator refuses to make
+# smaller ones.  At 1 megapixel the panel (60-90 % of the frame) still gets ~4 camera pixels per
+# fringe of group x2 (32 panel pixels); below that groups blur into each other.
+MIN_PHOTO_PIXELS = 1_000_000
 CLIP_LEVEL = 250 / 255  # sRGB-encoded value counted as clipped
 IGNORED_NAMES = {"thumbs.db", "desktop.ini"}
 
@@ -44,7 +47,8 @@ def open_capture_set(directory: str | os.PathLike) -> CaptureSet:
     """Read ``DIR/patterns.json`` and match ``DIR/captures/*`` to it, one photo per pattern.
 
     Raises CaptureError for a missing folder, a missing photo, two photos of one pattern,
-    or a file whose name matches no pattern.  Hidden files are ignored.
+    a file whose name matches no pattern, or a first photo (in manifest order) smaller than
+    MIN_PHOTO_PIXELS.  Hidden files are ignored.
     """
     directory = Path(directory)
     if not directory.is_dir():
@@ -76,7 +80,23 @@ def open_capture_set(directory: str | os.PathLike) -> CaptureSet:
         raise CaptureError(f"{len(missing)} photo(s) missing: {shown}", source=str(folder),
                            hint=f"photograph pattern {missing[0]}.png and save it as "
                                 f"captures/{missing[0]}.jpg (or .png/.tif)")
+    first = photos[patterns.names[0]]
+    raw = read_image(first, camera_orientation=True)
+    check_photo_size(first, raw.shape[1], raw.shape[0])
     return CaptureSet(directory, patterns, photos)
+
+
+def check_photo_size(path: Path, width: int, height: int) -> None:
+    """CaptureError naming ``path`` if a ``width`` x ``height`` photo is below MIN_PHOTO_PIXELS.
+
+    :func:`open_capture_set` checks the set's first photo (so a set taken at too low a
+    resolution is named by its first photo, before the long work); :func:`load_photo` checks
+    every photo (so a single small one is named by its own name).
+    """
+    if width * height < MIN_PHOTO_PIXELS:
+        raise CaptureError(f"is only {width}x{height} pixels ({width * height / 1e6:.2f} megapixels); the fit "
+                           f"needs photos of at least {MIN_PHOTO_PIXELS / 1e6:g} megapixel", source=str(path),
+                           hint="photograph every pattern at the camera's full resolution")
 
 
 @dataclasses.dataclass
@@ -121,9 +141,7 @@ def load_photo(name: str, path: Path, keep_rgb: bool = False, max_width: int = M
 
     raw = read_image(path, camera_orientation=True)
     h, w = raw.shape[:2]
-    if h * w < MIN_PHOTO_PIXELS:
-        raise CaptureError(f"is only {w}x{h} pixels", source=str(path),
-                           hint="photograph at full camera resolution (at least 0.3 megapixels)")
+    check_photo_size(path, w, h)
     linear, clipped = _linear_rgb(raw)
     scale = min(1.0, max_width / w)
     if scale < 1.0:

@@ -1,4 +1,16 @@
-"""``lenticalib fit DIR -o profile.json``: fit a panel profile from photos of the test patterns."""
+"""``lenticalib fit DIR -o profile.json``: fit a panel profile from photos of the test patterns.
+
+Before the fit starts, the options are range-checked and the profile path and the report
+folder are checked (:mod:`lenticalib.outputs`: no missing folder is created, a folder is not a
+profile path, a folder holding anything but a report is not replaced).  The report is written
+into a hidden sibling and moved into place complete.  Outcomes:
+
+- trusted (or ``--force``): the report and the profile, exit 0;
+- not trustworthy (exit 3): the report (the user needs it to see why), no profile;
+- an error (exit 2): nothing at all; an earlier profile and report stay as they were.
+
+``--json`` prints the report's ``summary.json`` document (:func:`lenticalib.calib.report.fit_summary`).
+"""
 
 from __future__ import annotations
 
@@ -13,42 +25,63 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                        "(default: next to the profile, NAME-report/)")
     parser.add_argument("--camera", metavar="MODEL", help="optional camera model (mrcal .cameramodel, or OpenCV "
                                                          "YAML/JSON with camera_matrix and distortion)")
-    parser.add_argument("--views", type=int, help="number of views (default: the pattern set's)")
+    parser.add_argument("--views", type=int, help="number of views, 2..254 (default: the pattern set's)")
     parser.add_argument("--force", action="store_true",
                         help="write the profile even when the fit fails a quality gate")
-    parser.add_argument("--json", action="store_true", help="print a JSON summary")
+    parser.add_argument("--json", action="store_true", help="print the summary (the report's summary.json)")
     parser.set_defaults(run=run)
+
+
+def check_arguments(args: argparse.Namespace):
+    """(profile path, report folder) once every option and output path is usable; InputError otherwise."""
+    import os
+
+    from ..calib.report import REPORT_FILES
+    from ..errors import InputError
+    from ..outputs import check_output_file, check_output_folder
+    from ..profile import MAX_VIEWS
+
+    if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
+        raise InputError(f"{args.views} views is out of range", source="--views",
+                         hint=f"use 2..{MAX_VIEWS}, or leave it out to use the pattern set's")
+    output = check_output_file(args.output, "profile", example="profile.json")
+    if args.report:
+        report = check_output_folder(args.report, "report", contents=REPORT_FILES)
+    else:
+        report = output.with_name(output.stem + "-report")
+        if report.exists() and not report.is_dir():
+            raise InputError("is a file, not a folder for the report", source=str(report),
+                             hint="remove it, or choose the report folder with --report")
+        check_output_folder(report, "report", contents=REPORT_FILES)
+    if os.path.abspath(report) == os.path.abspath(output):
+        raise InputError("is also the profile path", source=str(report), hint="give the report another folder")
+    return output, report
 
 
 def run(args: argparse.Namespace) -> int:
     import sys
-    from pathlib import Path
 
     from ..calib.fit import fit_capture_set
-    from ..calib.report import write_report
+    from ..calib.report import REPORT_FILES, fit_summary, write_report
+    from ..outputs import staged_folder
     from ..profile import save_profile
     from ._progress import progress_bar
 
-    output = Path(args.output)
-    report_dir = Path(args.report) if args.report else output.with_name(output.stem + "-report")
+    output, report_dir = check_arguments(args)
     with progress_bar(24, "fitting") as bar:
         result = fit_capture_set(args.directory, views=args.views, camera_model=args.camera,
                                  progress=bar.update)
-    written = write_report(result, report_dir, args.directory)
     profile = result.profile
-    unc = profile.uncertainty or {}
-    summary = {"trusted": result.trusted, "problems": result.problems, "seconds": round(result.seconds, 2),
-               "period": profile.period, "slant": profile.slant, "offset": profile.offset,
-               "reference_view": profile.reference_view, "subpixel_order": profile.subpixel_order,
-               "uncertainty": unc, "report": str(report_dir),
-               "quality": {k: v for k, v in result.quality.items() if not isinstance(v, (list, dict))}}
-    if result.trusted or args.force:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        save_profile(profile, output)
-        summary["output"] = str(output)
+    write_profile = result.trusted or args.force
+    summary = fit_summary(result, args.directory, report=report_dir, output=output if write_profile else None)
+    with staged_folder(report_dir, "report", contents=REPORT_FILES) as stage:
+        write_report(result, stage, args.directory, summary)
+        if write_profile:
+            save_profile(profile, output)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
+        unc = profile.uncertainty or {}
         print(f"period {profile.period:.6f} +- {unc.get('period', 0):.2g} subpixels, "
               f"slant {profile.slant:.7f} +- {unc.get('slant', 0):.2g} pixels/row, "
               f"offset {profile.offset:.4f} +- {unc.get('offset', 0):.2g} subpixels, "
@@ -56,15 +89,16 @@ def run(args: argparse.Namespace) -> int:
         q = result.quality
         print(f"residual {q['block_residual_rms_views']:.3f} views RMS (systematic), predicted error "
               f"{q['predicted_error_worst_views']:.3f} views (1 sigma, worst corner); {result.seconds:.1f} s")
-        print(f"report: {written}")
+        print(f"report: {report_dir}")
     if not result.trusted:
         reasons = "; ".join(result.problems)
         if args.force:
             print(f"lenticalib: warning: the fit is not trustworthy ({reasons}); written anyway (--force)",
                   file=sys.stderr)
             return 0
-        print(f"lenticalib: error: {args.directory}: the fit is not trustworthy: {reasons} (see the report; "
-              f"retake the photos, or pass --force to write {output} anyway)", file=sys.stderr)
+        print(f"lenticalib: error: {args.directory}: the fit is not trustworthy: {reasons} (no profile written; "
+              f"the report in {report_dir} shows why; retake the photos, or pass --force to write {output} "
+              "anyway)", file=sys.stderr)
         return 3
     if not args.json:
         print(f"wrote {output}")

@@ -4,6 +4,11 @@ Reads ``DIR/patterns.json`` (from ``lenticalib patterns``), draws a random but p
 and camera (or loads one with ``--scene``), writes ``DIR/captures/NAME.jpg`` for every pattern,
 ``DIR/truth.json`` (the ideal profile for the camera position) and ``DIR/simulation.json``
 (everything needed to reproduce the set).
+
+Every option is checked, and the folder found writable, before the first photo is taken.  The
+three results are all or nothing: a run that fails (or is interrupted) removes what it wrote and
+puts an earlier simulation of the folder back as it was (:func:`lenticalib.outputs.restored_on_failure`),
+so the fit never meets a half set, or photos of two scenes under one truth.json.
 """
 
 from __future__ import annotations
@@ -13,13 +18,18 @@ import json
 import re
 
 _RESOLUTION = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+MAX_SIDE = 20000  # camera pixels per side
+MAX_PIXELS = 64_000_000  # camera pixels in all (the simulator holds several float images of this size)
+MAX_SEED = 2 ** 63 - 1
+DEFAULT_SUBSAMPLES = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", metavar="DIR", help="pattern folder written by 'lenticalib patterns'")
     parser.add_argument("--seed", type=int, metavar="N", help="seed of the random scene (default: a fresh one, "
                         "recorded in simulation.json)")
-    parser.add_argument("--resolution", metavar="WxH", help="camera resolution in pixels (default 4000x3000)")
+    parser.add_argument("--resolution", metavar="WxH", help="camera resolution in pixels (default 4000x3000; at "
+                        "least the 1 megapixel the fit needs)")
     parser.add_argument("--scene", metavar="FILE", help="reuse a scene: a simulation.json or scene JSON "
                         "(not combinable with --seed/--resolution/--slant/--period/--order/--distance)")
     parser.add_argument("--slant", type=float, metavar="C", help="lens slant C_r in pixels per row (signed)")
@@ -29,21 +39,43 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--distance", type=float, metavar="MM", help="camera distance to the panel in mm")
     parser.add_argument("--jpeg-quality", type=int, metavar="Q", help="JPEG quality 1..100 (default: random "
                         "80..95)")
-    parser.add_argument("--subsamples", type=int, default=3, metavar="K",
-                        help="rays per sensor pixel side, K x K per pixel (default 3)")
+    parser.add_argument("--subsamples", type=int, metavar="K",
+                        help="rays per sensor pixel side, K x K per pixel, 1..16 (default 3, or the --scene's)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary instead of sentences")
     parser.set_defaults(run=run)
 
 
 def parse_resolution(text: str) -> tuple[int, int]:
-    """``"4000x3000"`` -> (4000, 3000); InputError naming ``--resolution`` otherwise."""
+    """``"4000x3000"`` -> (4000, 3000) camera pixels; InputError naming ``--resolution`` otherwise."""
     from ..errors import InputError
 
     match = _RESOLUTION.match(text or "")
-    if not match or not (16 <= int(match.group(1)) <= 20000 and 16 <= int(match.group(2)) <= 20000):
+    if not match:
         raise InputError(f"bad resolution {text!r}", source="--resolution",
-                         hint="write it as WIDTHxHEIGHT in pixels, e.g. 4000x3000 (16..20000 each)")
-    return int(match.group(1)), int(match.group(2))
+                         hint="write it as WIDTHxHEIGHT in pixels, e.g. 4000x3000")
+    width, height = int(match.group(1)), int(match.group(2))
+    check_resolution(width, height, "--resolution")
+    return width, height
+
+
+def check_resolution(width: int, height: int, source: str) -> None:
+    """InputError naming ``source`` unless a ``width`` x ``height`` camera makes photos the fit takes.
+
+    The lower limit is the fit's own (:data:`lenticalib.calib.captures.MIN_PHOTO_PIXELS`), so a
+    simulated set is never refused by the fit for its size; the upper limits bound memory.
+    """
+    from ..calib.captures import MIN_PHOTO_PIXELS
+    from ..errors import InputError
+
+    pixels = width * height
+    if pixels < MIN_PHOTO_PIXELS:
+        raise InputError(f"a {width}x{height} camera ({pixels / 1e6:.2f} megapixels) is below the "
+                         f"{MIN_PHOTO_PIXELS / 1e6:g} megapixel the fit needs", source=source,
+                         hint=f"give at least {MIN_PHOTO_PIXELS / 1e6:g} megapixel, e.g. 1250x800; the default is "
+                              "4000x3000")
+    if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE) or pixels > MAX_PIXELS:
+        raise InputError(f"a {width}x{height} camera is too large to simulate", source=source,
+                         hint=f"use at most {MAX_SIDE} pixels per side and {MAX_PIXELS / 1e6:g} megapixels")
 
 
 def _check_options(args: argparse.Namespace) -> None:
@@ -63,9 +95,11 @@ def _check_options(args: argparse.Namespace) -> None:
     if args.jpeg_quality is not None and not 1 <= args.jpeg_quality <= 100:
         raise InputError(f"JPEG quality {args.jpeg_quality} is out of range", source="--jpeg-quality",
                          hint="use 1..100")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise InputError(f"seed {args.seed} is out of range", source="--seed", hint=f"use 0..{MAX_SEED}")
     if args.resolution is not None:
         parse_resolution(args.resolution)
-    if not 1 <= args.subsamples <= 16:
+    if args.subsamples is not None and not 1 <= args.subsamples <= 16:
         raise InputError(f"{args.subsamples} subsamples is out of range", source="--subsamples", hint="use 1..16")
 
 
@@ -87,31 +121,57 @@ def build_scene(args: argparse.Namespace, pattern_set):
                              hint="the scene file fixes the panel and the camera; drop those options")
         data = read_json_file(args.scene, "scene", "check the --scene path")
         scene = Scene.from_dict(data, source=args.scene)
+        check_resolution(scene.camera.width, scene.camera.height, args.scene)
+        if scene.seed is not None and not 0 <= scene.seed <= MAX_SEED:
+            raise InputError(f"seed {scene.seed} is out of range (0..{MAX_SEED})", source=args.scene)
         changes = {}
         if args.jpeg_quality is not None:
             changes["jpeg_quality"] = args.jpeg_quality
-        if args.subsamples != scene.camera.subsamples:
+        if args.subsamples is not None and args.subsamples != scene.camera.subsamples:
             changes["subsamples"] = args.subsamples
         return scene.replace_camera(**changes) if changes else scene
     seed = args.seed if args.seed is not None else secrets.randbelow(2 ** 31)
     resolution = parse_resolution(args.resolution) if args.resolution else None
     return random_scene(seed, width=pattern_set.width, height=pattern_set.height, resolution=resolution,
                         period=args.period, slant=args.slant, order=args.order, distance=args.distance,
-                        jpeg_quality=args.jpeg_quality, subsamples=args.subsamples)
+                        jpeg_quality=args.jpeg_quality,
+                        subsamples=DEFAULT_SUBSAMPLES if args.subsamples is None else args.subsamples)
+
+
+def _check_outputs(directory: str):
+    """The paths simulate writes, refused before any work when they cannot be (or must not be) written."""
+    from pathlib import Path
+
+    from ..errors import InputError
+    from ..outputs import check_output_file, check_output_folder
+    from ..sim.capture import CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME
+
+    folder = Path(directory)
+    captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos")
+    simulation = check_output_file(folder / SIMULATION_NAME, "simulation record")
+    truth = check_output_file(folder / TRUTH_NAME, "true profile")
+    # simulate_capture_set refuses this too; checked here so that real photos are never even copied
+    if captures.is_dir() and any(captures.iterdir()) and not simulation.exists():
+        raise InputError("holds files that the simulator did not write (real photos?)", source=str(captures),
+                         hint="simulate into a fresh copy of the pattern folder")
+    return [captures, simulation, truth]
 
 
 def run(args: argparse.Namespace) -> int:
     import time
 
     from ..calib.patterns import read_manifest
+    from ..outputs import restored_on_failure
     from ..sim.capture import simulate_capture_set
     from ._progress import progress_bar
 
     _check_options(args)
     pattern_set = read_manifest(args.directory)
     scene = build_scene(args, pattern_set)
+    written = _check_outputs(args.directory)
     start = time.perf_counter()
-    with progress_bar(len(pattern_set.patterns), "photographing") as bar:
+    with restored_on_failure(written, "simulation"), \
+            progress_bar(len(pattern_set.patterns), "photographing") as bar:
         summary = simulate_capture_set(args.directory, scene, progress=bar.wrap)
     summary["seconds"] = round(time.perf_counter() - start, 2)
     if args.json:
