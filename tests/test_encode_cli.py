@@ -183,7 +183,7 @@ def test_import_lkg_prints_a_readable_summary(files, capsys):
     out = capsys.readouterr().out
     assert out.startswith(f"wrote {out_path} from {files / 'visual.json'} (45 views):\n")
     assert "{" not in out
-    assert "         period  18.18274580193979 subpixels" in out.splitlines()
+    assert "         period  18.182746 subpixels" in out.splitlines()
     assert "            views  45" not in out and "          views  45" in out.splitlines()
     assert main(["profile", "import-lkg", str(files / "visual.json"), "--views", "45", "-o", str(out_path),
                  "--json"]) == 0

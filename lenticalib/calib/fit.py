@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import CalibrationError, CaptureError
 from ..profile import PanelProfile, make_provenance
-from . import model, phase
+from . import model, phase, photometric, register
 from .camera import estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, check_exposure, load_photo, open_capture_set
 from .patterns import FINE_PERIODS, PERIOD_RANGE
@@ -36,7 +36,8 @@ ProgressFn = Callable[[str], None]
 
 # Quality gates (views unless stated).  A fit failing one is reported as untrustworthy.
 MAX_BLOCK_RESIDUAL_RMS = 0.12  # systematic misfit of the plane, RMS over panel blocks
-MAX_PREDICTED_ERROR = 0.15  # 1-sigma of w at the worst panel corner from the uncertainties
+MAX_PREDICTED_ERROR = 0.15  # 1-sigma of w at the worst panel corner relative to the centre (non-uniformity)
+MAX_PREDICTED_CENTRING = 0.25  # 1-sigma of the mean of w (a rotation of the whole view cone)
 MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
 MAX_CLIPPED_FRACTION = 0.02
@@ -54,6 +55,7 @@ class FitResult:
     quality: dict
     maps: dict
     seconds: float
+    warnings: list[str] = dataclasses.field(default_factory=list)
 
 
 def _group_photos(capture: CaptureSet, group: str, shape: tuple[int, int] | None, progress: ProgressFn | None,
@@ -81,6 +83,11 @@ class _Group:
     dc: np.ndarray
     photos: list[Photo]
     sigma: float = 0.0  # Gaussian (working pixels) the complex fringe was averaged with
+    cycles: np.ndarray | None = None  # phase (cycles) after the photometric correction, if any
+
+    def phase(self) -> np.ndarray:
+        """The group's phase in cycles, [0, 1): corrected if a correction was made."""
+        return self.cycles if self.cycles is not None else phase.phase_cycles(self.z)
 
 
 def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group:
@@ -184,34 +191,57 @@ def _check_clipping(groups: list[_Group], mask: np.ndarray) -> None:
                                         "and retake every photo with that exposure")
 
 
-MAX_GROUP_SHIFT = 0.5  # working pixels; smaller moves show up as fine groups disagreeing
+MAX_GROUP_SHIFT = 3.0  # working pixels: a bigger, clearly measured shift is a moved camera, not shake
 
 
-def _check_motion(groups: dict[str, "_Group"], capture: CaptureSet) -> None:
-    """CaptureError if the camera moved between groups.
+def _register_groups(groups: dict[str, "_Group"], mask: np.ndarray, capture: CaptureSet,
+                     warnings: list[str]) -> dict[str, dict]:
+    """Measure every group's shift against group x1 and undo it (see :mod:`.register`).
 
-    The mean image of a green-only group with many fringes across the panel is the evenly lit
-    panel; its
-    edges (panel border, bezel) must sit at the same place in every group.  Shifts are measured
-    by phase correlation of edge images against group x1.
+    Raises CaptureError only for a shift that is both large (> MAX_GROUP_SHIFT) and clearly
+    measured (> 5 sigma); a shift that cannot be measured becomes a warning.  Returns the
+    shifts for the report, in photo pixels.
     """
-
-    def edges(dc):
-        blurred = cv2.GaussianBlur(dc.astype(np.float32), (0, 0), 1.0)
-        gx = cv2.Sobel(blurred, cv2.CV_32F, 1, 0)
-        gy = cv2.Sobel(blurred, cv2.CV_32F, 0, 1)
-        return np.sqrt(gx * gx + gy * gy)
-
-    reference = edges(groups["x1"].dc)
-    window = cv2.createHanningWindow(reference.shape[::-1], cv2.CV_32F)
-    for name in ("x2",) + tuple(f"f{t:g}" for t in FINE_PERIODS):  # green-only, like x1
-        (dx, dy), _ = cv2.phaseCorrelate(reference, edges(groups[name].dc), window)
-        shift = math.hypot(dx, dy) / groups[name].photos[0].scale
-        if math.hypot(dx, dy) > MAX_GROUP_SHIFT:
-            raise CaptureError(f"the camera moved between photos: group {name} is shifted by {shift:.1f} pixels "
-                               "against group x1", source=str(capture.directory / "captures"),
+    band = register.edge_band(mask)
+    reference = register.silhouette(groups["x1"].dc, mask, groups["x1"].z)
+    report = {}
+    for name, group in groups.items():
+        if name == "x1":
+            continue
+        shift = register.measure_shift(reference, register.silhouette(group.dc, mask, group.z), band)
+        scale = group.photos[0].scale
+        report[name] = {"dx": shift.dx / scale, "dy": shift.dy / scale, "sigma": shift.sigma / scale,
+                        "measured": shift.measured}
+        if not shift.measured:
+            warnings.append(f"camera motion between groups x1 and {name} could not be measured ({shift.note}); "
+                            "if the camera moved, the fine groups will disagree and the uncertainty shows it")
+            continue
+        if shift.size > MAX_GROUP_SHIFT and shift.size > 5 * shift.sigma:
+            raise CaptureError(f"the camera moved between photos: group {name} is shifted by "
+                               f"{shift.size / scale:.1f} pixels (+- {shift.sigma / scale:.2f}) against group x1",
+                               source=str(capture.directory / "captures"),
                                hint="put the camera on a tripod, use a remote or timer shutter, and retake "
                                     "every photo")
+        group.z = register.shift_complex(group.z, shift.dx, shift.dy)
+        group.dc = register.shift_image(group.dc, shift.dx, shift.dy)
+        for photo in group.photos:
+            photo.luma = register.shift_image(photo.luma.astype(np.float32), shift.dx, shift.dy).astype(np.float16)
+            photo.clipped = register.shift_image(photo.clipped.astype(np.float32), shift.dx, shift.dy)
+    return report
+
+
+def _correct_photometry(groups: dict[str, "_Group"], mask: np.ndarray) -> dict[str, bool]:
+    """Cancel the tone-curve phase error of the coordinate groups (see :mod:`.photometric`)."""
+    done = {}
+    for fine, coarse, along in (("x1", "x0", "x"), ("x2", None, "x"), ("y1", "y0", "y")):
+        g = groups[fine]
+        weight = _modulation_weight(g, mask)
+        table = photometric.phase_error_table(phase.phase_cycles(g.z), weight, along)
+        done[fine] = table is not None
+        g.cycles = photometric.correct_phase(phase.phase_cycles(g.z), table)
+        if coarse:
+            groups[coarse].cycles = photometric.correct_phase(phase.phase_cycles(groups[coarse].z), table)
+    return done
 
 
 def _mask_checks(mask: np.ndarray, capture: CaptureSet) -> None:
@@ -232,8 +262,8 @@ def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.nd
     ps = capture.patterns
     h, w = mask.shape
     sub, rows = 3 * ps.width, ps.height
-    x0 = phase.coordinate_from_single_period(phase.phase_cycles(groups["x0"].z), groups["x0"].period, sub)
-    y0 = phase.coordinate_from_single_period(phase.phase_cycles(groups["y0"].z), groups["y0"].period, rows)
+    x0 = phase.coordinate_from_single_period(groups["x0"].phase(), groups["x0"].period, sub)
+    y0 = phase.coordinate_from_single_period(groups["y0"].phase(), groups["y0"].period, rows)
     cols, rws = np.meshgrid(np.arange(w), np.arange(h))
     for name, coord, along, extent in (("x0", x0, cols, sub), ("y0", y0, rws, rows)):
         c = coord[mask]
@@ -257,7 +287,7 @@ def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.nd
         for name in chain:
             g = groups[name]
             _check_photo_steps(g, coarse / g.period, mask, capture, f"(checked against group {coarse_name})")
-            fine, residual = phase.unwrap(coarse, phase.phase_cycles(g.z), g.period)
+            fine, residual = phase.unwrap(coarse, g.phase(), g.period)
             bad = float(np.mean(np.abs(residual[mask]) > 0.3))
             if bad > 0.2:
                 raise CaptureError(f"group {name} disagrees with group {coarse_name} on {100 * bad:.0f}% of the "
@@ -298,8 +328,10 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         progress("finding the panel")
     mask = phase.panel_mask([np.abs(groups["x1"].z), np.abs(groups["y1"].z)])
     _mask_checks(mask, capture)
-    _check_motion(groups, capture)
+    warnings: list[str] = []
+    shifts = _register_groups(groups, mask, capture, warnings)
     _check_clipping(list(groups.values()), mask)
+    photometry = _correct_photometry(groups, mask)
 
     if progress:
         progress("measuring seen panel coordinates")
@@ -331,7 +363,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     parts = []
     for gi, period in enumerate(FINE_PERIODS):
         g = groups[f"f{period:g}"]
-        psi = model.wrap(phase.phase_cycles(g.z)[take] - xs / period)
+        psi = model.wrap(g.phase()[take] - xs / period)
         weight = _modulation_weight(g, mask)[take]
         parts.append(model.PlaneSamples(xs, ys, psi, weight, np.full(xs.shape, gi)))
     all_samples = model.PlaneSamples(*(np.concatenate([getattr(p, f) for p in parts])
@@ -368,7 +400,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
 
     camera = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera)
-    quality, cov = _quality(fit, samples, final_weights, cov, ps, n_views)
+    reg_var = _registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used)
+    quality, cov = _quality(fit, samples, final_weights, cov, ps, n_views, reg_var)
     constants, sigmas = _constants_with_uncertainty(fit, cov)
     quality.update({
         "fine_groups": [{"period": p, "alias": round(al, 4), "coherence": round(g.coherence, 4),
@@ -378,6 +411,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         "working_resolution": [w, h],
         "photo_resolution": [shape[1], shape[0]],
         "camera": camera,
+        "group_shifts_pixels": shifts,
+        "tone_correction": photometry,
     })
     block_map = quality.pop("block_residual_map")
     problems = []
@@ -386,7 +421,11 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
                         f"(limit {MAX_BLOCK_RESIDUAL_RMS})")
     if quality["predicted_error_worst_views"] > MAX_PREDICTED_ERROR:
         problems.append(f"1-sigma uncertainty of the view coordinate reaches "
-                        f"{quality['predicted_error_worst_views']:.3f} views at a corner (limit {MAX_PREDICTED_ERROR})")
+                        f"{quality['predicted_error_worst_views']:.3f} views at a corner, relative to the "
+                        f"centre (limit {MAX_PREDICTED_ERROR})")
+    if quality["predicted_error_centre_views"] > MAX_PREDICTED_CENTRING:
+        problems.append(f"1-sigma uncertainty of the centring reaches {quality['predicted_error_centre_views']:.3f} "
+                        f"views (limit {MAX_PREDICTED_CENTRING})")
     if quality["coherence"] < MIN_COHERENCE:
         problems.append(f"fine fringes are weak (coherence {quality['coherence']:.2f}, limit {MIN_COHERENCE})")
     if order.margin < MIN_ORDER_MARGIN:
@@ -404,7 +443,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     maps = {"block_residual_map": block_map, "mask": mask, "x": x_sm, "y": y_sm, "valid": valid, "fit": fit,
             "dc": groups["y1"].dc, "samples": samples, "weights": final_weights,
             "fine_z": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
-    return FitResult(profile, not problems, problems, quality, maps, seconds)
+    return FitResult(profile, not problems, problems, quality, maps, seconds, warnings)
 
 
 def _constants_with_uncertainty(fit: model.PlaneFit, cov: np.ndarray) -> tuple[dict, dict]:
@@ -429,15 +468,18 @@ def _constants_with_uncertainty(fit: model.PlaneFit, cov: np.ndarray) -> tuple[d
     return base, sigmas
 
 
-def _quality(fit, samples, weights, cov, ps, n_views) -> tuple[dict, np.ndarray]:
+def _quality(fit, samples, weights, cov, ps, n_views, registration_var: float = 0.0) -> tuple[dict, np.ndarray]:
     """Quality numbers and the final covariance of (a, b, c0).
 
-    The covariance gets the systematic floor of :func:`model.systematic_floor`, at least
-    ``model.SYSTEMATIC_FLOOR_VIEWS`` and at least the block residual RMS: a trend as large as
-    the local scatter of w could hide in it.
+    The covariance gets the systematic floor of :func:`model.systematic_floor`: at least
+    ``model.SYSTEMATIC_FLOOR_VIEWS``, and at least the *smooth* misfit of the plane -- a
+    low-order surface fitted to the block residuals.  Block residuals also hold measurement
+    noise, which the jackknife already counts and which averages out in the plane; taking their
+    raw RMS as a systematic floor made noisy (far, blurry) panels report several times their true
+    error.  ``registration_var`` (cycles^2) is the variance the group registration leaves in c0.
     """
     r = fit.residual(samples)
-    # systematic misfit: weighted mean residual in panel blocks of ~1/24 x 1/14 of the panel
+    # misfit: weighted mean residual in panel blocks of ~1/24 x 1/14 of the panel
     bx = np.clip((samples.x / (3 * ps.width) * 24).astype(int), 0, 23)
     by = np.clip((samples.y / ps.height * 14).astype(int), 0, 13)
     block = by * 24 + bx
@@ -448,22 +490,81 @@ def _quality(fit, samples, weights, cov, ps, n_views) -> tuple[dict, np.ndarray]
     bm = block_mean[ok]
     bm = bm - np.average(bm, weights=wsum[ok])
     block_rms = float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views)
-    cov = cov + model.systematic_floor(n_views, ps.width, ps.height, max(model.SYSTEMATIC_FLOOR_VIEWS, block_rms))
+    smooth_rms = _smooth_misfit(bm, (np.arange(24 * 14) % 24)[ok], (np.arange(24 * 14) // 24)[ok], wsum[ok]) * n_views
+    cov = cov + model.systematic_floor(n_views, ps.width, ps.height, max(model.SYSTEMATIC_FLOOR_VIEWS, smooth_rms))
     cov[1, 1] += (model.SLANT_RELATIVE_FLOOR * fit.b) ** 2
+    cov[2, 2] += registration_var
     corners = np.array([[0, 0], [3 * ps.width, 0], [0, ps.height], [3 * ps.width, ps.height],
                         [1.5 * ps.width, 0.5 * ps.height]], dtype=float)
-    grads = np.stack([corners[:, 0] - fit.x0, corners[:, 1] - fit.y0, np.ones(len(corners))], axis=1)
+    # relative to the panel centre (what a viewer sees as banding) and the centre itself (centring)
+    grads = np.stack([corners[:, 0] - fit.x0, corners[:, 1] - fit.y0, np.zeros(len(corners))], axis=1)
     sig = np.sqrt(np.einsum("ij,jk,ik->i", grads, cov, grads)) * n_views
+    sig[-1] = math.sqrt(cov[2, 2]) * n_views
     return {
         "coherence": float(fit.coherence),
         "pixel_residual_rms_views": float(np.sqrt(np.average(r ** 2, weights=weights)) * n_views),
         "block_residual_rms_views": block_rms,
+        "block_residual_smooth_rms_views": smooth_rms,
         "block_residual_worst_views": float(np.max(np.abs(bm)) * n_views),
+        "registration_sigma_views": float(math.sqrt(registration_var) * n_views),
         "predicted_error_centre_views": float(sig[-1]),
-        "predicted_error_worst_views": float(np.max(sig)),
+        "predicted_error_worst_views": float(np.max(sig[:-1])),
         "samples": int(samples.x.size),
         "block_residual_map": block_mean.reshape(14, 24) * n_views,
     }, cov
+
+
+def _smooth_misfit(values: np.ndarray, bx: np.ndarray, by: np.ndarray, weights: np.ndarray) -> float:
+    """RMS (same unit as ``values``) of a cubic surface fitted to block residuals on a 24 x 14 grid.
+
+    With ~300 blocks and 10 terms, noise enters the fitted surface at about a sixth of its RMS,
+    while a misfit that spans the panel (the kind the plane's constants could absorb) stays.
+    """
+    u = (bx + 0.5) / 24 - 0.5
+    v = (by + 0.5) / 14 - 0.5
+    terms = np.stack([u ** i * v ** j for i in range(4) for j in range(4 - i)], axis=1)
+    sw = np.sqrt(weights)
+    coef, *_ = np.linalg.lstsq(terms * sw[:, None], values * sw, rcond=None)
+    surface = terms @ coef
+    surface -= np.average(surface, weights=weights)
+    return float(np.sqrt(np.average(surface ** 2, weights=weights)))
+
+
+def _registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used) -> float:
+    """Variance (cycles^2) that residual registration errors leave in the plane's c0.
+
+    A fine sample at pixel p pairs the fine phase with X, Y from the coordinate groups; a
+    residual shift d between the fine group and x2 (y1) -- both registered to x1, whose own error
+    cancels -- moves it by
+    ``(1/T - 1/Delta_r) dX/dp d`` (``b dY/dp d``) cycles.  Each group's shift is known to
+    ``max(sigma, REGISTRATION_FLOOR_PIXELS)`` (the edge-based registration's bias on simulated
+    phone-like sets is about 0.02 working pixels).
+    """
+    gy, gx = np.gradient(x_sm)
+    hy, hx = np.gradient(y_sm)
+    sel = valid & np.isfinite(gx) & np.isfinite(hy)
+    dxdp = float(np.median(np.hypot(gx[sel], gy[sel])))
+    dydp = float(np.median(np.hypot(hx[sel], hy[sel])))
+    period = -1.0 / fit.a
+
+    def sigma(name):
+        entry = shifts.get(name)
+        scale = groups[name].photos[0].scale
+        s = entry["sigma"] * scale if entry and entry["measured"] else 0.05
+        return max(s, REGISTRATION_FLOOR_PIXELS)
+
+    variances = []
+    for gi, t in enumerate(FINE_PERIODS):
+        if gi not in used:
+            continue
+        sf = sigma(f"f{t:g}")
+        ex = abs(1.0 / t - 1.0 / period) * dxdp * math.sqrt(sf ** 2 + sigma("x2") ** 2)
+        ey = abs(fit.b) * dydp * math.sqrt(sf ** 2 + sigma("y1") ** 2)
+        variances.append(ex ** 2 + ey ** 2)
+    return float(np.mean(variances)) if variances else 0.0
+
+
+REGISTRATION_FLOOR_PIXELS = 0.02
 
 
 def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,

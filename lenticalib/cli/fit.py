@@ -71,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
     with progress_bar(24, "fitting") as bar:
         result = fit_capture_set(args.directory, views=args.views, camera_model=args.camera,
                                  progress=bar.update)
+    for warning in result.warnings:
+        print(f"lenticalib: warning: {warning}", file=sys.stderr)
     profile = result.profile
     write_profile = result.trusted or args.force
     summary = fit_summary(result, args.directory, report=report_dir, output=output if write_profile else None)
@@ -87,8 +89,10 @@ def run(args: argparse.Namespace) -> int:
               f"offset {profile.offset:.4f} +- {unc.get('offset', 0):.2g} subpixels, "
               f"reference view {profile.reference_view:g}, order {profile.subpixel_order}")
         q = result.quality
-        print(f"residual {q['block_residual_rms_views']:.3f} views RMS (systematic), predicted error "
-              f"{q['predicted_error_worst_views']:.3f} views (1 sigma, worst corner); {result.seconds:.1f} s")
+        print(f"residual {q['block_residual_rms_views']:.3f} views RMS over panel blocks "
+              f"({q['block_residual_smooth_rms_views']:.3f} smooth); predicted 1-sigma error "
+              f"{q['predicted_error_worst_views']:.3f} views at the worst corner, centring "
+              f"{q['predicted_error_centre_views']:.3f} views; {result.seconds:.1f} s")
         print(f"report: {report_dir}")
     if not result.trusted:
         reasons = "; ".join(result.problems)
