@@ -31,7 +31,7 @@ Quilt view 0 is the bottom-left tile, and their view index equals lenticalib's v
 ``flipSubp`` only decides which colour sits at position ``c`` (red is read from position 2 on
 a BGR panel); the view of a *position* does not depend on it.
 
-THE MAPPING TO THE SEED'S CONSTANTS
+THE MAPPING TO THE ROUTING CONSTANTS (docs/profile-format.md)
 With ``x_s = 3 x + c``:  ``phase = (x_s + 1.5 + 3 (H - 0.5 - y) / slope) / Delta - center`` where
 
     Delta = 3 W / P = 3 DPI / (pitch * cos(atan(1 / slope)))      subpixels.
@@ -55,7 +55,7 @@ is independent of which of the equivalent centres ``center + k`` the file holds)
 
 LIMITS.  lenticalib models only ``invView = 1`` with unflipped images (every shipping device);
 other files are refused.  Vertical lenses (``C_r = 0``) have no ``slope`` and cannot be exported.
-When ``Delta > N`` the seed's rule leaves the subpixels with ``frac(w) >= N / Delta`` dark, whereas
+When ``Delta > N`` the LentiAvatar routing rule leaves the subpixels with ``frac(w) >= N / Delta`` dark, whereas
 the Looking Glass shader shows ``floor(w) mod N`` there as well; on lit subpixels both agree.
 """
 
@@ -179,7 +179,7 @@ def read_visual_json(path: str | os.PathLike) -> dict[str, Any]:
 
 
 def routing_constants(visual: Mapping[str, Any], source: str = DEFAULT_SOURCE) -> dict[str, float]:
-    """The seed's constants of a visual.json under the module's convention.
+    """The routing constants of a visual.json under the module's convention.
 
     RETURNED VALUE
     ``{"slant": C_r (pixels per row), "period": Delta (subpixels), "offset": s_ref (subpixels,

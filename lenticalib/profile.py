@@ -1,6 +1,6 @@
 """Panel profiles: the routing constants of one slanted-lenticular panel, as JSON.
 
-A profile holds the seed's constants (see ``../shared/optics.md``):
+A profile holds the routing constants (see ``docs/optics.md``; format: ``docs/profile-format.md``):
 
     views            N, number of views (int, 2..254)
     slant            C_r, pixels per row (float; its sign is the lens direction)
@@ -40,7 +40,7 @@ MAX_SIDE = 65535
 # Physical ranges of the constants, enforced for every profile (load, construction, device
 # record).  Beyond them a profile describes no real lens sheet: a slant over 4 pixels/row is a
 # lens lying almost flat; a period above 4096 subpixels or wider than a whole panel row
-# (3 * width subpixels) is less than one lens across the panel, and the seed's rule then lights
+# (3 * width subpixels) is less than one lens across the panel, and the LentiAvatar routing rule then lights
 # only a fraction N / period of the subpixels (period 1e9: an all-black raster); offsets and
 # reference views beyond these bounds are far outside any reduction of them (s_ref is
 # meaningful modulo the period, i_ref modulo N).
@@ -185,7 +185,7 @@ def _validate_constants(data: Mapping[str, Any], source: str) -> None:
         hint = ("the period is the lens pitch in subpixels, about 3 * lens pitch / pixel pitch"
                 if field == "period" else None)
         fail(*problem, hint)
-    # The seed's rule lights view i on x_s when x_s <= b < x_s + min(1, period/N) for one of the
+    # The LentiAvatar routing rule lights view i on x_s when x_s <= b < x_s + min(1, period/N) for one of the
     # lattice points b = 3*C_r*y + s_ref + (i_ref - j)*period/N (j integer).  The lattice spacing
     # is period/N, so for any period > 0 at most one lattice point falls into that window: no
     # valid profile puts more than two views (in fact more than one) on a subpixel.  The

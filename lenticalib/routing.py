@@ -1,12 +1,12 @@
-"""Subpixel routing: which view each panel subpixel shows, by the seed's rule.
+"""Subpixel routing: which view each panel subpixel shows, by the LentiAvatar routing rule (docs/routing.md).
 
-The seed's rule (DEVELOPERS.md): for view ``i`` of ``N``, ``s_i = s_ref - (Delta/N)(i - i_ref)``;
+The LentiAvatar routing rule (Fang, Teng and Liu; docs/routing.md): for view ``i`` of ``N``, ``s_i = s_ref - (Delta/N)(i - i_ref)``;
 for row ``y`` and integer ``m``, ``b_i(y, m) = 3 C_r y + s_i + m Delta``; view ``i`` lights
 subpixel ``x_s`` when ``x_s = floor(b)`` and ``frac(b) < Delta/N``.
 
 Closed form.  Over all ``(i, m)`` the points ``b`` form one lattice of spacing ``Delta/N``:
 ``b_j = 3 C_r y + s_ref + (i_ref - j) Delta/N`` with ``i = j mod N``.  Writing the continuous view
-coordinate of ``../shared/optics.md``
+coordinate of ``docs/optics.md``
 
     w(x_s, y) = i_ref + (3 C_r y + s_ref - x_s) * N / Delta,
 
@@ -25,7 +25,7 @@ only a value within ~1e-14 view *below* a boundary can come out on the other sid
 Every encoder routes by this arithmetic: the fast kernels evaluate it on the fly (same constants,
 same uint64 operations), the reference encoder and the sampling tables take :func:`view_map`.  So
 all of them choose the same view for every subpixel, ties included.  :func:`rule_views` (the
-seed's rule literally, in float64) is kept only as a cross-check; on exact ties it can disagree
+LentiAvatar routing rule literally, in float64) is kept only as a cross-check; on exact ties it can disagree
 or light two views.
 """
 
@@ -103,9 +103,9 @@ def view_map(profile: PanelProfile, rows: slice | None = None) -> np.ndarray:
 
 
 def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np.ndarray:
-    """Continuous view coordinate ``w(x_s, y)`` of optics.md, float64, shape ``(rows, 3 * width)``.
+    """Continuous view coordinate ``w(x_s, y)`` of docs/optics.md, float64, shape ``(rows, 3 * width)``.
 
-    ``w`` is evaluated at the integer index ``x_s`` (the subpixel's left edge), as the seed's
+    ``w`` is evaluated at the integer index ``x_s`` (the subpixel's left edge), as the LentiAvatar routing
     rule does.  Not reduced modulo N.
     """
     y = np.arange(profile.height, dtype=np.float64) if rows is None else np.asarray(rows, np.float64)
@@ -115,7 +115,7 @@ def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np
 
 
 def rule_views(profile: PanelProfile, max_views: int = 3) -> tuple[np.ndarray, np.ndarray]:
-    """Brute-force evaluation of the seed's rule in float64, over every view and every m.
+    """Brute-force evaluation of the LentiAvatar routing rule in float64, over every view and every m.
 
     For each view ``i`` and each row, every ``m`` whose ``b_i(y, m)`` can land on the panel is
     evaluated literally (``floor``, ``frac``, ``< period / N``), and the lit views are recorded.

@@ -14,7 +14,7 @@ clamped to the view (edge pixels are repeated).  The view is sampled between pix
 Tables.  :class:`SamplingTables` holds, per subpixel, the view the canonical routing of
 :mod:`lenticalib.routing` gives it (255 = none) and the bilinear geometry; built once per
 (profile, view size) and cached.  The canonical routing lights at most one view per subpixel, so
-one view table replaces the seed system's primary/secondary pair (its second view only ever
+one view table replaces the LentiAvatar system's primary/secondary pair (its second view only ever
 came from float64 ties).
 """
 

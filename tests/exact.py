@@ -1,4 +1,4 @@
-"""Exact rational evaluation of the seed's rule (closed form), for golden comparisons."""
+"""Exact rational evaluation of the LentiAvatar routing rule (closed form), for golden comparisons."""
 
 from fractions import Fraction
 

@@ -38,8 +38,11 @@ def tie_profiles(draw, views=st.sampled_from(VIEW_COUNTS), min_width=3, max_widt
     k = draw(st.integers(max(1, -(-8 // n)), 32))  # period >= 0.5 subpixel
     e = draw(st.sampled_from([0, 16])) if k > 16 else 0
     t = draw(st.integers(-20, 20))
+    period = n * k / 16
+    # a lens no wider than the panel's row (profile validation): width >= period / 3
+    width = draw(st.integers(max(min_width, int(-(-period // 3))), max(max_width, int(-(-period // 3)))))
     return PanelProfile(
-        views=n, slant=draw(st.integers(-6, 6)) / 16, period=n * k / 16, offset=(k * t + e) / 16,
+        views=n, slant=draw(st.integers(-6, 6)) / 16, period=period, offset=(k * t + e) / 16,
         reference_view=float(draw(st.integers(0, n))),
-        width=draw(st.integers(min_width, max_width)), height=draw(st.integers(2, max_height)),
+        width=width, height=draw(st.integers(2, max_height)),
         subpixel_order=draw(st.sampled_from(["RGB", "BGR"])))

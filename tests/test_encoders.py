@@ -57,7 +57,7 @@ def test_every_encoder_chooses_the_canonical_view_everywhere(name, dtype, profil
 
 def test_encoders_agree_on_the_bundled_profile_everywhere():
     # no tie exclusion: the demo profile has ~2,500 subpixels whose w sits on a view boundary
-    # (to float64 precision), where the seed's float64 rule used to light two views or the other one
+    # (to float64 precision), where the float64 evaluation of the routing rule used to light two views or the other one
     from lenticalib.profile import load_profile
     from lenticalib.views import load_quilt
 

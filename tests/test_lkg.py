@@ -172,7 +172,7 @@ def test_random_calibrations_match_lkg_rule(visual, n):
     if profile.period <= n:
         assert lit.all()
     else:
-        # The seed's rule darkens frac(w) >= N/Delta where their shader still shows a view;
+        # The LentiAvatar routing rule darkens frac(w) >= N/Delta where their shader still shows a view;
         # the continuous coordinate agrees with theirs there too.
         w = routing.view_coordinate(profile)
         cont = np.floor(w).astype(np.int64) % n

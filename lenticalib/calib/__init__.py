@@ -8,5 +8,5 @@ Modules, in the order the fit uses them:
     model      the global fit of the view-coordinate plane, subpixel order, uncertainties
     camera     camera intrinsics and pose estimated from the panel (or an optional model)
     report     the figures and summary written next to a fitted profile
-    compare    how far one profile is from another, in views (the optics.md convention)
+    compare    how far one profile is from another, in views (the docs/optics.md convention)
 """

@@ -1,4 +1,4 @@
-"""How far one profile is from another, in views, in the optics.md convention.
+"""How far one profile is from another, in views, in the docs/optics.md convention.
 
 Over every subpixel (x_s, y) of the panel, ``d = w_a(x_s, y) - w_b(x_s, y)`` taken as a
 circular difference modulo N.  Reported: centring (the circular mean of d), non-uniformity

@@ -37,7 +37,9 @@ ProgressFn = Callable[[str], None]
 # Quality gates (views unless stated).  A fit failing one is reported as untrustworthy.
 MAX_BLOCK_RESIDUAL_RMS = 0.12  # systematic misfit of the plane, RMS over panel blocks
 MAX_PREDICTED_ERROR = 0.15  # 1-sigma of w at the worst panel corner relative to the centre (non-uniformity)
-MAX_PREDICTED_CENTRING = 0.25  # 1-sigma of the mean of w (a rotation of the whole view cone)
+# 1-sigma of the mean of w: a rotation of the whole view cone, which viewers do not see as
+# banding or ghosting; refused only when it may reach half a view
+MAX_PREDICTED_CENTRING = 0.5
 MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
 MAX_CLIPPED_FRACTION = 0.02

@@ -1,6 +1,6 @@
 """The global model of a calibration: the view-coordinate plane and the subpixel order.
 
-Convention (``../shared/optics.md``): the calibration camera sits at ``w* = N/2``.  For a
+Convention (``docs/optics.md``): the calibration camera sits at ``w* = N/2``.  For a
 fine pattern of period ``T`` whose lens alias is the first one (``T/Delta_r`` in (1/1.5, 2)),
 a camera pixel seeing panel point (X, Y) measures the phase
 

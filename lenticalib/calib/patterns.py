@@ -8,7 +8,7 @@ function of one panel coordinate, evaluated at subpixel or row centres:
 
 with ``x_s = 3 x + position`` and ``position`` the subpixel slot (0, 1, 2) of the lit channel.
 
-Why these patterns (the physics is in ``../shared/optics.md``):
+Why these patterns (the physics is in ``docs/optics.md``; the method in ``docs/calibration.md``):
 
 * Through the lens sheet a camera sees, in every lens, one blurred point of the pixel plane.
   A sinusoid of long period ``T`` (much longer than a lens) is seen unchanged, only

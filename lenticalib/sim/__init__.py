@@ -1,7 +1,7 @@
 """The virtual panel: a physically based slanted-lenticular panel photographed by a camera.
 
 It turns any raster the panel would show into the photo a camera would take of it, and knows
-the ground-truth profile for the camera position (``../shared/optics.md``).
+the ground-truth profile for the camera position (``docs/optics.md``; overview in ``docs/simulator.md``).
 
     optics    PanelOptics (lens sheet, pixel plane, emission), seen point, w*, truth profile
     camera    Camera (OpenCV intrinsics + distortion, pose, photometric settings)

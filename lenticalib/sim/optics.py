@@ -1,4 +1,4 @@
-"""The lens sheet and pixel plane of a virtual slanted-lenticular panel (``../shared/optics.md``).
+"""The lens sheet and pixel plane of a virtual slanted-lenticular panel (``docs/optics.md``).
 
 Frames and units
 ----------------
