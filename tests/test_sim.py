@@ -260,3 +260,35 @@ def test_simulate_cli_without_patterns_fails_with_one_line(tmp_path, simulate_ma
     assert err.count("\n") == 1 and "patterns.json" in err and "Traceback" not in err
     code = simulate_main(["simulate", str(tmp_path), "--resolution", "big"])
     assert code == 2 and "--resolution" in capsys.readouterr().err
+
+
+def test_hard_conditions_add_phone_behaviour_and_leave_every_other_draw_alone():
+    from lenticalib.sim.capture import photo_scene
+    from lenticalib.sim.scene import random_scene
+
+    standard, hard = random_scene(21), random_scene(21, conditions="hard")
+    assert (standard.camera.tone_contrast, standard.camera.exposure_jitter, standard.camera.shake) == (0, 0, 0)
+    assert photo_scene(standard, "x1-0")[0] is standard
+    assert 0.1 <= hard.camera.tone_contrast <= 1.0
+    assert (hard.camera.exposure_jitter, hard.camera.shake) == (0.04, 0.3)
+    assert 500 <= hard.camera.full_well <= 2500 and 3 <= hard.camera.read_noise <= 10
+    changed = {"tone_contrast", "exposure_jitter", "shake", "full_well", "read_noise"}
+    s_cam, h_cam = standard.camera.to_dict(), hard.camera.to_dict()
+    assert {k for k in s_cam if s_cam[k] != h_cam[k]} == changed
+    assert standard.optics == hard.optics
+    draws = [photo_scene(hard, f"f16-{k}")[1] for k in range(3)]
+    assert draws == [photo_scene(hard, f"f16-{k}")[1] for k in range(3)]  # reproducible
+    for d in draws:
+        assert abs(d["exposure_factor"] - 1) <= 0.04 and (d["shift_x"] ** 2 + d["shift_y"] ** 2) ** 0.5 <= 0.3
+    assert len({d["shift_x"] for d in draws}) == 3
+
+
+def test_s_curve_tone_lut():
+    from lenticalib.sim.render import _tone_lut
+
+    plain, strong = _tone_lut(1.0, 0.0), _tone_lut(1.0, 1.0)
+    mid = np.searchsorted(plain, 0.5)
+    assert abs(strong[mid] - 0.5) < 1e-3  # the S-curve keeps mid-grey
+    quarter, three_q = np.searchsorted(plain, 0.25), np.searchsorted(plain, 0.75)
+    assert strong[quarter] < plain[quarter] - 0.05 and strong[three_q] > plain[three_q] + 0.05
+    assert np.all(np.diff(strong) >= 0)

@@ -26,6 +26,10 @@ DEFAULT_SUBSAMPLES = 3
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", metavar="DIR", help="pattern folder written by 'lenticalib patterns'")
+    parser.add_argument("--conditions", choices=("standard", "hard"), default="standard",
+                        help="camera behaviour: 'standard' (locked exposure, steady tripod, near-sRGB) or 'hard' "
+                             "(a phone: S-shaped tone curve, +-4%% exposure drift and 0.3 px shake between "
+                             "photos, high-ISO noise)")
     parser.add_argument("--seed", type=int, metavar="N", help="seed of the random scene (default: a fresh one, "
                         "recorded in simulation.json)")
     parser.add_argument("--resolution", metavar="WxH", help="camera resolution in pixels (default 4000x3000; at "
@@ -114,7 +118,8 @@ def build_scene(args: argparse.Namespace, pattern_set):
     if args.scene:
         clashing = [flag for flag, value in (("--seed", args.seed), ("--resolution", args.resolution),
                                              ("--slant", args.slant), ("--period", args.period),
-                                             ("--order", args.order), ("--distance", args.distance))
+                                             ("--order", args.order), ("--distance", args.distance),
+                                             ("--conditions", None if args.conditions == "standard" else args.conditions))
                     if value is not None]
         if clashing:
             raise InputError(f"cannot be combined with {', '.join(clashing)}", source="--scene",
@@ -134,7 +139,7 @@ def build_scene(args: argparse.Namespace, pattern_set):
     resolution = parse_resolution(args.resolution) if args.resolution else None
     return random_scene(seed, width=pattern_set.width, height=pattern_set.height, resolution=resolution,
                         period=args.period, slant=args.slant, order=args.order, distance=args.distance,
-                        jpeg_quality=args.jpeg_quality,
+                        jpeg_quality=args.jpeg_quality, conditions=args.conditions,
                         subsamples=DEFAULT_SUBSAMPLES if args.subsamples is None else args.subsamples)
 
 
