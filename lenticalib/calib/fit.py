@@ -539,8 +539,9 @@ def _registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used) -> floa
     residual shift d between the fine group and x2 (y1) -- both registered to x1, whose own error
     cancels -- moves it by
     ``(1/T - 1/Delta_r) dX/dp d`` (``b dY/dp d``) cycles.  Each group's shift is known to
-    ``max(sigma, REGISTRATION_FLOOR_PIXELS)`` (the edge-based registration's bias on simulated
-    phone-like sets is about 0.02 working pixels).
+    ``max(sigma, REGISTRATION_FLOOR_PIXELS)``: the Cramer-Rao bound counts only noise, while the
+    edge-based registration was seen off by 0.01-0.06 working pixels per group (RMS ~0.035) on
+    simulated phone-like sets with known shifts.
     """
     gy, gx = np.gradient(x_sm)
     hy, hx = np.gradient(y_sm)
@@ -566,7 +567,7 @@ def _registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used) -> floa
     return float(np.mean(variances)) if variances else 0.0
 
 
-REGISTRATION_FLOOR_PIXELS = 0.02
+REGISTRATION_FLOOR_PIXELS = 0.035
 
 
 def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
