@@ -284,7 +284,13 @@ def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.nd
     _check_photo_steps(groups["x0"], x0 / groups["x0"].period, mask, capture, "")
     _check_photo_steps(groups["y0"], y0 / groups["y0"].period, mask, capture, "")
     coords = {}
-    for chain, start in ((("x1", "x2"), x0), (("y1",), y0)):
+    # The single-fringe coordinates are smooth functions of the pixel (one fringe over the panel):
+    # smoothed, their noise no longer picks wrong fringes of the next group in noisy photos.
+    frame_sigma = max(3.0, mask.shape[1] / 150.0)
+    weight = mask.astype(np.float32)
+    x0s = np.where(mask, phase.smooth_coordinate(x0, weight, frame_sigma), x0)
+    y0s = np.where(mask, phase.smooth_coordinate(y0, weight, frame_sigma), y0)
+    for chain, start in ((("x1", "x2"), x0s), (("y1",), y0s)):
         coarse, coarse_name = start, chain[0][0] + "0"
         for name in chain:
             g = groups[name]
