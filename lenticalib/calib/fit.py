@@ -30,7 +30,9 @@ from ..profile import PanelProfile, make_provenance
 from . import model, phase, photometric, register
 from .camera import estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, check_exposure, load_photo, open_capture_set
+from .checks import check_clipping, check_distinct, check_photo_steps, mask_checks
 from .patterns import FINE_PERIODS, PERIOD_RANGE
+from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
 ProgressFn = Callable[[str], None]
 
@@ -42,8 +44,6 @@ MAX_PREDICTED_ERROR = 0.15  # 1-sigma of w at the worst panel corner relative to
 MAX_PREDICTED_CENTRING = 0.5
 MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
-MAX_CLIPPED_FRACTION = 0.02
-MIN_PANEL_FRACTION = 0.04
 MAX_ALIAS = 0.42  # |T/Delta_r - 1| ... a fine group aliasing beyond this is not used
 
 
@@ -96,7 +96,7 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
     photos = _group_photos(capture, name, shape, progress)
     patterns = capture.patterns.group(name)
     if len(photos) > 1:
-        _check_distinct(_Group(name, patterns[0].period, None, None, photos), capture)
+        check_distinct(_Group(name, patterns[0].period, None, None, photos), capture)
     pat = patterns[0]
     sigma = 0.0
     extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
@@ -118,79 +118,6 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
     for p in photos:  # keep memory bounded: luma is needed only for the per-photo checks
         p.luma = p.luma.astype(np.float16)
     return _Group(name, patterns[0].period, z, dc, photos, sigma if sigma >= 0.5 else 0.0)
-
-
-def _check_photo_steps(group: _Group, predicted_cycles: np.ndarray, mask: np.ndarray, capture: CaptureSet,
-                       what: str) -> None:
-    """Each photo of a group must show its own phase step of the predicted fringe, as clearly as
-    the others.
-
-    A photo is compared with the mean of the *other* photos of its group, ``I_k - mean_j I_j =
-    (K/(K-1)) B cos(Phi + theta_k)`` for a right photo, so a blank, blurred or swapped photo
-    cannot hide behind a group average it is part of.  When every photo of the group is off,
-    the fault is the set's (another pattern set, a moved camera), not one photo's.
-    """
-    patterns = capture.patterns.group(group.name)
-    sel = mask & np.isfinite(predicted_cycles)
-    stride = max(1, int(sel.sum() // 400_000))
-    index = np.flatnonzero(sel)[::stride]
-    carrier = np.exp(-2j * math.pi * predicted_cycles.ravel()[index])
-    values = [p.luma.ravel()[index].astype(np.float32) for p in group.photos]
-    total = np.sum(values, axis=0)
-    k = len(values)
-    amps, steps = [], []
-    for value, pattern in zip(values, patterns):
-        others = (total - value) / (k - 1)
-        q = complex(np.mean((value - others) * carrier))
-        amps.append(abs(q))
-        steps.append(abs(float(model.wrap(math.atan2(q.imag, q.real) / (2 * math.pi) - pattern.step / pattern.steps))))
-    reference = float(np.median(amps))
-    if all(step > 0.11 for step in steps) or reference <= 0:
-        raise CaptureError(f"no photo of group {group.name} shows its pattern where the other groups say it "
-                           f"should be {what}".rstrip(), source=str(capture.directory / "captures"),
-                           hint="the photos belong to another pattern set, or the camera moved between "
-                                "groups; photograph this folder's patterns with the camera on a tripod")
-    for photo, pattern, amp, step in zip(group.photos, patterns, amps, steps):
-        if amp < 0.6 * reference or step > 0.11:
-            raise CaptureError(f"does not show pattern {pattern.name} clearly (fringe contrast {amp / reference:.2f} "
-                               f"of its group's, phase off by {step * 360:.0f} degrees) {what}".rstrip(),
-                               source=str(photo.path),
-                               hint=f"show {pattern.file} full screen, keep the camera still and in focus, "
-                                    "and photograph it again")
-
-
-def _check_distinct(group: _Group, capture: CaptureSet) -> None:
-    """Two photos of one phase-shift group must differ (a pattern photographed twice, or a copy)."""
-
-    small = [cv2.resize(p.luma.astype(np.float32), None, fx=0.25, fy=0.25, interpolation=cv2.INTER_AREA)
-             for p in group.photos]
-    pairs = [(i, j) for i in range(len(small)) for j in range(i + 1, len(small))]
-    energy = [float(np.mean((small[i] - small[j]) ** 2)) for i, j in pairs]
-    level = float(np.mean([np.mean(s ** 2) for s in small]))
-    if max(energy) < 0.01 * level:
-        return  # hardly any fringes in any photo (blur, no panel): later checks name that
-    # a visible fringe makes two different steps differ by ~0.1 level; a duplicate by noise only
-    same = [e < min(0.002 * level, 0.05 * max(energy)) for e in energy]
-    for (i, j), e, is_same in zip(pairs, energy, same):
-        if is_same:
-            raise CaptureError(f"shows the same pattern as {group.photos[i].path.name}", source=str(group.photos[j].path),
-                               hint=f"photograph {capture.patterns.group(group.name)[j].file} (each phase step is a "
-                                    "different image)")
-
-
-def _check_clipping(groups: list[_Group], mask: np.ndarray) -> None:
-
-    for group in groups:
-        for photo in group.photos:
-            clipped = photo.clipped
-            if clipped.shape != mask.shape:
-                clipped = cv2.resize(clipped, mask.shape[::-1], interpolation=cv2.INTER_AREA)
-            fraction = float(clipped[mask].mean())
-            if fraction > MAX_CLIPPED_FRACTION:
-                raise CaptureError(f"is overexposed: {100 * fraction:.0f}% of the panel is clipped",
-                                   source=str(photo.path),
-                                   hint="lower the exposure (or ISO) until no part of the panel is pure white, "
-                                        "and retake every photo with that exposure")
 
 
 MAX_GROUP_SHIFT = 3.0  # working pixels: a bigger, clearly measured shift is a moved camera, not shake
@@ -246,20 +173,6 @@ def _correct_photometry(groups: dict[str, "_Group"], mask: np.ndarray) -> dict[s
     return done
 
 
-def _mask_checks(mask: np.ndarray, capture: CaptureSet) -> None:
-    frac = float(mask.mean())
-    first = capture.photo(capture.patterns.group("x1")[0].name)
-    if frac < MIN_PANEL_FRACTION:
-        raise CaptureError(f"the panel was not found ({100 * frac:.1f}% of the frame shows fringes)",
-                           source=str(first.parent),
-                           hint="fill most of the frame with the panel, show the patterns full screen, "
-                                "and check that the photos are of the patterns")
-    edge = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
-    if edge.mean() > 0.10:
-        raise CaptureError("the panel is cut off by the edge of the photos", source=str(first.parent),
-                           hint="step back or zoom out so the whole panel is inside every photo")
-
-
 def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.ndarray):
     ps = capture.patterns
     h, w = mask.shape
@@ -281,8 +194,8 @@ def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.nd
             raise CaptureError(f"photos of group {name} are mirrored or in the wrong order",
                                source=str(capture.directory / "captures"),
                                hint="do not mirror the photos (selfie camera) and name each photo like its pattern")
-    _check_photo_steps(groups["x0"], x0 / groups["x0"].period, mask, capture, "")
-    _check_photo_steps(groups["y0"], y0 / groups["y0"].period, mask, capture, "")
+    check_photo_steps(groups["x0"], x0 / groups["x0"].period, mask, capture, "")
+    check_photo_steps(groups["y0"], y0 / groups["y0"].period, mask, capture, "")
     coords = {}
     # The single-fringe coordinates are smooth functions of the pixel (one fringe over the panel):
     # smoothed, their noise no longer picks wrong fringes of the next group in noisy photos.
@@ -294,7 +207,7 @@ def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.nd
         coarse, coarse_name = start, chain[0][0] + "0"
         for name in chain:
             g = groups[name]
-            _check_photo_steps(g, coarse / g.period, mask, capture, f"(checked against group {coarse_name})")
+            check_photo_steps(g, coarse / g.period, mask, capture, f"(checked against group {coarse_name})")
             fine, residual = phase.unwrap(coarse, g.phase(), g.period)
             bad = float(np.mean(np.abs(residual[mask]) > 0.3))
             if bad > 0.2:
@@ -335,10 +248,10 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     if progress:
         progress("finding the panel")
     mask = phase.panel_mask([np.abs(groups["x1"].z), np.abs(groups["y1"].z)])
-    _mask_checks(mask, capture)
+    mask_checks(mask, capture)
     warnings: list[str] = []
     shifts = _register_groups(groups, mask, capture, warnings)
-    _check_clipping(list(groups.values()), mask)
+    check_clipping(list(groups.values()), mask)
     photometry = _correct_photometry(groups, mask)
 
     if progress:
@@ -408,9 +321,9 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
 
     camera = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera)
-    reg_var = _registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used)
-    quality, cov = _quality(fit, samples, final_weights, cov, ps, n_views, reg_var)
-    constants, sigmas = _constants_with_uncertainty(fit, cov)
+    reg_var = registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used)
+    quality, cov = quality_and_covariance(fit, samples, final_weights, cov, ps, n_views, reg_var)
+    constants, sigmas = constants_with_uncertainty(fit, cov)
     quality.update({
         "fine_groups": [{"period": p, "alias": round(al, 4), "coherence": round(g.coherence, 4),
                          "used": i in used, "period_estimate": -1.0 / g.a} for i, (p, al, g) in enumerate(group_fits)],
@@ -452,128 +365,6 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
             "dc": groups["y1"].dc, "samples": samples, "weights": final_weights,
             "fine_z": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
     return FitResult(profile, not problems, problems, quality, maps, seconds, warnings)
-
-
-def _constants_with_uncertainty(fit: model.PlaneFit, cov: np.ndarray) -> tuple[dict, dict]:
-    """Profile constants and their 1-sigma, propagating the (a, b, c0) covariance numerically."""
-    base = model.profile_constants(fit)
-    params = np.array([fit.a, fit.b, fit.c0])
-    steps = np.sqrt(np.maximum(np.diag(cov), 1e-30)) * 1e-2 + np.array([1e-12, 1e-12, 1e-9])
-    jac = np.zeros((3, 3))
-    keys = ("period", "slant", "offset")
-    for j in range(3):
-        p = params.copy()
-        p[j] += steps[j]
-        shifted = model.profile_constants(dataclasses.replace(fit, a=p[0], b=p[1], c0=p[2]))
-        for i, k in enumerate(keys):
-            d = shifted[k] - base[k]
-            if k == "offset":
-                d = (d + base["period"] / 2) % base["period"] - base["period"] / 2
-            jac[i, j] = d / steps[j]
-    out = jac @ cov @ jac.T
-    sigmas = {k: float(math.sqrt(max(out[i, i], 0.0))) for i, k in enumerate(keys)}
-    sigmas["reference_view"] = 0.0
-    return base, sigmas
-
-
-def _quality(fit, samples, weights, cov, ps, n_views, registration_var: float = 0.0) -> tuple[dict, np.ndarray]:
-    """Quality numbers and the final covariance of (a, b, c0).
-
-    The covariance gets the systematic floor of :func:`model.systematic_floor`: at least
-    ``model.SYSTEMATIC_FLOOR_VIEWS``, and at least the *smooth* misfit of the plane -- a
-    low-order surface fitted to the block residuals.  Block residuals also hold measurement
-    noise, which the jackknife already counts and which averages out in the plane; taking their
-    raw RMS as a systematic floor made noisy (far, blurry) panels report several times their true
-    error.  ``registration_var`` (cycles^2) is the variance the group registration leaves in c0.
-    """
-    r = fit.residual(samples)
-    # misfit: weighted mean residual in panel blocks of ~1/24 x 1/14 of the panel
-    bx = np.clip((samples.x / (3 * ps.width) * 24).astype(int), 0, 23)
-    by = np.clip((samples.y / ps.height * 14).astype(int), 0, 13)
-    block = by * 24 + bx
-    wsum = np.bincount(block, weights=weights, minlength=24 * 14)
-    rsum = np.bincount(block, weights=weights * r, minlength=24 * 14)
-    ok = wsum > np.percentile(wsum[wsum > 0], 10) * 0.5 if np.any(wsum > 0) else wsum > 0
-    block_mean = np.where(ok, rsum / np.maximum(wsum, 1e-12), np.nan)
-    bm = block_mean[ok]
-    bm = bm - np.average(bm, weights=wsum[ok])
-    block_rms = float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views)
-    smooth_rms = _smooth_misfit(bm, (np.arange(24 * 14) % 24)[ok], (np.arange(24 * 14) // 24)[ok], wsum[ok]) * n_views
-    cov = cov + model.systematic_floor(n_views, ps.width, ps.height, max(model.SYSTEMATIC_FLOOR_VIEWS, smooth_rms))
-    cov[1, 1] += (model.SLANT_RELATIVE_FLOOR * fit.b) ** 2
-    cov[2, 2] += registration_var
-    corners = np.array([[0, 0], [3 * ps.width, 0], [0, ps.height], [3 * ps.width, ps.height],
-                        [1.5 * ps.width, 0.5 * ps.height]], dtype=float)
-    # relative to the panel centre (what a viewer sees as banding) and the centre itself (centring)
-    grads = np.stack([corners[:, 0] - fit.x0, corners[:, 1] - fit.y0, np.zeros(len(corners))], axis=1)
-    sig = np.sqrt(np.einsum("ij,jk,ik->i", grads, cov, grads)) * n_views
-    sig[-1] = math.sqrt(cov[2, 2]) * n_views
-    return {
-        "coherence": float(fit.coherence),
-        "pixel_residual_rms_views": float(np.sqrt(np.average(r ** 2, weights=weights)) * n_views),
-        "block_residual_rms_views": block_rms,
-        "block_residual_smooth_rms_views": smooth_rms,
-        "block_residual_worst_views": float(np.max(np.abs(bm)) * n_views),
-        "registration_sigma_views": float(math.sqrt(registration_var) * n_views),
-        "predicted_error_centre_views": float(sig[-1]),
-        "predicted_error_worst_views": float(np.max(sig[:-1])),
-        "samples": int(samples.x.size),
-        "block_residual_map": block_mean.reshape(14, 24) * n_views,
-    }, cov
-
-
-def _smooth_misfit(values: np.ndarray, bx: np.ndarray, by: np.ndarray, weights: np.ndarray) -> float:
-    """RMS (same unit as ``values``) of a cubic surface fitted to block residuals on a 24 x 14 grid.
-
-    With ~300 blocks and 10 terms, noise enters the fitted surface at about a sixth of its RMS,
-    while a misfit that spans the panel (the kind the plane's constants could absorb) stays.
-    """
-    u = (bx + 0.5) / 24 - 0.5
-    v = (by + 0.5) / 14 - 0.5
-    terms = np.stack([u ** i * v ** j for i in range(4) for j in range(4 - i)], axis=1)
-    sw = np.sqrt(weights)
-    coef, *_ = np.linalg.lstsq(terms * sw[:, None], values * sw, rcond=None)
-    surface = terms @ coef
-    surface -= np.average(surface, weights=weights)
-    return float(np.sqrt(np.average(surface ** 2, weights=weights)))
-
-
-def _registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used) -> float:
-    """Variance (cycles^2) that residual registration errors leave in the plane's c0.
-
-    A fine sample at pixel p pairs the fine phase with X, Y from the coordinate groups; a
-    residual shift d between the fine group and x2 (y1) -- both registered to x1, whose own error
-    cancels -- moves it by
-    ``(1/T - 1/Delta_r) dX/dp d`` (``b dY/dp d``) cycles.  Each group's shift is known to
-    ``max(sigma, REGISTRATION_FLOOR_PIXELS)``: the Cramer-Rao bound counts only noise, while the
-    edge-based registration was seen off by 0.01-0.06 working pixels per group (RMS ~0.035) on
-    simulated phone-like sets with known shifts.
-    """
-    gy, gx = np.gradient(x_sm)
-    hy, hx = np.gradient(y_sm)
-    sel = valid & np.isfinite(gx) & np.isfinite(hy)
-    dxdp = float(np.median(np.hypot(gx[sel], gy[sel])))
-    dydp = float(np.median(np.hypot(hx[sel], hy[sel])))
-    period = -1.0 / fit.a
-
-    def sigma(name):
-        entry = shifts.get(name)
-        scale = groups[name].photos[0].scale
-        s = entry["sigma"] * scale if entry and entry["measured"] else 0.05
-        return max(s, REGISTRATION_FLOOR_PIXELS)
-
-    variances = []
-    for gi, t in enumerate(FINE_PERIODS):
-        if gi not in used:
-            continue
-        sf = sigma(f"f{t:g}")
-        ex = abs(1.0 / t - 1.0 / period) * dxdp * math.sqrt(sf ** 2 + sigma("x2") ** 2)
-        ey = abs(fit.b) * dydp * math.sqrt(sf ** 2 + sigma("y1") ** 2)
-        variances.append(ex ** 2 + ey ** 2)
-    return float(np.mean(variances)) if variances else 0.0
-
-
-REGISTRATION_FLOOR_PIXELS = 0.035
 
 
 def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
@@ -644,7 +435,7 @@ def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:
             continue
         g = groups[f"f{period:g}"]
         pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
-        _check_photo_steps(g, pred, valid, capture, "(checked against the fitted panel model)")
+        check_photo_steps(g, pred, valid, capture, "(checked against the fitted panel model)")
 
 
 def _camera(photo: Photo, x_sm, y_sm, valid, ps, given) -> dict:
