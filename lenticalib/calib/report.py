@@ -50,7 +50,8 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
                 output: str | os.PathLike | None = None) -> dict:
     """The summary of a fit: ``summary.json`` of the report and what ``lenticalib fit --json`` prints.
 
-    Keys: ``capture_set``, ``trusted``, ``problems``, ``seconds``, ``output`` (the profile path,
+    Keys: ``capture_set``, ``trusted``, ``problems``, ``warnings`` (checks that could not measure),
+    ``seconds``, ``output`` (the profile path,
     or None when none was written), ``report`` (folder), ``profile`` (the profile as written,
     its provenance without the quality block), ``quality`` (every quality number, once).
     """
@@ -58,7 +59,8 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
     if "provenance" in profile:
         profile["provenance"] = {k: v for k, v in profile["provenance"].items() if k != "quality"}
     summary = {"capture_set": str(capture_dir), "trusted": bool(result.trusted),
-               "problems": list(result.problems), "seconds": round(float(result.seconds), 2),
+               "problems": list(result.problems), "warnings": list(result.warnings),
+               "seconds": round(float(result.seconds), 2),
                "output": None if output is None else str(output),
                "report": None if report is None else str(report),
                "profile": profile, "quality": result.quality}
