@@ -154,8 +154,9 @@ def _register_groups(groups: dict[str, "_Group"], mask: np.ndarray, capture: Cap
         group.z = register.shift_complex(group.z, shift.dx, shift.dy)
         group.dc = register.shift_image(group.dc, shift.dx, shift.dy)
         for photo in group.photos:
+            # the per-photo checks compare each photo with the registered maps; the clipped
+            # fraction over the panel does not care about a shift of a pixel
             photo.luma = register.shift_image(photo.luma.astype(np.float32), shift.dx, shift.dy).astype(np.float16)
-            photo.clipped = register.shift_image(photo.clipped.astype(np.float32), shift.dx, shift.dy)
     return report
 
 
@@ -164,10 +165,10 @@ def _correct_photometry(groups: dict[str, "_Group"], mask: np.ndarray) -> dict[s
     done = {}
     for fine, coarse, along in (("x1", "x0", "x"), ("x2", None, "x"), ("y1", "y0", "y")):
         g = groups[fine]
-        weight = _modulation_weight(g, mask)
-        table = photometric.phase_error_table(phase.phase_cycles(g.z), weight, along)
+        measured = phase.phase_cycles(g.z)
+        table = photometric.phase_error_table(measured, _modulation_weight(g, mask), along)
         done[fine] = table is not None
-        g.cycles = photometric.correct_phase(phase.phase_cycles(g.z), table)
+        g.cycles = photometric.correct_phase(measured, table)
         if coarse:
             groups[coarse].cycles = photometric.correct_phase(phase.phase_cycles(groups[coarse].z), table)
     return done

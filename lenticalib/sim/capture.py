@@ -108,8 +108,9 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
         raise InputError(f"cannot create: {exc.strerror}", source=str(captures),
                          hint="choose a writable pattern folder") from None
 
+    photo_scenes = {p.name: photo_scene(scene, p.name) for p in pattern_set.patterns}
     records = [{"pattern": p.name, "file": f"{CAPTURE_FOLDER}/{p.name}.jpg", "noise_seed": noise_seed(scene, p.name),
-                "photo": photo_scene(scene, p.name)[1]} for p in pattern_set.patterns]
+                "photo": photo_scenes[p.name][1]} for p in pattern_set.patterns]
     write_text_atomic(simulation_path, json.dumps(
         _simulation_record(scene, pattern_set, "in progress", records, None), indent=2) + "\n")
 
@@ -123,7 +124,7 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
                              hint="write the patterns again with 'lenticalib patterns'")
         rng = np.random.default_rng(noise_seed(scene, pattern.name))
         write_bytes_atomic(captures / f"{pattern.name}.jpg",
-                           photograph_jpeg(raster, photo_scene(scene, pattern.name)[0], rng))
+                           photograph_jpeg(raster, photo_scenes[pattern.name][0], rng))
 
     provenance = make_provenance("simulation", inputs=[manifest], seed=scene.seed,
                                  simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))
