@@ -31,7 +31,7 @@ from . import model, phase, photometric, register
 from .camera import estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, check_exposure, load_photo, open_capture_set
 from .checks import check_clipping, check_distinct, check_photo_steps, mask_checks
-from .patterns import FINE_PERIODS, PERIOD_RANGE
+from .patterns import FINE_PERIODS, PERIOD_RANGE, frame_width
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
 ProgressFn = Callable[[str], None]
@@ -92,7 +92,41 @@ class _Group:
         return self.cycles if self.cycles is not None else phase.phase_cycles(self.z)
 
 
-def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group:
+@dataclasses.dataclass
+class _Registration:
+    """Per-photo registration state: the reference (from group x1) and what was measured."""
+
+    reference: register.Reference | None = None
+    made: bool = False  # the reference was attempted (on group x1)
+    shifts: dict = dataclasses.field(default_factory=dict)  # photo name -> shift in photo pixels
+    warnings: list = dataclasses.field(default_factory=list)
+
+    def undo_shake(self, photos: list[Photo], capture: CaptureSet) -> None:
+        """Measure every photo's shift against the reference and resample its luma to undo it.
+
+        Raises CaptureError only for a shift that is both large (> MAX_PHOTO_SHIFT) and clearly
+        measured (> 5 sigma); a shift that cannot be measured becomes a warning.
+        """
+        if self.reference is None:
+            return
+        for photo in photos:
+            shift = self.reference.measure(photo.luma)
+            scale = photo.scale
+            self.shifts[photo.name] = {"dx": shift.dx / scale, "dy": shift.dy / scale,
+                                       "sigma": shift.sigma / scale, "measured": shift.measured}
+            if not shift.measured:
+                self.warnings.append(f"camera motion of photo {photo.path.name} could not be measured "
+                                     f"({shift.note}); it is not corrected")
+                continue
+            if shift.size > MAX_PHOTO_SHIFT and shift.size > 5 * shift.sigma:
+                raise CaptureError(f"the camera moved between photos: this photo is shifted by "
+                                   f"{shift.size / scale:.1f} pixels (+- {shift.sigma / scale:.2f}) against group x1",
+                                   source=str(photo.path),
+                                   hint="put the camera on a tripod, use a remote or timer release, and retake the set")
+            photo.luma = register.shift_image(photo.luma, shift.dx, shift.dy)
+
+
+def _demodulate_group(capture: CaptureSet, name: str, shape, progress, registration: _Registration) -> _Group:
     photos = _group_photos(capture, name, shape, progress)
     patterns = capture.patterns.group(name)
     if len(photos) > 1:
@@ -108,6 +142,15 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
         for p, m in zip(photos, means):
             if m > 0:
                 p.luma = p.luma * np.float32(target / m)
+    if not registration.made:
+        frame = frame_width(capture.patterns.height) / capture.patterns.height
+        registration.reference = register.Reference.from_mean_image(
+            np.mean([p.luma for p in photos], axis=0), frame)
+        registration.made = True
+        if registration.reference is None:
+            registration.warnings.append(f"camera motion between photos could not be measured (no panel outline "
+                                         f"found in group {name}); it is not corrected")
+    registration.undo_shake(photos, capture)
     z, dc = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
     if pat.group[0] in "xy":
         # A camera pixel may see no lit (green) subpixel; average the complex fringe over an
@@ -120,44 +163,7 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress) -> _Group
     return _Group(name, patterns[0].period, z, dc, photos, sigma if sigma >= 0.5 else 0.0)
 
 
-MAX_GROUP_SHIFT = 3.0  # working pixels: a bigger, clearly measured shift is a moved camera, not shake
-
-
-def _register_groups(groups: dict[str, "_Group"], mask: np.ndarray, capture: CaptureSet,
-                     warnings: list[str]) -> dict[str, dict]:
-    """Measure every group's shift against group x1 and undo it (see :mod:`.register`).
-
-    Raises CaptureError only for a shift that is both large (> MAX_GROUP_SHIFT) and clearly
-    measured (> 5 sigma); a shift that cannot be measured becomes a warning.  Returns the
-    shifts for the report, in photo pixels.
-    """
-    band = register.edge_band(mask)
-    reference = register.silhouette(groups["x1"].dc, mask, groups["x1"].z)
-    report = {}
-    for name, group in groups.items():
-        if name == "x1":
-            continue
-        shift = register.measure_shift(reference, register.silhouette(group.dc, mask, group.z), band)
-        scale = group.photos[0].scale
-        report[name] = {"dx": shift.dx / scale, "dy": shift.dy / scale, "sigma": shift.sigma / scale,
-                        "measured": shift.measured}
-        if not shift.measured:
-            warnings.append(f"camera motion between groups x1 and {name} could not be measured ({shift.note}); "
-                            "if the camera moved, the fine groups will disagree and the uncertainty shows it")
-            continue
-        if shift.size > MAX_GROUP_SHIFT and shift.size > 5 * shift.sigma:
-            raise CaptureError(f"the camera moved between photos: group {name} is shifted by "
-                               f"{shift.size / scale:.1f} pixels (+- {shift.sigma / scale:.2f}) against group x1",
-                               source=str(capture.directory / "captures"),
-                               hint="put the camera on a tripod, use a remote or timer shutter, and retake "
-                                    "every photo")
-        group.z = register.shift_complex(group.z, shift.dx, shift.dy)
-        group.dc = register.shift_image(group.dc, shift.dx, shift.dy)
-        for photo in group.photos:
-            # the per-photo checks compare each photo with the registered maps; the clipped
-            # fraction over the panel does not care about a shift of a pixel
-            photo.luma = register.shift_image(photo.luma.astype(np.float32), shift.dx, shift.dy).astype(np.float16)
-    return report
+MAX_PHOTO_SHIFT = 3.0  # working pixels: a bigger, clearly measured shift is a moved camera, not shake
 
 
 def _correct_photometry(groups: dict[str, "_Group"], mask: np.ndarray) -> dict[str, bool]:
@@ -243,15 +249,15 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     n_views = views or ps.views
     groups: dict[str, _Group] = {}
     shape = None
+    registration = _Registration()
     for name in ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in FINE_PERIODS):
-        groups[name] = _demodulate_group(capture, name, shape, progress)
+        groups[name] = _demodulate_group(capture, name, shape, progress, registration)
         shape = groups[name].photos[0].shape
     if progress:
         progress("finding the panel")
     mask = phase.panel_mask([np.abs(groups["x1"].z), np.abs(groups["y1"].z)])
     mask_checks(mask, capture)
-    warnings: list[str] = []
-    shifts = _register_groups(groups, mask, capture, warnings)
+    warnings = registration.warnings
     check_clipping(list(groups.values()), mask)
     photometry = _correct_photometry(groups, mask)
 
@@ -318,11 +324,11 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
 
     if progress:
         progress("subpixel order")
-    order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress)
+    order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration)
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
 
     camera = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera)
-    reg_var = registration_variance(groups, shifts, x_sm, y_sm, valid, fit, used)
+    reg_var = registration_variance(groups, registration.shifts, x_sm, y_sm, valid, fit, used)
     quality, cov = quality_and_covariance(fit, samples, final_weights, cov, ps, n_views, reg_var)
     constants, sigmas = constants_with_uncertainty(fit, cov)
     quality.update({
@@ -333,7 +339,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         "working_resolution": [w, h],
         "photo_resolution": [shape[1], shape[0]],
         "camera": camera,
-        "group_shifts_pixels": shifts,
+        "photo_shifts_pixels": registration.shifts,
         "tone_correction": photometry,
     })
     block_map = quality.pop("block_residual_map")
@@ -403,7 +409,7 @@ def _predicted_fine_cycles(fit, x_sm, y_sm, valid, period):
     return out
 
 
-def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress) -> model.OrderDecision:
+def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration) -> model.OrderDecision:
     period = capture.patterns.group("order-r")[0].period
     pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
     f_ref = groups[f"f{period:g}"]
@@ -411,6 +417,7 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress) ->
     offsets, amps = {}, {}
     for name, channel in (("order-r", 0), ("order-b", 2)):
         photo = _group_photos(capture, name, shape, progress, keep_rgb=True)[0]
+        registration.undo_shake([photo], capture)
         rgb_mean = photo.rgb[valid].mean(axis=0)
         other = 2 - channel
         if rgb_mean[channel] <= rgb_mean[other]:

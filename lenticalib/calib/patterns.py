@@ -26,6 +26,13 @@ Why these patterns (the physics is in ``docs/optics.md``; the method in ``docs/c
 * ``order-r`` and ``order-b`` draw the fine sinusoid in red only and in blue only, at the
   slots red and blue have in RGB order; their phase against the fitted model tells
   whether red really is on the left.
+* Every pattern has the same *registration frame*: the outer ``frame_width(height)`` pixels
+  on all four sides are lit evenly (all subpixels at the mean level) in every pattern.  A
+  tripod shakes by a fraction of a pixel between photos, and a tenth of a pixel between the
+  coordinate and the fine photos moves the measured view coordinate by up to a view; the
+  frame's outer edge looks the same in every photo, so each photo's shift is measured on it
+  without bias (an edge lit by the photo's own fringe is weighted by that fringe) and undone
+  (:mod:`.register`).  The fringes fill the panel inside the frame.
 
 23 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
 fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
@@ -46,13 +53,20 @@ import numpy as np
 from ..errors import InputError
 
 FORMAT_NAME = "lenticalib.patterns"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: registration frame
 MANIFEST_NAME = "patterns.json"
 MEAN_LEVEL = 0.5  # linear light
 AMPLITUDE = 0.45  # linear light
 FINE_PERIODS = (16.0, 22.0)  # subpixels
 PERIOD_RANGE = (9.5, 31.0)  # lens periods Delta_r (subpixels) the fine groups measure (alias <= 0.42)
 CHANNEL_SLOT_RGB = {"R": 0, "G": 1, "B": 2}
+FRAME_FRACTION = 1.0 / 40.0  # registration frame width, of the panel height (pixels on every side)
+FRAME_LEVEL = 0.3  # linear light, all three subpixels (their sum about the green fringe peak)
+
+
+def frame_width(height: int) -> int:
+    """Width in pixels of the evenly lit registration frame on every side of a panel ``height`` rows high."""
+    return max(2, int(round(FRAME_FRACTION * height)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,6 +125,7 @@ class PatternSet:
         return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "set_id": self.set_id,
                 "width": self.width, "height": self.height, "views": self.views,
                 "period_range": list(PERIOD_RANGE), "mean_level": MEAN_LEVEL, "amplitude": AMPLITUDE,
+                "frame_pixels": frame_width(self.height), "frame_level": FRAME_LEVEL,
                 "encoding": "sRGB", "patterns": [p.to_dict() for p in self.patterns]}
 
 
@@ -165,7 +180,7 @@ def pattern_linear(pattern: Pattern, coordinate: np.ndarray) -> np.ndarray:
 
 
 def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
-    """The pattern as the panel shows it: uint8 RGB, shape (height, width, 3)."""
+    """The pattern as the panel shows it: uint8 RGB, shape (height, width, 3), registration frame included."""
     image = np.zeros((height, width, 3), dtype=np.uint8)
     for ci, channel in enumerate("RGB"):
         if channel not in pattern.channels:
@@ -177,6 +192,10 @@ def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
         else:
             values = np.rint(255.0 * srgb_encode(pattern_linear(pattern, np.arange(height)))).astype(np.uint8)
             image[:, :, ci] = values[:, None]
+    f = frame_width(height)
+    frame = np.rint(255.0 * srgb_encode(np.float64(FRAME_LEVEL))).astype(np.uint8)
+    for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
+        part[...] = frame
     return image
 
 
