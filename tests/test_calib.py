@@ -104,9 +104,10 @@ def _srgb_encode(linear):
     return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
 
 
-def _expected_pattern(entry: dict, width: int, height: int) -> np.ndarray:
+def _expected_pattern(entry: dict, width: int, height: int, frame: int, frame_level: float) -> np.ndarray:
     """RGB float (height, width, 3) in 0..255: 0.5 + 0.45 cos(2 pi (c + 0.5) / T + theta), sRGB
-    encoded; c = 3 x + RGB slot of the channel for axis x, the row for axis y; unlit channels 0."""
+    encoded; c = 3 x + RGB slot of the channel for axis x, the row for axis y; unlit channels 0;
+    the outer ``frame`` pixels on every side all channels at ``frame_level`` (linear)."""
     theta = 2 * math.pi * entry["step"] / entry["steps"]
     out = np.zeros((height, width, 3))
     for ci, channel in enumerate("RGB"):
@@ -118,6 +119,9 @@ def _expected_pattern(entry: dict, width: int, height: int) -> np.ndarray:
             coordinate = np.arange(height)[:, None]
         linear = 0.5 + 0.45 * np.cos(2 * math.pi * (coordinate + 0.5) / entry["period"] + theta)
         out[:, :, ci] = 255.0 * _srgb_encode(linear)
+    level = 255.0 * _srgb_encode(np.float64(frame_level))
+    out[:frame] = out[-frame:] = level
+    out[:, :frame] = out[:, -frame:] = level
     return out
 
 
@@ -138,7 +142,8 @@ def _check_pngs(directory: Path, names=None):
             continue
         image = _read_png_rgb(directory / entry["file"])
         assert image.shape == (height, width, 3), entry["file"]
-        error = np.abs(image.astype(np.float64) - _expected_pattern(entry, width, height))
+        expected = _expected_pattern(entry, width, height, manifest["frame_pixels"], manifest["frame_level"])
+        error = np.abs(image.astype(np.float64) - expected)
         assert error.max() <= 1.0, (entry["name"], float(error.max()))
         checked += 1
     return checked
@@ -262,11 +267,19 @@ def test_pattern_pngs_decode_to_the_formula(patterns_1080):
     # the first and last step of every group (a few patterns of each)
     names = {n for members in groups.values() for n in (members[0], members[-1])}
     assert _check_pngs(patterns_1080, names) == len(names) == 16
-    # the x-patterns of the green group light only the middle slot (G); order-r only R, order-b only B
+    # the registration frame: 1/40 of the height (27 of 1080 rows) on every side, identical in every pattern
+    f = manifest["frame_pixels"]
+    assert f == 27
+    inside = (slice(f, -f), slice(f, -f))
+    # inside it the x-patterns of the green group light only the middle slot (G); order-r only R, order-b only B
     f16 = _read_png_rgb(patterns_1080 / "f16-0.png")
-    assert f16[:, :, 0].max() == 0 and f16[:, :, 2].max() == 0 and f16[:, :, 1].max() > 200
-    assert _read_png_rgb(patterns_1080 / "order-r.png")[:, :, 1:].max() == 0
-    assert _read_png_rgb(patterns_1080 / "order-b.png")[:, :, :2].max() == 0
+    assert f16[inside][:, :, 0].max() == 0 and f16[inside][:, :, 2].max() == 0 and f16[:, :, 1].max() > 200
+    assert _read_png_rgb(patterns_1080 / "order-r.png")[inside][:, :, 1:].max() == 0
+    assert _read_png_rgb(patterns_1080 / "order-b.png")[inside][:, :, :2].max() == 0
+    ring = np.ones((1080, 1920), bool)
+    ring[inside] = False
+    frames = {_read_png_rgb(patterns_1080 / e["file"])[ring].tobytes() for e in manifest["patterns"][::4]}
+    assert len(frames) == 1
     # every PNG the manifest lists exists, and nothing else was written
     assert sorted(p.name for p in patterns_1080.iterdir()) == sorted(
         [e["file"] for e in manifest["patterns"]] + ["patterns.json"])

@@ -13,10 +13,11 @@ SIZE = (600, 900)
 FRAME = 24  # pixels: the registration frame as seen
 
 
-def _panel_photo(shift=(0.0, 0.0), step=None, gain=1.0, noise=0.0, seed=0, size=SIZE):
+def _panel_photo(shift=(0.0, 0.0), step=None, gain=1.0, noise=0.0, seed=0, size=SIZE, room=0.0):
     """A photo of a framed pattern: a blurred bright rectangle on a dark bezel, its outer FRAME
     pixels evenly lit, inside them horizontal fringes at phase step ``step`` of 3 (None: their
-    mean), the whole shifted by ``shift`` pixels, times ``gain``, plus Gaussian noise."""
+    mean), the whole shifted by ``shift`` pixels, times ``gain``, plus Gaussian noise.  ``room``:
+    the level of a lit room beyond a 6-pixel bezel."""
     import cv2
 
     h, w = size
@@ -32,15 +33,20 @@ def _panel_photo(shift=(0.0, 0.0), step=None, gain=1.0, noise=0.0, seed=0, size=
     inner = ramp(xx - x0 - FRAME) * ramp(x1 - FRAME - xx) * ramp(yy - y0 - FRAME) * ramp(y1 - FRAME - yy)
     fringe = 0.5 if step is None else 0.5 + 0.45 * np.cos(2 * math.pi * (yy - y0) / 61.0 + 2 * math.pi * step / 3)
     img = (outer - inner) * 0.9 + inner * fringe
+    bezel = 6
+    img += room * (1 - ramp(xx - x0 + bezel) * ramp(x1 + bezel - xx) * ramp(yy - y0 + bezel) * ramp(y1 + bezel - yy))
     img = gain * img * (1.0 - 0.3 * ((xx - w / 2) / w) ** 2) + 0.005
     rng = np.random.default_rng(seed)
     img = img + noise * rng.standard_normal(img.shape)
     return cv2.GaussianBlur(img.astype(np.float32), (0, 0), 0.7)
 
 
-def _reference(noise=0.01):
-    mean = np.mean([_panel_photo(step=k, noise=noise, seed=10 + k) for k in range(3)], axis=0)
-    return register.Reference.from_mean_image(mean, FRAME / (0.7 * SIZE[0]))
+def _reference(noise=0.01, room=0.0):
+    from lenticalib.calib.phase import demodulate
+
+    photos = [_panel_photo(step=k, noise=noise, seed=10 + k, room=room) for k in range(3)]
+    z, mean = demodulate(photos, [2 * math.pi * k / 3 for k in range(3)])
+    return register.Reference.from_mean_image(mean, np.abs(z), FRAME / (0.7 * SIZE[0]))
 
 
 @pytest.mark.parametrize("shift", [(0.0, 0.0), (0.13, -0.21), (-0.3, 0.07), (1.6, -2.4)])
@@ -56,9 +62,18 @@ def test_each_photo_shift_is_recovered_whatever_its_fringe_and_exposure(shift, s
     assert abs(result.dy - shift[1]) < max(0.01, 4 * result.sigma)
 
 
+def test_a_room_as_bright_as_the_panel_does_not_hide_the_panel():
+    """The band is placed by the fringes, not by brightness: a lit room behind a thin bezel."""
+    reference = _reference(room=0.9)
+    result = reference.measure(_panel_photo((0.21, -0.12), step=2, noise=0.01, seed=5, room=0.9))
+    assert result.measured
+    assert abs(result.dx - 0.21) < 0.01 and abs(result.dy + 0.12) < 0.01
+
+
 def test_noise_alone_is_never_reported_as_camera_motion():
     rng = np.random.default_rng(7)
-    reference = register.Reference.from_mean_image(rng.random(SIZE).astype(np.float32), 0.05)
+    reference = register.Reference.from_mean_image(rng.random(SIZE).astype(np.float32),
+                                                   rng.random(SIZE).astype(np.float32), 0.05)
     if reference is not None:
         result = reference.measure(rng.random(SIZE).astype(np.float32))
         assert not result.measured

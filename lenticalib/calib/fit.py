@@ -144,11 +144,11 @@ def _demodulate_group(capture: CaptureSet, name: str, shape, progress, registrat
                 p.luma = p.luma * np.float32(target / m)
     if not registration.made:
         frame = frame_width(capture.patterns.height) / capture.patterns.height
-        registration.reference = register.Reference.from_mean_image(
-            np.mean([p.luma for p in photos], axis=0), frame)
+        z_raw, dc_raw = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
+        registration.reference = register.Reference.from_mean_image(dc_raw, np.abs(z_raw), frame)
         registration.made = True
         if registration.reference is None:
-            registration.warnings.append(f"camera motion between photos could not be measured (no panel outline "
+            registration.warnings.append(f"camera motion between photos could not be measured (no fringes "
                                          f"found in group {name}); it is not corrected")
     registration.undo_shake(photos, capture)
     z, dc = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])

@@ -11,8 +11,8 @@ photos is normal.
 
 How: every pattern carries the same evenly lit frame around the panel (see
 :mod:`.patterns`), so the panel's outline looks the same in every photo whatever its fringe.
-The reference is the mean image of the first group photographed for registration; the band
-of pixels around its outline (the frame's outer part and the dark bezel beyond) is where
+The reference is the mean image of group x1; the band of pixels around the panel's outline
+(the frame's outer half, the edge, the bezel beyond) is where
 each photo is aligned to it, by Gauss-Newton (Lucas-Kanade) on a translation plus a gain and
 an offset (exposure drift).  Each photo is aligned separately and resampled before
 demodulation, so shake *within* a phase-shift group is undone too.  An edge lit by the
@@ -30,11 +30,12 @@ import math
 
 import numpy as np
 
-BAND_INNER = 0.35  # of the frame's seen width: how far inside the outline the band reaches (the fringe inside it stays away)
-BAND_OUTER = 0.6  # likewise, outside the outline (the bezel)
+BAND_OUTSIDE = 1.5  # frame widths: the band reaches this far beyond the panel's outline
+OUTLINE_SEARCH = 1.4  # frame widths beyond the fringe region where the outline is looked for
 MAX_ITERATIONS = 30
 MAX_MEASURABLE_SIGMA = 0.2  # working pixels: a shift known worse than this is "not measured"
 SMOOTHING = 0.7  # working pixels: both images are Gaussian-smoothed before aligning (see measure)
+MIN_EXPLAINED = 0.8  # of the band's variance that the aligned reference must explain
 MAX_BAND_PIXELS = 150_000  # the band is thinned evenly to about this many pixels (speed)
 
 
@@ -59,37 +60,6 @@ class Shift:
         return math.hypot(self.dx, self.dy)
 
 
-def lit_panel(dc: np.ndarray) -> np.ndarray:
-    """bool (h, w): the lit panel (registration frame included) in a mean image ``dc``.
-
-    Otsu's threshold separates the panel from the dark surround; the panel is then what is
-    brighter than half its own median level, the largest connected part with holes filled.
-    Empty when no such part exists.
-    """
-    import cv2
-
-    img = dc.astype(np.float32)
-    top = float(np.percentile(img, 99.5))
-    if not top > 0:
-        return np.zeros(img.shape, dtype=bool)
-    u8 = np.clip(img / top * 255.0, 0, 255).astype(np.uint8)
-    otsu, _ = cv2.threshold(u8, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
-    bright = img[u8 > otsu]
-    if bright.size == 0:
-        return np.zeros(img.shape, dtype=bool)
-    lit = (img > 0.5 * float(np.median(bright))).astype(np.uint8)
-    k = max(3, int(round(min(img.shape) / 300)) | 1)
-    lit = cv2.morphologyEx(lit, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(lit, connectivity=8)
-    if count <= 1:
-        return np.zeros(img.shape, dtype=bool)
-    largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    lit = (labels == largest).astype(np.uint8)
-    flood = lit.copy()
-    cv2.floodFill(flood, np.zeros((lit.shape[0] + 2, lit.shape[1] + 2), np.uint8), (0, 0), 2)
-    return flood != 2
-
-
 @dataclasses.dataclass
 class Reference:
     """The registration reference: band pixels around the panel outline and the reference there.
@@ -107,32 +77,56 @@ class Reference:
     shape: tuple[int, int]
 
     @classmethod
-    def from_mean_image(cls, dc: np.ndarray, frame_fraction: float) -> "Reference | None":
-        """Reference from a group's mean image ``dc`` (h, w); ``frame_fraction``: the frame's
-        width as a fraction of the panel height.  None when no panel outline is found."""
+    def from_mean_image(cls, dc: np.ndarray, modulation: np.ndarray, frame_fraction: float) -> "Reference | None":
+        """Reference from a group's mean image ``dc`` (h, w) and its fringe modulation ``|z|`` (h, w);
+        ``frame_fraction``: the frame's width as a fraction of the panel height.  None when no
+        fringe region is found.
+
+        The band is the ring *outside* the panel's outline, up to 1.5 frame widths beyond it:
+        the outer half of the edge, the bezel, maybe the room behind -- all still, all the same
+        in every photo.  Not the frame's inside: through the lens sheet even an evenly lit area
+        shows a moire texture near the camera's sampling limit, and a texture the camera
+        aliases seems to move by a different amount than the image (seen: 2 pixels of it
+        halved the measured vertical shake).  The outline is where the smoothed mean image
+        crosses halfway between the frame's level and the darkest surround; it is searched
+        for only near the *fringe region* (where the panel shows fringes): a room can be as
+        bright as the panel, but only the panel has fringes.
+        """
         import cv2
 
-        lit = lit_panel(dc)
-        if lit.sum() < 64:
+        from .phase import panel_mask
+
+        fringes = panel_mask([modulation], erode_fraction=0.0)
+        if fringes.sum() < 64:
             return None
-        ys, _ = np.nonzero(lit)
-        seen_height = float(np.percentile(ys, 99.5) - np.percentile(ys, 0.5))
-        frame = frame_fraction * seen_height  # working pixels
-        r_in = max(2, int(round(BAND_INNER * frame)))
-        r_out = max(3, int(round(BAND_OUTER * frame)))
-        lit8 = lit.astype(np.uint8)
-        outer = cv2.dilate(lit8, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_out + 1, 2 * r_out + 1)))
-        inner = cv2.erode(lit8, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_in + 1, 2 * r_in + 1)))
-        band = (outer > 0) & (inner == 0)
+        ys, _ = np.nonzero(fringes)
+        fringe_height = float(np.percentile(ys, 99.5) - np.percentile(ys, 0.5))
+        frame = frame_fraction / max(1e-6, 1.0 - 2.0 * frame_fraction) * fringe_height  # working pixels
+
+        def grown(mask, r):
+            r = max(1, int(round(r)))
+            return cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))) > 0
+
+        smooth = cv2.GaussianBlur(dc.astype(np.float32), (0, 0), 1.0)
+        inside = grown(fringes, 0.7 * frame) & ~grown(fringes, 0.3 * frame)
+        search = grown(fringes, OUTLINE_SEARCH * frame)
+        surround = grown(fringes, 2.5 * frame) & ~grown(fringes, 0.9 * frame)
+        if not inside.any() or not surround.any():
+            return None
+        frame_level = float(np.median(smooth[inside]))
+        dark_level = float(np.percentile(smooth[surround], 5))
+        lit = (search & (smooth > 0.5 * (frame_level + dark_level))) | fringes
+        count, labels = cv2.connectedComponents(lit.astype(np.uint8), connectivity=8)
+        panel_label = int(np.bincount(labels[fringes]).argmax())
+        lit = labels == panel_label
+        band = grown(lit, BAND_OUTSIDE * frame) & ~lit
         edge = 4  # the interpolation reaches 2 pixels, and shifts a little more
         band[:edge] = band[-edge:] = False
         band[:, :edge] = band[:, -edge:] = False
         rows, cols = np.nonzero(band)
         stride = max(1, rows.size // MAX_BAND_PIXELS)
         rows, cols = rows[::stride], cols[::stride]
-        ref = dc.astype(np.float32)
-        if SMOOTHING >= 0.3:
-            ref = cv2.GaussianBlur(ref, (0, 0), SMOOTHING)
+        ref = smoothed(dc)
         gx = cv2.Sobel(ref, cv2.CV_32F, 1, 0, ksize=3) / 8.0
         gy = cv2.Sobel(ref, cv2.CV_32F, 0, 1, ksize=3) / 8.0
         return cls(rows, cols, ref[rows, cols].astype(np.float64), gx[rows, cols].astype(np.float64),
@@ -141,17 +135,16 @@ class Reference:
     def measure(self, image: np.ndarray) -> Shift:
         """Shift of ``image`` (h, w) against the reference: Gauss-Newton on translation, gain, offset.
 
-        Both images are smoothed by a Gaussian of SMOOTHING pixels first: a translation commutes
-        with the smoothing, while the lens sheet's texture near the sampling limit would make
-        the cubic interpolation's error depend on the shift (up to a tenth of it).
+        Both images are band-passed first (:func:`smoothed`): a translation commutes with the
+        filter; the smoothing keeps the lens sheet's texture near the sampling limit from making
+        the cubic interpolation's error depend on the shift, the high-pass keeps level changes
+        from looking like motion.
         """
         import cv2
 
         if image.shape != self.shape or self.rows.size < 100:
             return Shift(0.0, 0.0, math.inf, False, "no panel outline to align")
-        img = np.ascontiguousarray(image, dtype=np.float32)
-        if SMOOTHING >= 0.3:
-            img = cv2.GaussianBlur(img, (0, 0), SMOOTHING)
+        img = smoothed(image)
         dx = dy = 0.0
         gain = 1.0
         ones = np.ones_like(self.values)
@@ -177,11 +170,25 @@ class Reference:
             cov = noise * np.linalg.inv(design.T @ design)
         except np.linalg.LinAlgError:
             return Shift(0.0, 0.0, math.inf, False, "the panel outline is too faint to align")
+        explained = 1.0 - noise / max(float(np.var(moving)), 1e-30)
+        if explained < MIN_EXPLAINED:
+            return Shift(0.0, 0.0, math.inf, False,
+                         f"the panel outline does not match the reference ({100 * explained:.0f}% explained)")
         # neighbouring residuals are correlated (demosaicing, JPEG, the lens sheet): count ~4 pixels as one
         sigma = math.sqrt(4.0 * max(cov[0, 0], cov[1, 1], 0.0))
         if not sigma < MAX_MEASURABLE_SIGMA:
             return Shift(0.0, 0.0, sigma, False, f"the panel outline is too faint to align (1-sigma {sigma:.2f} px)")
         return Shift(dx, dy, sigma, True)
+
+
+def smoothed(image: np.ndarray) -> np.ndarray:
+    """float32 (h, w): ``image`` smoothed by a Gaussian of SMOOTHING pixels (a translation commutes
+    with it; it keeps texture near the sampling limit from making the cubic interpolation's
+    error depend on the shift)."""
+    import cv2
+
+    img = np.ascontiguousarray(image, dtype=np.float32)
+    return cv2.GaussianBlur(img, (0, 0), SMOOTHING)
 
 
 def _keys_weights(fraction: float) -> np.ndarray:
