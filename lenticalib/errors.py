@@ -12,6 +12,8 @@ exits non-zero.  Anything else escaping the library is a bug.
     ├── CalibrationError                 a fit that fails or cannot be trusted
     ├── ConfigurationError (ValueError)  a valid-looking setup the encoder cannot honour
     ├── BackendUnavailableError (ImportError)  a registered backend whose module will not load
+    ├── DisplayError                     no display, an unknown monitor, a window or GL context that will not open
+    ├── CameraError                      a camera that cannot be opened, configured or triggered
     └── DeviceError                      a panel controller that cannot be reached or misbehaves
         ├── DeviceNotFoundError          no device at that URL (unplugged, no permission, bad URL)
         ├── DeviceTimeoutError (TimeoutError)  no valid reply within the timeout, after retries
@@ -75,6 +77,14 @@ class ConfigurationError(LenticalibError, ValueError):
 
 class BackendUnavailableError(LenticalibError, ImportError):
     """A registered backend (encoder, transport) whose implementation cannot be loaded."""
+
+
+class DisplayError(LenticalibError):
+    """No display to show on, an unknown monitor, or a window / GL context that will not open."""
+
+
+class CameraError(LenticalibError):
+    """A camera (tethered, webcam, watched folder, virtual) that cannot be opened, configured or triggered."""
 
 
 class DeviceError(LenticalibError):
