@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import lenticalib.encoders
 import lenticalib.outputs
+import lenticalib.render.encoders
 from lenticalib.cli import main
 from lenticalib.imageio import read_image, write_image
-from lenticalib.views import QuiltGrid, make_quilt
+from lenticalib.render.views import QuiltGrid, make_quilt
 
 REPO = Path(__file__).resolve().parent.parent
 PROFILE = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
@@ -49,7 +49,7 @@ def no_encoding(monkeypatch):
     """Fail the test if any encoder runs: refusals must come before the work."""
     def forbidden(*args, **kwargs):
         raise AssertionError("encoded although the command had to be refused first")
-    monkeypatch.setattr(lenticalib.encoders, "encode", forbidden)
+    monkeypatch.setattr(lenticalib.render.encoders, "encode", forbidden)
 
 
 def test_missing_quilt_says_it_does_not_exist_not_grid_unknown(files, capsys):

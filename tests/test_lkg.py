@@ -16,9 +16,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lenticalib import lkg, routing
+from lenticalib import lkg
 from lenticalib.errors import ProfileError
 from lenticalib.profile import PanelProfile
+from lenticalib.render import routing
 
 SETTINGS = settings(max_examples=30, derandomize=True, deadline=None, database=None,
                     suppress_health_check=[HealthCheck.too_slow])

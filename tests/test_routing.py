@@ -4,9 +4,9 @@ import numpy as np
 from hypothesis import given, settings
 
 from lenticalib.profile import PanelProfile
-from lenticalib.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
+from lenticalib.render.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
 
-from lenticalib.sampling import NO_VIEW, sampling_tables
+from lenticalib.render.sampling import NO_VIEW, sampling_tables
 
 from .exact import exact_view_map
 from .strategies import profiles, tie_profiles

@@ -7,7 +7,7 @@ import pytest
 
 from lenticalib.errors import InputError
 from lenticalib.profile import load_profile
-from lenticalib.routing import view_coordinate
+from lenticalib.render.routing import view_coordinate
 from lenticalib.sim import Scene, random_scene, view_coordinate_truth
 from lenticalib.sim.render import photograph, photograph_jpeg
 

@@ -30,8 +30,8 @@ def main() -> None:
 
     import numba
 
-    from lenticalib.encoders import encode
     from lenticalib.profile import PanelProfile
+    from lenticalib.render.encoders import encode
 
     profile = PanelProfile(views=args.views, slant=0.1835, period=19.47, offset=7.3, reference_view=args.views / 2,
                            width=3840, height=2160, subpixel_order="RGB")

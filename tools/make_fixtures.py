@@ -18,7 +18,7 @@ import numpy as np
 
 from lenticalib.imageio import write_image
 from lenticalib.profile import PanelProfile, make_provenance, save_profile
-from lenticalib.views import QuiltGrid, make_quilt
+from lenticalib.render.views import QuiltGrid, make_quilt
 
 N, TILE_W, TILE_H = 32, 480, 270
 

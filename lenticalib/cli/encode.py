@@ -22,11 +22,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import time
 
-    from ..encoders import encode, get_encoder
+    from ..render.encoders import encode, get_encoder
     from ..errors import ImageError
     from ..imageio import check_image_output, write_image
     from ..profile import load_profile
-    from ..views import load_quilt, load_view_folder, parse_grid
+    from ..render.views import load_quilt, load_view_folder, parse_grid
 
     profile = load_profile(args.profile, "--profile")
     get_encoder(args.encoder)  # an unknown --encoder is refused before the views are read

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..profile import PanelProfile
+from ...profile import PanelProfile
 from ..sampling import NO_VIEW, sampling_tables
 from .common import finish
 
@@ -12,12 +12,12 @@ ROWS_PER_CHUNK = 64
 
 
 def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
-    """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.sampling.SamplingTables`.
+    """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.render.sampling.SamplingTables`.
 
     Returns the raster ``(height, width, 3)`` in the views' dtype.  Routing is the table's view
-    (the canonical :func:`lenticalib.routing.view_map`); sampling is the reference encoder's
+    (the canonical :func:`lenticalib.render.routing.view_map`); sampling is the reference encoder's
     float64 bilinear blend in the same order of operations, so the result equals
-    :func:`~lenticalib.encoders.reference.encode_reference` bit for bit.  Vectorized numpy over
+    :func:`~lenticalib.render.encoders.reference.encode_reference` bit for bit.  Vectorized numpy over
     chunks of ``ROWS_PER_CHUNK`` rows, so temporaries stay bounded.
     """
     n, hv, wv, _ = views.shape

@@ -4,12 +4,13 @@
     tables      a precomputed view table per subpixel (canonical routing) + sample points
     fast        the canonical routing on the fly, vectorized numba kernels (the default)
 
-All three route by :func:`lenticalib.routing.view_map` (same view for every subpixel, ties
+All three route by :func:`lenticalib.render.routing.view_map` (same view for every subpixel, ties
 included).  ``tables`` equals ``reference`` bit for bit; ``fast`` does too for uint16 and float
 views and is within 1 LSB for uint8 (fixed-point weights).
 
 Modules are imported only when an encoder is asked for, so ``lenticalib --help`` stays instant.
-Third-party encoders register through the ``lenticalib.encoders`` entry-point group with a value
+Third-party encoders register through the ``lenticalib.encoders`` entry-point group (a plugin
+group name, like ``lenticalib.transports``, not this module's path) with a value
 ``"module:function"``; the function takes ``(views, profile)`` and returns the raster.
 """
 
@@ -21,16 +22,16 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import BackendUnavailableError, InputError
-from ..profile import PanelProfile
+from ...errors import BackendUnavailableError, InputError
+from ...profile import PanelProfile
 from .common import check_views, output_like
 
 DEFAULT_ENCODER = "fast"
 
 _BUILTIN = {
-    "reference": "lenticalib.encoders.reference:encode_reference",
-    "tables": "lenticalib.encoders.tables:encode_tables",
-    "fast": "lenticalib.encoders.fast:encode_fast",
+    "reference": "lenticalib.render.encoders.reference:encode_reference",
+    "tables": "lenticalib.render.encoders.tables:encode_tables",
+    "fast": "lenticalib.render.encoders.fast:encode_fast",
 }
 
 
