@@ -20,6 +20,7 @@ _COMMANDS = {
     "patterns": ("lenticalib.cli.patterns", "write the calibration test patterns for a panel"),
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
+    "show": ("lenticalib.cli.show", "show an image, a pattern set or a folder on the panel, pixel-exact"),
     "device": ("lenticalib.cli.device", "list panel controllers; read, flash and verify their calibration"),
     "emulate": ("lenticalib.cli.emulate", "run an emulated panel controller (pseudo-terminal or TCP)"),
 }

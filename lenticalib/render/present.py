@@ -1,0 +1,495 @@
+"""Pixel-exact full-screen presentation of panel rasters: the render layer's last stage.
+
+A panel raster routes every RGB subpixel to a view; any resampling, texture filtering, colour
+management, sRGB conversion or dithering on the way to the panel destroys it.  The presenter
+opens a borderless full-screen window on one monitor (glfw), uploads each raster through a
+pixel-buffer object into a texture (moderngl, OpenGL 3.3 core) and draws it with
+``texelFetch`` -- one texel per framebuffer pixel, no sampler, no filtering -- into a
+framebuffer with sRGB conversion and dithering off.  Sizes are compared with the
+*framebuffer*, not the window (desktop scaling makes them differ), and a raster of another
+size is refused, never scaled.
+
+Frames: rasters are (height, width, 3) arrays, row 0 at the top of the panel, RGB order;
+uint8, or uint16 where the framebuffer has at least 10 bits per channel.
+
+Backends (``PRESENTERS``): ``window`` (a real monitor, or Xvfb in tests) and ``offscreen``
+(an EGL or standalone context with no window: the benchmark on a headless GPU machine, and
+the virtual panel when there is no display).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from collections import deque
+
+import numpy as np
+
+from ..errors import DisplayError, ImageError
+
+GL_DITHER = 0x0BD0
+GL_FRAMEBUFFER_SRGB = 0x8DB9
+
+_VERTEX = """
+#version 330 core
+void main() {
+    // one triangle covering the viewport; no vertex buffer needed
+    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+
+_FRAGMENT = """
+#version 330 core
+uniform sampler2D raster;
+uniform int height;
+out vec4 colour;
+void main() {
+    // gl_FragCoord is at the pixel centre, origin bottom-left; raster row 0 is the top row
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    colour = vec4(texelFetch(raster, ivec2(p.x, height - 1 - p.y), 0).rgb, 1.0);
+}
+"""
+
+
+@dataclasses.dataclass(frozen=True)
+class Monitor:
+    """One monitor as the window system reports it.
+
+    ``index``: position in the window system's list (0 = primary); ``x, y``: its top-left on
+    the virtual desktop (screen pixels); ``width, height``: its current video mode (pixels);
+    ``refresh_hz``; ``scale``: the desktop's content scale (1.0 = none); ``bits``: red, green,
+    blue bits of the mode.
+    """
+
+    index: int
+    name: str
+    x: int
+    y: int
+    width: int
+    height: int
+    refresh_hz: int = 60
+    scale: tuple[float, float] = (1.0, 1.0)
+    bits: tuple[int, int, int] = (8, 8, 8)
+
+    def describe(self) -> str:
+        scale = "" if self.scale == (1.0, 1.0) else f", desktop scale {self.scale[0]:g}x{self.scale[1]:g}"
+        return (f"{self.index}: {self.name} {self.width}x{self.height} @ {self.refresh_hz} Hz at "
+                f"({self.x}, {self.y}), {self.bits[0]}-bit{scale}")
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameTiming:
+    """Milliseconds spent on one frame: ``upload`` (host -> pixel buffer -> texture, finished on
+    the GPU) and ``present`` (draw and buffer swap; with vsync this waits for the display)."""
+
+    upload_ms: float
+    present_ms: float
+
+
+def _glfw():
+    try:
+        import glfw
+    except ImportError as exc:  # a dependency: should not happen in an installed lenticalib
+        raise DisplayError(f"glfw is not available ({exc})", hint="pip install glfw") from None
+    return glfw
+
+
+def _init_glfw():
+    glfw = _glfw()
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY") and os.name == "posix" \
+            and not _is_macos():
+        raise DisplayError("there is no display to show on (neither DISPLAY nor WAYLAND_DISPLAY is set)",
+                           hint="run on the computer the panel is connected to, or start a virtual one "
+                                "(Xvfb) and set DISPLAY")
+    glfw.set_error_callback(None)
+    if not glfw.init():
+        raise DisplayError(f"the window system did not start (DISPLAY={os.environ.get('DISPLAY', '')!r})",
+                           hint="check that the display is reachable (xset q) and that you may use it")
+    return glfw
+
+
+def _is_macos() -> bool:
+    import sys
+
+    return sys.platform == "darwin"
+
+
+def list_monitors() -> list[Monitor]:
+    """The monitors of the current display, primary first; DisplayError if there is no display."""
+    glfw = _init_glfw()
+    out = []
+    for index, handle in enumerate(glfw.get_monitors() or []):
+        mode = glfw.get_video_mode(handle)
+        x, y = glfw.get_monitor_pos(handle)
+        name = glfw.get_monitor_name(handle)
+        name = name.decode("utf-8", "replace") if isinstance(name, bytes) else str(name)
+        out.append(Monitor(index, name, int(x), int(y), int(mode.size.width), int(mode.size.height),
+                           int(mode.refresh_rate), tuple(float(s) for s in glfw.get_monitor_content_scale(handle)),
+                           (int(mode.bits.red), int(mode.bits.green), int(mode.bits.blue))))
+    if not out:
+        raise DisplayError("the display reports no monitors", hint="connect the panel and switch it on")
+    return out
+
+
+def choose_monitor(monitors: list[Monitor], spec: str | None = None,
+                   size: tuple[int, int] | None = None) -> Monitor:
+    """The monitor ``spec`` names, or the one whose mode is ``size`` (width, height).
+
+    ``spec``: an index ("1"), a position ("@3840,0": the monitor whose top-left is there), or
+    a name (case-insensitive, a unique part of it is enough).  Without ``spec``, the one monitor
+    whose current mode is ``size``; with neither, the primary.  DisplayError (listing the
+    monitors) when nothing or more than one matches.
+    """
+    listing = "; ".join(m.describe() for m in monitors)
+    if not monitors:
+        raise DisplayError("the display reports no monitors", hint="connect the panel and switch it on")
+    if spec is not None:
+        spec = spec.strip()
+        if spec.isdigit():
+            matches = [m for m in monitors if m.index == int(spec)]
+        elif spec.startswith("@"):
+            try:
+                x, y = (int(v) for v in spec[1:].split(","))
+            except ValueError:
+                raise DisplayError(f"position {spec!r} is not @X,Y", source="--display",
+                                   hint="e.g. --display @3840,0") from None
+            matches = [m for m in monitors if (m.x, m.y) == (x, y)]
+        else:
+            exact = [m for m in monitors if m.name.lower() == spec.lower()]
+            matches = exact or [m for m in monitors if spec.lower() in m.name.lower()]
+        if len(matches) != 1:
+            what = "no monitor matches" if not matches else f"{len(matches)} monitors match"
+            raise DisplayError(f"{what} {spec!r}; the monitors are: {listing}", source="--display",
+                               hint="give an index, @X,Y or a unique part of a name (lenticalib show --list-displays)")
+        return matches[0]
+    if size is not None:
+        matches = [m for m in monitors if (m.width, m.height) == tuple(size)]
+        if len(matches) == 1:
+            return matches[0]
+        if not matches:
+            raise DisplayError(f"no monitor shows {size[0]}x{size[1]} (the raster's size); the monitors are: "
+                               f"{listing}", source="--display",
+                               hint="set the panel to its native mode, or name the monitor with --display")
+        raise DisplayError(f"{len(matches)} monitors show {size[0]}x{size[1]}; the monitors are: {listing}",
+                           source="--display", hint="name the panel's monitor with --display")
+    return monitors[0]
+
+
+def check_raster(raster: np.ndarray, size: tuple[int, int], max_bits: int = 8, source: str | None = None) -> None:
+    """ImageError (one line) unless ``raster`` is (height, width, 3) uint8 -- or uint16 when the
+    framebuffer has ``max_bits`` >= 10 -- of exactly ``size`` (width, height)."""
+    arr = np.asarray(raster)
+    if arr.ndim != 3 or arr.shape[2] != 3:
+        raise ImageError(f"is not an RGB image (shape {arr.shape})", source=source,
+                         hint="show an RGB raster made by 'lenticalib encode' or 'lenticalib patterns'")
+    if arr.dtype == np.uint16 and max_bits < 10:
+        raise ImageError(f"is 16-bit but the display shows {max_bits} bits per channel", source=source,
+                         hint="show an 8-bit raster, or set the display to 10-bit colour")
+    if arr.dtype not in (np.uint8, np.uint16):
+        raise ImageError(f"has sample type {arr.dtype}; the panel takes 8-bit (or 16-bit) integers", source=source)
+    if (arr.shape[1], arr.shape[0]) != tuple(size):
+        raise ImageError(f"is {arr.shape[1]}x{arr.shape[0]} but the display is {size[0]}x{size[1]}; rasters are "
+                         "never scaled", source=source,
+                         hint="encode for this panel's size, or show it on the monitor of that size (--display)")
+
+
+class Presenter:
+    """Shows rasters pixel-exact; use as a context manager.  Subclasses make the GL context.
+
+    ``size``: (width, height) of the framebuffer in pixels; ``timings``: one
+    :class:`FrameTiming` per shown frame; ``bits``: bits per channel of the framebuffer.
+    """
+
+    kind = "abstract"
+
+    def __init__(self, vsync: bool = True):
+        self.vsync = vsync
+        self.size: tuple[int, int] = (0, 0)
+        self.bits = 8
+        self.timings: list[FrameTiming] = []
+        self.ctx = None
+        self._textures: dict = {}
+        self._buffers: list = []
+        self._next_buffer = 0
+        self._program = None
+        self._vao = None
+        self._shown: np.ndarray | None = None
+
+    # -- lifecycle ---------------------------------------------------------------------------
+    def __enter__(self) -> "Presenter":
+        self.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def open(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        for item in list(self._textures.values()) + self._buffers:
+            item.release()
+        self._textures.clear()
+        self._buffers.clear()
+        if self.ctx is not None:
+            self.ctx.release()
+            self.ctx = None
+
+    def _setup_gl(self) -> None:
+        """Program, state and double pixel buffers, once the context is current."""
+        ctx = self.ctx
+        ctx.disable_direct(GL_DITHER)
+        ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
+        self._program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+        self._program["raster"].value = 0
+        self._program["height"].value = self.size[1]
+        self._vao = ctx.vertex_array(self._program, [])
+        nbytes = self.size[0] * self.size[1] * 3 * 2  # room for 16-bit rasters
+        self._buffers = [ctx.buffer(reserve=nbytes, dynamic=True) for _ in range(2)]
+
+    def _texture(self, dtype: np.dtype):
+        key = np.dtype(dtype).str
+        if key not in self._textures:
+            gl_type = "f1" if dtype == np.uint8 else "nu2"
+            tex = self.ctx.texture(self.size, 3, dtype=gl_type)
+            tex.filter = (self._nearest(), self._nearest())
+            tex.repeat_x = tex.repeat_y = False
+            self._textures[key] = tex
+        return self._textures[key]
+
+    @staticmethod
+    def _nearest():
+        import moderngl
+
+        return moderngl.NEAREST
+
+    # -- frames ------------------------------------------------------------------------------
+    def show(self, raster: np.ndarray, source: str | None = None) -> FrameTiming:
+        """Put ``raster`` (height, width, 3) on the panel; returns and records its timing."""
+        check_raster(raster, self.size, self.bits, source)
+        data = np.ascontiguousarray(raster)
+        start = time.perf_counter()
+        buffer = self._buffers[self._next_buffer]
+        self._next_buffer = 1 - self._next_buffer
+        buffer.orphan(data.nbytes)
+        buffer.write(data)
+        texture = self._texture(data.dtype)
+        texture.write(buffer, alignment=1)
+        self.ctx.finish()
+        uploaded = time.perf_counter()
+        self._draw(texture)
+        self._swap()
+        self.ctx.finish()
+        done = time.perf_counter()
+        timing = FrameTiming(1e3 * (uploaded - start), 1e3 * (done - uploaded))
+        self.timings.append(timing)
+        self._shown = data
+        return timing
+
+    def _draw(self, texture) -> None:
+        self._target().use()
+        self.ctx.viewport = (0, 0, *self.size)
+        texture.use(0)
+        self._vao.render(mode=self._triangles(), vertices=3)
+
+    @staticmethod
+    def _triangles():
+        import moderngl
+
+        return moderngl.TRIANGLES
+
+    def _target(self):
+        return self.ctx.screen
+
+    def _swap(self) -> None:
+        pass
+
+    def read_back(self) -> np.ndarray:
+        """uint8 (height, width, 3): what the framebuffer shows now, row 0 at the top."""
+        raise NotImplementedError
+
+    def keys(self, timeout: float = 0.0) -> list[str]:
+        """Key names pressed since the last call ("space", "right", "escape", ...), waiting up to
+        ``timeout`` seconds for the first; a closed window reports "escape"."""
+        if timeout > 0:
+            time.sleep(timeout)
+        return []
+
+    @property
+    def shown(self) -> np.ndarray | None:
+        """The last raster shown (as sent)."""
+        return self._shown
+
+
+class WindowPresenter(Presenter):
+    """A borderless full-screen window on ``monitor`` (glfw), vsync on by default."""
+
+    kind = "window"
+
+    def __init__(self, monitor: Monitor, vsync: bool = True):
+        super().__init__(vsync)
+        self.monitor = monitor
+        self._window = None
+        self._keys: deque[str] = deque()
+
+    def open(self) -> None:
+        import moderngl
+
+        glfw = _init_glfw()
+        handle = self._monitor_handle(glfw)
+        mode = glfw.get_video_mode(handle)
+        glfw.default_window_hints()
+        for hint, value in ((glfw.DECORATED, False), (glfw.RESIZABLE, False), (glfw.AUTO_ICONIFY, False),
+                            (glfw.FOCUS_ON_SHOW, True), (glfw.SRGB_CAPABLE, False), (glfw.SAMPLES, 0),
+                            (glfw.DOUBLEBUFFER, True), (glfw.RED_BITS, mode.bits.red),
+                            (glfw.GREEN_BITS, mode.bits.green), (glfw.BLUE_BITS, mode.bits.blue),
+                            (glfw.REFRESH_RATE, mode.refresh_rate), (glfw.CONTEXT_VERSION_MAJOR, 3),
+                            (glfw.CONTEXT_VERSION_MINOR, 3), (glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE),
+                            (glfw.OPENGL_FORWARD_COMPAT, True), (glfw.SCALE_TO_MONITOR, False)):
+            glfw.window_hint(hint, value)
+        if hasattr(glfw, "COCOA_RETINA_FRAMEBUFFER"):
+            glfw.window_hint(glfw.COCOA_RETINA_FRAMEBUFFER, False)
+        window = glfw.create_window(mode.size.width, mode.size.height, "lenticalib", handle, None)
+        if not window:
+            raise DisplayError(f"could not open a full-screen OpenGL 3.3 window on monitor {self.monitor.describe()}",
+                               hint="update the graphics driver; under Xvfb, install Mesa (libgl1-mesa-dri)")
+        self._window = window
+        glfw.make_context_current(window)
+        glfw.swap_interval(1 if self.vsync else 0)
+        glfw.set_input_mode(window, glfw.CURSOR, glfw.CURSOR_HIDDEN)
+        glfw.set_key_callback(window, self._on_key)
+        try:
+            self.ctx = moderngl.create_context(require=330)
+        except Exception as exc:  # moderngl raises plain Exceptions for context failures
+            self.close()
+            raise DisplayError(f"OpenGL 3.3 is not available on this display ({exc})",
+                               hint="update the graphics driver") from None
+        self.size = tuple(int(v) for v in glfw.get_framebuffer_size(window))
+        self.bits = int(min(mode.bits.red, mode.bits.green, mode.bits.blue))
+        self._setup_gl()
+
+    def _monitor_handle(self, glfw):
+        for index, handle in enumerate(glfw.get_monitors() or []):
+            x, y = glfw.get_monitor_pos(handle)
+            if index == self.monitor.index and (x, y) == (self.monitor.x, self.monitor.y):
+                return handle
+        raise DisplayError(f"monitor {self.monitor.describe()} is gone", source="--display",
+                           hint="list the monitors again (lenticalib show --list-displays)")
+
+    def close(self) -> None:
+        super().close()
+        if self._window is not None:
+            glfw = _glfw()
+            glfw.destroy_window(self._window)
+            self._window = None
+            glfw.terminate()
+
+    def _swap(self) -> None:
+        _glfw().swap_buffers(self._window)
+
+    def _on_key(self, window, key, scancode, action, mods) -> None:
+        glfw = _glfw()
+        if action in (glfw.PRESS, glfw.REPEAT):
+            name = _KEY_NAMES.get(key)
+            if name is None:
+                raw = glfw.get_key_name(key, scancode)
+                name = raw.decode() if isinstance(raw, bytes) else (raw or f"key{key}")
+            self._keys.append(name)
+
+    def keys(self, timeout: float = 0.0) -> list[str]:
+        glfw = _glfw()
+        if timeout > 0 and not self._keys:
+            glfw.wait_events_timeout(timeout)
+        glfw.poll_events()
+        if glfw.window_should_close(self._window):
+            self._keys.append("escape")
+            glfw.set_window_should_close(self._window, False)
+        out = list(self._keys)
+        self._keys.clear()
+        return out
+
+    def read_back(self) -> np.ndarray:
+        """What the GL pipeline makes of the last raster: it is drawn again into the back buffer
+        (not swapped) and read; the front buffer is not readable on every driver.  A test that
+        must see the screen itself grabs it from the window system (an X screenshot)."""
+        if self._shown is None:
+            raise DisplayError("nothing has been shown yet")
+        self._draw(self._texture(self._shown.dtype))
+        self.ctx.finish()
+        data = self.ctx.screen.read(viewport=(0, 0, *self.size), components=3, alignment=1)
+        return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3)[::-1].copy()
+
+
+class OffscreenPresenter(Presenter):
+    """A framebuffer object in a context with no window (EGL on a headless GPU, or GLX/WGL
+    standalone): for benchmarks and the virtual panel.  ``size``: (width, height)."""
+
+    kind = "offscreen"
+
+    def __init__(self, size: tuple[int, int], backend: str | None = None, vsync: bool = False):
+        super().__init__(vsync)
+        self.size = (int(size[0]), int(size[1]))
+        self.backend = backend
+        self._fbo = None
+
+    def open(self) -> None:
+        import moderngl
+
+        kwargs = {"standalone": True, "require": 330}
+        if self.backend:
+            kwargs["backend"] = self.backend
+        try:
+            self.ctx = moderngl.create_context(**kwargs)
+        except Exception as exc:
+            raise DisplayError(f"no offscreen OpenGL 3.3 context ({self.backend or 'default'} backend: {exc})",
+                               hint="on a headless GPU machine use the egl backend; elsewhere start Xvfb") from None
+        colour = self.ctx.renderbuffer(self.size, 4, dtype="f1")
+        self._fbo = self.ctx.framebuffer(color_attachments=[colour])
+        self._setup_gl()
+
+    def _target(self):
+        return self._fbo
+
+    def close(self) -> None:
+        if self._fbo is not None:
+            for attachment in self._fbo.color_attachments:
+                attachment.release()
+            self._fbo.release()
+            self._fbo = None
+        super().close()
+
+    def read_back(self) -> np.ndarray:
+        data = self._fbo.read(components=3, alignment=1)
+        return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3)[::-1].copy()
+
+
+def _key_names() -> dict[int, str]:
+    try:
+        import glfw
+    except ImportError:
+        return {}
+    return {glfw.KEY_SPACE: "space", glfw.KEY_RIGHT: "right", glfw.KEY_LEFT: "left", glfw.KEY_UP: "up",
+            glfw.KEY_DOWN: "down", glfw.KEY_PAGE_UP: "page_up", glfw.KEY_PAGE_DOWN: "page_down",
+            glfw.KEY_ESCAPE: "escape", glfw.KEY_ENTER: "enter", glfw.KEY_KP_ENTER: "enter",
+            glfw.KEY_BACKSPACE: "backspace", glfw.KEY_Q: "q", glfw.KEY_HOME: "home", glfw.KEY_END: "end"}
+
+
+_KEY_NAMES = _key_names()
+
+PRESENTERS = {"window": WindowPresenter, "offscreen": OffscreenPresenter}
+
+
+def open_presenter(display: str | None = None, size: tuple[int, int] | None = None,
+                   monitors: list[Monitor] | None = None, vsync: bool = True) -> Presenter:
+    """A presenter (not yet opened) for ``display``: "none" or "offscreen" -> offscreen of
+    ``size``; "offscreen:egl" -> EGL; anything else picks a monitor by :func:`choose_monitor`
+    (``monitors`` injected for tests, else :func:`list_monitors`)."""
+    if display is not None and display.split(":")[0] in ("none", "offscreen"):
+        if size is None:
+            raise DisplayError("an offscreen display needs a raster size", source="--display")
+        backend = display.split(":", 1)[1] if ":" in display else None
+        return OffscreenPresenter(size, backend=backend)
+    monitor = choose_monitor(monitors if monitors is not None else list_monitors(), display, size)
+    return WindowPresenter(monitor, vsync=vsync)

@@ -1,0 +1,93 @@
+"""A virtual display for presenter tests: Xvfb, an X screenshot reader and key presses.
+
+Xvfb, xwd and xdotool come from Debian (xvfb, x11-apps, xdotool); ``.ci/run`` installs them.
+A missing one fails the test that needs it with the package to install -- never a skip.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import struct
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+
+def require(program: str, package: str) -> str:
+    path = shutil.which(program)
+    if path is None:
+        pytest.fail(f"{program} is not installed (Debian package {package}); .ci/run installs it")
+    return path
+
+
+class VirtualDisplay:
+    """An Xvfb server of one screen ``width`` x ``height`` x 24 bits on a free display number."""
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        xvfb = require("Xvfb", "xvfb")
+        for number in range(120, 200):
+            if os.path.exists(f"/tmp/.X11-unix/X{number}") or os.path.exists(f"/tmp/.X{number}-lock"):
+                continue
+            self.name = f":{number}"
+            self.process = subprocess.Popen([xvfb, self.name, "-screen", "0", f"{width}x{height}x24", "-nolisten", "tcp"],
+                                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:
+                if os.path.exists(f"/tmp/.X11-unix/X{number}"):
+                    return
+                if self.process.poll() is not None:
+                    break
+                time.sleep(0.05)
+            self.process.kill()
+        pytest.fail("could not start Xvfb on any display :120-:199")
+
+    def env(self) -> dict:
+        env = dict(os.environ)
+        env["DISPLAY"] = self.name
+        env.pop("WAYLAND_DISPLAY", None)
+        return env
+
+    def screenshot(self) -> np.ndarray:
+        """uint8 (height, width, 3) RGB of the root window, read by ``xwd`` (what X shows)."""
+        xwd = require("xwd", "x11-apps")
+        data = subprocess.run([xwd, "-root", "-silent", "-display", self.name], capture_output=True,
+                              check=True, timeout=30).stdout
+        return parse_xwd(data)
+
+    def key(self, *names: str) -> None:
+        xdotool = require("xdotool", "xdotool")
+        window = subprocess.run([xdotool, "search", "--name", "lenticalib"], capture_output=True, text=True,
+                                env=self.env(), timeout=10).stdout.split()
+        if window:
+            subprocess.run([xdotool, "windowfocus", window[0]], env=self.env(), timeout=10, capture_output=True)
+        for name in names:
+            subprocess.run([xdotool, "key", name], env=self.env(), timeout=10, check=True)
+
+    def close(self) -> None:
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+
+
+def parse_xwd(data: bytes) -> np.ndarray:
+    """RGB uint8 (h, w, 3) from an XWD file of a 24/32-bit TrueColor screen (X11 dump format 7)."""
+    header = struct.unpack(">25I", data[:100])
+    header_size, width, height = header[0], header[4], header[5]
+    byte_order, bits_per_pixel, bytes_per_line = header[7], header[11], header[12]
+    masks = header[14:17]
+    colours = header[19]
+    assert bits_per_pixel == 32, bits_per_pixel
+    offset = header_size + 12 * colours
+    rows = np.frombuffer(data, dtype=np.uint8, count=height * bytes_per_line, offset=offset)
+    words = rows.reshape(height, bytes_per_line)[:, :4 * width].copy().view("<u4" if byte_order == 0 else ">u4")
+    out = np.empty((height, width, 3), dtype=np.uint8)
+    for channel, mask in enumerate(masks):
+        shift = (mask & -mask).bit_length() - 1
+        out[:, :, channel] = (words >> shift) & 0xFF
+    return out
