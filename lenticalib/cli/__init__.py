@@ -19,6 +19,7 @@ _COMMANDS = {
     "profile": ("lenticalib.cli.profile", "show, validate, import, export or compare panel profiles"),
     "patterns": ("lenticalib.cli.patterns", "write the calibration test patterns for a panel"),
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
+    "capture": ("lenticalib.cli.capture", "show each calibration pattern on the panel and photograph it"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
     "show": ("lenticalib.cli.show", "show an image, a pattern set or a folder on the panel, pixel-exact"),
     "device": ("lenticalib.cli.device", "list panel controllers; read, flash and verify their calibration"),

@@ -12,9 +12,9 @@ size is refused, never scaled.
 Frames: rasters are (height, width, 3) arrays, row 0 at the top of the panel, RGB order;
 uint8, or uint16 where the framebuffer has at least 10 bits per channel.
 
-Backends (``PRESENTERS``): ``window`` (a real monitor, or Xvfb in tests) and ``offscreen``
-(an EGL or standalone context with no window: the benchmark on a headless GPU machine, and
-the virtual panel when there is no display).
+Backends (``PRESENTERS``): ``window`` (a real monitor, or Xvfb in tests), ``offscreen`` (an
+EGL or standalone context with no window: the benchmark on a headless GPU machine, and the
+virtual panel) and ``none`` (no graphics: the virtual panel on a machine without OpenGL).
 """
 
 from __future__ import annotations
@@ -437,14 +437,19 @@ class OffscreenPresenter(Presenter):
     def open(self) -> None:
         import moderngl
 
+        backend = self.backend
+        if backend is None and os.name == "posix" and not _is_macos() and not os.environ.get("DISPLAY"):
+            backend = "egl"  # no X server: EGL (a GPU driver's, or Mesa's surfaceless llvmpipe)
         kwargs = {"standalone": True, "require": 330}
-        if self.backend:
-            kwargs["backend"] = self.backend
+        if backend:
+            kwargs["backend"] = backend
         try:
             self.ctx = moderngl.create_context(**kwargs)
         except Exception as exc:
-            raise DisplayError(f"no offscreen OpenGL 3.3 context ({self.backend or 'default'} backend: {exc})",
-                               hint="on a headless GPU machine use the egl backend; elsewhere start Xvfb") from None
+            raise DisplayError(f"no offscreen OpenGL 3.3 context ({backend or 'default'} backend: "
+                               f"{str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r})",
+                               hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver; or use "
+                                    "--display none") from None
         colour = self.ctx.renderbuffer(self.size, 4, dtype="f1")
         self._fbo = self.ctx.framebuffer(color_attachments=[colour])
         self._setup_gl()
@@ -465,6 +470,36 @@ class OffscreenPresenter(Presenter):
         return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3)[::-1].copy()
 
 
+class MemoryPresenter(Presenter):
+    """No graphics at all: the raster is kept as sent.  For the virtual panel on a machine with
+    no OpenGL; ``read_back`` returns the raster itself (nothing could alter it)."""
+
+    kind = "none"
+
+    def __init__(self, size: tuple[int, int]):
+        super().__init__(vsync=False)
+        self.size = (int(size[0]), int(size[1]))
+
+    def open(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def show(self, raster: np.ndarray, source: str | None = None) -> FrameTiming:
+        check_raster(raster, self.size, 8, source)
+        start = time.perf_counter()
+        self._shown = np.array(raster, copy=True)
+        timing = FrameTiming(1e3 * (time.perf_counter() - start), 0.0)
+        self.timings.append(timing)
+        return timing
+
+    def read_back(self) -> np.ndarray:
+        if self._shown is None:
+            raise DisplayError("nothing has been shown yet")
+        return self._shown.copy()
+
+
 def _key_names() -> dict[int, str]:
     try:
         import glfw
@@ -478,17 +513,21 @@ def _key_names() -> dict[int, str]:
 
 _KEY_NAMES = _key_names()
 
-PRESENTERS = {"window": WindowPresenter, "offscreen": OffscreenPresenter}
+PRESENTERS = {"window": WindowPresenter, "offscreen": OffscreenPresenter, "none": MemoryPresenter}
 
 
 def open_presenter(display: str | None = None, size: tuple[int, int] | None = None,
                    monitors: list[Monitor] | None = None, vsync: bool = True) -> Presenter:
-    """A presenter (not yet opened) for ``display``: "none" or "offscreen" -> offscreen of
-    ``size``; "offscreen:egl" -> EGL; anything else picks a monitor by :func:`choose_monitor`
-    (``monitors`` injected for tests, else :func:`list_monitors`)."""
-    if display is not None and display.split(":")[0] in ("none", "offscreen"):
+    """A presenter (not yet opened) for ``display``: "offscreen" -> an OpenGL framebuffer of
+    ``size`` with no window ("offscreen:egl" names the backend); "none" -> no graphics at all;
+    anything else picks a monitor by :func:`choose_monitor` (``monitors`` injected for tests,
+    else :func:`list_monitors`)."""
+    kind = display.split(":")[0] if display is not None else None
+    if kind in ("none", "offscreen"):
         if size is None:
-            raise DisplayError("an offscreen display needs a raster size", source="--display")
+            raise DisplayError(f"a display of kind {kind!r} needs a raster size", source="--display")
+        if kind == "none":
+            return MemoryPresenter(size)
         backend = display.split(":", 1)[1] if ":" in display else None
         return OffscreenPresenter(size, backend=backend)
     monitor = choose_monitor(monitors if monitors is not None else list_monitors(), display, size)
