@@ -9,4 +9,7 @@ Modules, in the order the fit uses them:
     camera     camera intrinsics and pose estimated from the panel (or an optional model)
     report     the figures and summary written next to a fitted profile
     compare    how far one profile is from another, in views (the docs/optics.md convention)
+
+Before the fit, ``cameras`` holds the capture cameras ``lenticalib capture`` triggers (gphoto2,
+OpenCV webcams, a manual shutter, the simulator's virtual camera), behind one registry.
 """

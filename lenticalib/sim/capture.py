@@ -11,6 +11,10 @@ Layout written into the pattern folder ``DIR`` (the one ``lenticalib patterns`` 
 ``simulation.json`` is written first with ``"status": "in progress"`` and rewritten with
 ``"complete"`` at the end, so an interrupted run is recognisable.  A ``captures`` folder that
 holds files but no ``simulation.json`` (real photos, presumably) is never written into.
+
+The per-photo step (:func:`photograph_pattern`, :func:`photo_record`) and the two records
+(:func:`write_truth`, :func:`write_simulation_record`) are shared with the virtual capture camera
+(:mod:`lenticalib.calib.cameras.sim`), which photographs what ``lenticalib capture`` shows.
 """
 
 from __future__ import annotations
@@ -44,6 +48,52 @@ def photo_scene(scene: Scene, pattern_name: str) -> tuple[Scene, dict[str, float
     camera, draws = scene.camera.for_photo(np.random.default_rng([*noise_seed(scene, pattern_name), 1]))
     return (scene if camera is scene.camera else scene.replace_camera(**{
         k: getattr(camera, k) for k in ("exposure", "cx", "cy")})), draws
+
+
+def photo_record(scene: Scene, pattern_name: str, file: str | None = None) -> dict[str, Any]:
+    """The ``simulation.json`` entry of photo ``pattern_name``: pattern, file (relative to the pattern
+    folder; default ``captures/NAME.jpg``), noise seed and the per-photo camera draws."""
+    return {"pattern": pattern_name, "file": file or f"{CAPTURE_FOLDER}/{pattern_name}.jpg",
+            "noise_seed": noise_seed(scene, pattern_name), "photo": photo_scene(scene, pattern_name)[1]}
+
+
+def photograph_pattern(scene: Scene, pattern_name: str, raster: np.ndarray) -> bytes:
+    """The camera JPEG of the panel of ``scene`` showing ``raster`` as photo ``pattern_name``.
+
+    ``raster`` is uint8 ``(H, W, 3)`` sRGB at the panel's size.  The noise and the per-photo draws
+    come from :func:`noise_seed` / :func:`photo_scene`, so the same scene, name and raster give the
+    same bytes (what ``simulation.json`` promises).
+    """
+    from .render import photograph_jpeg
+
+    rng = np.random.default_rng(noise_seed(scene, pattern_name))
+    return photograph_jpeg(raster, photo_scene(scene, pattern_name)[0], rng)
+
+
+def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tuple[Path, dict[str, Any]]:
+    """Write ``DIR/truth.json``, the ideal profile for the camera position of ``scene``.
+
+    Returns (its path, the constants recorded in ``simulation.json``: views, slant, period, offset,
+    reference_view, width, height, subpixel_order).
+    """
+    from ..calib.patterns import MANIFEST_NAME
+    from ..profile import make_provenance, save_profile
+
+    directory = Path(directory)
+    provenance = make_provenance("simulation", inputs=[directory / MANIFEST_NAME], seed=scene.seed,
+                                 simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))
+    profile = scene.truth_profile(pattern_set.views, name="simulation truth", provenance=provenance)
+    truth_path = save_profile(profile, directory / TRUTH_NAME)
+    constants = {k: getattr(profile, k) for k in ("views", "slant", "period", "offset", "reference_view",
+                                                   "width", "height", "subpixel_order")}
+    return truth_path, constants
+
+
+def write_simulation_record(directory: str | os.PathLike, scene: Scene, pattern_set, status: str,
+                            captures: list[dict[str, Any]], truth: dict[str, Any] | None) -> Path:
+    """Write ``DIR/simulation.json`` atomically (status "in progress" or "complete"); returns its path."""
+    return write_text_atomic(Path(directory) / SIMULATION_NAME, json.dumps(
+        _simulation_record(scene, pattern_set, status, captures, truth), indent=2) + "\n")
 
 
 def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[dict[str, Any]],
@@ -84,8 +134,6 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
     """
     from ..calib.patterns import MANIFEST_NAME, read_manifest
     from ..imageio import read_image
-    from ..profile import make_provenance, save_profile
-    from .render import photograph_jpeg
 
     directory = Path(pattern_dir)
     pattern_set = read_manifest(directory)
@@ -108,11 +156,8 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
         raise InputError(f"cannot create: {exc.strerror}", source=str(captures),
                          hint="choose a writable pattern folder") from None
 
-    photo_scenes = {p.name: photo_scene(scene, p.name) for p in pattern_set.patterns}
-    records = [{"pattern": p.name, "file": f"{CAPTURE_FOLDER}/{p.name}.jpg", "noise_seed": noise_seed(scene, p.name),
-                "photo": photo_scenes[p.name][1]} for p in pattern_set.patterns]
-    write_text_atomic(simulation_path, json.dumps(
-        _simulation_record(scene, pattern_set, "in progress", records, None), indent=2) + "\n")
+    records = [photo_record(scene, p.name) for p in pattern_set.patterns]
+    write_simulation_record(directory, scene, pattern_set, "in progress", records, None)
 
     items: Iterable = pattern_set.patterns if progress is None else progress(pattern_set.patterns)
     for pattern in items:
@@ -122,19 +167,10 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
             raise ImageError(f"expected an 8-bit {optics.width}x{optics.height} pattern, got {raster.dtype} "
                              f"{raster.shape[1]}x{raster.shape[0]}", source=str(source),
                              hint="write the patterns again with 'lenticalib patterns'")
-        rng = np.random.default_rng(noise_seed(scene, pattern.name))
-        write_bytes_atomic(captures / f"{pattern.name}.jpg",
-                           photograph_jpeg(raster, photo_scenes[pattern.name][0], rng))
+        write_bytes_atomic(captures / f"{pattern.name}.jpg", photograph_pattern(scene, pattern.name, raster))
 
-    provenance = make_provenance("simulation", inputs=[manifest], seed=scene.seed,
-                                 simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))
-    profile = scene.truth_profile(pattern_set.views, name="simulation truth", provenance=provenance)
-    truth_path = save_profile(profile, directory / TRUTH_NAME)
-    constants = {k: getattr(profile, k) for k in ("views", "slant", "period", "offset", "reference_view",
-                                                   "width", "height", "subpixel_order")}
-    write_text_atomic(simulation_path, json.dumps(
-        _simulation_record(scene, pattern_set, "complete", records, {"file": TRUTH_NAME, **constants}),
-        indent=2) + "\n")
+    truth_path, constants = write_truth(directory, scene, pattern_set)
+    write_simulation_record(directory, scene, pattern_set, "complete", records, {"file": TRUTH_NAME, **constants})
     return {"directory": str(directory), "captures": str(captures), "photos": len(records),
             "truth": str(truth_path), "simulation": str(simulation_path), "profile": constants,
             "resolution": [scene.camera.width, scene.camera.height], "seed": scene.seed}

@@ -1,0 +1,72 @@
+"""Capture cameras: what ``lenticalib capture`` triggers after showing each test pattern.
+
+    gphoto2    a still camera tethered over USB, through the gphoto2 program      gphoto2, gphoto2:PORT
+    opencv     a webcam (UVC) or video stream through OpenCV                       opencv:0, opencv:/dev/video2
+    manual     the user presses the shutter; photos arrive in a watched folder,    manual:/folder, manual
+               or the user copies each one in place
+    sim        the virtual panel of :mod:`lenticalib.sim` photographed by its      sim, sim:SEED
+               virtual camera (writes truth.json and simulation.json as well)
+
+Every kind is a :class:`~.base.CaptureCamera`: ``open()``, ``settings()`` (what was locked and
+what could not be), ``capture(name, shown, destination)`` (one photo, put in place atomically as
+``destination`` + suffix), ``close()``; a context manager.  The backend modules import their
+heavy dependencies (OpenCV, the simulator) only when a camera opens or captures, so building the
+registry costs nothing.
+
+:func:`make_camera` turns a ``--camera`` spec into a camera without touching any hardware (to
+check the argument before the work starts); :func:`open_camera` also opens it.
+"""
+
+from __future__ import annotations
+
+from ...errors import InputError
+from .base import CaptureCamera
+from .gphoto2 import Gphoto2Camera
+from .manual import ManualCamera
+from .opencv import OpenCVCamera
+from .sim import SimCamera
+
+CAMERA_KINDS: dict[str, type[CaptureCamera]] = {
+    cls.kind: cls for cls in (Gphoto2Camera, OpenCVCamera, ManualCamera, SimCamera)}
+
+__all__ = ["CAMERA_KINDS", "CaptureCamera", "make_camera", "open_camera", "parse_spec"]
+
+
+def parse_spec(spec: str) -> tuple[str, str | None]:
+    """``"KIND"`` or ``"KIND:TARGET"`` -> (kind, target or None), split at the first colon.
+
+    InputError naming ``--camera`` for an empty spec, an empty target or an unknown kind.
+    """
+    kinds = ", ".join(CAMERA_KINDS)
+    if not isinstance(spec, str) or not spec.strip():
+        raise InputError(f"no camera given ({spec!r})", source="--camera", hint=f"choose one of {kinds}")
+    kind, colon, target = spec.strip().partition(":")
+    kind = kind.strip().lower()
+    if kind not in CAMERA_KINDS:
+        raise InputError(f"unknown camera kind {kind!r}", source="--camera",
+                         hint=f"choose one of {kinds} (e.g. --camera opencv:0)")
+    if colon and not target.strip():
+        raise InputError(f"nothing after the colon in {spec!r}", source="--camera",
+                         hint=f"write {kind} alone, or {kind}:TARGET")
+    return kind, (target if colon else None)
+
+
+def make_camera(spec: str, **options) -> CaptureCamera:
+    """The camera a ``--camera`` spec names, constructed but not opened (no hardware is touched).
+
+    ``options`` are the kind's keyword options (see each module); InputError for a bad spec or
+    an option the kind does not take.
+    """
+    kind, target = parse_spec(spec)
+    return CAMERA_KINDS[kind](target, **options)
+
+
+def open_camera(spec: str, **options) -> CaptureCamera:
+    """:func:`make_camera`, then :meth:`~.base.CaptureCamera.open`: a connected camera.
+
+    Use it as ``with open_camera("opencv:0") as camera: ...`` (entering an open camera does not
+    open it again; leaving closes it).  CameraError if the camera cannot be opened.
+    """
+    camera = make_camera(spec, **options)
+    camera.open()
+    return camera

@@ -1,0 +1,97 @@
+"""Putting a photo in place: the destination's suffix, and atomic moves, copies and writes.
+
+A photo for pattern NAME lands at ``destination + suffix`` (``destination`` = ``DIR/captures/NAME``)
+through a temporary file in the same folder and ``os.replace``, so the fit never sees half a
+photo.  Temporary names start with a dot, which the fit skips (:mod:`lenticalib.calib.captures`),
+so even a file left behind by a killed process does not break the capture set.  After the new
+photo is in place, a photo of the same pattern with *another* suffix (``NAME.png`` when
+``NAME.jpg`` was just taken) is removed: the fit takes one photo per pattern.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from ...atomic import write_bytes_atomic
+from ...errors import CameraError
+from ..captures import PHOTO_SUFFIXES
+
+__all__ = ["PHOTO_SUFFIXES", "copy_photo", "existing_photos", "photo_path", "place_photo", "write_photo"]
+
+
+def photo_path(destination: Path, suffix: str) -> Path:
+    """``destination`` with ``suffix`` appended (lower-cased), e.g. ``captures/x0-0`` + ``.JPG`` ->
+    ``captures/x0-0.jpg``.  Appended, not substituted: a name like ``f16.5-0`` keeps its dot."""
+    return destination.with_name(destination.name + suffix.lower())
+
+
+def existing_photos(destination: Path) -> list[Path]:
+    """The files ``destination`` + any photo suffix (any case) that exist now, sorted by name."""
+    folder = destination.parent
+    try:
+        entries = list(folder.iterdir())
+    except OSError:
+        return []
+    return sorted(p for p in entries if p.is_file() and p.name[: len(destination.name)] == destination.name
+                  and p.name[len(destination.name):].lower() in PHOTO_SUFFIXES)
+
+
+def _drop_other_suffixes(final: Path, destination: Path) -> None:
+    for other in existing_photos(destination):
+        if other.name != final.name:
+            try:
+                other.unlink()
+            except FileNotFoundError:
+                pass
+
+
+def place_photo(temporary: Path, destination: Path, suffix: str) -> Path:
+    """Move ``temporary`` (a file in the destination's folder or below it) to ``destination`` +
+    ``suffix`` with ``os.replace``; returns the final path."""
+    final = photo_path(destination, suffix)
+    try:
+        os.replace(temporary, final)
+    except OSError as exc:
+        raise CameraError(f"cannot store the photo: {exc.strerror}", source=str(final),
+                          hint="check free space and permissions of the capture folder") from None
+    _drop_other_suffixes(final, destination)
+    return final
+
+
+def write_photo(data: bytes, destination: Path, suffix: str) -> Path:
+    """Write the encoded photo ``data`` to ``destination`` + ``suffix`` atomically; returns the path."""
+    final = write_bytes_atomic(photo_path(destination, suffix), data)
+    _drop_other_suffixes(final, destination)
+    return final
+
+
+def copy_photo(source: Path, destination: Path) -> Path:
+    """Copy ``source`` (left where it is) to ``destination`` + its own suffix atomically; returns the path."""
+    folder = destination.parent
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{destination.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise CameraError(f"cannot write here: {exc.strerror}", source=str(folder),
+                          hint="choose a writable capture folder") from None
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a photo is an ordinary file
+        with os.fdopen(fd, "wb") as out, open(source, "rb") as src:
+            shutil.copyfileobj(src, out, 1 << 20)
+            out.flush()
+            os.fsync(out.fileno())
+    except BaseException as exc:
+        Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise CameraError(f"cannot copy the photo: {exc.strerror}", source=str(source),
+                              hint="check that the file is readable and the capture folder writable") from None
+        raise
+    try:
+        return place_photo(Path(tmp), destination, source.suffix)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

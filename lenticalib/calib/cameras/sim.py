@@ -1,0 +1,180 @@
+"""The virtual panel as the camera: a full show -> photograph -> fit run without hardware.
+
+Spec: ``sim`` or ``sim:SEED``.  Options: ``seed`` (default the spec's, else 1), ``resolution``
+camera (w, h) in pixels or ``"WxH"`` (default 1800x1200; the fit needs at least 1 megapixel),
+``conditions`` ("standard" or "hard", see :data:`lenticalib.sim.scene.CONDITIONS`),
+``subsamples`` (rays per pixel side, default 3).  ``timeout`` is accepted like every kind's and
+has nothing to bound: the virtual camera never waits.
+
+Each :meth:`capture` photographs the raster the panel shows (``shown``) with the simulator
+(:func:`lenticalib.sim.capture.photograph_pattern`: the same bytes ``lenticalib simulate``
+writes for that scene, pattern name and raster).  The scene, panel and camera, is drawn by
+:func:`lenticalib.sim.scene.random_scene` from the seed for the panel size of the first shown
+raster, which must match the pattern set's ``patterns.json`` in the capture set folder
+``DIR = destination.parent.parent``.  After every photo (and on :meth:`close`) the camera writes
+``DIR/truth.json`` and ``DIR/simulation.json`` as ``simulate`` does, listing the photos taken so far;
+the status is "complete" once every pattern of the set has been photographed, "in progress" before.
+
+Resuming: when ``DIR/simulation.json`` already describes the *same* scene (same seed, resolution,
+conditions and subsamples, same pattern set), its entries whose photos are still in place are
+kept, so a capture that goes on where it stopped ends "complete".  Photos of another scene are
+never listed: a folder mixing two scenes stays "in progress" until every pattern is photographed
+again.  What else is in ``DIR/captures`` is the caller's business.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import CameraError, InputError
+from .base import CaptureCamera
+from .files import write_photo
+
+DEFAULT_SEED = 1
+DEFAULT_RESOLUTION = (1800, 1200)
+DEFAULT_SUBSAMPLES = 3
+MAX_SIDE = 20000  # camera pixels per side
+_RESOLUTION = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+
+
+def parse_resolution(value) -> tuple[int, int]:
+    """``(w, h)`` or ``"WxH"`` -> (w, h) camera pixels, each 16..20000; InputError naming --camera otherwise."""
+    if isinstance(value, str):
+        match = _RESOLUTION.match(value)
+        pair = (int(match.group(1)), int(match.group(2))) if match else None
+    else:
+        try:
+            pair = tuple(int(v) for v in value)
+        except (TypeError, ValueError):
+            pair = None
+    if pair is None or len(pair) != 2 or not all(16 <= v <= MAX_SIDE for v in pair):
+        raise InputError(f"bad virtual camera resolution {value!r}", source="--camera sim",
+                         hint=f"give WIDTHxHEIGHT in pixels, 16..{MAX_SIDE} per side, e.g. 1800x1200")
+    return pair
+
+
+class SimCamera(CaptureCamera):
+    """A simulated camera in front of a simulated panel (see the module docstring)."""
+
+    kind = "sim"
+    OPTIONS = ("seed", "resolution", "conditions", "subsamples")
+
+    def __init__(self, target: str | None = None, **options):
+        super().__init__(target, **options)
+        from ...sim.scene import CONDITIONS
+
+        seed = self.options.get("seed")
+        if target is not None:
+            if not target.strip().isdigit():
+                raise InputError(f"bad seed {target!r}", source="--camera",
+                                 hint="give the simulation seed as a whole number, e.g. sim:7")
+            if seed is not None and seed != int(target):
+                raise InputError(f"seed {seed!r} contradicts the spec {self.spec!r}", source="--camera")
+            seed = int(target)
+        seed = DEFAULT_SEED if seed is None else seed
+        if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2 ** 63:
+            raise InputError(f"bad seed {seed!r}", source="--camera sim", hint="use a whole number 0..2^63-1")
+        self.seed = seed
+        self.resolution = parse_resolution(self.options.get("resolution", DEFAULT_RESOLUTION))
+        self.conditions = self.options.get("conditions", "standard")
+        if self.conditions not in CONDITIONS:
+            raise InputError(f"unknown conditions {self.conditions!r}", source="--camera sim",
+                             hint="choose one of " + ", ".join(CONDITIONS))
+        self.subsamples = self.options.get("subsamples", DEFAULT_SUBSAMPLES)
+        if not isinstance(self.subsamples, int) or isinstance(self.subsamples, bool) or not 1 <= self.subsamples <= 16:
+            raise InputError(f"option 'subsamples' must be 1..16, got {self.subsamples!r}", source="--camera sim")
+        self.scene = None
+        self.directory: Path | None = None
+        self.pattern_set = None
+        self._records: dict[str, dict] = {}
+        self._truth: dict | None = None
+
+    def _open(self) -> list[str]:
+        from ..captures import MIN_PHOTO_PIXELS
+
+        width, height = self.resolution
+        lines = [f"virtual camera: seed {self.seed}, {width}x{height} pixels, {self.subsamples}x{self.subsamples} "
+                 f"rays per pixel, conditions {self.conditions}; the scene is drawn for the panel size of the "
+                 "first pattern shown",
+                 "exposure, focus, white balance: fixed by the simulated scene"]
+        if width * height < MIN_PHOTO_PIXELS:
+            lines.append(f"resolution: {width}x{height} is below the {MIN_PHOTO_PIXELS / 1e6:g} megapixel "
+                         "'lenticalib fit' needs; these photos are for tests only")
+        return lines
+
+    def _start(self, shown: np.ndarray, directory: Path) -> None:
+        """Read the pattern set of ``directory`` and draw the scene for the shown panel size."""
+        from ...sim.scene import random_scene
+        from ..patterns import MANIFEST_NAME, read_manifest
+
+        pattern_set = read_manifest(directory)
+        height, width = shown.shape[:2]
+        if (pattern_set.width, pattern_set.height) != (width, height):
+            raise InputError(f"the shown raster is {width}x{height}, the pattern set is for a "
+                             f"{pattern_set.width}x{pattern_set.height} panel", source=str(directory / MANIFEST_NAME),
+                             hint="show the patterns of this folder")
+        self.scene = random_scene(self.seed, width=width, height=height, resolution=self.resolution,
+                                  conditions=self.conditions, subsamples=self.subsamples)
+        self.directory, self.pattern_set = directory, pattern_set
+        self._records = self._earlier_records()
+
+    def _earlier_records(self) -> dict[str, dict]:
+        """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
+        photos are still there (a resumed capture); empty otherwise."""
+        from ...sim.capture import SIMULATION_NAME
+        from ...sim.scene import Scene
+
+        try:
+            record = json.loads((self.directory / SIMULATION_NAME).read_text())
+            same = (Scene.from_dict(record) == self.scene
+                    and record["pattern_set"]["set_id"] == self.pattern_set.set_id)
+            entries = [c for c in record["captures"] if isinstance(c, dict)]
+        except (OSError, ValueError, KeyError, TypeError, InputError):  # none, or not ours: start afresh
+            return {}
+        if not same:
+            return {}
+        names = set(self.pattern_set.names)
+        return {c["pattern"]: c for c in entries if c.get("pattern") in names
+                and isinstance(c.get("file"), str) and (self.directory / c["file"]).is_file()}
+
+    def _capture(self, name, shown, destination: Path) -> Path:
+        from ...sim.capture import photo_record, photograph_pattern, write_truth
+
+        if shown is None:
+            raise CameraError("the virtual camera photographs the shown raster, and none was given",
+                              source=self.spec, hint="pass the pattern image shown on the panel")
+        directory = destination.parent.parent
+        if self.scene is None:
+            self._start(shown, directory)
+        elif directory.resolve() != self.directory.resolve():
+            raise InputError(f"this virtual camera already photographs {self.directory}", source=str(destination),
+                             hint="open another camera for another capture set")
+        optics = self.scene.optics
+        if shown.shape[:2] != (optics.height, optics.width):
+            raise InputError(f"the shown raster is {shown.shape[1]}x{shown.shape[0]}, the simulated panel "
+                             f"{optics.width}x{optics.height}", source="shown",
+                             hint="show every pattern at the panel size")
+        path = write_photo(photograph_pattern(self.scene, name, np.ascontiguousarray(shown)), destination, ".jpg")
+        self._records[name] = photo_record(self.scene, name, path.relative_to(directory).as_posix())
+        if self._truth is None:
+            from ...sim.capture import TRUTH_NAME
+
+            _, constants = write_truth(directory, self.scene, self.pattern_set)
+            self._truth = {"file": TRUTH_NAME, **constants}
+        self._write_record()
+        return path
+
+    def _write_record(self) -> None:
+        from ...sim.capture import write_simulation_record
+
+        complete = set(self.pattern_set.names) <= set(self._records)
+        write_simulation_record(self.directory, self.scene, self.pattern_set,
+                                "complete" if complete else "in progress", list(self._records.values()), self._truth)
+
+    def _close(self) -> None:
+        if self.scene is not None and self._records:
+            self._write_record()
