@@ -113,7 +113,8 @@ class _Registration:
             shift = self.reference.measure(photo.luma)
             scale = photo.scale
             self.shifts[photo.name] = {"dx": shift.dx / scale, "dy": shift.dy / scale,
-                                       "sigma": shift.sigma / scale, "measured": shift.measured}
+                                       "sigma": shift.sigma / scale if math.isfinite(shift.sigma) else None,
+                                       "measured": shift.measured}
             if not shift.measured:
                 self.warnings.append(f"camera motion of photo {photo.path.name} could not be measured "
                                      f"({shift.note}); it is not corrected")

@@ -35,7 +35,7 @@ OUTLINE_SEARCH = 1.4  # frame widths beyond the fringe region where the outline 
 MAX_ITERATIONS = 30
 MAX_MEASURABLE_SIGMA = 0.2  # working pixels: a shift known worse than this is "not measured"
 SMOOTHING = 0.7  # working pixels: both images are Gaussian-smoothed before aligning (see measure)
-MIN_EXPLAINED = 0.8  # of the band's variance that the aligned reference must explain
+MIN_EXPLAINED = 0.5  # of the band's variance that the aligned reference must explain
 MAX_BAND_PIXELS = 150_000  # the band is thinned evenly to about this many pixels (speed)
 
 

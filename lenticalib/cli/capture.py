@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..calib.acquire import capture_set, wait_for_key
-    from ..calib.cameras import open_camera
+    from ..calib.cameras import make_camera
     from ..calib.patterns import read_manifest
     from ..errors import DisplayError, InputError
     from ..render.present import open_presenter
@@ -54,14 +54,15 @@ def run(args: argparse.Namespace) -> int:
     kind = args.camera.split(":", 1)[0]
     display = args.display if args.display is not None else ("offscreen" if kind == "sim" else None)
     settle = args.settle if args.settle is not None else (0.0 if kind == "sim" else 0.5)
-    presenter = open_presenter(display, size)
     options = {"timeout": args.timeout}
     if kind == "sim":
         w, h = _resolution(args.resolution)
         options.update(resolution=(w, h), conditions=args.conditions)
     if kind == "manual" and ":" not in args.camera:
         options["wait_for_user"] = lambda name: wait_for_key(presenter, name)
-    camera = open_camera(args.camera, **options)
+    camera = make_camera(args.camera, **options)  # the spec and options checked; no hardware touched yet
+    presenter = open_presenter(display, size)
+    camera.open()
     with camera:  # the camera first: a camera that will not open fails before the panel goes full screen
         try:
             presenter.open()

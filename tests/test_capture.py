@@ -1,0 +1,176 @@
+"""Guided capture: show -> photograph -> check -> file, with the virtual panel as the camera.
+
+End to end on a virtual display (Xvfb) through the real window presenter, then the fit; resume
+after an interruption; retakes of a bad photo; and one-line refusals of bad input.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from lenticalib.calib import acquire
+from lenticalib.calib.cameras import open_camera
+from lenticalib.calib.compare import compare_profiles
+from lenticalib.calib.fit import fit_capture_set
+from lenticalib.calib.patterns import design_patterns, write_patterns
+from lenticalib.errors import CaptureError
+from lenticalib.profile import load_profile
+from lenticalib.render.present import open_presenter
+
+from .display_support import VirtualDisplay
+
+W, H, VIEWS = 640, 360, 8
+CAMERA = "1200x900"
+
+
+@pytest.fixture(scope="module")
+def xvfb():
+    display = VirtualDisplay(W, H)
+    yield display
+    display.close()
+
+
+@pytest.fixture(scope="module")
+def pattern_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("patterns") / "cal"
+    write_patterns(folder, design_patterns(W, H, VIEWS))
+    return folder
+
+
+def _cli(args, env=None, timeout=600):
+    return subprocess.run([sys.executable, "-m", "lenticalib", *map(str, args)], env=env or dict(os.environ),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def captured(xvfb, pattern_dir, tmp_path_factory):
+    """``lenticalib capture DIR --camera sim:3 --display 0`` on the virtual display, then the fit."""
+    folder = tmp_path_factory.mktemp("capture") / "cal"
+    shutil.copytree(pattern_dir, folder)
+    result = _cli(["capture", folder, "--camera", "sim:3", "--display", "0", "--resolution", CAMERA], xvfb.env())
+    assert result.returncode == 0, result.stderr
+    fit = _cli(["fit", folder, "-o", folder.parent / "profile.json"])
+    return folder, result, fit
+
+
+def test_capture_with_the_virtual_camera_then_fit(captured):
+    folder, result, fit = captured
+    assert "captured 23 photo(s), kept 0 from before, 0 retaken" in result.stdout
+    assert sorted(p.name for p in (folder / "captures").iterdir()) == sorted(
+        f"{n}.jpg" for n in design_patterns(W, H, VIEWS).names)
+    record = json.loads((folder / "simulation.json").read_text())
+    assert record["status"] == "complete"
+    assert fit.returncode == 0, fit.stderr
+    difference = compare_profiles(load_profile(folder.parent / "profile.json"), load_profile(folder / "truth.json"))
+    assert difference.order_match
+    assert difference.rms <= 0.05 and difference.worst <= 0.15 and abs(difference.centring) <= 0.25, difference
+
+
+def test_the_virtual_camera_photographs_what_the_screen_showed(captured, tmp_path):
+    """The same scene photographed straight from the pattern PNGs (``lenticalib simulate``) gives
+    the same photos: the window presenter put the patterns on screen unchanged."""
+    folder, _, _ = captured
+    reference = tmp_path / "cal"
+    shutil.copytree(folder, reference)
+    shutil.rmtree(reference / "captures")
+    for name in ("simulation.json", "truth.json"):
+        (reference / name).unlink()
+    write_patterns(reference, design_patterns(W, H, VIEWS))
+    result = _cli(["simulate", reference, "--seed", "3", "--resolution", CAMERA])
+    assert result.returncode == 0, result.stderr
+    for name in ("x1-0", "f16-2", "order-b"):
+        assert (reference / "captures" / f"{name}.jpg").read_bytes() == (folder / "captures" / f"{name}.jpg").read_bytes()
+
+
+def test_an_interrupted_capture_resumes_where_it_stopped(captured, tmp_path):
+    folder, _, _ = captured
+    again = tmp_path / "cal"
+    shutil.copytree(folder, again)
+    for name in ("y1-2", "f22-0", "order-r"):
+        (again / "captures" / f"{name}.jpg").unlink()
+    before = {p.name: p.read_bytes() for p in (again / "captures").iterdir()}
+    result = _cli(["capture", again, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA])
+    assert result.returncode == 0, result.stderr
+    assert "captured 3 photo(s), kept 20 from before" in result.stdout
+    for name, data in before.items():
+        assert (again / "captures" / name).read_bytes() == data  # kept, not retaken
+    assert (again / "captures" / "f22-0.jpg").read_bytes() == (folder / "captures" / "f22-0.jpg").read_bytes()
+    assert json.loads((again / "simulation.json").read_text())["status"] == "complete"
+
+
+class _FirstPhotoBlack:
+    """A camera that delivers a black photo first for chosen patterns, then what the virtual camera takes."""
+
+    def __init__(self, inner, black):
+        self.inner, self.black, self.kind = inner, set(black), "sim"
+
+    def settings(self):
+        return self.inner.settings()
+
+    def capture(self, name, shown, destination):
+        if name in self.black:
+            self.black.discard(name)
+            from lenticalib.imageio import write_image
+
+            return write_image(destination.with_suffix(".png"), np.zeros((900, 1200, 3), np.uint8))
+        return self.inner.capture(name, shown, destination)
+
+
+def test_a_bad_photo_is_retaken_at_once_and_kept_aside(pattern_dir, tmp_path):
+    folder = tmp_path / "cal"
+    shutil.copytree(pattern_dir, folder)
+    notes = []
+    with open_camera("sim:5", resolution=(1200, 900)) as sim, open_presenter("none", (W, H)) as presenter:
+        camera = _FirstPhotoBlack(sim, {"x0-1", "f16-0"})
+        report = acquire.capture_set(folder, presenter, camera, settle=0.0, notify=notes.append)
+    assert report.retakes == {"x0-1": 1, "f16-0": 1}
+    assert len(report.taken) == 23
+    assert sorted(p.name for p in (folder / "rejected").iterdir()) == ["f16-0-1.png", "x0-1-1.png"]
+    assert any("x0-1.png is black or far too dark: retaking it" in n for n in notes)
+    assert not list((folder / "captures").glob("*.png"))
+
+
+def test_a_photo_that_stays_bad_stops_the_capture_naming_it(pattern_dir, tmp_path):
+    class AlwaysBlack(_FirstPhotoBlack):
+        def capture(self, name, shown, destination):
+            self.black.add(name)
+            return super().capture(name, shown, destination)
+
+    folder = tmp_path / "cal"
+    shutil.copytree(pattern_dir, folder)
+    with open_camera("sim:5", resolution=(1200, 900)) as sim, open_presenter("none", (W, H)) as presenter:
+        with pytest.raises(CaptureError, match=r"x0-0\.jpg: is black or far too dark; rejected 2 times"):
+            acquire.capture_set(folder, presenter, AlwaysBlack(sim, ()), settle=0.0, retakes=1)
+    assert len(list((folder / "rejected").iterdir())) == 2
+
+
+def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path):
+    folder = tmp_path / "cal"
+    shutil.copytree(pattern_dir, folder)
+    foreign = tmp_path / "foreign"
+    shutil.copytree(pattern_dir, foreign)
+    (foreign / "captures").mkdir()
+    (foreign / "captures" / "holiday.jpg").write_bytes(b"x")
+    no_gphoto2 = dict(os.environ, PATH="/nonexistent")
+    big = tmp_path / "big"
+    write_patterns(big, design_patterns(800, 600, VIEWS))
+    cases = [
+        (["capture", folder, "--camera", "polaroid"], None, "--camera: unknown camera kind 'polaroid'"),
+        (["capture", folder, "--camera", "opencv:97", "--display", "none"], None, "97"),
+        (["capture", folder, "--camera", "gphoto2", "--display", "none"], no_gphoto2, "gphoto2 is not installed"),
+        (["capture", tmp_path / "nowhere", "--camera", "sim"], None, "patterns.json"),
+        (["capture", foreign, "--camera", "sim", "--display", "none"], None, "holds files that are not photos"),
+        (["capture", big, "--camera", "sim", "--display", "0"], xvfb.env(), "is 640x360"),
+        (["capture", folder, "--camera", "sim", "--settle", "-1"], None, "--settle"),
+    ]
+    for args, env, message in cases:
+        result = _cli(args, env, timeout=120)
+        assert result.returncode == 2, (args, result.stdout, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], (args, result.stderr)
+    assert not (folder / "captures").exists() or not any((folder / "captures").iterdir())
