@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from lenticalib.errors import DisplayError, ImageError
-from lenticalib.render.present import Monitor, OffscreenPresenter, WindowPresenter, choose_monitor, list_monitors
+from lenticalib.render.monitors import Monitor, choose_monitor, list_monitors
+from lenticalib.render.present import OffscreenPresenter, WindowPresenter
 
 from .display_support import VirtualDisplay
 

@@ -135,13 +135,10 @@ class Reference:
     def measure(self, image: np.ndarray) -> Shift:
         """Shift of ``image`` (h, w) against the reference: Gauss-Newton on translation, gain, offset.
 
-        Both images are band-passed first (:func:`smoothed`): a translation commutes with the
-        filter; the smoothing keeps the lens sheet's texture near the sampling limit from making
-        the cubic interpolation's error depend on the shift, the high-pass keeps level changes
-        from looking like motion.
+        Both images are smoothed first (:func:`smoothed`): a translation commutes with the
+        filter, and it keeps texture near the sampling limit from making the cubic
+        interpolation's error depend on the shift.
         """
-        import cv2
-
         if image.shape != self.shape or self.rows.size < 100:
             return Shift(0.0, 0.0, math.inf, False, "no panel outline to align")
         img = smoothed(image)

@@ -27,6 +27,7 @@ from collections import deque
 import numpy as np
 
 from ..errors import DisplayError, ImageError
+from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, is_macos, list_monitors
 
 GL_DITHER = 0x0BD0
 GL_FRAMEBUFFER_SRGB = 0x8DB9
@@ -54,127 +55,12 @@ void main() {
 
 
 @dataclasses.dataclass(frozen=True)
-class Monitor:
-    """One monitor as the window system reports it.
-
-    ``index``: position in the window system's list (0 = primary); ``x, y``: its top-left on
-    the virtual desktop (screen pixels); ``width, height``: its current video mode (pixels);
-    ``refresh_hz``; ``scale``: the desktop's content scale (1.0 = none); ``bits``: red, green,
-    blue bits of the mode.
-    """
-
-    index: int
-    name: str
-    x: int
-    y: int
-    width: int
-    height: int
-    refresh_hz: int = 60
-    scale: tuple[float, float] = (1.0, 1.0)
-    bits: tuple[int, int, int] = (8, 8, 8)
-
-    def describe(self) -> str:
-        scale = "" if self.scale == (1.0, 1.0) else f", desktop scale {self.scale[0]:g}x{self.scale[1]:g}"
-        return (f"{self.index}: {self.name} {self.width}x{self.height} @ {self.refresh_hz} Hz at "
-                f"({self.x}, {self.y}), {self.bits[0]}-bit{scale}")
-
-
-@dataclasses.dataclass(frozen=True)
 class FrameTiming:
     """Milliseconds spent on one frame: ``upload`` (host -> pixel buffer -> texture, finished on
     the GPU) and ``present`` (draw and buffer swap; with vsync this waits for the display)."""
 
     upload_ms: float
     present_ms: float
-
-
-def _glfw():
-    try:
-        import glfw
-    except ImportError as exc:  # a dependency: should not happen in an installed lenticalib
-        raise DisplayError(f"glfw is not available ({exc})", hint="pip install glfw") from None
-    return glfw
-
-
-def _init_glfw():
-    glfw = _glfw()
-    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY") and os.name == "posix" \
-            and not _is_macos():
-        raise DisplayError("there is no display to show on (neither DISPLAY nor WAYLAND_DISPLAY is set)",
-                           hint="run on the computer the panel is connected to, or start a virtual one "
-                                "(Xvfb) and set DISPLAY")
-    glfw.set_error_callback(None)
-    if not glfw.init():
-        raise DisplayError(f"the window system did not start (DISPLAY={os.environ.get('DISPLAY', '')!r})",
-                           hint="check that the display is reachable (xset q) and that you may use it")
-    return glfw
-
-
-def _is_macos() -> bool:
-    import sys
-
-    return sys.platform == "darwin"
-
-
-def list_monitors() -> list[Monitor]:
-    """The monitors of the current display, primary first; DisplayError if there is no display."""
-    glfw = _init_glfw()
-    out = []
-    for index, handle in enumerate(glfw.get_monitors() or []):
-        mode = glfw.get_video_mode(handle)
-        x, y = glfw.get_monitor_pos(handle)
-        name = glfw.get_monitor_name(handle)
-        name = name.decode("utf-8", "replace") if isinstance(name, bytes) else str(name)
-        out.append(Monitor(index, name, int(x), int(y), int(mode.size.width), int(mode.size.height),
-                           int(mode.refresh_rate), tuple(float(s) for s in glfw.get_monitor_content_scale(handle)),
-                           (int(mode.bits.red), int(mode.bits.green), int(mode.bits.blue))))
-    if not out:
-        raise DisplayError("the display reports no monitors", hint="connect the panel and switch it on")
-    return out
-
-
-def choose_monitor(monitors: list[Monitor], spec: str | None = None,
-                   size: tuple[int, int] | None = None) -> Monitor:
-    """The monitor ``spec`` names, or the one whose mode is ``size`` (width, height).
-
-    ``spec``: an index ("1"), a position ("@3840,0": the monitor whose top-left is there), or
-    a name (case-insensitive, a unique part of it is enough).  Without ``spec``, the one monitor
-    whose current mode is ``size``; with neither, the primary.  DisplayError (listing the
-    monitors) when nothing or more than one matches.
-    """
-    listing = "; ".join(m.describe() for m in monitors)
-    if not monitors:
-        raise DisplayError("the display reports no monitors", hint="connect the panel and switch it on")
-    if spec is not None:
-        spec = spec.strip()
-        if spec.isdigit():
-            matches = [m for m in monitors if m.index == int(spec)]
-        elif spec.startswith("@"):
-            try:
-                x, y = (int(v) for v in spec[1:].split(","))
-            except ValueError:
-                raise DisplayError(f"position {spec!r} is not @X,Y", source="--display",
-                                   hint="e.g. --display @3840,0") from None
-            matches = [m for m in monitors if (m.x, m.y) == (x, y)]
-        else:
-            exact = [m for m in monitors if m.name.lower() == spec.lower()]
-            matches = exact or [m for m in monitors if spec.lower() in m.name.lower()]
-        if len(matches) != 1:
-            what = "no monitor matches" if not matches else f"{len(matches)} monitors match"
-            raise DisplayError(f"{what} {spec!r}; the monitors are: {listing}", source="--display",
-                               hint="give an index, @X,Y or a unique part of a name (lenticalib show --list-displays)")
-        return matches[0]
-    if size is not None:
-        matches = [m for m in monitors if (m.width, m.height) == tuple(size)]
-        if len(matches) == 1:
-            return matches[0]
-        if not matches:
-            raise DisplayError(f"no monitor shows {size[0]}x{size[1]} (the raster's size); the monitors are: "
-                               f"{listing}", source="--display",
-                               hint="set the panel to its native mode, or name the monitor with --display")
-        raise DisplayError(f"{len(matches)} monitors show {size[0]}x{size[1]}; the monitors are: {listing}",
-                           source="--display", hint="name the panel's monitor with --display")
-    return monitors[0]
 
 
 def check_raster(raster: np.ndarray, size: tuple[int, int], max_bits: int = 8, source: str | None = None) -> None:
@@ -337,7 +223,7 @@ class WindowPresenter(Presenter):
     def open(self) -> None:
         import moderngl
 
-        glfw = _init_glfw()
+        glfw = init_glfw()
         handle = self._monitor_handle(glfw)
         mode = glfw.get_video_mode(handle)
         glfw.default_window_hints()
@@ -381,16 +267,16 @@ class WindowPresenter(Presenter):
     def close(self) -> None:
         super().close()
         if self._window is not None:
-            glfw = _glfw()
+            glfw = glfw_module()
             glfw.destroy_window(self._window)
             self._window = None
             glfw.terminate()
 
     def _swap(self) -> None:
-        _glfw().swap_buffers(self._window)
+        glfw_module().swap_buffers(self._window)
 
     def _on_key(self, window, key, scancode, action, mods) -> None:
-        glfw = _glfw()
+        glfw = glfw_module()
         if action in (glfw.PRESS, glfw.REPEAT):
             name = _KEY_NAMES.get(key)
             if name is None:
@@ -399,7 +285,7 @@ class WindowPresenter(Presenter):
             self._keys.append(name)
 
     def keys(self, timeout: float = 0.0) -> list[str]:
-        glfw = _glfw()
+        glfw = glfw_module()
         if timeout > 0 and not self._keys:
             glfw.wait_events_timeout(timeout)
         glfw.poll_events()
@@ -438,7 +324,7 @@ class OffscreenPresenter(Presenter):
         import moderngl
 
         backend = self.backend
-        if backend is None and os.name == "posix" and not _is_macos() and not os.environ.get("DISPLAY"):
+        if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
             backend = "egl"  # no X server: EGL (a GPU driver's, or Mesa's surfaceless llvmpipe)
         kwargs = {"standalone": True, "require": 330}
         if backend:
