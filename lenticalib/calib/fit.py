@@ -104,8 +104,9 @@ class _Registration:
     def undo_shake(self, photos: list[Photo], capture: CaptureSet) -> None:
         """Measure every photo's shift against the reference and resample its luma to undo it.
 
-        Raises CaptureError only for a shift that is both large (> MAX_PHOTO_SHIFT) and clearly
-        measured (> 5 sigma); a shift that cannot be measured becomes a warning.
+        Raises CaptureError only for a shift that is large (> MAX_PHOTO_SHIFT), clearly measured
+        (> 5 sigma) and explains most of the outline's change (it removes more than half the
+        unshifted residual); a shift that cannot be measured becomes a warning.
         """
         if self.reference is None:
             return
@@ -119,7 +120,7 @@ class _Registration:
                 self.warnings.append(f"camera motion of photo {photo.path.name} could not be measured "
                                      f"({shift.note}); it is not corrected")
                 continue
-            if shift.size > MAX_PHOTO_SHIFT and shift.size > 5 * shift.sigma:
+            if shift.size > MAX_PHOTO_SHIFT and shift.size > 5 * shift.sigma and shift.improvement > 0.5:
                 raise CaptureError(f"the camera moved between photos: this photo is shifted by "
                                    f"{shift.size / scale:.1f} pixels (+- {shift.sigma / scale:.2f}) against group x1",
                                    source=str(photo.path),

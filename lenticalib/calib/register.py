@@ -35,7 +35,6 @@ OUTLINE_SEARCH = 1.4  # frame widths beyond the fringe region where the outline 
 MAX_ITERATIONS = 30
 MAX_MEASURABLE_SIGMA = 0.2  # working pixels: a shift known worse than this is "not measured"
 SMOOTHING = 0.7  # working pixels: both images are Gaussian-smoothed before aligning (see measure)
-MIN_EXPLAINED = 0.5  # of the band's variance that the aligned reference must explain
 MAX_BAND_PIXELS = 150_000  # the band is thinned evenly to about this many pixels (speed)
 
 
@@ -45,8 +44,10 @@ class Shift:
 
     ``dx, dy``: where a panel feature at (x, y) in the reference sits in this photo
     (x + dx, y + dy).  ``sigma``: 1-sigma of each component (pixels); ``measured``: False when
-    the alignment did not converge or the outline is too weak (then dx = dy = 0 and nothing
-    is undone).
+    the alignment did not converge, fits no better than no shift, or the outline is too weak
+    (then dx = dy = 0 and nothing is undone).  ``improvement``: the fraction of the unshifted
+    residual the shift removes (near 1 for a clear shift of several pixels; small for a shake
+    of a tenth of a pixel in a noisy photo, which is still measured).
     """
 
     dx: float
@@ -54,6 +55,7 @@ class Shift:
     sigma: float
     measured: bool
     note: str = ""
+    improvement: float = 0.0  # 1 - residual at the shift / residual unshifted: how much the shift explains
 
     @property
     def size(self) -> float:
@@ -167,15 +169,17 @@ class Reference:
             cov = noise * np.linalg.inv(design.T @ design)
         except np.linalg.LinAlgError:
             return Shift(0.0, 0.0, math.inf, False, "the panel outline is too faint to align")
-        explained = 1.0 - noise / max(float(np.var(moving)), 1e-30)
-        if explained < MIN_EXPLAINED:
-            return Shift(0.0, 0.0, math.inf, False,
-                         f"the panel outline does not match the reference ({100 * explained:.0f}% explained)")
+        still = sample(img, self.rows, self.cols, 0.0, 0.0)
+        still_fit, *_ = np.linalg.lstsq(design[:, 2:], still, rcond=None)
+        still_noise = float(np.mean((still - design[:, 2:] @ still_fit) ** 2))
+        if not noise <= still_noise:
+            return Shift(0.0, 0.0, math.inf, False, "no shift fits the panel outline better than none")
+        improvement = 1.0 - noise / max(still_noise, 1e-30)
         # neighbouring residuals are correlated (demosaicing, JPEG, the lens sheet): count ~4 pixels as one
         sigma = math.sqrt(4.0 * max(cov[0, 0], cov[1, 1], 0.0))
         if not sigma < MAX_MEASURABLE_SIGMA:
             return Shift(0.0, 0.0, sigma, False, f"the panel outline is too faint to align (1-sigma {sigma:.2f} px)")
-        return Shift(dx, dy, sigma, True)
+        return Shift(dx, dy, sigma, True, improvement=improvement)
 
 
 def smoothed(image: np.ndarray) -> np.ndarray:
