@@ -53,6 +53,22 @@ CONVENTION.  On import lenticalib sets ``i_ref = 0`` and
 is independent of which of the equivalent centres ``center + k`` the file holds).  On export
 ``center = i_ref / N + (s_ref + 1.5 + 3 (H - 0.5) C_r) / Delta``, reduced modulo 1 into [0, 1).
 
+WHICH WAY THE VIEWS RUN (``view_direction``).  Along a row, ``phase`` grows with ``x_s``
+(``P > 0``), so with ``invView = 1`` their view ``floor(frac(-phase) N)`` *falls* by ``N / Delta``
+per subpixel to the right inside every lenticule -- exactly lenticalib's ``w``, which falls by
+``N / Delta_r`` per subpixel (``Delta_r > 0``).  A lenticule focused on the pixel plane inverts:
+an eye at ``u_E`` sees ``u_P = u_c + (u_c - u_E) g / D`` (docs/optics.md), so an eye moving right
+(``u_E`` up) sees a point further left (``x_s`` down) under every lens, i.e. a *higher* view.
+Hence ``invView = 1`` on an unmirrored panel means the view index grows as the viewer moves
+right: ``view_direction = +1``, which is also what Looking Glass content assumes (quilt view 0
+is the leftmost camera, so it must reach the leftmost eye for the depth to be right).  With
+``invView = 0`` their view ``floor(frac(phase) N)`` would grow to the right across the
+subpixels, equal to ``N - 1 - `` lenticalib's view (but for ties): the opposite direction,
+which lenticalib's rule (``Delta_r > 0``, view index falling to the right) cannot express with
+their view numbering.  So import sets ``view_direction = +1``; export writes ``invView = 1``
+for ``+1`` (and for an unknown direction, the value every shipping device has; the CLI warns)
+and refuses a profile with ``view_direction = -1``.
+
 LIMITS.  lenticalib models only ``invView = 1`` with unflipped images (every shipping device);
 other files are refused.  Vertical lenses (``C_r = 0``) have no ``slope`` and cannot be exported.
 When ``Delta > N`` the LentiAvatar routing rule leaves the subpixels with ``frac(w) >= N / Delta`` dark, whereas
@@ -217,7 +233,8 @@ def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEF
     The profile: ``slant = 1 / slope`` (pixels per row), ``period = Delta`` (subpixels),
     ``reference_view = 0``, ``offset = s_ref`` in [0, Delta) (subpixels; see the module
     docstring), ``width``/``height`` = ``screenW``/``screenH``, ``subpixel_order`` ``"BGR"`` when
-    ``flipSubp`` else ``"RGB"``.  ``looking_glass`` keeps ``DPI``, ``viewCone``, ``serial``,
+    ``flipSubp`` else ``"RGB"``, ``view_direction = +1`` (``invView = 1``: module docstring).
+    ``looking_glass`` keeps ``DPI``, ``viewCone``, ``serial``,
     ``configVersion`` and every other field that is not a routing constant, so that
     :func:`visual_from_profile` can write them back.
 
@@ -231,7 +248,9 @@ def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEF
     inv_view = v.get("invView", 1.0)
     if inv_view != 1.0:
         raise ProfileError(f"field 'invView': is {inv_view!r}; lenticalib supports only invView = 1 "
-                           "(the view order of every shipping Looking Glass)", source=source)
+                           "(the view order of every shipping Looking Glass)", source=source,
+                           hint="invView = 0 runs the views the other way, which lenticalib's routing rule "
+                                "cannot express with the quilt's view numbers")
     for key in ("flipImageX", "flipImageY"):
         if v.get(key, 0.0) != 0.0:
             raise ProfileError(f"field '{key}': is {v[key]!r}; lenticalib supports only unflipped "
@@ -243,10 +262,13 @@ def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEF
     extras = {k: val for k, val in v.items() if k not in ROUTING_FIELDS}
     provenance = make_provenance("import-lkg", inputs=[path] if path is not None else [],
                                  views=views,
-                                 convention="i_ref = 0, s_ref reduced modulo Delta into [0, Delta)")
+                                 convention="i_ref = 0, s_ref reduced modulo Delta into [0, Delta)",
+                                 view_direction={"value": 1, "method": "import-lkg",
+                                                 "evidence": "invView = 1: the view index grows as the viewer "
+                                                             "moves right (module docstring of lenticalib.lkg)"})
     try:
         return PanelProfile(views=views, width=v["screenW"], height=v["screenH"],
-                            subpixel_order="BGR" if flip_subp else "RGB",
+                            subpixel_order="BGR" if flip_subp else "RGB", view_direction=1,
                             looking_glass=extras, provenance=provenance, **constants)
     except ProfileError as exc:  # re-attribute to the visual.json
         raise ProfileError(exc.message, source=source, hint=exc.hint) from None
@@ -286,10 +308,17 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
     other field stored in ``profile.looking_glass``.  Numeric fields are wrapped ``{"value": x}``.
     Re-importing it with the profile's ``views`` gives the same routing.
 
-    Raises ProfileError when the slant is 0 (vertical lenses have no slope) or no DPI is known.
+    Raises ProfileError when the slant is 0 (vertical lenses have no slope), no DPI is known, or
+    ``profile.view_direction`` is -1 (only ``invView = 1``, direction +1, is modelled; module
+    docstring).  An unknown direction is written as ``invView = 1``.
     """
     name = profile.name or "profile"
     extras = dict(profile.looking_glass or {})
+    if profile.view_direction == -1:
+        raise ProfileError("view_direction is -1 (the view index falls as the viewer moves right), which a "
+                           "visual.json with invView = 1 cannot express", source=name,
+                           hint="lenticalib writes only invView = 1, where the view index grows to the right; "
+                                "check the direction with 'lenticalib patterns --direction'")
     if profile.slant == 0:
         raise ProfileError("slant is 0 (vertical lenses), which a visual.json cannot express",
                            source=name, hint="Looking Glass panels always have slanted lenses")

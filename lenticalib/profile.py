@@ -10,8 +10,10 @@ A profile holds the routing constants (see ``docs/optics.md``; format: ``docs/pr
     width, height    panel raster in pixels (int)
     subpixel_order   "RGB" or "BGR": which colour sits at subpixel position 0, 1, 2
 
-plus a format version, optional 1-sigma uncertainties, optional Looking Glass extras and a
-provenance record (how, when and from which inputs it was made, with which lenticalib).
+plus a format version, the optional ``view_direction`` (+1: the view index grows as the viewer
+moves to the right; -1: it falls; absent: unknown), optional 1-sigma uncertainties, optional
+Looking Glass extras and a provenance record (how, when and from which inputs it was made,
+with which lenticalib).
 
 A hand-written file with only the eight constants loads as the current format.  Loading
 parses JSON only: nothing in the file is ever executed.  Saving is atomic.
@@ -52,8 +54,9 @@ REFERENCE_VIEW_LIMIT = 65535.0  # |i_ref| <= 65535 views
 SUBPIXEL_ORDERS = ("RGB", "BGR")
 CONSTANT_KEYS = ("views", "slant", "period", "offset", "reference_view", "width", "height",
                  "subpixel_order")
-OPTIONAL_KEYS = ("format", "format_version", "uncertainty", "provenance", "looking_glass", "name",
-                 "notes")
+OPTIONAL_KEYS = ("format", "format_version", "view_direction", "uncertainty", "provenance", "looking_glass",
+                 "name", "notes")
+VIEW_DIRECTIONS = (1, -1)
 
 
 def subpixel_position(order: str) -> tuple[int, int, int]:
@@ -68,6 +71,12 @@ class PanelProfile:
     Frozen and hashable on its routing fields, so derived tables can be cached per profile.
     ``uncertainty`` maps a constant's name to its 1-sigma; ``provenance`` and
     ``looking_glass`` are free-form JSON objects carried through load and save.
+
+    ``view_direction`` is which way the view index runs for a viewer in front of the panel,
+    facing it: +1 when it grows as the viewer moves to the right, -1 when it falls, None when
+    unknown.  It does not change the routing (which subpixel shows which view index) and is not
+    part of :meth:`routing_key` or of equality; a renderer needs it to draw view ``i`` from the
+    right side (``-1`` reverses the camera order, unknown risks inverted depth).
     """
 
     views: int
@@ -82,6 +91,7 @@ class PanelProfile:
     provenance: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
     looking_glass: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
     name: str | None = dataclasses.field(default=None, compare=False, hash=False)
+    view_direction: int | None = dataclasses.field(default=None, compare=False, hash=False)
 
     def __post_init__(self):
         _validate_constants(dataclasses.asdict(self), source="profile")
@@ -112,6 +122,8 @@ class PanelProfile:
             out["name"] = self.name
         for key in CONSTANT_KEYS:
             out[key] = getattr(self, key)
+        if self.view_direction is not None:
+            out["view_direction"] = self.view_direction
         if self.uncertainty:
             out["uncertainty"] = dict(self.uncertainty)
         if self.looking_glass:
@@ -200,6 +212,11 @@ def _validate_constants(data: Mapping[str, Any], source: str) -> None:
     for key in ("provenance", "looking_glass"):
         if data.get(key) is not None and not isinstance(data[key], Mapping):
             fail(key, "must be a JSON object")
+    direction = data.get("view_direction")
+    if direction is not None and not (_is_int(direction) and direction in VIEW_DIRECTIONS):
+        fail("view_direction", f"must be 1 or -1 (or absent when unknown), got {direction!r}",
+             "+1: the view index grows as the viewer moves right; -1: it falls; see "
+             "'lenticalib patterns --direction'")
 
 
 def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
@@ -224,7 +241,7 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
                            hint="check the spelling; known fields are "
                                 + ", ".join(CONSTANT_KEYS + OPTIONAL_KEYS))
     fields = {k: data[k] for k in CONSTANT_KEYS}
-    for key in ("uncertainty", "provenance", "looking_glass", "name"):
+    for key in ("uncertainty", "provenance", "looking_glass", "name", "view_direction"):
         fields[key] = data.get(key)
     if fields["name"] is not None and not isinstance(fields["name"], str):
         raise ProfileError("field 'name': must be a string", source=source)
@@ -338,6 +355,63 @@ def describe_provenance(prov: Mapping[str, Any]) -> list[str]:
                  f"read on {prov['read']}" if prov.get("read") else None]
         lines.append(", ".join(p for p in parts if p))
     return lines
+
+
+def describe_direction(direction: int | None) -> str:
+    """``view_direction`` for people: ``"+1 (...)"``, ``"-1 (...)"`` or ``"unknown"``."""
+    if direction == 1:
+        return "+1 (the view index grows as the viewer moves right)"
+    if direction == -1:
+        return "-1 (the view index falls as the viewer moves right)"
+    return "unknown"
+
+
+def parse_direction(text: str, source: str = "DIRECTION") -> int | None:
+    """``"+1"``/``"1"`` -> 1, ``"-1"`` -> -1, ``"unknown"`` -> None; ProfileError naming ``source`` otherwise."""
+    value = {"+1": 1, "1": 1, "-1": -1, "unknown": None}.get(str(text).strip().lower(), 0)
+    if value == 0:
+        raise ProfileError(f"must be +1, -1 or unknown, got {text!r}", source=source,
+                           hint="+1 when a viewer moving right sees RIGHT on 'lenticalib patterns --direction', "
+                                "-1 when they see LEFT")
+    return value
+
+
+def direction_warning(profile: PanelProfile) -> str | None:
+    """The one-line warning a renderer prints for a profile whose ``view_direction`` is unknown.
+
+    RETURNED VALUE
+    None when ``profile.view_direction`` is +1 or -1; otherwise one line (no prefix, no newline)
+    saying the risk (inverted depth) and the two ways to find the direction.
+    """
+    if profile.view_direction in VIEW_DIRECTIONS:
+        return None
+    what = f"{profile.name!r}: " if profile.name else ""
+    return (f"{what}the profile does not say which way its views run: if they run right to left, "
+            "depth looks inverted (run 'lenticalib patterns --direction --profile P -o DIR', show "
+            "DIR/direction.png and set it with 'lenticalib profile set-direction P +1|-1', "
+            "or fit with --moved-right)")
+
+
+def with_direction(profile: PanelProfile, direction: int | None, method: str, **evidence) -> PanelProfile:
+    """A copy of ``profile`` with ``view_direction = direction`` and a note of how it was found.
+
+    The note goes into ``provenance["view_direction"]``: ``value``, ``method`` (e.g. "set by
+    hand", "moved-right"), ``set`` (UTC, ISO 8601), ``lenticalib_version``, ``command`` and
+    ``evidence`` (free-form, JSON-ready).  The rest of the provenance is kept.
+    """
+    from . import __version__
+
+    note: dict[str, Any] = {
+        "value": direction, "method": method,
+        "set": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "lenticalib_version": __version__,
+        "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]) if sys.argv and sys.argv[0] else None,
+    }
+    if evidence:
+        note["evidence"] = dict(evidence)
+    provenance = dict(profile.provenance or {})
+    provenance["view_direction"] = note
+    return profile.replace(view_direction=direction, provenance=provenance)
 
 
 def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) -> dict[str, Any]:

@@ -72,6 +72,14 @@ def test_corrupt_records_are_refused_with_a_status():
     assert info.value.status == "OUT_OF_RANGE"
 
 
+def test_the_record_does_not_hold_the_view_direction():
+    """Layout 1 has no room for it (its spare bits must be zero, see above); a record read back is unknown."""
+    records = {d: encode_record(record_from_profile(profile_b().replace(view_direction=d), serial="S",
+                                                    sequence=1, written=7)) for d in (None, 1, -1)}
+    assert records[None] == records[1] == records[-1]
+    assert parse_record(records[1]).to_profile().view_direction is None
+
+
 def test_frame_parser_resynchronises_after_garbage():
     frames = encode_frame(0x01, 7, b"") + b"\xa5\x05\x00garbage" + encode_frame(0x82, 8, b"\x00abc")
     parser = FrameParser()

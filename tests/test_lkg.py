@@ -427,3 +427,14 @@ def test_export_without_dpi_refused(tmp_path):
         with pytest.raises(ProfileError) as err:
             lkg.visual_from_profile(profile, dpi=bad)
         assert "dpi" in str(err.value).lower()
+
+
+def test_import_runs_the_views_left_to_right_and_export_refuses_the_other_way(tmp_path):
+    """invView = 1: the view index grows as the viewer moves right (view_direction +1, derivation
+    in the lkg module docstring; the physics is checked in test_view_direction.py)."""
+    profile = lkg.profile_from_visual(PORTRAIT, 45)
+    assert profile.view_direction == 1
+    assert lkg.visual_from_profile(profile)["invView"] == {"value": 1.0}
+    with pytest.raises(ProfileError) as err:
+        lkg.export_visual_json(profile.replace(view_direction=-1), tmp_path / "v.json")
+    assert "view_direction is -1" in str(err.value) and not (tmp_path / "v.json").exists()

@@ -22,6 +22,13 @@ def test_hand_written_eight_keys_load_as_current_format(tmp_path):
     assert p.to_dict()["format_version"] == 1
 
 
+def test_round_trip_keeps_the_view_direction_and_old_files_say_unknown(tmp_path):
+    assert load_profile(_write(tmp_path, EIGHT)).view_direction is None
+    for direction in (1, -1):
+        p = PanelProfile(**EIGHT, view_direction=direction)
+        assert load_profile(save_profile(p, tmp_path / "d.json")).view_direction == direction
+
+
 def test_round_trip_keeps_provenance_and_uncertainty(tmp_path):
     p = PanelProfile(**EIGHT, uncertainty={"slant": 1e-5}, provenance=make_provenance("test", inputs=[]))
     path = save_profile(p, tmp_path / "out.json")
@@ -43,6 +50,9 @@ def test_round_trip_keeps_provenance_and_uncertainty(tmp_path):
     ({"format": "something"}, "field 'format'"),
     ({"colour": 1}, "unknown field(s): colour"),
     ({"uncertainty": {"slant": -1}}, "uncertainty.slant"),
+    ({"view_direction": 0}, "field 'view_direction': must be 1 or -1"),
+    ({"view_direction": "+1"}, "field 'view_direction': must be 1 or -1"),
+    ({"view_direction": True}, "field 'view_direction': must be 1 or -1"),
 ])
 def test_bad_fields_name_the_file_and_field(tmp_path, change, message):
     path = _write(tmp_path, {**EIGHT, **change})

@@ -58,6 +58,7 @@ class FitResult:
     maps: dict
     seconds: float
     warnings: list[str] = dataclasses.field(default_factory=list)
+    direction: dict | None = None  # evidence of --moved-right (calib/direction.py), when given
 
 
 def _group_photos(capture: CaptureSet, group: str, shape: tuple[int, int] | None, progress: ProgressFn | None,

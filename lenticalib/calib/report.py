@@ -53,7 +53,8 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
     Keys: ``capture_set``, ``trusted``, ``problems``, ``warnings`` (checks that could not measure),
     ``seconds``, ``output`` (the profile path,
     or None when none was written), ``report`` (folder), ``profile`` (the profile as written,
-    its provenance without the quality block), ``quality`` (every quality number, once).
+    its provenance without the quality block), ``quality`` (every quality number, once), and
+    ``view_direction`` (the evidence of ``--moved-right``) when the fit had a second capture set.
     """
     profile = result.profile.to_dict()
     if "provenance" in profile:
@@ -64,6 +65,8 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
                "output": None if output is None else str(output),
                "report": None if report is None else str(report),
                "profile": profile, "quality": result.quality}
+    if getattr(result, "direction", None) is not None:
+        summary["view_direction"] = result.direction
     return json.loads(json.dumps(summary, default=_jsonable))
 
 

@@ -17,7 +17,8 @@ from ..errors import LenticalibError
 _COMMANDS = {
     "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),
     "profile": ("lenticalib.cli.profile", "show, validate, import, export or compare panel profiles"),
-    "patterns": ("lenticalib.cli.patterns", "write the calibration test patterns for a panel"),
+    "patterns": ("lenticalib.cli.patterns",
+                 "write the calibration test patterns for a panel (or, --direction, a LEFT/RIGHT check)"),
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
     "capture": ("lenticalib.cli.capture", "show each calibration pattern on the panel and photograph it"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),

@@ -109,6 +109,9 @@ def run_read(args) -> int:
         profile = panel.read_profile()
     save_profile(profile, args.output)
     print(f"read record #{profile.provenance['record_sequence']} from {args.url} into {args.output}")
+    print(f"note: the calibration record has no room for the view direction, so {args.output} says "
+          f"view_direction unknown; set it with 'lenticalib profile set-direction {args.output} +1|-1' "
+          "(see 'lenticalib patterns --direction')")
     return 0
 
 
@@ -124,6 +127,9 @@ def run_flash(args) -> int:
     from ._progress import progress_bar
 
     profile = load_profile(args.profile)  # validated before anything is sent
+    if profile.view_direction is not None:
+        _warn(f"{args.profile}: the calibration record has no room for view_direction "
+              f"({profile.view_direction:+d}); a profile read back from the panel says unknown, so keep this file")
     with PanelController.open(args.url) as panel, progress_bar(1, "flashing") as bar:
         def progress(done, total):
             bar.set_total(total)

@@ -10,6 +10,13 @@ into a hidden sibling and moved into place complete.  Outcomes:
 - an error (exit 2): nothing at all; an earlier profile and report stay as they were.
 
 ``--json`` prints the report's ``summary.json`` document (:func:`lenticalib.calib.report.fit_summary`).
+
+``--moved-right DIR2``: a second capture set of the same patterns, taken after moving the camera
+a few centimetres to the right at the same distance.  Both sets are fitted; the difference of
+the two fits gives the profile's ``view_direction`` (:mod:`lenticalib.calib.direction`), or
+leaves it unknown with a one-line warning saying why.  The profile and report are those of
+``DIR``.  ``DIR2`` is checked (a different folder, a complete capture set of the same pattern
+set) before the first fit starts.
 """
 
 from __future__ import annotations
@@ -28,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--views", type=int, help="number of views, 2..254 (default: the pattern set's)")
     parser.add_argument("--force", action="store_true",
                         help="write the profile even when the fit fails a quality gate")
+    parser.add_argument("--moved-right", metavar="DIR2",
+                        help="a second capture set of the same patterns, taken after moving the camera a few "
+                             "centimetres to the RIGHT (same distance): gives the profile's view_direction")
     parser.add_argument("--json", action="store_true", help="print the summary (the report's summary.json)")
     parser.set_defaults(run=run)
 
@@ -55,7 +65,27 @@ def check_arguments(args: argparse.Namespace):
         check_output_folder(report, "report", contents=REPORT_FILES)
     if os.path.abspath(report) == os.path.abspath(output):
         raise InputError("is also the profile path", source=str(report), hint="give the report another folder")
+    if args.moved_right is not None:
+        check_moved_right(args.directory, args.moved_right)
     return output, report
+
+
+def check_moved_right(directory, moved_right) -> None:
+    """InputError/CaptureError unless ``moved_right`` is another complete capture set of the same patterns."""
+    import os
+
+    from ..calib.captures import open_capture_set
+    from ..errors import InputError
+
+    if os.path.realpath(moved_right) == os.path.realpath(directory):
+        raise InputError("is the same capture set as DIR", source="--moved-right",
+                         hint="photograph the patterns again after moving the camera a few centimetres to the "
+                              "right, into a copy of the pattern folder")
+    first, second = open_capture_set(directory), open_capture_set(moved_right)
+    if first.patterns.set_id != second.patterns.set_id:
+        raise InputError(f"holds photos of pattern set {second.patterns.set_id}, {directory} of set "
+                         f"{first.patterns.set_id}", source=str(moved_right),
+                         hint="photograph the same patterns from both camera positions")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,13 +94,19 @@ def run(args: argparse.Namespace) -> int:
     from ..calib.fit import fit_capture_set
     from ..calib.report import REPORT_FILES, fit_summary, write_report
     from ..outputs import staged_folder
-    from ..profile import save_profile
+    from ..profile import describe_direction, save_profile
     from ._progress import progress_bar
 
     output, report_dir = check_arguments(args)
-    with progress_bar(24, "fitting") as bar:
+    with progress_bar(48 if args.moved_right else 24, "fitting") as bar:
         result = fit_capture_set(args.directory, views=args.views, camera_model=args.camera,
                                  progress=bar.update)
+        if args.moved_right:
+            from ..calib.direction import add_moved_right
+
+            second = fit_capture_set(args.moved_right, views=args.views, camera_model=args.camera,
+                                     progress=bar.update)
+            add_moved_right(result, second, args.moved_right)
     for warning in result.warnings:
         print(f"lenticalib: warning: {warning}", file=sys.stderr)
     profile = result.profile
@@ -88,6 +124,14 @@ def run(args: argparse.Namespace) -> int:
               f"slant {profile.slant:.7f} +- {unc.get('slant', 0):.2g} pixels/row, "
               f"offset {profile.offset:.4f} +- {unc.get('offset', 0):.2g} subpixels, "
               f"reference view {profile.reference_view:g}, order {profile.subpixel_order}")
+        if result.direction is not None:
+            d = result.direction
+            sigma = "?" if d["sigma_views"] is None else f"{d['sigma_views']:.3f}"
+            print(f"view direction {describe_direction(profile.view_direction)}: the camera moved right sees "
+                  f"{d['delta_w_views']:+.3f} +- {sigma} views")
+        else:
+            print("view direction unknown (one camera position cannot tell it: fit with --moved-right DIR2, or "
+                  "use 'lenticalib patterns --direction')")
         q = result.quality
         print(f"residual {q['block_residual_rms_views']:.3f} views RMS over panel blocks "
               f"({q['block_residual_smooth_rms_views']:.3f} smooth); predicted 1-sigma error "

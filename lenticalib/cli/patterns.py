@@ -5,6 +5,10 @@ may be new (its parent must exist: no missing folders are created) or an existin
 pattern PNGs and ``patterns.json`` are all or nothing: a run that fails (or is interrupted)
 puts the earlier ones back (or removes a folder it created), so a folder never holds patterns
 of two sets.
+
+``--direction --profile P -o DIR`` writes instead ``DIR/direction.png``: the panel raster of a
+pattern whose views say LEFT (index < N/2) or RIGHT (index >= N/2), to find the profile's
+``view_direction`` by looking (:mod:`lenticalib.calib.direction`).
 """
 
 from __future__ import annotations
@@ -15,18 +19,41 @@ MAX_SIDE = 16384  # panel raster pixels per side (16K panels)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--width", type=int, default=3840, help="panel raster width in pixels (default 3840)")
-    parser.add_argument("--height", type=int, default=2160, help="panel raster height in pixels (default 2160)")
-    parser.add_argument("--views", type=int, default=32, help="number of views (default 32)")
+    parser.add_argument("--width", type=int, help="panel raster width in pixels (default 3840)")
+    parser.add_argument("--height", type=int, help="panel raster height in pixels (default 2160)")
+    parser.add_argument("--views", type=int, help="number of views (default 32)")
     parser.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the PNGs and patterns.json")
+    parser.add_argument("--direction", action="store_true",
+                        help="write DIR/direction.png instead: views saying LEFT / RIGHT, encoded with --profile, "
+                             "to see which way the views run")
+    parser.add_argument("--profile", metavar="P", help="the panel profile (with --direction)")
     parser.set_defaults(run=run)
 
 
+DEFAULTS = {"width": 3840, "height": 2160, "views": 32}
+
+
 def check_options(args: argparse.Namespace) -> None:
-    """InputError naming the option when the panel size or the view count is out of range."""
+    """InputError naming the option when the panel size or the view count is out of range, or an
+    option does not belong to the chosen mode (calibration patterns, or ``--direction``)."""
     from ..errors import InputError
     from ..profile import MAX_VIEWS
 
+    if args.direction:
+        if args.profile is None:
+            raise InputError("needs the panel's profile", source="--direction",
+                             hint="e.g. lenticalib patterns --direction --profile profile.json -o check")
+        for key in DEFAULTS:
+            if getattr(args, key) is not None:
+                raise InputError("is taken from the profile with --direction", source=f"--{key}",
+                                 hint="leave it out")
+        return
+    if args.profile is not None:
+        raise InputError("is used only with --direction", source="--profile",
+                         hint="the calibration patterns need --width, --height and --views, not a profile")
+    for key, value in DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, value)
     for flag, value in (("--width", args.width), ("--height", args.height)):
         if not 64 <= value <= MAX_SIDE:
             raise InputError(f"{value} pixels is out of range", source=flag,
@@ -43,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
     from ._progress import progress_bar
 
     check_options(args)
+    if args.direction:
+        return run_direction(args)
     folder = check_output_folder(args.output, "patterns")
     pattern_set = design_patterns(args.width, args.height, args.views)
     written = ([folder / p.file for p in pattern_set.patterns] + [folder / MANIFEST_NAME]
@@ -55,4 +84,29 @@ def run(args: argparse.Namespace) -> int:
     print("next: show each PNG full screen on the panel, photograph it from the viewing position with the "
           f"camera on a tripod, and save the photos as {args.output}/captures/NAME.jpg; then run "
           f"'lenticalib fit {args.output} -o profile.json'")
+    return 0
+
+
+def run_direction(args: argparse.Namespace) -> int:
+    """``--direction``: write DIR/direction.png and say how to read it."""
+    from ..calib.direction import DIRECTION_PATTERN_NAME, direction_raster
+    from ..imageio import check_image_output, write_image
+    from ..outputs import check_output_folder
+    from ..profile import describe_direction, load_profile
+
+    profile = load_profile(args.profile, "--profile")
+    folder = check_output_folder(args.output, "direction pattern")
+    target = folder / DIRECTION_PATTERN_NAME
+    if folder.exists():  # a new folder is made only once the raster is ready
+        check_image_output(target, what="direction pattern")
+    raster = direction_raster(profile)
+    folder.mkdir(exist_ok=True)
+    write_image(target, raster)
+    last_left = (profile.views - 1) // 2
+    print(f"wrote {target} ({profile.width}x{profile.height}, {profile.views} views: views 0..{last_left} "
+          f"say LEFT, the others RIGHT; the profile's view_direction is {describe_direction(profile.view_direction)})")
+    print(f"next: 'lenticalib show {target}'; close one eye and look at the panel from a little (10-20 cm) "
+          "to the RIGHT of where it was calibrated.  RIGHT: the views run left to right, "
+          f"'lenticalib profile set-direction {args.profile} +1'.  LEFT: they run right to left, "
+          f"'lenticalib profile set-direction {args.profile} -1'.")
     return 0

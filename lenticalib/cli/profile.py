@@ -1,4 +1,4 @@
-"""``lenticalib profile show|validate|import-lkg|export-lkg|compare``."""
+"""``lenticalib profile show|validate|import-lkg|export-lkg|compare|set-direction``."""
 
 from __future__ import annotations
 
@@ -33,11 +33,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     cmp_.add_argument("reference", metavar="B", help="the reference (e.g. a simulation's truth.json)")
     cmp_.add_argument("--json", action="store_true", help="print JSON")
     cmp_.set_defaults(run=run_compare)
+    direction = sub.add_parser("set-direction", help="record which way the profile's views run (+1, -1 or unknown)",
+                               description="Record which way the view index runs for a viewer facing the panel: "
+                                           "+1 when a viewer moving right sees RIGHT on the pattern of "
+                                           "'lenticalib patterns --direction', -1 when they see LEFT.")
+    direction.add_argument("profile", metavar="PROFILE")
+    direction.add_argument("direction", metavar="+1|-1|unknown")
+    direction.set_defaults(run=run_set_direction)
 
 
 def _print_profile(profile) -> None:
     """The constants of ``profile``, one per line with units and 1-sigma (``profile show``)."""
-    from ..profile import describe_provenance, format_constant
+    from ..profile import describe_direction, describe_provenance, format_constant
 
     unc = profile.uncertainty or {}
     rows = [("views", profile.views, ""), ("slant", profile.slant, "pixels/row"),
@@ -47,7 +54,11 @@ def _print_profile(profile) -> None:
     for name, value, unit in rows:
         sigma = f" +- {unc[name]:.3g}" if name in unc else ""
         print(f"{name:>15}  {format_constant(name, value)}{sigma} {unit}".rstrip())
-    if profile.provenance:
+    how = (profile.provenance or {}).get("view_direction")
+    how = (f"; {how['method']}" + (f" on {how['set']}" if how.get("set") else "")
+           if isinstance(how, dict) and how.get("method") and profile.view_direction is not None else "")
+    print(f"{'view_direction':>15}  {describe_direction(profile.view_direction)}{how}")
+    if profile.provenance and set(profile.provenance) - {"view_direction"}:
         for label, line in zip(("made by", "from"), describe_provenance(profile.provenance)):
             print(f"{label:>15}  {line}")
 
@@ -99,6 +110,11 @@ def run_export(args) -> int:
     profile = load_profile(args.profile, "PROFILE")
     check_output_file(args.output, "visual.json")
     export_visual_json(profile, args.output, dpi=args.dpi)
+    if profile.view_direction is None:
+        import sys
+
+        print(f"lenticalib: warning: {args.profile}: view_direction is unknown; the visual.json says invView = 1 "
+              "(view index growing to the viewer's right, as on every Looking Glass)", file=sys.stderr)
     print(f"wrote {args.output}")
     return 0
 
@@ -109,9 +125,14 @@ def run_compare(args) -> int:
 
     a, b = load_profile(args.profile, "A"), load_profile(args.reference, "B")
     diff = compare_profiles(a, b)
+    # True/False when both profiles know their direction, None when either does not
+    direction_match = (None if a.view_direction is None or b.view_direction is None
+                       else a.view_direction == b.view_direction)
     if args.json:
         out = diff.to_dict()
-        out.update({"period_error": a.period - b.period, "slant_error": a.slant - b.slant})
+        out.update({"period_error": a.period - b.period, "slant_error": a.slant - b.slant,
+                    "view_direction": [a.view_direction, b.view_direction],
+                    "view_direction_match": direction_match})
         print(json.dumps(out))
         return 0
     print(f"{args.profile} against {args.reference}, w - w_ref over {diff.subpixels} subpixels:")
@@ -121,4 +142,25 @@ def run_compare(args) -> int:
     print(f"  slant           {a.slant:.7f} vs {b.slant:.7f} pixels/row ({a.slant - b.slant:+.2e})")
     print(f"  subpixel order  {a.subpixel_order} vs {b.subpixel_order}"
           f"{'' if diff.order_match else '  MISMATCH'}")
+    note = {True: "", False: "  MISMATCH (one of them shows inverted depth)",
+            None: "  (not compared: unknown)"}[direction_match]
+    print(f"  view direction  {_direction_text(a.view_direction)} vs {_direction_text(b.view_direction)}{note}")
+    return 0
+
+
+def _direction_text(direction) -> str:
+    return {1: "+1", -1: "-1"}.get(direction, "unknown")
+
+
+def run_set_direction(args) -> int:
+    from ..profile import describe_direction, load_profile, parse_direction, save_profile, with_direction
+
+    direction = parse_direction(args.direction, "DIRECTION")  # before the file is read
+    profile = load_profile(args.profile, "PROFILE")
+    updated = with_direction(profile, direction, "set by hand (lenticalib profile set-direction)",
+                             previous=profile.view_direction)
+    save_profile(updated, args.profile)  # atomic: the old file stays whole if this fails
+    print(f"{args.profile}: view_direction {describe_direction(direction)}"
+          + ("" if profile.view_direction == direction else
+             f" (was {_direction_text(profile.view_direction)})"))
     return 0

@@ -24,7 +24,12 @@ normative table; this module and the emulated firmware both implement it):
        100   24  reserved, zero
        124    4  CRC-32 (IEEE 802.3, as zlib.crc32) of bytes 0..123
 
-Floats are stored as f64 so a profile survives the round trip exactly.  The constants' ranges
+Floats are stored as f64 so a profile survives the round trip exactly.  A profile's
+``view_direction`` is *not* stored: layout 1 has no field for it, and its spare space cannot
+take it without breaking older peers -- bits 1..7 of ``flags`` and the reserved bytes must be
+zero, which every layout-1 firmware checks (COMMIT answers OUT_OF_RANGE; at boot such a slot is
+invalid) and every released host checks when it reads a record (it refuses the record).  A
+profile read from a panel therefore has ``view_direction`` None (unknown).  The constants' ranges
 (views, width, height, slant, period, offset, reference view) are those of every profile,
 :func:`lenticalib.profile.constants_problem`; this module adds only what the encoding itself
 needs (16-bit sizes, f32 sigmas, the serial's 16 ASCII bytes, 32/64-bit counters).
@@ -104,7 +109,7 @@ class CalibrationRecord:
         Provenance: ``method`` "read from device", ``created`` the record's ``written`` time
         (when the host built it, ISO 8601 UTC), ``read`` the time of this read,
         ``lenticalib_version`` of the reader, the device URL, the panel serial and the record's
-        sequence number.
+        sequence number.  ``view_direction`` is None: the record does not hold it (module docstring).
         """
         uncertainty = dict(zip(_SIGMA_KEYS, self.sigmas)) if self.sigmas else None
         prov = make_provenance("read from device", device_url=device_url, panel_serial=self.serial,

@@ -15,12 +15,12 @@ Heavy modules (numba, OpenCV) load on first use of :func:`photograph`.
 from __future__ import annotations
 
 from .camera import Camera
-from .optics import PanelOptics, truth_constants, truth_profile, view_coordinate_truth
+from .optics import PanelOptics, truth_constants, truth_profile, truth_view_direction, view_coordinate_truth
 from .scene import RANGES, Scene, random_scene
 
 __all__ = ["Camera", "PanelOptics", "RANGES", "Scene", "photograph", "photograph_jpeg", "random_scene",
            "render_radiance", "simulate_capture_set", "truth_constants", "truth_profile",
-           "view_coordinate_truth"]
+           "truth_view_direction", "view_coordinate_truth"]
 
 
 def __getattr__(name):

@@ -74,7 +74,7 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
     """Write ``DIR/truth.json``, the ideal profile for the camera position of ``scene``.
 
     Returns (its path, the constants recorded in ``simulation.json``: views, slant, period, offset,
-    reference_view, width, height, subpixel_order).
+    reference_view, width, height, subpixel_order, view_direction).
     """
     from ..calib.patterns import MANIFEST_NAME
     from ..profile import make_provenance, save_profile
@@ -85,7 +85,7 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
     profile = scene.truth_profile(pattern_set.views, name="simulation truth", provenance=provenance)
     truth_path = save_profile(profile, directory / TRUTH_NAME)
     constants = {k: getattr(profile, k) for k in ("views", "slant", "period", "offset", "reference_view",
-                                                   "width", "height", "subpixel_order")}
+                                                   "width", "height", "subpixel_order", "view_direction")}
     return truth_path, constants
 
 

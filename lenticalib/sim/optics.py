@@ -340,6 +340,33 @@ def truth_constants(optics: PanelOptics, eye, views: int) -> dict[str, float]:
     return {"slant": slant, "period": period, "offset": offset, "reference_view": views / 2.0}
 
 
+def truth_view_direction(optics: PanelOptics, eye, constants: Mapping[str, float], views: int) -> int:
+    """Which way the view index of a profile runs for a viewer near ``eye``: +1 or -1.
+
+    Found by ray tracing, not from the profile formula's sign conventions: an eye at ``eye`` and
+    one moved a quarter of a view zone to the right (world +x, same distance) look through the
+    same point of the lens plane, the panel centre; :meth:`PanelOptics.seen_point` gives the
+    pixel-plane point each sees, :meth:`PanelOptics.world_to_raster` its raster coordinates
+    ``(X, Y)``, and the profile ``constants`` (``slant``, ``period``, ``offset``,
+    ``reference_view``) its view coordinate ``w(X - 0.5, Y - 0.5)`` (the half-subpixel convention
+    of :func:`truth_profile`).  +1 when the moved eye sees a higher ``w`` (the circular difference,
+    a quarter view), else -1.  For this model (raster x along world x, lenses focused on the pixel
+    plane: ``u_P = u_c + (u_c - u_E) g / D``) it is always +1: moving the eye right moves the seen
+    point left, and ``w`` falls to the right.
+    """
+    ex, ey, ez = (float(c) for c in eye)
+    step = 0.25 * optics.view_zone_width(-ez, views)
+    n, period = views, constants["period"]
+    w = []
+    for dx in (0.0, step):
+        x_p, y_p = optics.seen_point((ex + dx, ey, ez), 0.0, 0.0)
+        X, Y = optics.world_to_raster(x_p, y_p)
+        w.append(constants["reference_view"]
+                 + (3.0 * constants["slant"] * (float(Y) - 0.5) + constants["offset"] - (float(X) - 0.5)) * n / period)
+    d = (w[1] - w[0] + n / 2) % n - n / 2
+    return 1 if d > 0 else -1
+
+
 def truth_profile(optics: PanelOptics, eye, views: int, *, name: str | None = None,
                   provenance: Mapping[str, Any] | None = None) -> PanelProfile:
     """The ideal profile of ``optics`` for a calibration camera at ``eye`` (world mm, z < 0).
@@ -347,9 +374,10 @@ def truth_profile(optics: PanelOptics, eye, views: int, *, name: str | None = No
     Its ``w(x_s, y)`` equals :func:`view_coordinate_truth` at every subpixel centre
     ``(x_s + 0.5, y + 0.5)`` modulo N, with the camera at ``w* = N/2``:
     ``C_r = tan(phi)``, ``Delta_r = 3 P_h (1 + g/D) / p``, ``i_ref = N/2`` and ``s_ref``
-    reduced into ``[0, Delta_r)``.
+    reduced into ``[0, Delta_r)``; ``view_direction`` from :func:`truth_view_direction`.
     """
     constants = truth_constants(optics, eye, views)
     return PanelProfile(views=int(views), width=optics.width, height=optics.height,
                         subpixel_order=optics.subpixel_order, name=name,
+                        view_direction=truth_view_direction(optics, eye, constants, int(views)),
                         provenance=dict(provenance) if provenance else None, **constants)
