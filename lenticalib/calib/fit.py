@@ -27,11 +27,12 @@ import numpy as np
 
 from ..errors import CalibrationError, CaptureError
 from ..profile import PanelProfile, make_provenance
-from . import model, phase, photometric, register
+from . import model, phase, photometric
 from .camera import estimate_camera, load_camera_model
-from .captures import CaptureSet, Photo, check_exposure, load_photo, open_capture_set
-from .checks import check_clipping, check_distinct, check_photo_steps, mask_checks
-from .patterns import FINE_PERIODS, PERIOD_RANGE, frame_width
+from .captures import CaptureSet, Photo, open_capture_set
+from .checks import check_clipping, check_photo_steps, mask_checks
+from .groups import Group, Registration, demodulate_group, group_photos
+from .patterns import FINE_PERIODS, PERIOD_RANGE
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
 ProgressFn = Callable[[str], None]
@@ -61,115 +62,7 @@ class FitResult:
     direction: dict | None = None  # evidence of --moved-right (calib/direction.py), when given
 
 
-def _group_photos(capture: CaptureSet, group: str, shape: tuple[int, int] | None, progress: ProgressFn | None,
-                  keep_rgb: bool = False) -> list[Photo]:
-    photos = []
-    for pattern in capture.patterns.group(group):
-        if progress:
-            progress(f"reading {capture.photo(pattern.name).name}")
-        photo = load_photo(pattern.name, capture.photo(pattern.name), keep_rgb=keep_rgb)
-        shape = shape or photo.shape
-        if photo.shape != shape:
-            raise CaptureError(f"is {photo.shape[1]}x{photo.shape[0]} pixels, the other photos are "
-                               f"{shape[1]}x{shape[0]}", source=str(photo.path),
-                               hint="take every photo with the same camera, zoom and orientation")
-        check_exposure(photo)
-        photos.append(photo)
-    return photos
-
-
-@dataclasses.dataclass
-class _Group:
-    name: str
-    period: float
-    z: np.ndarray
-    dc: np.ndarray
-    photos: list[Photo]
-    sigma: float = 0.0  # Gaussian (working pixels) the complex fringe was averaged with
-    cycles: np.ndarray | None = None  # phase (cycles) after the photometric correction, if any
-
-    def phase(self) -> np.ndarray:
-        """The group's phase in cycles, [0, 1): corrected if a correction was made."""
-        return self.cycles if self.cycles is not None else phase.phase_cycles(self.z)
-
-
-@dataclasses.dataclass
-class _Registration:
-    """Per-photo registration state: the reference (from group x1) and what was measured."""
-
-    reference: register.Reference | None = None
-    made: bool = False  # the reference was attempted (on group x1)
-    shifts: dict = dataclasses.field(default_factory=dict)  # photo name -> shift in photo pixels
-    warnings: list = dataclasses.field(default_factory=list)
-
-    def undo_shake(self, photos: list[Photo], capture: CaptureSet) -> None:
-        """Measure every photo's shift against the reference and resample its luma to undo it.
-
-        Raises CaptureError only for a shift that is large (> MAX_PHOTO_SHIFT), clearly measured
-        (> 5 sigma) and explains most of the outline's change (it removes more than half the
-        unshifted residual); a shift that cannot be measured becomes a warning.
-        """
-        if self.reference is None:
-            return
-        for photo in photos:
-            shift = self.reference.measure(photo.luma)
-            scale = photo.scale
-            self.shifts[photo.name] = {"dx": shift.dx / scale, "dy": shift.dy / scale,
-                                       "sigma": shift.sigma / scale if math.isfinite(shift.sigma) else None,
-                                       "measured": shift.measured}
-            if not shift.measured:
-                self.warnings.append(f"camera motion of photo {photo.path.name} could not be measured "
-                                     f"({shift.note}); it is not corrected")
-                continue
-            if shift.size > MAX_PHOTO_SHIFT and shift.size > 5 * shift.sigma and shift.improvement > 0.5:
-                raise CaptureError(f"the camera moved between photos: this photo is shifted by "
-                                   f"{shift.size / scale:.1f} pixels (+- {shift.sigma / scale:.2f}) against group x1",
-                                   source=str(photo.path),
-                                   hint="put the camera on a tripod, use a remote or timer release, and retake the set")
-            photo.luma = register.shift_image(photo.luma, shift.dx, shift.dy)
-
-
-def _demodulate_group(capture: CaptureSet, name: str, shape, progress, registration: _Registration) -> _Group:
-    photos = _group_photos(capture, name, shape, progress)
-    patterns = capture.patterns.group(name)
-    if len(photos) > 1:
-        check_distinct(_Group(name, patterns[0].period, None, None, photos), capture)
-    pat = patterns[0]
-    sigma = 0.0
-    extent = 3 * capture.patterns.width if pat.axis == "x" else capture.patterns.height
-    if pat.period < extent / 4:
-        # many fringes across the panel: every step has the same mean light, so differences in
-        # mean between the photos are exposure changes (phone auto-exposure); undo them
-        means = [float(np.mean(p.luma, dtype=np.float64)) for p in photos]
-        target = float(np.mean(means))
-        for p, m in zip(photos, means):
-            if m > 0:
-                p.luma = p.luma * np.float32(target / m)
-    if not registration.made:
-        frame = frame_width(capture.patterns.height) / capture.patterns.height
-        z_raw, dc_raw = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
-        registration.reference = register.Reference.from_mean_image(dc_raw, np.abs(z_raw), frame)
-        registration.made = True
-        if registration.reference is None:
-            registration.warnings.append(f"camera motion between photos could not be measured (no fringes "
-                                         f"found in group {name}); it is not corrected")
-    registration.undo_shake(photos, capture)
-    z, dc = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
-    if pat.group[0] in "xy":
-        # A camera pixel may see no lit (green) subpixel; average the complex fringe over an
-        # eighth of a fringe (the panel spans at least ~half the frame), which keeps the phase.
-        frame = z.shape[1] if pat.axis == "x" else z.shape[0]
-        sigma = min(frame / 300.0, pat.period / extent * 0.5 * frame / 8.0)
-        z = phase.smooth_complex(z, sigma)
-    for p in photos:  # keep memory bounded: luma is needed only for the per-photo checks
-        p.luma = p.luma.astype(np.float16)
-    return _Group(name, patterns[0].period, z, dc, photos, sigma if sigma >= 0.5 else 0.0)
-
-
-MAX_PHOTO_SHIFT = 3.0  # working pixels: a bigger, clearly measured shift is a moved camera, not shake
-
-
-def _correct_photometry(groups: dict[str, "_Group"], mask: np.ndarray) -> dict[str, bool]:
+def _correct_photometry(groups: dict[str, "Group"], mask: np.ndarray) -> dict[str, bool]:
     """Cancel the tone-curve phase error of the coordinate groups (see :mod:`.photometric`)."""
     done = {}
     for fine, coarse, along in (("x1", "x0", "x"), ("x2", None, "x"), ("y1", "y0", "y")):
@@ -183,7 +76,7 @@ def _correct_photometry(groups: dict[str, "_Group"], mask: np.ndarray) -> dict[s
     return done
 
 
-def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.ndarray):
+def _coordinate_maps(capture: CaptureSet, groups: dict[str, Group], mask: np.ndarray):
     ps = capture.patterns
     h, w = mask.shape
     sub, rows = 3 * ps.width, ps.height
@@ -230,7 +123,7 @@ def _coordinate_maps(capture: CaptureSet, groups: dict[str, _Group], mask: np.nd
     return coords
 
 
-def _modulation_weight(group: _Group, mask: np.ndarray) -> np.ndarray:
+def _modulation_weight(group: Group, mask: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.abs(group.z) / np.maximum(group.dc, 1e-6)
     return np.where(mask, np.clip(ratio, 0.0, 1.5), 0.0).astype(np.float32)
@@ -250,11 +143,11 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     capture = open_capture_set(directory)
     ps = capture.patterns
     n_views = views or ps.views
-    groups: dict[str, _Group] = {}
+    groups: dict[str, Group] = {}
     shape = None
-    registration = _Registration()
+    registration = Registration()
     for name in ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in FINE_PERIODS):
-        groups[name] = _demodulate_group(capture, name, shape, progress, registration)
+        groups[name] = demodulate_group(capture, name, shape, progress, registration)
         shape = groups[name].photos[0].shape
     if progress:
         progress("finding the panel")
@@ -419,7 +312,7 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
     ref_amp = float(np.mean(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
     offsets, amps = {}, {}
     for name, channel in (("order-r", 0), ("order-b", 2)):
-        photo = _group_photos(capture, name, shape, progress, keep_rgb=True)[0]
+        photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
         registration.undo_shake([photo], capture)
         rgb_mean = photo.rgb[valid].mean(axis=0)
         other = 2 - channel
