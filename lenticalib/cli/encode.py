@@ -13,7 +13,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     source.add_argument("--views", metavar="DIR", help="folder of N view images, natural file-name order")
     parser.add_argument("--grid", metavar="COLSxROWS", help="quilt grid when the file name has no _qs suffix")
     parser.add_argument("-o", "--output", required=True, metavar="OUT", help="panel raster (.png, .tif or .npy)")
-    parser.add_argument("--encoder", default="fast", help="encoder name (default: fast; see 'reference', 'tables')")
+    parser.add_argument("--encoder", default="fast", help="encoder name (default: fast; see 'reference', 'tables', 'torch')")
     parser.add_argument("--stretch", action="store_true", help="allow views of another aspect ratio than the panel")
     parser.add_argument("--json", action="store_true", help="print a JSON summary instead of a sentence")
     parser.set_defaults(run=run)

@@ -3,9 +3,11 @@
     reference   canonical routing and float64 bilinear sampling written out plainly (the golden model)
     tables      a precomputed view table per subpixel (canonical routing) + sample points
     fast        the canonical routing on the fly, vectorized numba kernels (the default)
+    torch       sparse tables on a torch device (CPU or CUDA); numpy in, numpy out through the registry,
+                tensors in and out with ``torch_encoder.TorchEncoder`` (needs PyTorch)
 
-All three route by :func:`lenticalib.render.routing.view_map` (same view for every subpixel, ties
-included).  ``tables`` equals ``reference`` bit for bit; ``fast`` does too for uint16 and float
+All of them route by :func:`lenticalib.render.routing.view_map` (same view for every subpixel, ties
+included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
 views and is within 1 LSB for uint8 (fixed-point weights).
 
 Modules are imported only when an encoder is asked for, so ``lenticalib --help`` stays instant.
@@ -32,6 +34,7 @@ _BUILTIN = {
     "reference": "lenticalib.render.encoders.reference:encode_reference",
     "tables": "lenticalib.render.encoders.tables:encode_tables",
     "fast": "lenticalib.render.encoders.fast:encode_fast",
+    "torch": "lenticalib.render.encoders.torch_encoder:encode_torch",
 }
 
 
@@ -62,6 +65,8 @@ def get_encoder(name: str) -> Callable[..., np.ndarray]:
     module_name, _, attr = registry[name].partition(":")
     try:
         module = importlib.import_module(module_name)
+    except BackendUnavailableError:  # the module's own one-line reason (e.g. "pip install torch")
+        raise
     except ImportError as exc:
         raise BackendUnavailableError(f"encoder {name!r} is not available: {exc}", source="encoder",
                                       hint="install its dependencies") from None
