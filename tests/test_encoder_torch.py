@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-torch = pytest.importorskip("torch")
+import torch  # noqa: E402  (a test dependency: pip install -e .[test])
 
 from lenticalib.cli import main  # noqa: E402
 from lenticalib.errors import ConfigurationError, ImageError  # noqa: E402
