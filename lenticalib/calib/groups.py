@@ -106,7 +106,7 @@ def demodulate_group(capture: CaptureSet, name: str, shape, progress, registrati
     if not registration.made:
         frame = frame_width(capture.patterns.height) / capture.patterns.height
         z_raw, dc_raw = phase.demodulate([p.luma for p in photos], [p.theta for p in patterns])
-        registration.reference = register.Reference.from_mean_image(dc_raw, np.abs(z_raw), frame)
+        registration.reference = register.Reference.from_mean_image(dc_raw, z_raw, frame)
         registration.made = True
         if registration.reference is None:
             registration.warnings.append(f"camera motion between photos could not be measured (no fringes "

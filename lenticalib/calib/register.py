@@ -34,7 +34,8 @@ BAND_OUTSIDE = 1.5  # frame widths: the band reaches this far beyond the panel's
 OUTLINE_SEARCH = 1.4  # frame widths beyond the fringe region where the outline is looked for
 MAX_ITERATIONS = 30
 MAX_MEASURABLE_SIGMA = 0.2  # working pixels: a shift known worse than this is "not measured"
-SMOOTHING = 0.7  # working pixels: both images are Gaussian-smoothed before aligning (see measure)
+SMOOTHING = 1.2  # working pixels: both images are Gaussian-smoothed before aligning (see measure)
+EDGE_OVER_NOISE = 4.0  # band pixels kept where the reference gradient exceeds this x the band's median
 MAX_BAND_PIXELS = 150_000  # the band is thinned evenly to about this many pixels (speed)
 
 
@@ -79,8 +80,8 @@ class Reference:
     shape: tuple[int, int]
 
     @classmethod
-    def from_mean_image(cls, dc: np.ndarray, modulation: np.ndarray, frame_fraction: float) -> "Reference | None":
-        """Reference from a group's mean image ``dc`` (h, w) and its fringe modulation ``|z|`` (h, w);
+    def from_mean_image(cls, dc: np.ndarray, fringe: np.ndarray, frame_fraction: float) -> "Reference | None":
+        """Reference from a group's mean image ``dc`` (h, w) and its complex fringe ``z`` (h, w);
         ``frame_fraction``: the frame's width as a fraction of the panel height.  None when no
         fringe region is found.
 
@@ -96,9 +97,13 @@ class Reference:
         """
         import cv2
 
-        from .phase import panel_mask
+        from .phase import panel_mask, smooth_complex
 
-        fringes = panel_mask([modulation], erode_fraction=0.0)
+        # averaged as a complex map, the fringe stays and sensor noise averages out (the
+        # magnitude of noise would not: a noisy surround would pass for fringes)
+        sigma = max(2.0, frame_fraction * min(dc.shape) / 4.0)
+        fringes = panel_mask([np.abs(smooth_complex(np.asarray(fringe, dtype=np.complex64), sigma))],
+                             erode_fraction=0.0)
         if fringes.sum() < 64:
             return None
         ys, _ = np.nonzero(fringes)
@@ -109,7 +114,9 @@ class Reference:
             r = max(1, int(round(r)))
             return cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))) > 0
 
-        smooth = cv2.GaussianBlur(dc.astype(np.float32), (0, 0), 1.0)
+        # smoothed enough that sensor noise neither drags the dark level down nor lets the
+        # threshold leak into a dark surround (a noisy photo's outline would be ragged)
+        smooth = cv2.GaussianBlur(dc.astype(np.float32), (0, 0), max(1.5, frame / 6.0))
         inside = grown(fringes, 0.7 * frame) & ~grown(fringes, 0.3 * frame)
         search = grown(fringes, OUTLINE_SEARCH * frame)
         surround = grown(fringes, 2.5 * frame) & ~grown(fringes, 0.9 * frame)
@@ -125,12 +132,20 @@ class Reference:
         edge = 4  # the interpolation reaches 2 pixels, and shifts a little more
         band[:edge] = band[-edge:] = False
         band[:, :edge] = band[:, -edge:] = False
-        rows, cols = np.nonzero(band)
-        stride = max(1, rows.size // MAX_BAND_PIXELS)
-        rows, cols = rows[::stride], cols[::stride]
         ref = smoothed(dc)
         gx = cv2.Sobel(ref, cv2.CV_32F, 1, 0, ksize=3) / 8.0
         gy = cv2.Sobel(ref, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+        # Only pixels with a real edge: in a noisy photo most of the band is flat sensor noise,
+        # whose gradients carry no shift but would inflate the Cramer-Rao information (and so
+        # understate sigma) and pull the alignment.  The flat part's gradients are noise: keep
+        # what stands well above their typical size.
+        magnitude = np.hypot(gx, gy)
+        typical = float(np.median(magnitude[band])) if band.any() else 0.0
+        band &= magnitude > EDGE_OVER_NOISE * typical
+        band = grown(band, 1.0) & grown(lit, BAND_OUTSIDE * frame) & ~lit
+        rows, cols = np.nonzero(band)
+        stride = max(1, rows.size // MAX_BAND_PIXELS)
+        rows, cols = rows[::stride], cols[::stride]
         return cls(rows, cols, ref[rows, cols].astype(np.float64), gx[rows, cols].astype(np.float64),
                    gy[rows, cols].astype(np.float64), dc.shape)
 
