@@ -382,8 +382,9 @@ class Rig:
             k = self.bone_controls[b]
             if k >= 0:
                 q = quat_from_axis_angle(c[..., k:k + 3])
-            else:
-                q = torch.tensor([1.0, 0.0, 0.0, 0.0], device=c.device).expand(batch + (4,))
+            else:  # the identity, made on the device (no host-to-device copy per frame)
+                q = c.new_zeros(batch + (4,))
+                q[..., 0] = 1.0
             R = quat_to_matrix(q)
             p = self.bone_pivots[b]
             t = p - (R @ p.unsqueeze(-1)).squeeze(-1)
