@@ -17,12 +17,15 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from lenticalib.errors import BackendUnavailableError, InputError  # noqa: E402
-from lenticalib.render.controls import (DEMO_JAW_RAD, DEMO_YAW_DEG, ControlTrack, demo_controls,  # noqa: E402
-                                        load_controls, open_controls, open_text_stream, open_udp)
-from lenticalib.render.demo_avatar import DEMO_BONES, DEMO_EXPRESSIONS, make_demo_avatar  # noqa: E402
+from lenticalib.render.control_streams import (DEMO_JAW_RAD, DEMO_YAW_DEG, demo_controls,  # noqa: E402
+                                               open_text_stream, open_udp)
+from lenticalib.render.controls import ControlTrack, load_controls, open_controls  # noqa: E402
+from lenticalib.render.demo_avatar import DEMO_EXPRESSIONS, make_demo_avatar  # noqa: E402
+from lenticalib.render.demo_avatar_parts import DEMO_BONES  # noqa: E402
 from lenticalib.render.drivers import load_driver  # noqa: E402
 from lenticalib.render.gaussians import SH_C0, Gaussians  # noqa: E402
-from lenticalib.render.rig import DEFAULT_LAYOUT, RIG_FORMAT, load_rig, rig_from_arrays, save_rig  # noqa: E402
+from lenticalib.render.rig import DEFAULT_LAYOUT  # noqa: E402
+from lenticalib.render.rig_file import RIG_FORMAT, load_rig, rig_from_arrays, save_rig  # noqa: E402
 
 L = DEFAULT_LAYOUT
 D = L.dim

@@ -26,7 +26,7 @@ def main(argv=None) -> int:
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
     from lenticalib.errors import LenticalibError
     from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig import save_rig
+    from lenticalib.render.rig_file import save_rig
 
     try:
         started = time.perf_counter()

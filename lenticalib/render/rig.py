@@ -1,4 +1,4 @@
-"""Animated avatars: a rig file (canonical Gaussians + blendshapes + bones) and its deformer.
+"""Animated avatars: a rig (canonical Gaussians + blendshapes + bones), its control layout and its deformer.
 
 A *control vector* drives the avatar, in the spirit of the LentiAvatar paper's grouped controls.
 It is the concatenation of named groups in the order the rig file lists them; the default layout
@@ -48,57 +48,20 @@ Degree-1 SH coefficients are rotated with each Gaussian's total rotation (they t
 vector); degree 2 and 3 coefficients are not rotated (view-dependent colour of those bands stays
 fixed in the world; the demo avatar has degree 0).
 
-The file (numpy ``.npz``, no pickled objects; :func:`save_rig` writes it compressed, atomically).
-G Gaussians, K SH coefficients, D controls, E blendshapes, N blendshape entries, B bones:
-
-    format          ()        str    "lenticalib-rig"
-    version         ()        int    1 (:data:`RIG_VERSION`)
-    means           (G, 3)    float  canonical centres, world units
-    quats           (G, 4)    float  canonical rotations (w, x, y, z), any non-zero length
-    log_scales      (G, 3)    float  log of the standard deviations (raw, as the 3DGS PLY)
-    opacity_logits  (G,)      float  logit of the opacities (raw, as the 3DGS PLY)
-    sh              (G, K, 3) float  SH coefficients, DC first, K in 1, 4, 9, 16 (as Gaussians.sh)
-    control_groups  (NG,)     str    group names, in control-vector order
-    control_sizes   (NG,)     int    their sizes
-    control_dim     ()        int    D = sum(control_sizes)
-    control_names   (D,)      str    a name per control component ("expression.smile", "jaw.x")
-    blend_controls  (E,)      int    control index driving blendshape e
-    blend_index     (N,)      int    Gaussian of entry n
-    blend_shape     (N,)      int    blendshape of entry n (0..E-1)
-    blend_pos       (N, 3)    float  centre offset per unit control, world units
-    blend_rot       (N, 3)    float  optional: axis-angle offset per unit control, radians
-    blend_color     (N, 3)    float  optional: DC SH offset per unit control
-    bone_names      (B,)      str
-    bone_parents    (B,)      int    parent bone index, -1 for a root; a parent precedes its children
-    bone_pivots     (B, 3)    float  canonical pivot points, world units
-    bone_controls   (B,)      int    first of the bone's 3 rotation controls, -1 for none
-    skin_weights    (G, B)    float  in [0, 1], row sums <= 1
-    pose_pivot      (3,)      float  pivot of the rigid head pose, world units
-    pose_controls   (2,)      int    first rotation control and first translation control (3 each), -1 = none
-    provenance      ()        str    a JSON object: what made the file, with which parameters
-
-Floats may be stored as float16/32/64 and are used as float32; a missing array (other than the
-two optional ones), a wrong shape or index, a non-finite value or another version is one
-InputError naming the file and the array.
+The file that holds a rig (numpy ``.npz``: the arrays, their shapes and checks) is
+:mod:`.rig_file`: :func:`load_rig`, :func:`save_rig`, :func:`~.rig_file.rig_from_arrays`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import io
-import json
-import os
-import zipfile
-from typing import Any
 
 import numpy as np
 
-from ..atomic import write_bytes_atomic
 from ..errors import InputError
 from .gaussians import Gaussians
-
-RIG_FORMAT = "lenticalib-rig"
-RIG_VERSION = 1
+from .rig_file import load_rig, save_rig  # noqa: F401  (public API: rigs are loaded and saved from here too)
+from .rig_file import rig_to_arrays
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,12 +116,6 @@ class ControlLayout:
 DEFAULT_LAYOUT = ControlLayout((("expression", 50), ("jaw", 3), ("neck", 3), ("head", 3), ("eyes", 6),
                                 ("eyelids", 2), ("translation", 3)))
 
-_REQUIRED = ("format", "version", "means", "quats", "log_scales", "opacity_logits", "sh", "control_groups",
-             "control_sizes", "control_dim", "control_names", "blend_controls", "blend_index", "blend_shape",
-             "blend_pos", "bone_names", "bone_parents", "bone_pivots", "bone_controls", "skin_weights",
-             "pose_pivot", "pose_controls", "provenance")
-_OPTIONAL = ("blend_rot", "blend_color")
-
 
 # --------------------------------------------------------------------------------------------
 # torch helpers (batched over leading dimensions)
@@ -202,7 +159,7 @@ class Rig:
     """A deformable avatar: canonical Gaussians, blendshapes, bones, a rigid pose (module docstring).
 
     Tensors live on one torch device (:attr:`device`, :meth:`to`).  Build one with
-    :func:`rig_from_arrays` or :func:`load_rig`; :meth:`to_arrays` gives the file's arrays back.
+    :func:`~.rig_file.rig_from_arrays` or :func:`load_rig`; :meth:`to_arrays` gives the file's arrays back.
     """
 
     def __init__(self, *, layout: ControlLayout, control_names: tuple[str, ...], canonical: Gaussians,
@@ -402,225 +359,5 @@ class Rig:
     # ---- file arrays
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """The rig as the file's arrays (numpy, float32 / int32 / str), raw Gaussian parameters."""
-        g = self.canonical.to_numpy()
-        eps = 1e-7
-        op = np.clip(g.opacities.astype(np.float64), eps, 1 - eps)
-
-        def arr(t, dtype=np.float32):
-            return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=dtype)
-
-        out = {
-            "format": np.array(RIG_FORMAT), "version": np.array(RIG_VERSION, dtype=np.int32),
-            "means": g.means, "quats": g.quats, "log_scales": np.log(g.scales).astype(np.float32),
-            "opacity_logits": np.log(op / (1 - op)).astype(np.float32), "sh": g.sh,
-            "control_groups": np.array(self.layout.names, dtype=str),
-            "control_sizes": np.array([s for _, s in self.layout.groups], dtype=np.int32),
-            "control_dim": np.array(self.control_dim, dtype=np.int32),
-            "control_names": np.array(self.control_names, dtype=str),
-            "blend_controls": arr(self.blend_controls, np.int32), "blend_index": arr(self.blend_index, np.int32),
-            "blend_shape": arr(self.blend_shape, np.int32), "blend_pos": arr(self.blend_pos),
-            "bone_names": np.array(self.bone_names, dtype=str).reshape(-1),
-            "bone_parents": np.array(self.bone_parents, dtype=np.int32).reshape(-1),
-            "bone_pivots": arr(self.bone_pivots).reshape(-1, 3),
-            "bone_controls": np.array(self.bone_controls, dtype=np.int32).reshape(-1),
-            "skin_weights": arr(self.skin_weights), "pose_pivot": arr(self.pose_pivot),
-            "pose_controls": np.array(self.pose_controls, dtype=np.int32),
-            "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
-        }
-        if self.blend_rot is not None:
-            out["blend_rot"] = arr(self.blend_rot)
-        if self.blend_color is not None:
-            out["blend_color"] = arr(self.blend_color)
-        return out
-
-
-# --------------------------------------------------------------------------------------------
-# building, loading, saving
-
-def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "cpu") -> Rig:
-    """Validate the file's arrays (module docstring) and build a :class:`Rig` on ``device``.
-
-    Raw Gaussian parameters are activated here (exp, sigmoid, normalised quaternions).  Every
-    problem is one InputError naming ``source`` and the array.
-    """
-    import torch
-
-    def need(name):
-        if name not in arrays:
-            raise InputError(f"array {name!r} is missing", source=source,
-                             hint="a rig file holds: " + " ".join(_REQUIRED))
-        return np.asarray(arrays[name])
-
-    def floats(name, shape, *, optional=False):
-        if optional and name not in arrays:
-            return None
-        a = need(name)
-        if a.dtype.kind not in "fiu":
-            raise InputError(f"array {name!r} has dtype {a.dtype}, expected floats", source=source)
-        if a.shape != shape:
-            raise InputError(f"array {name!r} has shape {a.shape}, expected {shape}", source=source)
-        a = a.astype(np.float32)
-        if a.size and not np.isfinite(a).all():
-            where = np.argwhere(~np.isfinite(a))[0]
-            raise InputError(f"array {name!r} holds a non-finite value (NaN or inf) at {tuple(int(i) for i in where)}",
-                             source=source)
-        return a
-
-    def ints(name, shape, lo, hi, what):
-        a = need(name)
-        if a.dtype.kind not in "iu":
-            raise InputError(f"array {name!r} has dtype {a.dtype}, expected integers", source=source)
-        if a.shape != shape:
-            raise InputError(f"array {name!r} has shape {a.shape}, expected {shape}", source=source)
-        a = a.astype(np.int64)
-        bad = (a < lo) | (a > hi)
-        if bad.any():
-            i = int(np.argwhere(bad)[0][0]) if a.ndim else 0
-            raise InputError(f"array {name!r} holds {int(a.reshape(-1)[i])} at {i}, expected {what} in {lo}..{hi}",
-                             source=source)
-        return a
-
-    def strings(name, n=None):
-        a = need(name)
-        if a.dtype.kind != "U" or (n is not None and a.shape != (n,)) or (n is None and a.ndim != 1):
-            raise InputError(f"array {name!r} has shape {a.shape} dtype {a.dtype}, expected "
-                             f"({'N' if n is None else n},) strings", source=source)
-        return tuple(str(s) for s in a)
-
-    fmt = need("format")
-    if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != RIG_FORMAT:
-        raise InputError(f"not a rig file (format {fmt!r})", source=source,
-                         hint=f"expected format {RIG_FORMAT!r}; make one with tools/make_demo_avatar.py")
-    version = need("version")
-    if version.shape != () or version.dtype.kind not in "iu" or int(version) != RIG_VERSION:
-        raise InputError(f"rig format version {version}, this lenticalib reads version {RIG_VERSION}",
-                         source=source, hint="re-export the rig with a matching lenticalib")
-
-    means = need("means")
-    if means.ndim != 2 or means.shape[1] != 3 or means.shape[0] < 1:
-        raise InputError(f"array 'means' has shape {means.shape}, expected (G, 3) with G >= 1", source=source)
-    G = means.shape[0]
-    means = floats("means", (G, 3))
-    quats = floats("quats", (G, 4))
-    qn = np.linalg.norm(quats, axis=1)
-    if (qn < 1e-12).any():
-        raise InputError(f"array 'quats' has a zero-length quaternion in row {int(np.argmin(qn))}", source=source)
-    log_scales = floats("log_scales", (G, 3))
-    if (log_scales > 80).any():
-        raise InputError("array 'log_scales' overflows exp()", source=source)
-    logits = floats("opacity_logits", (G,))
-    sh = need("sh")
-    if sh.ndim != 3 or sh.shape[0] != G or sh.shape[2] != 3 or sh.shape[1] not in (1, 4, 9, 16):
-        raise InputError(f"array 'sh' has shape {sh.shape}, expected ({G}, K, 3) with K in 1, 4, 9, 16",
-                         source=source)
-    sh = floats("sh", sh.shape)
-
-    groups = strings("control_groups")
-    sizes = ints("control_sizes", (len(groups),), 1, 1 << 20, "group sizes")
-    try:
-        layout = ControlLayout(tuple(zip(groups, (int(s) for s in sizes))))
-    except InputError as exc:
-        raise InputError(exc.message, source=source) from None
-    D = layout.dim
-    dim = need("control_dim")
-    if dim.shape != () or dim.dtype.kind not in "iu" or int(dim) != D:
-        raise InputError(f"array 'control_dim' is {dim}, but the groups add up to {D} ({layout.describe()})",
-                         source=source)
-    names = strings("control_names", D)
-    if len(set(names)) != D:
-        raise InputError("array 'control_names' repeats a name", source=source)
-
-    bc = need("blend_controls")
-    E = bc.shape[0] if bc.ndim == 1 else -1
-    if E < 0:
-        raise InputError(f"array 'blend_controls' has shape {bc.shape}, expected (E,)", source=source)
-    blend_controls = ints("blend_controls", (E,), 0, D - 1, "control indices")
-    bi = need("blend_index")
-    N = bi.shape[0] if bi.ndim == 1 else -1
-    if N < 0:
-        raise InputError(f"array 'blend_index' has shape {bi.shape}, expected (N,)", source=source)
-    blend_index = ints("blend_index", (N,), 0, G - 1, "Gaussian indices")
-    blend_shape = ints("blend_shape", (N,), 0, E - 1, "blendshape indices")
-    blend_pos = floats("blend_pos", (N, 3))
-    blend_rot = floats("blend_rot", (N, 3), optional=True)
-    blend_color = floats("blend_color", (N, 3), optional=True)
-
-    bone_names = strings("bone_names")
-    B = len(bone_names)
-    parents = ints("bone_parents", (B,), -1, max(B - 1, -1), "parent indices")
-    for b, p in enumerate(parents):
-        if p >= b:
-            raise InputError(f"bone {bone_names[b]!r} has parent {p}, which does not precede it", source=source,
-                             hint="list parents before their children")
-    pivots = floats("bone_pivots", (B, 3))
-    bone_controls = ints("bone_controls", (B,), -1, D - 3, "first-control indices")
-    weights = floats("skin_weights", (G, B))
-    if weights.size and ((weights < -1e-6).any() or (weights.sum(1) > 1 + 1e-4).any()):
-        row = int(np.argmax((weights < -1e-6).any(1) | (weights.sum(1) > 1 + 1e-4)))
-        raise InputError(f"array 'skin_weights' row {row} is {weights[row].tolist()}, expected weights >= 0 "
-                         "summing to at most 1", source=source)
-    pose_pivot = floats("pose_pivot", (3,))
-    pose_controls = ints("pose_controls", (2,), -1, D - 3, "first-control indices")
-    prov = need("provenance")
-    try:
-        provenance = json.loads(str(prov)) if prov.shape == () and prov.dtype.kind == "U" else None
-    except json.JSONDecodeError:
-        provenance = None
-    if not isinstance(provenance, dict):
-        raise InputError("array 'provenance' is not a JSON object string", source=source)
-
-    def t(a, dtype=torch.float32):
-        return None if a is None else torch.from_numpy(np.ascontiguousarray(a)).to(device=device, dtype=dtype)
-
-    q = quats / qn[:, None]
-    canonical = Gaussians(means=means, quats=q.astype(np.float32), scales=np.exp(log_scales).astype(np.float32),
-                          opacities=(1.0 / (1.0 + np.exp(-logits.astype(np.float64)))).astype(np.float32),
-                          sh=sh).to_torch(device)
-    return Rig(layout=layout, control_names=names, canonical=canonical,
-               blend_controls=t(blend_controls, torch.long), blend_index=t(blend_index, torch.long),
-               blend_shape=t(blend_shape, torch.long), blend_pos=t(blend_pos), blend_rot=t(blend_rot),
-               blend_color=t(blend_color), bone_names=bone_names, bone_parents=tuple(int(p) for p in parents),
-               bone_pivots=t(pivots), bone_controls=tuple(int(c) for c in bone_controls),
-               skin_weights=t(weights), pose_pivot=t(pose_pivot),
-               pose_controls=(int(pose_controls[0]), int(pose_controls[1])), provenance=provenance)
-
-
-def load_rig(path: str | os.PathLike, device: str = "cpu") -> Rig:
-    """Read and validate a rig ``.npz`` (module docstring) onto ``device``; one InputError naming the file."""
-    source = str(path)
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
-    except FileNotFoundError:
-        raise InputError("no such rig file", source=source, hint="make one with tools/make_demo_avatar.py") from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a rig file", source=source) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", source=source) from None
-    if magic != b"PK\x03\x04":
-        raise InputError("not a readable .npz file (not a zip archive)", source=source,
-                         hint="a rig file is a numpy .npz, see lenticalib/render/rig.py")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {name: data[name] for name in data.files}
-    except FileNotFoundError:
-        raise InputError("no such rig file", source=source, hint="make one with tools/make_demo_avatar.py") from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a rig file", source=source) from None
-    except ValueError as exc:
-        if "pickle" in str(exc).lower():
-            raise InputError("holds a pickled object array, which rig files never do", source=source) from None
-        raise InputError(f"not a readable .npz file: {str(exc).splitlines()[0] if str(exc) else 'bad data'}",
-                         source=source) from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(f"not a readable .npz file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}",
-                         source=source) from None
-    return rig_from_arrays(arrays, source=source, device=device)
-
-
-def save_rig(path: str | os.PathLike, rig: Rig) -> None:
-    """Write ``rig`` as a compressed ``.npz`` atomically (a reader sees the old file or the new one)."""
-    buf = io.BytesIO()
-    np.savez_compressed(buf, **rig.to_arrays())
-    write_bytes_atomic(path, buf.getvalue())
+        """The rig as the file's arrays (:func:`~.rig_file.rig_to_arrays`)."""
+        return rig_to_arrays(self)
