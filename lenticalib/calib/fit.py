@@ -309,7 +309,9 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
     period = capture.patterns.group("order-r")[0].period
     pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
     f_ref = groups[f"f{period:g}"]
-    ref_amp = float(np.mean(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
+    # the median: a dark, noisy pixel (or the resampling's ringing next to one) has dc near 0
+    # and would dominate a mean of the ratio
+    ref_amp = float(np.median(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
     offsets, amps = {}, {}
     for name, channel in (("order-r", 0), ("order-b", 2)):
         photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]

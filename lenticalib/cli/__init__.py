@@ -23,6 +23,8 @@ _COMMANDS = {
     "capture": ("lenticalib.cli.capture", "show each calibration pattern on the panel and photograph it"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
     "show": ("lenticalib.cli.show", "show an image, a pattern set or a folder on the panel, pixel-exact"),
+    "play": ("lenticalib.cli.play", "drive a Gaussian avatar live on the panel: drive, render, encode, present"),
+    "render": ("lenticalib.cli.render", "render a Gaussian avatar offline into panel rasters (and its views)"),
     "device": ("lenticalib.cli.device", "list panel controllers; read, flash and verify their calibration"),
     "emulate": ("lenticalib.cli.emulate", "run an emulated panel controller (pseudo-terminal or TCP)"),
 }

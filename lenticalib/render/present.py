@@ -210,13 +210,15 @@ class Presenter:
 
 
 class WindowPresenter(Presenter):
-    """A borderless full-screen window on ``monitor`` (glfw), vsync on by default."""
+    """A borderless full-screen window on ``monitor`` (glfw), vsync on by default; with
+    ``windowed=(w, h)`` a normal window of that size instead (a preview, ``monitor`` None)."""
 
     kind = "window"
 
-    def __init__(self, monitor: Monitor, vsync: bool = True):
+    def __init__(self, monitor: Monitor | None, vsync: bool = True, windowed: tuple[int, int] | None = None):
         super().__init__(vsync)
         self.monitor = monitor
+        self.windowed = windowed  # (width, height): a normal window (a preview), not full screen
         self._window = None
         self._keys: deque[str] = deque()
 
@@ -224,10 +226,10 @@ class WindowPresenter(Presenter):
         import moderngl
 
         glfw = init_glfw()
-        handle = self._monitor_handle(glfw)
+        handle = self._monitor_handle(glfw) if self.windowed is None else glfw.get_primary_monitor()
         mode = glfw.get_video_mode(handle)
         glfw.default_window_hints()
-        for hint, value in ((glfw.DECORATED, False), (glfw.RESIZABLE, False), (glfw.AUTO_ICONIFY, False),
+        for hint, value in ((glfw.DECORATED, self.windowed is not None), (glfw.RESIZABLE, False), (glfw.AUTO_ICONIFY, False),
                             (glfw.FOCUS_ON_SHOW, True), (glfw.SRGB_CAPABLE, False), (glfw.SAMPLES, 0),
                             (glfw.DOUBLEBUFFER, True), (glfw.RED_BITS, mode.bits.red),
                             (glfw.GREEN_BITS, mode.bits.green), (glfw.BLUE_BITS, mode.bits.blue),
@@ -237,14 +239,19 @@ class WindowPresenter(Presenter):
             glfw.window_hint(hint, value)
         if hasattr(glfw, "COCOA_RETINA_FRAMEBUFFER"):
             glfw.window_hint(glfw.COCOA_RETINA_FRAMEBUFFER, False)
-        window = glfw.create_window(mode.size.width, mode.size.height, "lenticalib", handle, None)
+        if self.windowed is not None:
+            window = glfw.create_window(int(self.windowed[0]), int(self.windowed[1]), "lenticalib preview", None, None)
+        else:
+            window = glfw.create_window(mode.size.width, mode.size.height, "lenticalib", handle, None)
         if not window:
-            raise DisplayError(f"could not open a full-screen OpenGL 3.3 window on monitor {self.monitor.describe()}",
+            where = "a preview window" if self.monitor is None else f"monitor {self.monitor.describe()}"
+            raise DisplayError(f"could not open an OpenGL 3.3 window on {where}",
                                hint="update the graphics driver; under Xvfb, install Mesa (libgl1-mesa-dri)")
         self._window = window
         glfw.make_context_current(window)
         glfw.swap_interval(1 if self.vsync else 0)
-        glfw.set_input_mode(window, glfw.CURSOR, glfw.CURSOR_HIDDEN)
+        if self.windowed is None:
+            glfw.set_input_mode(window, glfw.CURSOR, glfw.CURSOR_HIDDEN)
         glfw.set_key_callback(window, self._on_key)
         try:
             self.ctx = moderngl.create_context(require=330)

@@ -1,0 +1,99 @@
+"""``lenticalib render``: the avatar pipeline offline, to PNG panel rasters (and the views).
+
+``-o OUT.png`` for one frame, ``-o DIR`` for ``--frames N`` (``DIR/frame-00000.png`` ...), at
+``--fps`` steps of the controls' time.  ``--views-out VDIR`` also writes the N views of every
+frame, 8-bit, in view order -- exactly what was encoded -- (``VDIR/frame-00000/view-00.png``
+...) and ``VDIR/cameras.json``.  Output paths are checked before the first frame; a folder is
+written complete or not at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from ._avatar import add_avatar_arguments
+
+    add_avatar_arguments(parser)
+    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="OUT.png (one frame) or a folder")
+    parser.add_argument("--frames", type=int, default=1, metavar="N", help="frames to render (default 1)")
+    parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the controls' time (default 30)")
+    parser.add_argument("--views-out", metavar="VDIR", help="also write the N views and cameras.json here")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ..errors import InputError
+    from ..imageio import write_image
+    from ..outputs import check_output_file, staged_folder
+    from ..render.loop import StageTimes
+    from ._avatar import build_pipeline
+
+    if args.frames < 1:
+        raise InputError(f"{args.frames} frames", source="--frames", hint="give at least 1")
+    if not 0 < args.fps <= 1000:
+        raise InputError(f"{args.fps} frames per second", source="--fps", hint="use 0 < fps <= 1000")
+    single = args.output.lower().endswith(".png")
+    if single and args.frames != 1:
+        raise InputError(f"{args.frames} frames cannot go into one PNG", source="--output",
+                         hint="give a folder for a sequence")
+    if single:
+        check_output_file(args.output, "raster", "out.png")
+    pipeline, controls, avatar = build_pipeline(args)
+    if pipeline.warning:
+        import sys
+
+        print(f"lenticalib: warning: {pipeline.warning}", file=sys.stderr)
+    times = StageTimes()
+    targets = [("raster", args.output)] if not single else []
+    if args.views_out:
+        targets.append(("views", args.views_out))
+    with _staged(targets, staged_folder) as folders:
+        for k in range(args.frames):
+            vector = controls.latest(k / args.fps)[1] if controls is not None else None
+            raster, views, stages = pipeline.frame(vector)
+            stages["present"] = 0.0
+            times.add(**stages)
+            if single:
+                write_image(args.output, raster)
+            else:
+                write_image(folders["raster"] / f"frame-{k:05d}.png", raster)
+            if "views" in folders:
+                views = views if isinstance(views, np.ndarray) else views.cpu().numpy()
+                frame_dir = folders["views"] / f"frame-{k:05d}"
+                frame_dir.mkdir()
+                for i, view in enumerate(views):
+                    write_image(frame_dir / f"view-{i:02d}.png", view)
+        if "views" in folders:
+            pipeline.cameras.write_json(folders["views"] / "cameras.json")
+    if controls is not None:
+        controls.close()
+    what = args.output if single else f"{args.frames} frame(s) in {args.output}"
+    print(f"wrote {what}" + (f" and the views in {args.views_out}" if args.views_out else ""))
+    print(times.table(f"lenticalib render: {avatar.source}, {pipeline.profile.views} views "
+                      f"{pipeline.cameras.width}x{pipeline.cameras.height}, renderer {pipeline.renderer}, "
+                      f"encoder {pipeline.encoder}"))
+    return 0
+
+
+class _staged:
+    """Enter several :func:`staged_folder` contexts at once: {name: folder being written}."""
+
+    def __init__(self, targets, staged_folder):
+        import contextlib
+
+        self._stack = contextlib.ExitStack()
+        self._targets = targets
+        self._staged_folder = staged_folder
+
+    def __enter__(self):
+        from pathlib import Path
+
+        stack = self._stack.__enter__()
+        return {name: Path(stack.enter_context(self._staged_folder(path, name))) for name, path in self._targets}
+
+    def __exit__(self, *exc):
+        return self._stack.__exit__(*exc)

@@ -1,0 +1,168 @@
+"""The avatar pipeline, frame by frame: drive -> render -> compose (encode) -> present, timed per stage.
+
+One :class:`AvatarPipeline` holds what is fixed for a session -- the avatar, the panel profile,
+the N virtual cameras (ordered for the profile's view direction), the renderer and the encoder
+-- and :meth:`AvatarPipeline.frame` makes one panel raster from one control vector:
+
+    drive    the avatar's driver turns the controls into posed Gaussians (static avatars: nothing)
+    render   the renderer draws all N views, RGBA, composited over the background
+    compose  views -> 8-bit -> the panel raster by the profile's routing (the encoder)
+
+``present`` (putting the raster on the panel) is the caller's, timed in the same table.  Stage
+times are wall-clock milliseconds; on a GPU each stage ends with a synchronisation so the
+times add up (CUDA events would not change the sum).  :class:`StageTimes` keeps them and prints
+the table the LentiAvatar paper reports (its Table 3).
+
+Devices: the ``cpu`` renderer and the numpy encoders keep everything on the host; ``gsplat``
+and the ``torch`` encoder keep views and raster on the GPU until the raster goes to the
+presenter (one 25 MB download per frame at 4K; CUDA-OpenGL interop would remove it, see
+docs/presenting.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import statistics
+import time
+
+import numpy as np
+
+from ..errors import InputError
+from ..profile import PanelProfile, direction_warning
+from .cameras import ViewCameras, order_for_direction
+
+STAGES = ("drive", "render", "compose", "present")
+
+
+@dataclasses.dataclass
+class StageTimes:
+    """Per-stage milliseconds of every frame (``times[stage]`` lists), and each frame's total."""
+
+    times: dict = dataclasses.field(default_factory=lambda: {s: [] for s in STAGES})
+    totals: list = dataclasses.field(default_factory=list)
+
+    def add(self, **stages: float) -> None:
+        for name, ms in stages.items():
+            self.times[name].append(ms)
+        self.totals.append(sum(stages.values()))
+
+    @property
+    def frames(self) -> int:
+        return len(self.totals)
+
+    def table(self, title: str = "") -> str:
+        """Median, mean and 95th percentile per stage, the total and the frame rate, as text."""
+        lines = [title] if title else []
+        lines.append(f"{'stage':<10}{'median ms':>11}{'mean ms':>10}{'p95 ms':>9}")
+        for name in STAGES + ("total",):
+            values = self.totals if name == "total" else self.times[name]
+            if not values:
+                continue
+            p95 = float(np.percentile(values, 95))
+            lines.append(f"{name:<10}{statistics.median(values):>11.2f}{statistics.fmean(values):>10.2f}{p95:>9.2f}")
+        if self.totals:
+            lines.append(f"{'fps':<10}{1e3 / statistics.median(self.totals):>11.2f}   ({self.frames} frames, "
+                         "from the median total)")
+        return "\n".join(lines)
+
+
+def parse_background(text: str | None) -> np.ndarray | None:
+    """``"R,G,B"`` in 0..1 or 0..255 -> float32 (3,) in 0..1; None -> None (black, premultiplied)."""
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(np.isfinite(values)) or min(values) < 0 or max(values) > 255:
+        raise InputError(f"{text!r} is not R,G,B", source="--background", hint="e.g. 0.1,0.1,0.12 or 26,26,30")
+    arr = np.array(values, dtype=np.float32)
+    return arr / 255.0 if arr.max() > 1.0 else arr
+
+
+def desaturate_edges(rgba, strength: float):
+    """The LentiAvatar alpha-boundary chroma attenuation: where alpha is partial, pull the colour
+    toward its own luminance by ``strength * (1 - alpha)`` (numpy or torch, (..., 4))."""
+    rgb, alpha = rgba[..., :3], rgba[..., 3:4]
+    luma = 0.2126 * rgb[..., 0:1] + 0.7152 * rgb[..., 1:2] + 0.0722 * rgb[..., 2:3]
+    keep = 1.0 - strength * (1.0 - alpha)
+    return luma + (rgb - luma) * keep
+
+
+class AvatarPipeline:
+    """drive -> render -> compose for one avatar on one panel; see the module docstring.
+
+    ``cameras`` come ordered for ``view_direction = +1`` (as the camera models make them) and
+    are reordered for the profile; a profile that does not say its direction renders as +1
+    with ``warning`` set (the caller prints it).
+    """
+
+    def __init__(self, avatar, profile: PanelProfile, cameras: ViewCameras, *, renderer: str = "cpu",
+                 encoder: str = "fast", device: str = "cpu", background: np.ndarray | None = None,
+                 edge_desaturation: float = 0.0):
+        from .encoders import get_encoder
+        from .renderers import get_renderer
+
+        if cameras.n_views != profile.views:
+            raise InputError(f"{cameras.n_views} cameras for a profile of {profile.views} views", source="--views",
+                             hint="render as many views as the profile has")
+        self.avatar, self.profile = avatar, profile
+        self.warning = direction_warning(profile)
+        self.cameras = order_for_direction(cameras, profile.view_direction or 1)
+        self.render_fn = get_renderer(renderer)
+        self.renderer, self.encoder, self.device = renderer, encoder, device
+        self.on_gpu = renderer == "gsplat"
+        self.background = background
+        self.edge_desaturation = float(edge_desaturation)
+        self._torch_encoder = None
+        if self.on_gpu and encoder != "torch":
+            raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
+                             source="--encoder", hint="--encoder torch")
+        if not self.on_gpu:
+            self.encode_fn = get_encoder(encoder)
+        self._mats = (self.cameras.viewmats.astype(np.float32), self.cameras.K.astype(np.float32))
+
+    def frame(self, controls: np.ndarray | None) -> tuple[np.ndarray, object, dict]:
+        """(raster uint8 (height, width, 3) on the host, views uint8 (N, H_v, W_v, 3) numpy or
+        torch, {"drive", "render", "compose"} milliseconds)."""
+        t0 = time.perf_counter()
+        gaussians = self.avatar.pose(controls, self.device, as_torch=self.on_gpu)
+        self._sync()
+        t1 = time.perf_counter()
+        viewmats, ks = self._mats
+        if self.on_gpu:
+            import torch
+
+            viewmats = torch.as_tensor(viewmats, device=self.device)
+            ks = torch.as_tensor(ks, device=self.device)
+        bg = self.background
+        if bg is not None and self.on_gpu:
+            import torch
+
+            bg = torch.as_tensor(bg, device=self.device)
+        rgba = self.render_fn(gaussians, viewmats, ks, self.cameras.width, self.cameras.height, background=bg)
+        self._sync()
+        t2 = time.perf_counter()
+        rgb = desaturate_edges(rgba, self.edge_desaturation) if self.edge_desaturation > 0 else rgba[..., :3]
+        if self.on_gpu:
+            views = (rgb.clamp(0, 1) * 255.0 + 0.5).to(dtype=__import__("torch").uint8).contiguous()
+            raster = self._gpu_encoder().encode(views).cpu().numpy()
+        else:
+            views = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8)
+            raster = self.encode_fn(views, self.profile)
+        t3 = time.perf_counter()
+        return raster, views, {"drive": 1e3 * (t1 - t0), "render": 1e3 * (t2 - t1), "compose": 1e3 * (t3 - t2)}
+
+    def _gpu_encoder(self):
+        if self._torch_encoder is None:
+            from .encoders.torch_encoder import TorchEncoder
+
+            self._torch_encoder = TorchEncoder(self.profile, (self.cameras.height, self.cameras.width),
+                                               device=self.device)
+        return self._torch_encoder
+
+    def _sync(self) -> None:
+        if self.on_gpu:
+            import torch
+
+            torch.cuda.synchronize()
