@@ -243,3 +243,16 @@ def test_the_gsplat_renderer_says_it_needs_a_cuda_gpu():
     with pytest.raises(BackendUnavailableError, match="CUDA GPU") as err:
         render(random_scene(0, n=5), *CAMERAS, W, H, renderer="gsplat")
     assert err.value.source == "--renderer"
+
+
+def test_non_finite_gaussians_are_refused_and_huge_ones_do_not_break_the_kernels():
+    g = random_scene(0, n=5)
+    g.means[2, 1] = np.nan
+    with pytest.raises(InputError, match="means has non-finite values"):
+        render_cpu(g, *CAMERAS, W, H)
+    g = random_scene(0, n=5)
+    g.scales[1] = 1e18  # projected variance beyond float32: culled
+    g.scales[3] = 1e6  # covers every pixel of every view
+    g.means[4] = (1e25, 0.0, 0.0)  # far off every view
+    out = render_cpu(g, *CAMERAS, W, H)
+    assert np.isfinite(out).all()

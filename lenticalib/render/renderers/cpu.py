@@ -57,6 +57,9 @@ ALPHA_MAX = 0.999
 T_MIN = 1e-4  # a pixel stops before its transmittance would fall to this
 _SIGMA_MARGIN = 1e-3  # the visited ellipse reaches slightly past alpha = 1/255; alpha is tested exactly
 _CHUNKS = 16  # runs of Gaussians binned in parallel
+# Gaussians whose 2D variance exceeds this (px^2; a radius of 1e15 px) are culled, so that every
+# per-Gaussian value fits float32 (gsplat's float32 kernels would overflow on them)
+_COV_MAX = 1e30
 
 # Per-Gaussian record of one view, float32.  The ellipse E where sigma <= ln(255 opacity) + margin
 # (outside it alpha < 1/255) reaches rows |dy| <= _EXT_Y, and on row dy it spans
@@ -186,11 +189,11 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, width, heigh
         c01 = j00 * j11 * k01 + j00 * j12 * k02 + j02 * j11 * k12 + j02 * j12 * k22
         c11 = j11 * j11 * k11 + 2.0 * j11 * j12 * k12 + j12 * j12 * k22 + EPS2D
         det = c00 * c11 - c01 * c01
-        if det <= 0.0:
+        if not (det > 0.0 and c00 < _COV_MAX and c11 < _COV_MAX):  # NaN-safe; _COV_MAX: see above
             continue
         extend = min(3.33, math.sqrt(2.0 * math.log(op / ALPHA_MIN)))
-        rx = math.ceil(extend * math.sqrt(c00))
-        ry = math.ceil(extend * math.sqrt(c11))
+        rx = np.ceil(extend * math.sqrt(c00))
+        ry = np.ceil(extend * math.sqrt(c11))
         if rx <= 0.0 and ry <= 0.0:
             continue
         u = fx * x * rz + cx
@@ -209,10 +212,10 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, width, heigh
         records[i, _Q] = det / (c11 * c11)
         records[i, _EXT_Y] = math.sqrt(2.0 * slim * c11)
         # gsplat's tile box (IntersectTile.cu): [floor((u - rx) / ts), ceil((u + rx) / ts)) clamped
-        boxes[i, 0] = int(min(max(math.floor((u - rx) / TILE_SIZE), 0.0), tiles_x))
-        boxes[i, 1] = int(min(max(math.ceil((u + rx) / TILE_SIZE), 0.0), tiles_x))
-        boxes[i, 2] = int(min(max(math.floor((v - ry) / TILE_SIZE), 0.0), tiles_y))
-        boxes[i, 3] = int(min(max(math.ceil((v + ry) / TILE_SIZE), 0.0), tiles_y))
+        boxes[i, 0] = int(min(max(np.floor((u - rx) / TILE_SIZE), 0.0), tiles_x))
+        boxes[i, 1] = int(min(max(np.ceil((u + rx) / TILE_SIZE), 0.0), tiles_x))
+        boxes[i, 2] = int(min(max(np.floor((v - ry) / TILE_SIZE), 0.0), tiles_y))
+        boxes[i, 3] = int(min(max(np.ceil((v + ry) / TILE_SIZE), 0.0), tiles_y))
         dx, dy, dz = wx - px, wy - py, wz - pz
         n = math.sqrt(dx * dx + dy * dy + dz * dz)
         if n > 0.0:
@@ -392,8 +395,8 @@ def _composite(records, offsets, ids, tile_order, width, height, tiles_x, backgr
             mx, my = records[g, _MX], records[g, _MY]
             ext_y = np.float64(records[g, _EXT_Y])
             slope, q = np.float64(records[g, _SLOPE]), np.float64(records[g, _Q])
-            ra = max(0, int(math.ceil(my - ext_y - 0.5)) - y0)
-            rb = min(ts - 1, int(math.floor(my + ext_y - 0.5)) - y0)
+            ra = int(max(np.ceil(my - ext_y - 0.5) - y0, 0.0))  # clamped as floats, then converted
+            rb = int(min(np.floor(my + ext_y - 0.5) - y0, ts - 1.0))
             half_a, b, half_c = half * records[g, _CA], records[g, _CB], half * records[g, _CC]
             op = records[g, _OP]
             cr, cg, cb = records[g, _R], records[g, _G], records[g, _B]
@@ -405,8 +408,8 @@ def _composite(records, offsets, ids, tile_order, width, height, tiles_x, backgr
                 dy64 = np.float64(dy)
                 centre = mx + slope * dy64 - x0 - 0.5
                 width_half = math.sqrt(max(q * (ext_y * ext_y - dy64 * dy64), 0.0)) + 0.01
-                la = math.ceil(centre - width_half)
-                lb = math.floor(centre + width_half)
+                la = int(max(np.ceil(centre - width_half), -1.0))
+                lb = int(min(np.floor(centre + width_half), np.float64(ts)))
                 if lb < 0 or la >= ts:
                     continue
                 live = alive[r] & (((1 << (min(lb, ts - 1) + 1)) - 1) ^ ((1 << max(la, 0)) - 1))
@@ -454,6 +457,9 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
     """
     viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
     g = gaussians.to_numpy()
+    for name in ("means", "quats", "scales", "opacities", "sh"):
+        if not np.isfinite(getattr(g, name)).all():
+            raise InputError(f"{name} has non-finite values", source="gaussians")
     if not (np.linalg.norm(g.quats, axis=1) > 0).all():
         raise InputError("quats has a zero-length quaternion", source="gaussians")
     bg = np.zeros(3, dtype=np.float32) if background is None else background.astype(np.float32)
