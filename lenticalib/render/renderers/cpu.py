@@ -359,84 +359,89 @@ def _blend_half(typingctx, buf, xs_ptr, mx, half_a, bdy, half_cdy2, op, cr, cg, 
 # The compositing kernel stays in this file, next to the intrinsics it inlines: numba's on-disk
 # cache is keyed on the defining file, so editing either invalidates both.
 @nb.njit(parallel=True, cache=True)
-def _composite(records, offsets, ids, tile_order, width, height, tiles_x, background, out):  # pragma: no cover - compiled
+def _composite(records, offsets, ids, tile_order, workers, width, height, tiles_x, background,
+               out):  # pragma: no cover - compiled
     """Front-to-back compositing of every tile into ``out`` (H, W, 4): RGB over ``background``, alpha.
 
-    Per tile (in ``tile_order``), Gaussian after Gaussian, each tile row whose pixels on the chord
-    of the Gaussian's ellipse E are not all stopped goes through :func:`_blend_full`, or
-    :func:`_blend_half` when those live pixels lie in one half of the row.  A tile whose pixels
-    have all stopped is done.
+    ``workers`` loops share the tiles, worker w taking ``tile_order[w::workers]``: dealt like
+    cards, so that every thread gets a fair share of the busy tiles (numba's prange hands each
+    thread a fixed block of iterations, and ``parallel_chunksize`` made no difference here).
+
+    Per tile, Gaussian after Gaussian, each tile row whose pixels on the chord of the Gaussian's
+    ellipse E are not all stopped goes through :func:`_blend_full`, or :func:`_blend_half` when
+    those live pixels lie in one half of the row.  A tile whose pixels have all stopped is done.
     """
     ts = TILE_SIZE
     hs = TILE_SIZE // 2
     half, one = _F(0.5), _F(1.0)
-    for k in prange(tile_order.shape[0]):
-        t = tile_order[k]
-        ty = t // tiles_x
-        tx = t - ty * tiles_x
-        x0 = tx * ts
-        y0 = ty * ts
-        state = np.zeros(ts * _ROW, dtype=np.float32)
-        xs = np.empty(ts, dtype=np.float32)
-        for i in range(ts):
-            xs[i] = _F(x0 + i) + half
-        alive = np.zeros(ts, dtype=np.int64)  # per tile row, a bit per live pixel
-        remaining = 0
-        for r in range(ts):
+    for worker in prange(workers):
+        for k in range(worker, tile_order.shape[0], workers):
+            t = tile_order[k]
+            ty = t // tiles_x
+            tx = t - ty * tiles_x
+            x0 = tx * ts
+            y0 = ty * ts
+            state = np.zeros(ts * _ROW, dtype=np.float32)
+            xs = np.empty(ts, dtype=np.float32)
             for i in range(ts):
-                if y0 + r < height and x0 + i < width:  # pixels outside the image start stopped
-                    state[r * _ROW + _T + i] = one
-                    alive[r] |= 1 << i
-                    remaining += 1
-        base = state.ctypes.data
-        pxs = xs.ctypes.data
-        for j in range(offsets[t], offsets[t + 1]):
-            g = ids[j]
-            mx, my = records[g, _MX], records[g, _MY]
-            ext_y = np.float64(records[g, _EXT_Y])
-            slope, q = np.float64(records[g, _SLOPE]), np.float64(records[g, _Q])
-            ra = int(max(np.ceil(my - ext_y - 0.5) - y0, 0.0))  # clamped as floats, then converted
-            rb = int(min(np.floor(my + ext_y - 0.5) - y0, ts - 1.0))
-            half_a, b, half_c = half * records[g, _CA], records[g, _CB], half * records[g, _CC]
-            op = records[g, _OP]
-            cr, cg, cb = records[g, _R], records[g, _G], records[g, _B]
-            for r in range(ra, rb + 1):
-                if alive[r] == 0:
-                    continue
-                dy = _F(y0 + r) + half - my
-                # the chord of E on this row, widened by 0.01 px against rounding; lanes la..lb
-                dy64 = np.float64(dy)
-                centre = mx + slope * dy64 - x0 - 0.5
-                width_half = math.sqrt(max(q * (ext_y * ext_y - dy64 * dy64), 0.0)) + 0.01
-                la = int(max(np.ceil(centre - width_half), -1.0))
-                lb = int(min(np.floor(centre + width_half), np.float64(ts)))
-                if lb < 0 or la >= ts:
-                    continue
-                live = alive[r] & (((1 << (min(lb, ts - 1) + 1)) - 1) ^ ((1 << max(la, 0)) - 1))
-                if live == 0:  # the chord's pixels have all stopped
-                    continue
-                row = base + 4 * _ROW * r
-                if live < (1 << hs):
-                    result = _blend_half(row, pxs, mx, half_a, b * dy, half_c * dy * dy, op, cr, cg, cb)
-                    stopped = result & _LOW32
-                elif live & ((1 << hs) - 1) == 0:
-                    result = _blend_half(row + 4 * hs, pxs + 4 * hs, mx, half_a, b * dy, half_c * dy * dy, op, cr, cg, cb)
-                    stopped = (result & _LOW32) << hs
-                else:
-                    result = _blend_full(row, pxs, mx, half_a, b * dy, half_c * dy * dy, op, cr, cg, cb)
-                    stopped = result & _LOW32
-                alive[r] &= ~stopped
-                remaining -= result >> 32
-            if remaining == 0:
-                break
-        for y in range(y0, min(y0 + ts, height)):
-            for x in range(x0, min(x0 + ts, width)):
-                p = (y - y0) * _ROW + x - x0
-                tp = state[_T + p] if state[_T + p] > 0.0 else state[_TF + p]
-                out[y, x, 0] = state[_AR + p] + tp * background[0]
-                out[y, x, 1] = state[_AG + p] + tp * background[1]
-                out[y, x, 2] = state[_AB + p] + tp * background[2]
-                out[y, x, 3] = one - tp
+                xs[i] = _F(x0 + i) + half
+            alive = np.zeros(ts, dtype=np.int64)  # per tile row, a bit per live pixel
+            remaining = 0
+            for r in range(ts):
+                for i in range(ts):
+                    if y0 + r < height and x0 + i < width:  # pixels outside the image start stopped
+                        state[r * _ROW + _T + i] = one
+                        alive[r] |= 1 << i
+                        remaining += 1
+            base = state.ctypes.data
+            pxs = xs.ctypes.data
+            for j in range(offsets[t], offsets[t + 1]):
+                g = ids[j]
+                mx, my = records[g, _MX], records[g, _MY]
+                ext_y = np.float64(records[g, _EXT_Y])
+                slope, q = np.float64(records[g, _SLOPE]), np.float64(records[g, _Q])
+                ra = int(max(np.ceil(my - ext_y - 0.5) - y0, 0.0))  # clamped as floats, then converted
+                rb = int(min(np.floor(my + ext_y - 0.5) - y0, ts - 1.0))
+                half_a, b, half_c = half * records[g, _CA], records[g, _CB], half * records[g, _CC]
+                op = records[g, _OP]
+                cr, cg, cb = records[g, _R], records[g, _G], records[g, _B]
+                for r in range(ra, rb + 1):
+                    if alive[r] == 0:
+                        continue
+                    dy = _F(y0 + r) + half - my
+                    # the chord of E on this row, widened by 0.01 px against rounding; lanes la..lb
+                    dy64 = np.float64(dy)
+                    centre = mx + slope * dy64 - x0 - 0.5
+                    width_half = math.sqrt(max(q * (ext_y * ext_y - dy64 * dy64), 0.0)) + 0.01
+                    la = int(max(np.ceil(centre - width_half), -1.0))
+                    lb = int(min(np.floor(centre + width_half), np.float64(ts)))
+                    if lb < 0 or la >= ts:
+                        continue
+                    live = alive[r] & (((1 << (min(lb, ts - 1) + 1)) - 1) ^ ((1 << max(la, 0)) - 1))
+                    if live == 0:  # the chord's pixels have all stopped
+                        continue
+                    row = base + 4 * _ROW * r
+                    if live < (1 << hs):
+                        result = _blend_half(row, pxs, mx, half_a, b * dy, half_c * dy * dy, op, cr, cg, cb)
+                        stopped = result & _LOW32
+                    elif live & ((1 << hs) - 1) == 0:
+                        result = _blend_half(row + 4 * hs, pxs + 4 * hs, mx, half_a, b * dy, half_c * dy * dy, op, cr, cg, cb)
+                        stopped = (result & _LOW32) << hs
+                    else:
+                        result = _blend_full(row, pxs, mx, half_a, b * dy, half_c * dy * dy, op, cr, cg, cb)
+                        stopped = result & _LOW32
+                    alive[r] &= ~stopped
+                    remaining -= result >> 32
+                if remaining == 0:
+                    break
+            for y in range(y0, min(y0 + ts, height)):
+                for x in range(x0, min(x0 + ts, width)):
+                    p = (y - y0) * _ROW + x - x0
+                    tp = state[_T + p] if state[_T + p] > 0.0 else state[_TF + p]
+                    out[y, x, 0] = state[_AR + p] + tp * background[0]
+                    out[y, x, 1] = state[_AG + p] + tp * background[1]
+                    out[y, x, 2] = state[_AB + p] + tp * background[2]
+                    out[y, x, 3] = one - tp
 
 
 def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
@@ -476,16 +481,16 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
     boxes = np.empty((g.count, 4), dtype=np.int32)
     depth = np.empty(g.count, dtype=np.float32)
     index = np.arange(g.count, dtype=np.uint64)
+    workers = 4 * nb.get_num_threads()
     for view in range(n):
         k = Ks[view]
         _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
                  k[0, 2] + 0.5, k[1, 2] + 0.5, width, height, tiles_x, tiles_y, records, boxes, depth)
         order = _front_to_back(depth, index)
         offsets, ids, packed = _bin(order, boxes, records, tiles_x * tiles_y, tiles_x, _CHUNKS)
-        # busiest tiles first, handed out one at a time, so that the threads finish together
+        # busiest tiles first, dealt to the workers in turn, so that the threads finish together
         tile_order = np.argsort(offsets[:-1] - offsets[1:], kind="stable")
-        with nb.parallel_chunksize(1):
-            _composite(packed, offsets, ids, tile_order, width, height, tiles_x, bg, out[view])
+        _composite(packed, offsets, ids, tile_order, workers, width, height, tiles_x, bg, out[view])
     return out
 
 
