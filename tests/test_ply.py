@@ -7,7 +7,7 @@ from lenticalib.errors import InputError
 from lenticalib.render.gaussians import Gaussians
 from lenticalib.render.ply import load_ply, save_ply
 
-plyfile = pytest.importorskip("plyfile")
+import plyfile  # noqa: E402  (a dependency of lenticalib)
 
 BASE = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
 TAIL = ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
