@@ -1,0 +1,201 @@
+"""The standard 3D Gaussian Splatting PLY file (the layout the INRIA 3DGS code and gsplat write).
+
+One element ``vertex`` with one row per Gaussian and these scalar properties, *raw* (pre-activation)
+values, any numeric type (float32 in practice):
+
+    x, y, z                       centre, world units
+    nx, ny, nz                    optional, ignored (3DGS writes zeros)
+    f_dc_0 .. f_dc_2              SH degree-0 coefficient, R G B
+    f_rest_0 .. f_rest_{M-1}      the higher SH coefficients, M = 3 (K - 1) with K = 1, 4, 9, 16
+                                  (M = 0, 9, 24, 45), stored channel-major: the K - 1 coefficients
+                                  of R, then those of G, then those of B
+    opacity                       logit of the opacity
+    scale_0 .. scale_2            log of the standard deviations
+    rot_0 .. rot_3                quaternion (w, x, y, z), any non-zero length
+
+:func:`load_ply` returns :class:`~.gaussians.Gaussians` with activated values (sigmoid, exp,
+normalised quaternion; ``sh[:, 0] = f_dc``, ``sh[:, 1:] = f_rest`` reshaped ``(G, 3, K-1)`` and
+transposed).  :func:`save_ply` writes the inverse transforms, binary little-endian float32, without
+normals, atomically.
+
+What is accepted: any PLY encoding plyfile reads (binary little- or big-endian, and ASCII, which is
+slow for large avatars but unambiguous); other elements (a camera, faces) and other vertex
+properties (e.g. a mip-splatting ``filter_3D``) are ignored.  What is refused, each with one
+InputError naming the file and the property at fault: not a PLY / a truncated file, no ``vertex``
+element or no rows, a missing property, ``f_rest_*`` of a count other than 0, 9, 24 or 45 or not
+numbered 0..M-1, a list property where a scalar is expected, a non-finite value, a zero-length
+quaternion.  Compressed PLYs (SuperSplat's ``packed_position`` chunks) are not this layout.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+
+import numpy as np
+
+from ..atomic import write_bytes_atomic
+from ..errors import BackendUnavailableError, InputError
+from .gaussians import Gaussians
+
+_REST_COUNTS = {0: 1, 9: 4, 24: 9, 45: 16}  # number of f_rest_* -> K
+_LAYOUT_HINT = "expected the standard 3DGS layout: x y z f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3"
+
+
+def _plyfile():
+    try:
+        import plyfile
+    except ImportError:
+        raise BackendUnavailableError("reading and writing PLY avatars needs the plyfile package",
+                                      source="plyfile", hint="pip install plyfile") from None
+    return plyfile
+
+
+def _column(vertex, name: str, source: str) -> np.ndarray:
+    """One scalar property as float64 (G,), refused when missing, a list or non-finite."""
+    data = vertex.data
+    if data.dtype.names is None or name not in data.dtype.names:
+        raise InputError(f"vertex property {name!r} is missing", source=source, hint=_LAYOUT_HINT)
+    values = data[name]
+    if values.dtype == object or values.dtype.kind not in "iuf":
+        raise InputError(f"vertex property {name!r} is not a numeric scalar", source=source,
+                         hint=_LAYOUT_HINT)
+    with np.errstate(over="ignore"):  # a float64 value beyond float32's range becomes inf: refused
+        values32 = values.astype(np.float32)
+    bad = ~np.isfinite(values32)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise InputError(f"vertex property {name!r} is not finite in float32 ({values[row]} in row {row}, "
+                         f"{int(bad.sum())} rows in all)", source=source)
+    return values32.astype(np.float64)
+
+
+def _columns(vertex, names: list[str], source: str) -> np.ndarray:
+    return np.stack([_column(vertex, name, source) for name in names], axis=1)
+
+
+def _rest_names(vertex, source: str) -> list[str]:
+    """The ``f_rest_*`` property names in index order, checked to be 0..M-1 with M in 0, 9, 24, 45."""
+    found = {}
+    for name in vertex.data.dtype.names or ():
+        match = re.fullmatch(r"f_rest_(\d+)", name)
+        if match:
+            found[int(match.group(1))] = name
+    if len(found) not in _REST_COUNTS:
+        raise InputError(f"vertex property 'f_rest_*' has {len(found)} coefficients, expected 0, 9, 24 or 45 "
+                         "(SH degree 0-3)", source=source)
+    missing = sorted(set(range(len(found))) - set(found))
+    if missing:
+        raise InputError(f"vertex property 'f_rest_{missing[0]}' is missing (f_rest_* must be numbered "
+                         f"0..{len(found) - 1})", source=source)
+    return [found[i] for i in range(len(found))]
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    e = np.exp(-np.abs(x))
+    return np.where(x >= 0, 1.0 / (1.0 + e), e / (1.0 + e))
+
+
+def load_ply(path: str | os.PathLike) -> Gaussians:
+    """The Gaussians stored in the 3DGS PLY file ``path``, activated, numpy float32.
+
+    Raises InputError naming the file (and the property at fault) for anything but the layout in
+    the module docstring; BackendUnavailableError when plyfile is not installed.
+    """
+    plyfile = _plyfile()
+    source = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            if not fh.read(4):
+                raise InputError("empty file, not a PLY", source=source)
+            fh.seek(0)
+            ply = plyfile.PlyData.read(fh, mmap=False)
+    except FileNotFoundError:
+        raise InputError("no such file", source=source) from None
+    except IsADirectoryError:
+        raise InputError("is a folder, expected a .ply file", source=source) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", source=source) from None
+    except plyfile.PlyParseError as exc:
+        raise InputError(f"not a readable PLY file: {_one_line(exc)}", source=source,
+                         hint=_LAYOUT_HINT) from None
+    except (ValueError, TypeError, UnicodeDecodeError, IndexError) as exc:  # plyfile on odd headers
+        raise InputError(f"not a readable PLY file: {_one_line(exc)}", source=source) from None
+
+    if "vertex" not in ply:
+        raise InputError("no 'vertex' element", source=source, hint=_LAYOUT_HINT)
+    vertex = ply["vertex"]
+    if vertex.count == 0:
+        raise InputError("the 'vertex' element has no rows (no Gaussians)", source=source)
+
+    means = _columns(vertex, ["x", "y", "z"], source)
+    f_dc = _columns(vertex, ["f_dc_0", "f_dc_1", "f_dc_2"], source)
+    rest_names = _rest_names(vertex, source)
+    f_rest = (_columns(vertex, rest_names, source) if rest_names
+              else np.zeros((vertex.count, 0), dtype=np.float64))
+    opacity = _column(vertex, "opacity", source)
+    log_scales = _columns(vertex, ["scale_0", "scale_1", "scale_2"], source)
+    rot = _columns(vertex, ["rot_0", "rot_1", "rot_2", "rot_3"], source)
+
+    norm = np.linalg.norm(rot, axis=1)
+    if not (norm > 0).all():
+        row = int(np.flatnonzero(~(norm > 0))[0])
+        raise InputError(f"vertex property 'rot_0..3' is a zero-length quaternion in row {row}", source=source)
+    with np.errstate(over="ignore"):
+        scales = np.exp(log_scales).astype(np.float32)
+    if not (np.isfinite(scales) & (scales > 0)).all():
+        row = int(np.flatnonzero(~(np.isfinite(scales) & (scales > 0)).all(axis=1))[0])
+        raise InputError(f"vertex property 'scale_*' is out of float32 range after exp() in row {row}",
+                         source=source)
+
+    k = _REST_COUNTS[len(rest_names)]
+    sh = np.empty((vertex.count, k, 3), dtype=np.float32)
+    sh[:, 0, :] = f_dc
+    sh[:, 1:, :] = f_rest.reshape(vertex.count, 3, k - 1).transpose(0, 2, 1)
+    f32 = np.float32
+    return Gaussians(means=means.astype(f32), quats=(rot / norm[:, None]).astype(f32),
+                     scales=scales, opacities=_sigmoid(opacity).astype(f32), sh=sh).validate(source)
+
+
+def save_ply(path: str | os.PathLike, gaussians: Gaussians) -> None:
+    """Write ``gaussians`` (activated, numpy or torch) to ``path`` in the standard 3DGS layout.
+
+    Binary little-endian float32, no normals, raw values (logit opacity, log scales, the quaternion
+    as given).  Opacities are clipped to [1e-12, 1 - 2**-24] before the logit so that a float32
+    opacity of exactly 0 or 1 stays finite.  The file is replaced atomically.  Raises InputError for
+    an empty set, non-finite values, opacities outside [0, 1], non-positive scales or zero-length
+    quaternions (naming the field), or an unwritable path.
+    """
+    plyfile = _plyfile()
+    g = gaussians.to_numpy().validate("gaussians")
+    if g.count == 0:
+        raise InputError("no Gaussians to write", source="gaussians")
+    for name in ("means", "quats", "scales", "opacities", "sh"):
+        if not np.isfinite(getattr(g, name)).all():
+            raise InputError(f"{name} has non-finite values", source="gaussians")
+    if (g.opacities < 0).any() or (g.opacities > 1).any():
+        raise InputError("opacities must lie in [0, 1]", source="gaussians")
+    if not (g.scales > 0).all():
+        raise InputError("scales must be > 0", source="gaussians")
+    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
+        raise InputError("quats has a zero-length quaternion", source="gaussians")
+
+    count, k = g.count, g.sh.shape[1]
+    rest = g.sh[:, 1:, :].transpose(0, 2, 1).reshape(count, 3 * (k - 1))
+    p = np.clip(g.opacities.astype(np.float64), 1e-12, 1.0 - 2.0**-24)
+    names = (["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2"] + [f"f_rest_{i}" for i in range(rest.shape[1])]
+             + ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"])
+    columns = [g.means, g.sh[:, 0, :], rest, np.log(p / (1.0 - p))[:, None],
+               np.log(g.scales.astype(np.float64)), g.quats]
+    table = np.concatenate([np.asarray(c, dtype=np.float32).reshape(count, -1) for c in columns], axis=1)
+    rows = np.empty(count, dtype=[(name, "<f4") for name in names])
+    for i, name in enumerate(names):
+        rows[name] = table[:, i]
+    buffer = io.BytesIO()
+    plyfile.PlyData([plyfile.PlyElement.describe(rows, "vertex")], text=False, byte_order="<").write(buffer)
+    write_bytes_atomic(path, buffer.getvalue())
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
