@@ -555,6 +555,8 @@ def test_demo_avatar_is_a_head(demo):
     assert luma[top].mean() < 0.4 * luma[cheeks].mean()
     # surfaces: small, flat, opaque Gaussians
     assert np.median(g.scales.max(1)) < 0.004 and np.median(g.scales.min(1)) < 0.0005
+    # and none is a streak: a sphere's pole once gave one Gaussian a 0.49 m axis, a line across every view
+    assert g.scales.max() < 0.015, np.sort(g.scales.max(1))[-3:]
     assert np.median(g.opacities) > 0.9
     assert g.sh_degree == 0
     names = demo.control_names

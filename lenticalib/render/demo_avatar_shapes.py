@@ -174,7 +174,10 @@ class Surface:
         self.p, self.normal, self.tangent, self.uv, self.cell = p, normal, tangent, uv, cell
 
     def scales(self, k=0.7, thin=0.2):
-        c = k * self.cell
+        # a cell is measured by finite differences of the parameterisation, which blow up where
+        # it is singular (a sphere's pole): no cell may exceed 4x the surface's typical cell
+        cap = 4.0 * np.median(self.cell, axis=0)
+        c = k * np.minimum(self.cell, cap[None, :])
         return np.stack([c[:, 0], c[:, 1], thin * np.sqrt(c[:, 0] * c[:, 1])], 1)
 
 
