@@ -101,6 +101,7 @@ class AvatarPipeline:
                  encoder: str = "fast", device: str = "cpu", background: np.ndarray | None = None,
                  edge_desaturation: float = 0.0):
         from .encoders import get_encoder
+        from .encoders.common import ASPECT_TOLERANCE
         from .renderers import get_renderer
 
         if cameras.n_views != profile.views:
@@ -115,6 +116,11 @@ class AvatarPipeline:
         self.background = background
         self.edge_desaturation = float(edge_desaturation)
         self._torch_encoder = None
+        view_aspect, panel_aspect = cameras.width / cameras.height, profile.width / profile.height
+        if abs(view_aspect / panel_aspect - 1.0) > ASPECT_TOLERANCE:  # checked now, not after the first render
+            raise InputError(f"views of {cameras.width}x{cameras.height} (aspect {view_aspect:.3f}) do not fit the "
+                             f"{profile.width}x{profile.height} panel (aspect {panel_aspect:.3f})", source="--view-size",
+                             hint="render at the panel's aspect ratio, e.g. 960x540 for a 16:9 panel")
         if self.on_gpu and encoder != "torch":
             raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
                              source="--encoder", hint="--encoder torch")

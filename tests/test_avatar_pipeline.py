@@ -1,0 +1,143 @@
+"""The avatar pipeline end to end on the CPU: ``lenticalib render`` and ``lenticalib play --headless``.
+
+A small demo avatar (fixed seed), the bundled 4K 32-view profile, the cpu renderer and the fast
+encoder.  Checks: what is written, that the written views are exactly what was encoded, that a
+Gaussian lands where cameras.json projects it, that the view direction is honoured (and a
+profile that does not state it is warned about), and one-line refusals.
+"""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from lenticalib.imageio import read_image
+from lenticalib.profile import load_profile, save_profile
+from lenticalib.render.encoders import encode
+from lenticalib.render.gaussians import SH_C0, Gaussians
+from lenticalib.render.ply import save_ply
+
+PROFILE = "fixtures/panel-4k-32.json"
+SMALL_VIEWS = "192x108"
+
+
+def _cli(*args, timeout=600):
+    return subprocess.run([sys.executable, "-m", "lenticalib", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.rig_file import save_rig
+
+    path = tmp_path_factory.mktemp("avatar") / "demo.npz"
+    save_rig(path, make_demo_avatar(seed=1, count=6000))
+    return path
+
+
+@pytest.fixture(scope="module")
+def directed(tmp_path_factory):
+    """The bundled profile with view_direction +1 and with -1."""
+    folder = tmp_path_factory.mktemp("profiles")
+    base = load_profile(PROFILE)
+    out = {}
+    for sign in (1, -1):
+        out[sign] = folder / f"p{sign:+d}.json"
+        save_profile(base.replace(view_direction=sign), out[sign])
+    return out
+
+
+def test_render_writes_the_raster_the_views_and_the_cameras(demo, directed, tmp_path):
+    result = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "frame.png", "--view-size", SMALL_VIEWS,
+                  "--views-out", tmp_path / "views", "--background", "0.1,0.1,0.1")
+    assert result.returncode == 0, result.stderr
+    assert "warning" not in result.stderr
+    for stage in ("drive", "render", "compose", "total", "fps"):
+        assert stage in result.stdout
+    raster = read_image(tmp_path / "frame.png")
+    assert raster.shape == (2160, 3840, 3) and raster.dtype == np.uint8
+    views = np.stack([read_image(tmp_path / "views" / "frame-00000" / f"view-{i:02d}.png") for i in range(32)])
+    assert views.shape == (32, 108, 192, 3)
+    assert np.array_equal(encode(views, load_profile(PROFILE)), raster)  # the views are exactly what was encoded
+    cameras = json.loads((tmp_path / "views" / "cameras.json").read_text())
+    assert cameras["format"] == "lenticalib.cameras" and len(cameras["views"]) == 32
+    # the head is in the middle of every view, on the background
+    for view in views[[0, 16, 31]]:
+        centre = view[40:70, 80:112].astype(int)
+        assert np.abs(centre - 26).sum(axis=2).mean() > 20  # not background (0.1 * 255 = 26)
+        assert np.abs(view[:5, :5].astype(int) - 26).max() <= 1
+
+
+def test_a_gaussian_lands_where_cameras_json_projects_it(directed, tmp_path):
+    point = np.array([0.013, -0.021, 0.007])
+    rng = np.random.default_rng(3)
+    # one bright small Gaussian at a known point, and a few dim ones far away to give the box a size
+    means = np.vstack([point, rng.uniform(-0.12, 0.12, (6, 3))]).astype(np.float32)
+    scales = np.full((7, 3), 0.002, np.float32)
+    opac = np.array([0.99] + [0.05] * 6, np.float32)
+    sh = np.zeros((7, 1, 3), np.float32)
+    sh[0, 0] = (1.0 - 0.5) / SH_C0
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (7, 1)).astype(np.float32)
+    save_ply(tmp_path / "dot.ply", Gaussians(means, quats, scales, opac, sh))
+    result = _cli("render", tmp_path / "dot.ply", "--profile", directed[1], "-o", tmp_path / "f.png",
+                  "--view-size", "480x270", "--views-out", tmp_path / "v")
+    assert result.returncode == 0, result.stderr
+    cameras = json.loads((tmp_path / "v" / "cameras.json").read_text())
+    for index in (0, 11, 31):
+        entry = cameras["views"][index]
+        k, m = np.array(entry["K"]), np.array(entry["world_to_camera"])
+        cam = m[:3, :3] @ point + m[:3, 3]
+        expected = (k @ cam)[:2] / cam[2]
+        view = read_image(tmp_path / "v" / "frame-00000" / f"view-{index:02d}.png").astype(float).sum(axis=2)
+        ys, xs = np.mgrid[0:view.shape[0], 0:view.shape[1]]
+        near = (np.abs(xs - expected[0]) < 8) & (np.abs(ys - expected[1]) < 8)
+        w = view * near
+        centroid = np.array([(w * xs).sum(), (w * ys).sum()]) / w.sum()
+        assert np.abs(centroid - expected).max() < 0.1, (index, centroid, expected)
+
+
+def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, directed, tmp_path):
+    out = {}
+    for sign in (1, -1):
+        r = _cli("render", demo, "--profile", directed[sign], "-o", tmp_path / f"r{sign}.png", "--view-size",
+                 SMALL_VIEWS, "--views-out", tmp_path / f"v{sign}")
+        assert r.returncode == 0, r.stderr
+        out[sign] = np.stack([read_image(tmp_path / f"v{sign}" / "frame-00000" / f"view-{i:02d}.png")
+                              for i in range(32)])
+    assert np.array_equal(out[1], out[-1][::-1])
+    assert not np.array_equal(out[1][0], out[1][31])
+    r = _cli("render", demo, "--profile", PROFILE, "-o", tmp_path / "u.png", "--view-size", SMALL_VIEWS)
+    assert r.returncode == 0, r.stderr
+    assert "does not say which way its views run" in r.stderr
+
+
+def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed):
+    result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "2", "--view-size", SMALL_VIEWS)
+    assert result.returncode == 0, result.stderr
+    assert "(2 frames" in result.stdout and "present" in result.stdout
+
+
+def test_bad_inputs_end_in_one_line(demo, directed, tmp_path):
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    (tmp_path / "bad.jsonl").write_text('{"t": 0, "controls": [1, 2, 3]}\n')
+    cases = [
+        (["render", tmp_path / "missing.npz", "--profile", directed[1], "-o", tmp_path / "a.png"], "no such avatar file"),
+        (["render", tmp_path / "bad.npz", "--profile", directed[1], "-o", tmp_path / "a.png"], "bad.npz"),
+        (["render", demo, "--profile", directed[1], "-o", tmp_path / "a.png", "--controls", tmp_path / "bad.jsonl"],
+         "bad.jsonl"),
+        (["render", demo, "--profile", directed[1], "-o", tmp_path / "a.png", "--renderer", "opengl"],
+         "unknown renderer 'opengl'"),
+        (["render", demo, "--profile", directed[1], "-o", tmp_path / "a.png", "--view-size", "500x500"], "aspect"),
+        (["render", demo, "--profile", directed[1], "-o", tmp_path / "a.png", "--background", "red"], "--background"),
+        (["render", demo, "--profile", directed[1], "-o", tmp_path / "a.png", "--frames", "3"], "one PNG"),
+        (["render", demo, "--profile", tmp_path / "none.json", "-o", tmp_path / "a.png"], "none.json"),
+    ]
+    for args, message in cases:
+        result = _cli(*args)
+        assert result.returncode == 2, (args, result.stdout, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], (args, result.stderr)
+    assert not (tmp_path / "a.png").exists()
