@@ -89,6 +89,36 @@ def desaturate_edges(rgba, strength: float):
     return luma + (rgb - luma) * keep
 
 
+def to_uint8(rgb: np.ndarray) -> np.ndarray:
+    """(..., 3 or 4) float in 0..1 -> (..., 3) uint8, rounded (alpha dropped); numba, in one pass."""
+    return _to_uint8(rgb.reshape(-1, rgb.shape[-1])).reshape(rgb.shape[:-1] + (3,))
+
+
+def _to_uint8_kernel():
+    import numba
+
+    @numba.njit(parallel=True, cache=True)
+    def kernel(flat):
+        out = np.empty((flat.shape[0], 3), np.uint8)
+        for i in numba.prange(flat.shape[0]):
+            for c in range(3):
+                v = flat[i, c] * 255.0 + 0.5
+                out[i, c] = 0 if v < 0.0 else (255 if v >= 255.0 else np.uint8(v))
+        return out
+
+    return kernel
+
+
+_KERNEL = None
+
+
+def _to_uint8(flat):
+    global _KERNEL
+    if _KERNEL is None:
+        _KERNEL = _to_uint8_kernel()
+    return _KERNEL(flat)
+
+
 class AvatarPipeline:
     """drive -> render -> compose for one avatar on one panel; see the module docstring.
 
@@ -154,7 +184,7 @@ class AvatarPipeline:
             views = (rgb.clamp(0, 1) * 255.0 + 0.5).to(dtype=__import__("torch").uint8).contiguous()
             raster = self._gpu_encoder().encode(views).cpu().numpy()
         else:
-            views = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8)
+            views = to_uint8(np.ascontiguousarray(rgb) if self.edge_desaturation > 0 else rgba)
             raster = self.encode_fn(views, self.profile)
         t3 = time.perf_counter()
         return raster, views, {"drive": 1e3 * (t1 - t0), "render": 1e3 * (t2 - t1), "compose": 1e3 * (t3 - t2)}
