@@ -114,6 +114,21 @@ def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, dir
     assert "does not say which way its views run" in r.stderr
 
 
+def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_path):
+    from lenticalib.imageio import write_image
+
+    backdrop = np.zeros((108, 192, 3), np.uint8)
+    backdrop[:, :96] = (200, 30, 40)
+    backdrop[:, 96:] = (20, 60, 210)
+    write_image(tmp_path / "backdrop.png", backdrop)
+    r = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "b.png", "--view-size", SMALL_VIEWS,
+             "--background", tmp_path / "backdrop.png", "--views-out", tmp_path / "v")
+    assert r.returncode == 0, r.stderr
+    view = read_image(tmp_path / "v" / "frame-00000" / "view-16.png").astype(int)
+    assert np.abs(view[:6, :6] - (200, 30, 40)).max() <= 1 and np.abs(view[-6:, -6:] - (20, 60, 210)).max() <= 1
+    assert np.abs(view[40:70, 80:112] - backdrop[40:70, 80:112]).sum(axis=2).mean() > 30  # the head covers it
+
+
 def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed):
     result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "2", "--view-size", SMALL_VIEWS)
     assert result.returncode == 0, result.stderr

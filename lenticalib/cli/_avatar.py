@@ -30,7 +30,8 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--yaw-range", type=float, default=50.0, help="yaw range of the N cameras, degrees "
                         "(default 50: -25..+25)")
     parser.add_argument("--view-size", default="960x540", metavar="WxH", help="view size (default 960x540)")
-    parser.add_argument("--background", metavar="R,G,B", help="background colour, 0..1 or 0..255 (default black)")
+    parser.add_argument("--background", metavar="R,G,B|IMAGE", help="background colour (0..1 or 0..255) or an "
+                        "image (resized to the view size; the same behind every view); default black")
     parser.add_argument("--edge-desaturation", type=float, default=0.0, metavar="S",
                         help="desaturate partly transparent edges by S (0..1; the LentiAvatar chroma attenuation)")
 
@@ -50,7 +51,8 @@ def build_pipeline(args: argparse.Namespace):
     device = args.device or ("cuda" if renderer == "gsplat" else "cpu")
     if not 0.0 <= args.edge_desaturation <= 1.0:
         raise InputError(f"{args.edge_desaturation} is out of range", source="--edge-desaturation", hint="use 0..1")
-    background = parse_background(args.background)
+    view_size = _size(args.view_size)
+    background = parse_background(args.background, view_size)
     avatar = load_avatar(args.avatar, args.driver)
     controls = None
     if avatar.kind == "animated":
@@ -58,7 +60,7 @@ def build_pipeline(args: argparse.Namespace):
     elif args.controls != "demo":
         raise InputError("a static avatar (.ply) takes no controls", source="--controls",
                          hint="drop --controls, or give an animated avatar (a rig .npz)")
-    options = {"fov_deg": args.fov, "yaw_range_deg": args.yaw_range, "view_size": _size(args.view_size)}
+    options = {"fov_deg": args.fov, "yaw_range_deg": args.yaw_range, "view_size": view_size}
     if args.radius is not None:
         options["radius"] = args.radius
     cameras = make_cameras(args.camera_model, avatar.bounding_box(), profile.views, **options)

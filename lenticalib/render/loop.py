@@ -66,16 +66,32 @@ class StageTimes:
         return "\n".join(lines)
 
 
-def parse_background(text: str | None) -> np.ndarray | None:
-    """``"R,G,B"`` in 0..1 or 0..255 -> float32 (3,) in 0..1; None -> None (black, premultiplied)."""
+def parse_background(text: str | None, view_size: tuple[int, int] | None = None) -> np.ndarray | None:
+    """``"R,G,B"`` (0..1 or 0..255) -> float32 (3,) in 0..1; an image file -> float32 (H_v, W_v, 3)
+    in 0..1 (sRGB values as stored, resized to ``view_size`` (W, H) by area averaging); None ->
+    None (black, i.e. premultiplied colour)."""
     if text is None:
         return None
+    from pathlib import Path
+
+    if "," not in text and Path(text).suffix:
+        import cv2
+
+        from ..imageio import read_image
+
+        image = read_image(text)
+        scale = 65535.0 if image.dtype == np.uint16 else (255.0 if image.dtype == np.uint8 else 1.0)
+        image = np.clip(image.astype(np.float32) / np.float32(scale), 0.0, 1.0)
+        if view_size is not None and (image.shape[1], image.shape[0]) != tuple(view_size):
+            image = cv2.resize(image, tuple(int(v) for v in view_size), interpolation=cv2.INTER_AREA)
+        return np.ascontiguousarray(image, dtype=np.float32)
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         values = []
     if len(values) != 3 or not all(np.isfinite(values)) or min(values) < 0 or max(values) > 255:
-        raise InputError(f"{text!r} is not R,G,B", source="--background", hint="e.g. 0.1,0.1,0.12 or 26,26,30")
+        raise InputError(f"{text!r} is not R,G,B or an image file", source="--background",
+                         hint="e.g. 0.1,0.1,0.12 or 26,26,30, or backdrop.png")
     arr = np.array(values, dtype=np.float32)
     return arr / 255.0 if arr.max() > 1.0 else arr
 
@@ -172,11 +188,16 @@ class AvatarPipeline:
             viewmats = torch.as_tensor(viewmats, device=self.device)
             ks = torch.as_tensor(ks, device=self.device)
         bg = self.background
+        image_bg = bg is not None and bg.ndim == 3
         if bg is not None and self.on_gpu:
             import torch
 
             bg = torch.as_tensor(bg, device=self.device)
-        rgba = self.render_fn(gaussians, viewmats, ks, self.cameras.width, self.cameras.height, background=bg)
+        rgba = self.render_fn(gaussians, viewmats, ks, self.cameras.width, self.cameras.height,
+                              background=None if image_bg else bg)
+        if image_bg:  # premultiplied colour over the image: rgb + (1 - alpha) * image
+            rgba = rgba.clone() if self.on_gpu else rgba.copy()
+            rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg[None]
         self._sync()
         t2 = time.perf_counter()
         rgb = desaturate_edges(rgba, self.edge_desaturation) if self.edge_desaturation > 0 else rgba[..., :3]
