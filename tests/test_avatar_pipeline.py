@@ -129,6 +129,22 @@ def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_p
     assert np.abs(view[40:70, 80:112] - backdrop[40:70, 80:112]).sum(axis=2).mean() > 30  # the head covers it
 
 
+def test_a_sequence_as_pngs_and_as_a_lossless_video_holds_the_same_rasters(demo, directed, tmp_path):
+    import cv2
+
+    args = ("--profile", directed[1], "--view-size", SMALL_VIEWS, "--frames", "2", "--fps", "2")
+    r = _cli("render", demo, "-o", tmp_path / "frames", *args)
+    assert r.returncode == 0, r.stderr
+    r = _cli("render", demo, "-o", tmp_path / "seq.mkv", *args)
+    assert r.returncode == 0, r.stderr
+    capture = cv2.VideoCapture(str(tmp_path / "seq.mkv"))
+    for k in range(2):
+        ok, frame = capture.read()
+        assert ok and np.array_equal(frame[:, :, ::-1], read_image(tmp_path / "frames" / f"frame-{k:05d}.png"))
+    assert not capture.read()[0]
+    assert not list(tmp_path.glob(".render-*"))  # no temporary file left
+
+
 def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed):
     result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "2", "--view-size", SMALL_VIEWS)
     assert result.returncode == 0, result.stderr

@@ -1,6 +1,8 @@
-"""``lenticalib render``: the avatar pipeline offline, to PNG panel rasters (and the views).
+"""``lenticalib render``: the avatar pipeline offline, to PNG panel rasters or a lossless video (and the views).
 
-``-o OUT.png`` for one frame, ``-o DIR`` for ``--frames N`` (``DIR/frame-00000.png`` ...), at
+``-o OUT.png`` for one frame, ``-o DIR`` for ``--frames N`` (``DIR/frame-00000.png`` ...) or
+``-o OUT.mkv`` for a lossless video (FFV1 through OpenCV's bundled FFmpeg: every pixel as
+rendered, so the raster survives), at
 ``--fps`` steps of the controls' time.  ``--views-out VDIR`` also writes the N views of every
 frame, 8-bit, in view order -- exactly what was encoded -- (``VDIR/frame-00000/view-00.png``
 ...) and ``VDIR/cameras.json``.  Output paths are checked before the first frame; a folder is
@@ -16,7 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ._avatar import add_avatar_arguments
 
     add_avatar_arguments(parser)
-    parser.add_argument("-o", "--output", required=True, metavar="OUT", help="OUT.png (one frame) or a folder")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT",
+                        help="OUT.png (one frame), OUT.mkv (lossless FFV1 video) or a folder of PNGs")
     parser.add_argument("--frames", type=int, default=1, metavar="N", help="frames to render (default 1)")
     parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the controls' time (default 30)")
     parser.add_argument("--views-out", metavar="VDIR", help="also write the N views and cameras.json here")
@@ -24,11 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from ..errors import InputError
-    from ..imageio import write_image
-    from ..outputs import check_output_file, staged_folder
+    from ..outputs import check_output_file
     from ..render.loop import StageTimes
     from ._avatar import build_pipeline
 
@@ -37,20 +37,46 @@ def run(args: argparse.Namespace) -> int:
     if not 0 < args.fps <= 1000:
         raise InputError(f"{args.fps} frames per second", source="--fps", hint="use 0 < fps <= 1000")
     single = args.output.lower().endswith(".png")
+    video = args.output.lower().endswith(".mkv")
     if single and args.frames != 1:
         raise InputError(f"{args.frames} frames cannot go into one PNG", source="--output",
                          hint="give a folder for a sequence")
-    if single:
-        check_output_file(args.output, "raster", "out.png")
+    if single or video:
+        check_output_file(args.output, "video" if video else "raster", "out.mkv" if video else "out.png")
     pipeline, controls, avatar = build_pipeline(args)
     if pipeline.warning:
         import sys
 
         print(f"lenticalib: warning: {pipeline.warning}", file=sys.stderr)
     times = StageTimes()
-    targets = [("raster", args.output)] if not single else []
+    targets = [("raster", args.output)] if not (single or video) else []
+    writer = _VideoFile(args.output, args.fps) if video else None
     if args.views_out:
         targets.append(("views", args.views_out))
+    try:
+        _render_frames(args, pipeline, controls, times, targets, writer, single)
+    except BaseException:
+        if writer is not None:
+            writer.discard()
+        raise
+    if controls is not None:
+        controls.close()
+    what = args.output if single else f"{args.frames} frame(s) in {args.output}"
+    if writer is not None:
+        what = f"{args.frames} frame(s), lossless, in {args.output}"
+    print(f"wrote {what}" + (f" and the views in {args.views_out}" if args.views_out else ""))
+    print(times.table(f"lenticalib render: {avatar.source}, {pipeline.profile.views} views "
+                      f"{pipeline.cameras.width}x{pipeline.cameras.height}, renderer {pipeline.renderer}, "
+                      f"encoder {pipeline.encoder}"))
+    return 0
+
+
+def _render_frames(args, pipeline, controls, times, targets, writer, single) -> None:
+    import numpy as np
+
+    from ..imageio import write_image
+    from ..outputs import staged_folder
+
     with _staged(targets, staged_folder) as folders:
         for k in range(args.frames):
             vector = controls.latest(k / args.fps)[1] if controls is not None else None
@@ -59,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
             times.add(**stages)
             if single:
                 write_image(args.output, raster)
+            elif writer is not None:
+                writer.write(raster)
             else:
                 write_image(folders["raster"] / f"frame-{k:05d}.png", raster)
             if "views" in folders:
@@ -69,14 +97,8 @@ def run(args: argparse.Namespace) -> int:
                     write_image(frame_dir / f"view-{i:02d}.png", view)
         if "views" in folders:
             pipeline.cameras.write_json(folders["views"] / "cameras.json")
-    if controls is not None:
-        controls.close()
-    what = args.output if single else f"{args.frames} frame(s) in {args.output}"
-    print(f"wrote {what}" + (f" and the views in {args.views_out}" if args.views_out else ""))
-    print(times.table(f"lenticalib render: {avatar.source}, {pipeline.profile.views} views "
-                      f"{pipeline.cameras.width}x{pipeline.cameras.height}, renderer {pipeline.renderer}, "
-                      f"encoder {pipeline.encoder}"))
-    return 0
+        if writer is not None:
+            writer.finish()
 
 
 class _staged:
@@ -97,3 +119,49 @@ class _staged:
 
     def __exit__(self, *exc):
         return self._stack.__exit__(*exc)
+
+
+class _VideoFile:
+    """A lossless FFV1 video written beside ``path`` and moved into place by :meth:`finish`
+    (an interrupted render leaves no partial video, and an earlier one stays)."""
+
+    def __init__(self, path: str, fps: float):
+        import os
+        import tempfile
+
+        from ..imageio import cv2_quiet
+
+        self._cv2 = cv2_quiet()
+        self.path = path
+        folder = os.path.dirname(os.path.abspath(path))
+        handle, self.temp = tempfile.mkstemp(prefix=".render-", suffix=".mkv", dir=folder)
+        os.close(handle)
+        self.fps = fps
+        self._writer = None
+
+    def write(self, raster) -> None:
+        from ..errors import InputError
+
+        if self._writer is None:
+            fourcc = self._cv2.VideoWriter_fourcc(*"FFV1")
+            self._writer = self._cv2.VideoWriter(self.temp, fourcc, self.fps, (raster.shape[1], raster.shape[0]))
+            if not self._writer.isOpened():
+                self.discard()
+                raise InputError("OpenCV cannot write FFV1 video here", source=self.path,
+                                 hint="write PNG frames to a folder instead")
+        self._writer.write(raster[:, :, ::-1].copy())
+
+    def finish(self) -> None:
+        import os
+
+        if self._writer is not None:
+            self._writer.release()
+        os.replace(self.temp, self.path)
+
+    def discard(self) -> None:
+        import os
+
+        if self._writer is not None:
+            self._writer.release()
+        if os.path.exists(self.temp):
+            os.remove(self.temp)
