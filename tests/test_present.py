@@ -9,7 +9,8 @@ import pytest
 
 from lenticalib.errors import DisplayError, ImageError
 from lenticalib.render.monitors import Monitor, choose_monitor, list_monitors
-from lenticalib.render.present import OffscreenPresenter, WindowPresenter
+from lenticalib.render.present import WindowPresenter
+from lenticalib.render.present_offscreen import OffscreenPresenter
 
 from .display_support import VirtualDisplay
 

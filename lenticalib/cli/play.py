@@ -31,7 +31,8 @@ def run(args: argparse.Namespace) -> int:
 
     from ..errors import InputError
     from ..render.loop import StageTimes
-    from ..render.present import MemoryPresenter, WindowPresenter, open_presenter
+    from ..render.present import WindowPresenter, open_presenter
+    from ..render.present_offscreen import MemoryPresenter
     from ._avatar import build_pipeline
 
     if args.frames is not None and args.frames < 1:

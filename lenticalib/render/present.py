@@ -15,19 +15,20 @@ uint8, or uint16 where the framebuffer has at least 10 bits per channel.
 Backends (``PRESENTERS``): ``window`` (a real monitor, or Xvfb in tests), ``offscreen`` (an
 EGL or standalone context with no window: the benchmark on a headless GPU machine, and the
 virtual panel) and ``none`` (no graphics: the virtual panel on a machine without OpenGL).
+This module holds the base :class:`Presenter`, the ``window`` one and :func:`open_presenter`;
+``offscreen`` and ``none`` are in :mod:`lenticalib.render.present_offscreen`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 from collections import deque
 
 import numpy as np
 
 from ..errors import DisplayError, ImageError
-from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, is_macos, list_monitors
+from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0
 GL_FRAMEBUFFER_SRGB = 0x8DB9
@@ -315,84 +316,6 @@ class WindowPresenter(Presenter):
         return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3)[::-1].copy()
 
 
-class OffscreenPresenter(Presenter):
-    """A framebuffer object in a context with no window (EGL on a headless GPU, or GLX/WGL
-    standalone): for benchmarks and the virtual panel.  ``size``: (width, height)."""
-
-    kind = "offscreen"
-
-    def __init__(self, size: tuple[int, int], backend: str | None = None, vsync: bool = False):
-        super().__init__(vsync)
-        self.size = (int(size[0]), int(size[1]))
-        self.backend = backend
-        self._fbo = None
-
-    def open(self) -> None:
-        import moderngl
-
-        backend = self.backend
-        if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
-            backend = "egl"  # no X server: EGL (a GPU driver's, or Mesa's surfaceless llvmpipe)
-        kwargs = {"standalone": True, "require": 330}
-        if backend:
-            kwargs["backend"] = backend
-        try:
-            self.ctx = moderngl.create_context(**kwargs)
-        except Exception as exc:
-            raise DisplayError(f"no offscreen OpenGL 3.3 context ({backend or 'default'} backend: "
-                               f"{str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r})",
-                               hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver; or use "
-                                    "--display none") from None
-        colour = self.ctx.renderbuffer(self.size, 4, dtype="f1")
-        self._fbo = self.ctx.framebuffer(color_attachments=[colour])
-        self._setup_gl()
-
-    def _target(self):
-        return self._fbo
-
-    def close(self) -> None:
-        if self._fbo is not None:
-            for attachment in self._fbo.color_attachments:
-                attachment.release()
-            self._fbo.release()
-            self._fbo = None
-        super().close()
-
-    def read_back(self) -> np.ndarray:
-        data = self._fbo.read(components=3, alignment=1)
-        return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3)[::-1].copy()
-
-
-class MemoryPresenter(Presenter):
-    """No graphics at all: the raster is kept as sent.  For the virtual panel on a machine with
-    no OpenGL; ``read_back`` returns the raster itself (nothing could alter it)."""
-
-    kind = "none"
-
-    def __init__(self, size: tuple[int, int]):
-        super().__init__(vsync=False)
-        self.size = (int(size[0]), int(size[1]))
-
-    def open(self) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-    def show(self, raster: np.ndarray, source: str | None = None) -> FrameTiming:
-        check_raster(raster, self.size, 8, source)
-        start = time.perf_counter()
-        self._shown = np.array(raster, copy=True)
-        timing = FrameTiming(1e3 * (time.perf_counter() - start), 0.0)
-        self.timings.append(timing)
-        return timing
-
-    def read_back(self) -> np.ndarray:
-        if self._shown is None:
-            raise DisplayError("nothing has been shown yet")
-        return self._shown.copy()
-
-
 def _key_names() -> dict[int, str]:
     try:
         import glfw
@@ -406,7 +329,19 @@ def _key_names() -> dict[int, str]:
 
 _KEY_NAMES = _key_names()
 
-PRESENTERS = {"window": WindowPresenter, "offscreen": OffscreenPresenter, "none": MemoryPresenter}
+
+def _presenters() -> dict[str, type[Presenter]]:
+    from .present_offscreen import MemoryPresenter, OffscreenPresenter
+
+    return {"window": WindowPresenter, "offscreen": OffscreenPresenter, "none": MemoryPresenter}
+
+
+def __getattr__(name: str):
+    # PRESENTERS names classes of present_offscreen, which imports this module: built on first use
+    if name == "PRESENTERS":
+        value = globals()["PRESENTERS"] = _presenters()
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def open_presenter(display: str | None = None, size: tuple[int, int] | None = None,
@@ -417,6 +352,8 @@ def open_presenter(display: str | None = None, size: tuple[int, int] | None = No
     else :func:`list_monitors`)."""
     kind = display.split(":")[0] if display is not None else None
     if kind in ("none", "offscreen"):
+        from .present_offscreen import MemoryPresenter, OffscreenPresenter
+
         if size is None:
             raise DisplayError(f"a display of kind {kind!r} needs a raster size", source="--display")
         if kind == "none":
