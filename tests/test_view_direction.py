@@ -25,8 +25,8 @@ from lenticalib.calib.direction import (DIRECTION_PATTERN_NAME, add_moved_right,
                                         direction_raster, direction_view, direction_views)
 from lenticalib.cli import main
 from lenticalib.errors import InputError, ProfileError
-from lenticalib.profile import (PanelProfile, direction_warning, load_profile, make_provenance, save_profile,
-                                with_direction)
+from lenticalib.profile import PanelProfile, load_profile, make_provenance, save_profile
+from lenticalib.view_direction import direction_warning, with_direction
 
 REPO = Path(__file__).resolve().parents[1]
 EIGHT = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,

@@ -213,7 +213,7 @@ def add_moved_right(result, second, second_directory) -> None:
     evidence (for the fit summary), and appends one warning line to ``result.warnings`` when
     the direction stays unknown.  A second fit that failed a quality gate gives no direction.
     """
-    from ..profile import with_direction
+    from ..view_direction import with_direction
 
     evidence = direction_from_moved_right(result.profile, second.profile)
     if not second.trusted and evidence.direction is not None:

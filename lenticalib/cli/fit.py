@@ -94,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
     from ..calib.fit import fit_capture_set
     from ..calib.report import REPORT_FILES, fit_summary, write_report
     from ..outputs import staged_folder
-    from ..profile import describe_direction, save_profile
+    from ..profile import save_profile
+    from ..view_direction import describe_direction
     from ._progress import progress_bar
 
     output, report_dir = check_arguments(args)

@@ -92,7 +92,8 @@ def run_direction(args: argparse.Namespace) -> int:
     from ..calib.direction import DIRECTION_PATTERN_NAME, direction_raster
     from ..imageio import check_image_output, write_image
     from ..outputs import check_output_folder
-    from ..profile import describe_direction, load_profile
+    from ..profile import load_profile
+    from ..view_direction import describe_direction
 
     profile = load_profile(args.profile, "--profile")
     folder = check_output_folder(args.output, "direction pattern")

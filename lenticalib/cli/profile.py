@@ -44,7 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _print_profile(profile) -> None:
     """The constants of ``profile``, one per line with units and 1-sigma (``profile show``)."""
-    from ..profile import describe_direction, describe_provenance, format_constant
+    from ..profile import describe_provenance, format_constant
+    from ..view_direction import describe_direction
 
     unc = profile.uncertainty or {}
     rows = [("views", profile.views, ""), ("slant", profile.slant, "pixels/row"),
@@ -153,7 +154,8 @@ def _direction_text(direction) -> str:
 
 
 def run_set_direction(args) -> int:
-    from ..profile import describe_direction, load_profile, parse_direction, save_profile, with_direction
+    from ..profile import load_profile, save_profile
+    from ..view_direction import describe_direction, parse_direction, with_direction
 
     direction = parse_direction(args.direction, "DIRECTION")  # before the file is read
     profile = load_profile(args.profile, "PROFILE")

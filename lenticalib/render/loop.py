@@ -28,7 +28,8 @@ import time
 import numpy as np
 
 from ..errors import InputError
-from ..profile import PanelProfile, direction_warning
+from ..profile import PanelProfile
+from ..view_direction import direction_warning
 from .cameras import ViewCameras, order_for_direction
 
 STAGES = ("drive", "render", "compose", "present")
