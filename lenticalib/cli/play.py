@@ -29,6 +29,8 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import time
 
+    import numpy as np
+
     from ..errors import InputError
     from ..render.loop import StageTimes
     from ..render.present import WindowPresenter, open_presenter
@@ -59,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
                 t0 = time.perf_counter()
                 if args.preview:
                     view = views[centre]
-                    presenter.show(view if isinstance(view, __import__("numpy").ndarray) else view.cpu().numpy())
+                    presenter.show(view if isinstance(view, np.ndarray) else view.cpu().numpy())
                 else:
                     presenter.show(raster)
                 stages["present"] = 1e3 * (time.perf_counter() - t0)

@@ -43,6 +43,7 @@ builds the rig.
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -214,7 +215,7 @@ def demo_avatar_arrays(seed: int = 0, count: int = 100_000) -> dict[str, np.ndar
         "bone_pivots": pivots, "bone_controls": bone_controls, "skin_weights": weights.astype(np.float32),
         "pose_pivot": np.array(POSE_PIVOT, np.float32),
         "pose_controls": np.array([layout.slice("head").start, layout.slice("translation").start], np.int32),
-        "provenance": np.array(__import__("json").dumps(provenance, sort_keys=True)),
+        "provenance": np.array(json.dumps(provenance, sort_keys=True)),
         "part_names": names,  # not part of the format: dropped by make_demo_avatar, kept for inspection
     }
 

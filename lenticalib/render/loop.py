@@ -160,7 +160,6 @@ class AvatarPipeline:
         self.render_fn = get_renderer(renderer)
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"
-        self.background = background
         self.edge_desaturation = float(edge_desaturation)
         self._torch_encoder = None
         view_aspect, panel_aspect = cameras.width / cameras.height, profile.width / profile.height
@@ -173,7 +172,15 @@ class AvatarPipeline:
                              source="--encoder", hint="--encoder torch")
         if not self.on_gpu:
             self.encode_fn = get_encoder(encoder)
+        # the per-session constants, once, where the renderer wants them
         self._mats = (self.cameras.viewmats.astype(np.float32), self.cameras.K.astype(np.float32))
+        self._background = background
+        if self.on_gpu:
+            import torch
+
+            self._mats = tuple(torch.as_tensor(m, device=device) for m in self._mats)
+            if background is not None:
+                self._background = torch.as_tensor(background, device=device)
 
     def frame(self, controls: np.ndarray | None) -> tuple[np.ndarray, object, dict]:
         """(raster uint8 (height, width, 3) on the host, views uint8 (N, H_v, W_v, 3) numpy or
@@ -183,27 +190,19 @@ class AvatarPipeline:
         self._sync()
         t1 = time.perf_counter()
         viewmats, ks = self._mats
-        if self.on_gpu:
-            import torch
-
-            viewmats = torch.as_tensor(viewmats, device=self.device)
-            ks = torch.as_tensor(ks, device=self.device)
-        bg = self.background
+        bg = self._background
         image_bg = bg is not None and bg.ndim == 3
-        if bg is not None and self.on_gpu:
-            import torch
-
-            bg = torch.as_tensor(bg, device=self.device)
         rgba = self.render_fn(gaussians, viewmats, ks, self.cameras.width, self.cameras.height,
                               background=None if image_bg else bg)
-        if image_bg:  # premultiplied colour over the image: rgb + (1 - alpha) * image
-            rgba = rgba.clone() if self.on_gpu else rgba.copy()
+        if image_bg:  # premultiplied colour over the image (the render's own array): rgb += (1 - alpha) * image
             rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg[None]
         self._sync()
         t2 = time.perf_counter()
         rgb = desaturate_edges(rgba, self.edge_desaturation) if self.edge_desaturation > 0 else rgba[..., :3]
         if self.on_gpu:
-            views = (rgb.clamp(0, 1) * 255.0 + 0.5).to(dtype=__import__("torch").uint8).contiguous()
+            import torch
+
+            views = (rgb.clamp(0, 1) * 255.0 + 0.5).to(dtype=torch.uint8).contiguous()
             raster = self._gpu_encoder().encode(views).cpu().numpy()
         else:
             views = to_uint8(np.ascontiguousarray(rgb) if self.edge_desaturation > 0 else rgba)

@@ -11,8 +11,6 @@ photo is in place, a photo of the same pattern with *another* suffix (``NAME.png
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 from ...atomic import write_bytes_atomic
@@ -70,28 +68,9 @@ def write_photo(data: bytes, destination: Path, suffix: str) -> Path:
 
 def copy_photo(source: Path, destination: Path) -> Path:
     """Copy ``source`` (left where it is) to ``destination`` + its own suffix atomically; returns the path."""
-    folder = destination.parent
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{destination.name}.", suffix=".tmp", dir=folder)
+        data = Path(source).read_bytes()
     except OSError as exc:
-        raise CameraError(f"cannot write here: {exc.strerror}", source=str(folder),
-                          hint="choose a writable capture folder") from None
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a photo is an ordinary file
-        with os.fdopen(fd, "wb") as out, open(source, "rb") as src:
-            shutil.copyfileobj(src, out, 1 << 20)
-            out.flush()
-            os.fsync(out.fileno())
-    except BaseException as exc:
-        Path(tmp).unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise CameraError(f"cannot copy the photo: {exc.strerror}", source=str(source),
-                              hint="check that the file is readable and the capture folder writable") from None
-        raise
-    try:
-        return place_photo(Path(tmp), destination, source.suffix)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        raise CameraError(f"cannot read the photo: {exc.strerror}", source=str(source),
+                          hint="check that the file is readable") from None
+    return write_photo(data, destination, Path(source).suffix)

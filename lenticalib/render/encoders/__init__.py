@@ -18,13 +18,11 @@ group name, like ``lenticalib.transports``, not this module's path) with a value
 
 from __future__ import annotations
 
-import importlib
-from importlib import metadata
 from typing import Callable
 
 import numpy as np
 
-from ...errors import BackendUnavailableError, InputError
+from ...plugins import load, registry
 from ...profile import PanelProfile
 from .common import check_views, output_like
 
@@ -39,13 +37,7 @@ _BUILTIN = {
 
 
 def _registry() -> dict[str, str]:
-    entries = dict(_BUILTIN)
-    try:
-        for ep in metadata.entry_points(group="lenticalib.encoders"):
-            entries.setdefault(ep.name, ep.value)
-    except Exception:  # a broken third-party distribution must not break the built-ins
-        pass
-    return entries
+    return registry(_BUILTIN, "lenticalib.encoders")
 
 
 def available_encoders() -> list[str]:
@@ -58,19 +50,7 @@ def get_encoder(name: str) -> Callable[..., np.ndarray]:
 
     Raises InputError for an unknown name, BackendUnavailableError when its module fails to import.
     """
-    registry = _registry()
-    if name not in registry:
-        raise InputError(f"unknown encoder {name!r}", source="encoder",
-                         hint="choose one of " + ", ".join(sorted(registry)))
-    module_name, _, attr = registry[name].partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except BackendUnavailableError:  # the module's own one-line reason (e.g. "pip install torch")
-        raise
-    except ImportError as exc:
-        raise BackendUnavailableError(f"encoder {name!r} is not available: {exc}", source="encoder",
-                                      hint="install its dependencies") from None
-    return getattr(module, attr)
+    return load(_registry(), name, "encoder", "encoder")
 
 
 def encode(views: np.ndarray, profile: PanelProfile, method: str = DEFAULT_ENCODER, *,

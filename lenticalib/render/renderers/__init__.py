@@ -15,11 +15,9 @@ the ``lenticalib.renderers`` entry-point group with a value ``"module:function"`
 
 from __future__ import annotations
 
-import importlib
-from importlib import metadata
 from typing import Callable
 
-from ...errors import BackendUnavailableError, InputError
+from ...plugins import load, registry
 
 DEFAULT_RENDERER = "cpu"
 
@@ -30,13 +28,7 @@ _BUILTIN = {
 
 
 def _registry() -> dict[str, str]:
-    entries = dict(_BUILTIN)
-    try:
-        for ep in metadata.entry_points(group="lenticalib.renderers"):
-            entries.setdefault(ep.name, ep.value)
-    except Exception:  # a broken third-party distribution must not break the built-ins
-        pass
-    return entries
+    return registry(_BUILTIN, "lenticalib.renderers")
 
 
 def available_renderers() -> list[str]:
@@ -50,17 +42,7 @@ def get_renderer(name: str) -> Callable:
     Raises InputError (naming ``--renderer``) for an unknown name, BackendUnavailableError when its
     module fails to import.
     """
-    registry = _registry()
-    if name not in registry:
-        raise InputError(f"unknown renderer {name!r}", source="--renderer",
-                         hint="choose one of " + ", ".join(sorted(registry)))
-    module_name, _, attr = registry[name].partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as exc:
-        raise BackendUnavailableError(f"renderer {name!r} is not available: {exc}", source="--renderer",
-                                      hint="install its dependencies") from None
-    return getattr(module, attr)
+    return load(_registry(), name, "renderer", "--renderer")
 
 
 def render(gaussians, viewmats, Ks, width: int, height: int, *, renderer: str = DEFAULT_RENDERER,
