@@ -102,11 +102,11 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
     each rejected photo.
     """
     from ..render.slides import slides_from_path
-    from .patterns import read_manifest
+    from .patterns import read_pattern_folder
 
     start = time.perf_counter()
     directory = Path(directory)
-    pattern_set = read_manifest(directory)
+    pattern_set = read_pattern_folder(directory)
     if tuple(presenter.size) != (pattern_set.width, pattern_set.height):
         raise InputError(f"the patterns are for a {pattern_set.width}x{pattern_set.height} panel but the display "
                          f"is {presenter.size[0]}x{presenter.size[1]}", source=str(directory),

@@ -54,7 +54,12 @@ def open_capture_set(directory: str | os.PathLike) -> CaptureSet:
     if not directory.is_dir():
         raise CaptureError("is not a folder", source=str(directory),
                            hint="give the folder 'lenticalib patterns' wrote, with the photos in captures/")
-    patterns = read_manifest(directory)
+    return match_captures(directory, read_manifest(directory))
+
+
+def match_captures(directory: Path, patterns) -> CaptureSet:
+    """The photos of ``directory/captures`` matched to the patterns of ``patterns`` (any pattern
+    set with ``names``); the checks of :func:`open_capture_set`."""
     folder = directory / "captures"
     if not folder.is_dir():
         raise CaptureError("no captures folder", source=str(folder),

@@ -121,6 +121,10 @@ class PatternSet:
     def names(self) -> list[str]:
         return [p.name for p in self.patterns]
 
+    def render(self, pattern: "Pattern") -> np.ndarray:
+        """The pattern as the panel shows it (see :func:`render_pattern`)."""
+        return render_pattern(pattern, self.width, self.height)
+
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "set_id": self.set_id,
                 "width": self.width, "height": self.height, "views": self.views,
@@ -232,13 +236,35 @@ _FREE_KEYS = ("created", "lenticalib_version", "note")
 
 
 def read_manifest(directory: str | os.PathLike) -> PatternSet:
-    """The pattern set described by ``DIR/patterns.json``; InputError naming the file if unusable."""
+    """The calibration pattern set described by ``DIR/patterns.json``; InputError naming the file if
+    unusable (a crosstalk pattern folder included: see :func:`read_pattern_folder`)."""
+    pattern_set = read_pattern_folder(directory)
+    if not isinstance(pattern_set, PatternSet):
+        raise InputError("holds crosstalk patterns, not calibration patterns", source=str(Path(directory) / MANIFEST_NAME),
+                         hint="measure them with 'lenticalib crosstalk measure'; fit calibration patterns "
+                              "written by 'lenticalib patterns'")
+    return pattern_set
+
+
+def read_pattern_folder(directory: str | os.PathLike):
+    """The pattern set of a pattern folder: calibration (:class:`PatternSet`) or crosstalk
+    (:class:`~lenticalib.calib.crosstalk.patterns.CrosstalkPatternSet`), by the manifest's format.
+
+    Both have ``width``, ``height``, ``views``, ``patterns`` (each with ``name``, ``file``,
+    ``group``), ``names``, ``set_id`` and ``render(pattern)``.  InputError naming the manifest
+    when it is missing, foreign or edited.
+    """
     from ..profile import read_json_file
 
     path = Path(directory) / MANIFEST_NAME
     data = read_json_file(path, "pattern manifest",
-                          "run 'lenticalib patterns' to write the patterns and their manifest first")
+                          "run 'lenticalib patterns' (or 'lenticalib crosstalk patterns') to write the patterns "
+                          "and their manifest first")
     source = str(path)
+    from .crosstalk.patterns import FORMAT_NAME as CROSSTALK_FORMAT, crosstalk_set_from_manifest
+
+    if isinstance(data, dict) and data.get("format") == CROSSTALK_FORMAT:
+        return crosstalk_set_from_manifest(data, source)
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
         raise InputError("is not a lenticalib pattern manifest", source=source,
                          hint="point at the folder 'lenticalib patterns' wrote")

@@ -22,6 +22,8 @@ _COMMANDS = {
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
     "capture": ("lenticalib.cli.capture", "show each calibration pattern on the panel and photograph it"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
+    "crosstalk": ("lenticalib.cli.crosstalk", "verify per-view crosstalk: patterns from a profile, measure from "
+                  "photos, check against limits"),
     "show": ("lenticalib.cli.show", "show an image, a pattern set or a folder on the panel, pixel-exact"),
     "play": ("lenticalib.cli.play", "drive a Gaussian avatar live on the panel: drive, render, encode, present"),
     "render": ("lenticalib.cli.render", "render a Gaussian avatar offline into panel rasters (and its views)"),

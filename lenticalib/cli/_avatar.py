@@ -32,6 +32,9 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view-size", default="960x540", metavar="WxH", help="view size (default 960x540)")
     parser.add_argument("--background", metavar="R,G,B|IMAGE", help="background colour (0..1 or 0..255) or an "
                         "image (resized to the view size; the same behind every view); default black")
+    from .encode import add_compensation_arguments
+
+    add_compensation_arguments(parser)
     parser.add_argument("--edge-desaturation", type=float, default=0.0, metavar="S",
                         help="desaturate partly transparent edges by S (0..1; the LentiAvatar chroma attenuation)")
 
@@ -51,6 +54,9 @@ def build_pipeline(args: argparse.Namespace):
     device = args.device or ("cuda" if renderer == "gsplat" else "cpu")
     if not 0.0 <= args.edge_desaturation <= 1.0:
         raise InputError(f"{args.edge_desaturation} is out of range", source="--edge-desaturation", hint="use 0..1")
+    from .encode import compensator_from_args
+
+    compensator = compensator_from_args(args, profile.views)
     view_size = _size(args.view_size)
     background = parse_background(args.background, view_size)
     avatar = load_avatar(args.avatar, args.driver)
@@ -65,7 +71,8 @@ def build_pipeline(args: argparse.Namespace):
         options["radius"] = args.radius
     cameras = make_cameras(args.camera_model, avatar.bounding_box(), profile.views, **options)
     pipeline = AvatarPipeline(avatar, profile, cameras, renderer=renderer, encoder=encoder, device=device,
-                              background=background, edge_desaturation=args.edge_desaturation)
+                              background=background, edge_desaturation=args.edge_desaturation,
+                              compensator=compensator)
     return pipeline, controls, avatar
 
 

@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..calib.acquire import capture_set, wait_for_key
     from ..calib.cameras import make_camera
-    from ..calib.patterns import read_manifest
+    from ..calib.patterns import read_pattern_folder
     from ..errors import DisplayError, InputError
     from ..render.present import open_presenter
     from ._progress import progress_bar
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.retakes <= 20:
         raise InputError(f"{args.retakes} is out of range", source="--retakes", hint="use 0..20")
     directory = Path(args.directory)
-    pattern_set = read_manifest(directory)
+    pattern_set = read_pattern_folder(directory)
     size = (pattern_set.width, pattern_set.height)
     kind = args.camera.split(":", 1)[0]
     display = args.display if args.display is not None else ("offscreen" if kind == "sim" else None)

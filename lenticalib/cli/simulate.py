@@ -1,9 +1,12 @@
 """``lenticalib simulate``: photograph the test patterns on a virtual panel (a synthetic capture set).
 
-Reads ``DIR/patterns.json`` (from ``lenticalib patterns``), draws a random but plausible panel
+Reads ``DIR/patterns.json`` (from ``lenticalib patterns`` or ``lenticalib crosstalk patterns``), draws a random but plausible panel
 and camera (or loads one with ``--scene``), writes ``DIR/captures/NAME.jpg`` for every pattern,
 ``DIR/truth.json`` (the ideal profile for the camera position) and ``DIR/simulation.json``
-(everything needed to reproduce the set).
+(everything needed to reproduce the set); for crosstalk patterns also ``DIR/crosstalk-truth.json``,
+the panel's true mixing matrix for the profile the patterns were drawn from.  To photograph
+crosstalk patterns from the fit's camera position, pass the fit's scene: ``--scene
+FITDIR/simulation.json``.
 
 Every option is checked, and the folder found writable, before the first photo is taken.  The
 three results are all or nothing: a run that fails (or is interrupted) removes what it wrote and
@@ -149,29 +152,30 @@ def _check_outputs(directory: str):
 
     from ..errors import InputError
     from ..outputs import check_output_file, check_output_folder
-    from ..sim.capture import CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME
+    from ..sim.capture import CAPTURE_FOLDER, CROSSTALK_TRUTH_NAME, SIMULATION_NAME, TRUTH_NAME
 
     folder = Path(directory)
     captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos")
     simulation = check_output_file(folder / SIMULATION_NAME, "simulation record")
     truth = check_output_file(folder / TRUTH_NAME, "true profile")
+    crosstalk_truth = check_output_file(folder / CROSSTALK_TRUTH_NAME, "true crosstalk")
     # simulate_capture_set refuses this too; checked here so that real photos are never even copied
     if captures.is_dir() and any(captures.iterdir()) and not simulation.exists():
         raise InputError("holds files that the simulator did not write (real photos?)", source=str(captures),
                          hint="simulate into a fresh copy of the pattern folder")
-    return [captures, simulation, truth]
+    return [captures, simulation, truth, crosstalk_truth]
 
 
 def run(args: argparse.Namespace) -> int:
     import time
 
-    from ..calib.patterns import read_manifest
+    from ..calib.patterns import read_pattern_folder
     from ..outputs import restored_on_failure
     from ..sim.capture import simulate_capture_set
     from ._progress import progress_bar
 
     _check_options(args)
-    pattern_set = read_manifest(args.directory)
+    pattern_set = read_pattern_folder(args.directory)
     scene = build_scene(args, pattern_set)
     written = _check_outputs(args.directory)
     start = time.perf_counter()

@@ -146,7 +146,7 @@ class AvatarPipeline:
 
     def __init__(self, avatar, profile: PanelProfile, cameras: ViewCameras, *, renderer: str = "cpu",
                  encoder: str = "fast", device: str = "cpu", background: np.ndarray | None = None,
-                 edge_desaturation: float = 0.0):
+                 edge_desaturation: float = 0.0, compensator=None):
         from .encoders import get_encoder
         from .encoders.common import ASPECT_TOLERANCE
         from .renderers import get_renderer
@@ -161,6 +161,7 @@ class AvatarPipeline:
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"
         self.edge_desaturation = float(edge_desaturation)
+        self.compensator = compensator  # crosstalk pre-compensation (render.compensation), part of compose
         self._torch_encoder = None
         view_aspect, panel_aspect = cameras.width / cameras.height, profile.width / profile.height
         if abs(view_aspect / panel_aspect - 1.0) > ASPECT_TOLERANCE:  # checked now, not after the first render
@@ -202,10 +203,17 @@ class AvatarPipeline:
         if self.on_gpu:
             import torch
 
-            views = (rgb.clamp(0, 1) * 255.0 + 0.5).to(dtype=torch.uint8).contiguous()
+            rgb = rgb.clamp(0, 1)
+            if self.compensator is not None:  # in linear light, on the device
+                linear = torch.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+                sent = self.compensator.apply_torch(linear)
+                rgb = torch.where(sent <= 0.0031308, 12.92 * sent, 1.055 * sent.clamp_min(1e-12) ** (1 / 2.4) - 0.055)
+            views = (rgb * 255.0 + 0.5).to(dtype=torch.uint8).contiguous()
             raster = self._gpu_encoder().encode(views).cpu().numpy()
         else:
             views = to_uint8(np.ascontiguousarray(rgb) if self.edge_desaturation > 0 else rgba)
+            if self.compensator is not None:
+                views = self.compensator.apply(views)
             raster = self.encode_fn(views, self.profile)
         t3 = time.perf_counter()
         return raster, views, {"drive": 1e3 * (t1 - t0), "render": 1e3 * (t2 - t1), "compose": 1e3 * (t3 - t2)}

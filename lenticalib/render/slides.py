@@ -43,10 +43,10 @@ def slides_from_path(path: str | Path) -> tuple[list[Slide], tuple[int, int]]:
     if p.is_file():
         raster = read_image(p)
         return [Slide(p.name, str(p), lambda: raster)], (raster.shape[1], raster.shape[0])
-    from ..calib.patterns import MANIFEST_NAME, read_manifest, render_pattern
+    from ..calib.patterns import MANIFEST_NAME, read_pattern_folder
 
     if (p / MANIFEST_NAME).exists():
-        pattern_set = read_manifest(p)
+        pattern_set = read_pattern_folder(p)
         slides = []
         for pattern in pattern_set.patterns:
             png = p / pattern.file
@@ -54,8 +54,7 @@ def slides_from_path(path: str | Path) -> tuple[list[Slide], tuple[int, int]]:
                 slides.append(Slide(pattern.name, str(png), lambda png=png: read_image(png)))
             else:
                 slides.append(Slide(pattern.name, f"{p / MANIFEST_NAME} ({pattern.name})",
-                                    lambda pattern=pattern: render_pattern(pattern, pattern_set.width,
-                                                                           pattern_set.height)))
+                                    lambda pattern=pattern: pattern_set.render(pattern)))
         return slides, (pattern_set.width, pattern_set.height)
     files = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES)
     if not files:

@@ -7,6 +7,9 @@ Layout written into the pattern folder ``DIR`` (the one ``lenticalib patterns`` 
                             per-photo noise seeds, the pattern set id and the lenticalib
                             version: enough to reproduce every photo bit for bit
     DIR/truth.json          the ideal profile for the camera position (provenance "simulation")
+    DIR/crosstalk-truth.json  for a crosstalk pattern folder: the true mixing matrix M of the
+                            profile the patterns were drawn from, and the true view cone
+                            (:mod:`.crosstalk_truth`)
 
 ``simulation.json`` is written first with ``"status": "in progress"`` and rewritten with
 ``"complete"`` at the end, so an interrupted run is recognisable.  A ``captures`` folder that
@@ -34,6 +37,7 @@ from .scene import Scene
 
 SIMULATION_NAME = "simulation.json"
 TRUTH_NAME = "truth.json"
+CROSSTALK_TRUTH_NAME = "crosstalk-truth.json"
 CAPTURE_FOLDER = "captures"
 
 
@@ -84,9 +88,28 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
                                  simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))
     profile = scene.truth_profile(pattern_set.views, name="simulation truth", provenance=provenance)
     truth_path = save_profile(profile, directory / TRUTH_NAME)
+    if hasattr(pattern_set, "bands"):  # a crosstalk pattern set: its true M too
+        write_crosstalk_truth(directory / CROSSTALK_TRUTH_NAME, scene, pattern_set.profile)
     constants = {k: getattr(profile, k) for k in ("views", "slant", "period", "offset", "reference_view",
                                                    "width", "height", "subpixel_order", "view_direction")}
     return truth_path, constants
+
+
+def write_crosstalk_truth(path: Path, scene: Scene, profile) -> Path:
+    """Write the true crosstalk of ``profile`` on the scene's panel, seen from its camera (JSON, atomic)."""
+    from .crosstalk_truth import true_mixing_matrix, true_view_cone
+
+    matrix = true_mixing_matrix(scene.optics, scene.eye, profile)
+    offsets = np.arange(-4.0, 4.0001, 0.25)
+    cone = true_view_cone(scene.optics, scene.eye, profile, offsets)
+    document = {"format": "lenticalib.crosstalk-truth", "format_version": 1, "views": profile.views,
+                "definition": "matrix[i][j]: share of the light an eye at the centre of view i's zone receives "
+                              "from view j, through the centre region, from the camera's viewing position",
+                "matrix": [[round(float(v), 8) for v in r] for r in matrix],
+                "own_view_share": round(float(matrix[0, 0]), 8),
+                "view_cone": {"offsets_views": offsets.tolist(), "share_of_white": [round(float(v), 8) for v in cone]},
+                "camera_position_mm": list(scene.eye), "seed": scene.seed}
+    return write_text_atomic(path, json.dumps(document, indent=2) + "\n")
 
 
 def write_simulation_record(directory: str | os.PathLike, scene: Scene, pattern_set, status: str,
@@ -132,11 +155,11 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
     Raises InputError (file named) for a missing or foreign manifest, a scene of another panel
     size, a captures folder with foreign files, or an unreadable pattern image.
     """
-    from ..calib.patterns import MANIFEST_NAME, read_manifest
+    from ..calib.patterns import MANIFEST_NAME, read_pattern_folder
     from ..imageio import read_image
 
     directory = Path(pattern_dir)
-    pattern_set = read_manifest(directory)
+    pattern_set = read_pattern_folder(directory)
     manifest = directory / MANIFEST_NAME
     optics = scene.optics
     if (optics.width, optics.height) != (pattern_set.width, pattern_set.height):

@@ -109,9 +109,9 @@ class SimCamera(CaptureCamera):
     def _start(self, shown: np.ndarray, directory: Path) -> None:
         """Read the pattern set of ``directory`` and draw the scene for the shown panel size."""
         from ...sim.scene import random_scene
-        from ..patterns import MANIFEST_NAME, read_manifest
+        from ..patterns import MANIFEST_NAME, read_pattern_folder
 
-        pattern_set = read_manifest(directory)
+        pattern_set = read_pattern_folder(directory)
         height, width = shown.shape[:2]
         if (pattern_set.width, pattern_set.height) != (width, height):
             raise InputError(f"the shown raster is {width}x{height}, the pattern set is for a "

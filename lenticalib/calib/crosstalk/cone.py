@@ -1,0 +1,209 @@
+"""The angular profile of one view, from the band sweeps (``docs/crosstalk.md``).
+
+Frames and units: working pixels ``(row, col)``; view offsets ``t`` in views (zone widths).
+
+Each band photo ``k``, divided by white (both black- and glare-corrected), gives at working
+pixel ``p`` the share of white's light the camera receives from a one-view band centred
+``delta(p) + c_k`` views from it: ``r_k(p) = a_k h(delta(p) + c_k)``.  ``h`` is the view's
+angular profile (the view cone), ``c_k`` the pattern's shift, ``a_k`` the photo's exposure
+relative to white (close to 1) and ``delta(p)`` a smooth function of the pixel (the sweep,
+through the camera's perspective and the profile's residual errors).  Nothing about the camera
+geometry is assumed: ``delta`` is a polynomial in the pixel coordinates, found with ``h`` and
+``a_k`` from the photos themselves (:func:`fit_cone`):
+
+1. start: the first Fourier harmonic of the ``K`` samples at each pixel gives ``delta`` (the
+   harmonics near ``K`` alias into it, but they oscillate quickly across the panel and the
+   polynomial averages them out);
+2. repeat: ``h`` on a fine grid of offsets from all samples (bin means), ``a_k`` from each
+   photo's ratio to it, ``delta``'s coefficients by Gauss-Newton on ``r_k - a_k h``; the origin of
+   ``t`` is kept at ``h``'s centre (its first harmonic's phase), which is where an eye sits at
+   the centre of a view's zone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+BINS_PER_VIEW = 16
+DEGREE = 4
+MAX_SAMPLES = 40_000
+ROUNDS = 6
+
+
+@dataclasses.dataclass
+class ConeFit:
+    """``coefficients``: delta's polynomial (terms of :func:`_terms`); ``scale``: (x0, y0, s) of the
+    normalised coordinates; ``gains``: (K,) a_k; ``grid``, ``profile``: h on the bin centres
+    (views, share of white); ``rms``: residual of ``r_k - a_k h`` (share of white)."""
+
+    views: int
+    coefficients: np.ndarray
+    scale: tuple[float, float, float]
+    gains: np.ndarray
+    grid: np.ndarray
+    profile: np.ndarray
+    rms: float
+
+    def delta(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """delta (views, unwrapped) at working pixels."""
+        return _terms(rows, cols, self.scale) @ self.coefficients
+
+
+def _terms(rows, cols, scale):
+    x0, y0, s = scale
+    u = (np.asarray(cols, np.float64) - x0) / s
+    v = (np.asarray(rows, np.float64) - y0) / s
+    return np.stack([u ** i * v ** j for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i)], axis=-1)
+
+
+def binned_profile(t: np.ndarray, values: np.ndarray, views: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bin means of ``values`` over offsets ``t`` (views, any), periodic with ``views``.
+
+    RETURNED VALUE
+    (grid (B,) bin centres in [-N/2, N/2), means (B,), counts (B,)); empty bins are filled by
+    periodic linear interpolation.
+    """
+    bins = views * BINS_PER_VIEW
+    index = np.floor(np.mod(np.asarray(t) + views / 2.0, views) * BINS_PER_VIEW).astype(np.int64) % bins
+    counts = np.bincount(index, minlength=bins).astype(np.float64)
+    sums = np.bincount(index, weights=values, minlength=bins)
+    grid = (np.arange(bins) + 0.5) / BINS_PER_VIEW - views / 2.0
+    means = np.divide(sums, counts, out=np.zeros(bins), where=counts > 0)
+    filled = counts > 0
+    if not filled.all() and filled.sum() >= 2:
+        means[~filled] = np.interp(grid[~filled], grid[filled], means[filled], period=views)
+    return grid, means, counts
+
+
+def profile_at(grid: np.ndarray, profile: np.ndarray, t: np.ndarray, views: int) -> np.ndarray:
+    """h at offsets ``t`` (periodic linear interpolation of the table)."""
+    return np.interp(np.mod(np.asarray(t) + views / 2.0, views) - views / 2.0, grid, profile, period=views)
+
+
+def centre_of(grid: np.ndarray, profile: np.ndarray, views: int) -> float:
+    """The profile's centre (views): the phase of its first harmonic."""
+    z = np.sum(profile * np.exp(2j * math.pi * grid / views))
+    return float(np.angle(z) * views / (2 * math.pi))
+
+
+def _initial_delta(ratios: np.ndarray, shifts: np.ndarray, views: int) -> np.ndarray:
+    """Per-sample first-harmonic estimate of delta (views, wrapped to [-N/2, N/2))."""
+    phasors = np.exp(-2j * math.pi * shifts / views)
+    z = ratios @ phasors  # (n,)
+    return np.angle(z) * views / (2 * math.pi)
+
+
+def _unwrap_to_plane(rows, cols, wrapped, views, scale):
+    """Fit delta's polynomial to wrapped samples: a plane first (2D FFT-free grid search of the
+    sweep's gradient), then unwrapping against it and the full polynomial."""
+    terms = _terms(rows, cols, scale)
+    x0, y0, s = scale
+    u = (cols - x0) / s
+    v = (rows - y0) / s
+    # coarse search for the gradient (views per normalised unit) maximising coherence
+    best = (0.0, 0.0, -1.0)
+    z = np.exp(2j * math.pi * wrapped / views)
+    for gx in np.linspace(-400, 400, 801):
+        c = np.abs(np.mean(z * np.exp(-2j * math.pi * gx * u / views)))
+        if c > best[2]:
+            best = (gx, 0.0, c)
+    gx = best[0]
+    for gy in np.linspace(-100, 100, 201):
+        c = np.abs(np.mean(z * np.exp(-2j * math.pi * (gx * u + gy * v) / views)))
+        if c > best[2]:
+            best = (gx, gy, c)
+    gx, gy = best[0], best[1]
+    # refine the gradient finely
+    for span in (1.0, 0.1):
+        cand = [(gx + a, gy + b) for a in np.linspace(-span, span, 21) for b in np.linspace(-span, span, 21)]
+        scores = [np.abs(np.mean(z * np.exp(-2j * math.pi * (a * u + b * v) / views))) for a, b in cand]
+        gx, gy = cand[int(np.argmax(scores))]
+    plane = gx * u + gy * v
+    offset = np.angle(np.mean(z * np.exp(-2j * math.pi * plane / views))) * views / (2 * math.pi)
+    plane = plane + offset
+    unwrapped = plane + (np.mod(wrapped - plane + views / 2.0, views) - views / 2.0)
+    weights = np.ones_like(unwrapped)
+    for _ in range(4):  # robust: the aliasing makes some samples far off
+        coef, *_ = np.linalg.lstsq(terms * weights[:, None], unwrapped * weights, rcond=None)
+        resid = unwrapped - terms @ coef
+        scale_r = 1.4826 * np.median(np.abs(resid)) + 1e-6
+        weights = 1.0 / np.maximum(1.0, np.abs(resid) / (2.5 * scale_r))
+        unwrapped = terms @ coef + (np.mod(unwrapped - terms @ coef + views / 2.0, views) - views / 2.0)
+    return coef
+
+
+def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.ndarray, views: int,
+             shape: tuple[int, int], seed: int = 0) -> ConeFit:
+    """Fit delta(p), the gains and the profile h to band ratios.
+
+    ARGUMENTS
+    ratios       float (n, K): r_k at n working pixels (share of white)
+    rows, cols   int (n,): the pixels
+    shifts       float (K,): c_k, views
+    views        N
+    shape        (h, w) of the working image (for the coordinate normalisation)
+    """
+    rng = np.random.default_rng(seed)
+    n, k = ratios.shape
+    pick = rng.choice(n, size=min(MAX_SAMPLES, n), replace=False)
+    r, rr, cc = ratios[pick], rows[pick].astype(np.float64), cols[pick].astype(np.float64)
+    scale = (shape[1] / 2.0, shape[0] / 2.0, max(shape) / 2.0)
+    coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale)
+    terms = _terms(rr, cc, scale)
+    gains = np.ones(k)
+    grid = profile = None
+    rms = math.nan
+    for _ in range(ROUNDS):
+        delta = terms @ coef
+        t = delta[:, None] + shifts[None, :]
+        grid, profile, _ = binned_profile(t.ravel(), (r / gains[None, :]).ravel(), views)
+        centre = centre_of(grid, profile, views)
+        coef[0] -= centre  # keep t's origin at the profile's centre
+        delta = terms @ coef
+        t = delta[:, None] + shifts[None, :]
+        grid, profile, _ = binned_profile(t.ravel(), (r / gains[None, :]).ravel(), views)
+        model = profile_at(grid, profile, t, views)
+        gains = np.array([np.sum(r[:, j] * model[:, j]) / max(np.sum(model[:, j] ** 2), 1e-30) for j in range(k)])
+        gains /= np.mean(gains)
+        # Gauss-Newton step on delta's coefficients
+        slope = (profile_at(grid, profile, t + 0.05, views) - profile_at(grid, profile, t - 0.05, views)) / 0.1
+        resid = (r - gains[None, :] * model).ravel()
+        jac = (gains[None, :] * slope)[:, :, None] * terms[:, None, :]
+        jac = jac.reshape(-1, terms.shape[1])
+        step, *_ = np.linalg.lstsq(jac, resid, rcond=None)
+        coef = coef + step
+        rms = float(np.sqrt(np.mean(resid ** 2)))
+    delta = terms @ coef
+    t = delta[:, None] + shifts[None, :]
+    grid, profile, _ = binned_profile(t.ravel(), (r / gains[None, :]).ravel(), views)
+    coef[0] -= centre_of(grid, profile, views)
+    return ConeFit(views, coef, scale, gains, grid, profile, rms)
+
+
+def profile_for(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+                shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """h (bin means on fit.grid) from the samples of some pixels (a region), with the fit's delta and gains."""
+    t = fit.delta(rows, cols)[:, None] + shifts[None, :]
+    return binned_profile(t.ravel(), (ratios / fit.gains[None, :]).ravel(), fit.views)
+
+
+def values_at_integers(grid: np.ndarray, profile: np.ndarray, counts: np.ndarray, views: int,
+                       half_width: float = 0.5) -> np.ndarray:
+    """h at integer offsets m = 0, 1, ..., N-1 (m and m - N the same): a weighted local quadratic
+    fit of the bin means within ``half_width`` views of each integer."""
+    out = np.empty(views)
+    for m in range(views):
+        centre = m if m < views / 2 else m - views
+        d = np.mod(grid - centre + views / 2.0, views) - views / 2.0
+        near = np.abs(d) <= half_width
+        w = counts[near]
+        if w.sum() <= 0 or near.sum() < 3:
+            out[m] = profile_at(grid, profile, np.array([centre]), views)[0]
+            continue
+        a = np.stack([np.ones(near.sum()), d[near], d[near] ** 2], axis=1)
+        coef, *_ = np.linalg.lstsq(a * np.sqrt(w)[:, None], profile[near] * np.sqrt(w), rcond=None)
+        out[m] = coef[0]
+    return out

@@ -1,0 +1,425 @@
+"""``lenticalib crosstalk measure``: the mixing matrix and the view cone from photos of the crosstalk patterns.
+
+Frames: photo pixels -> working pixels (the photo area-averaged by ``factor``); view offsets in
+views.  The method is in ``docs/crosstalk.md``; in short:
+
+1. photos -> linear light (sRGB decoding, or ``linear`` for 16-bit linear photos from RAW),
+   summed over R, G, B and area-averaged to working pixels; every photo registered to white
+   on the panel's outline (:mod:`lenticalib.calib.register`), the black photo subtracted, the
+   camera's veiling glare measured outside the panel and removed (:mod:`.photometry`);
+2. each band photo divided by white: ``r_k(p)``, the share of white's light that reaches the
+   camera from a one-view band ``delta(p) + c_k`` views away;
+3. the view cone ``h(t)`` with ``delta(p)`` and the photos' exposures fitted to all ``r_k``
+   (:mod:`.cone`); ``h`` of the centre region at integer offsets, normalised, is the row of the
+   circulant ``M``;
+4. uncertainties: the spread between 16 blocks of the centre region (noise, moire, local
+   non-uniformity) and, in quadrature, what the photometric assumptions could move: the
+   glare's size (+-30 %) and the tone curve (a power ``1 +- d`` on the decoded light, with
+   ``d`` from how well the two half photos add up to white).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ...errors import CaptureError, InputError
+from ...profile import PanelProfile
+from . import cone, photometry
+from .patterns import CrosstalkPatternSet
+
+CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
+REGION_GRID = (6, 4)  # columns x rows of the uniformity map
+BLOCK_GRID = 4  # the centre region is split BLOCK_GRID x BLOCK_GRID for the statistical spread
+WORKING_WIDTH = 1000  # working pixels across (about)
+GLARE_RELATIVE_SIGMA = 0.3
+TONE_FLOOR = 0.02  # smallest 1-sigma of the power on decoded light (cameras are never exactly sRGB)
+MAX_CLIPPED = 0.02
+MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
+PHOTO_MODES = ("srgb", "linear")
+
+
+@dataclasses.dataclass
+class Measurement:
+    """Everything ``crosstalk.json`` and the report need.
+
+    ``row``: (N,) the centre region's h at offsets 0..N-1 (sums to 1); ``row_sigma``: (N,)
+    1-sigma.  ``cone_grid``/``cone``/``cone_sigma``: the view cone on a 1/16-view grid (share of
+    the light at an eye from one view, same normalisation).  ``regions``: own-view share per
+    region, (rows, cols), with ``regions_sigma``; ``region_boxes``: working-pixel boxes.
+    """
+
+    views: int
+    row: np.ndarray
+    row_sigma: np.ndarray
+    cone_grid: np.ndarray
+    cone: np.ndarray
+    cone_sigma: np.ndarray
+    regions: np.ndarray
+    regions_sigma: np.ndarray
+    samples: dict[str, np.ndarray]  # label -> (N,) rows of the perturbed / block evaluations
+    photometry: dict[str, Any]
+    diagnostics: dict[str, Any]
+    warnings: list[str]
+    inputs: list[Path]
+    profile: PanelProfile
+    pattern_set: CrosstalkPatternSet
+    seconds: float
+    images: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # for the report
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """M (N, N): M[i][j] = row[(j - i) mod N]."""
+        n = self.views
+        return self.row[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
+
+
+def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | None = None,
+                       profile_source: str = "--profile"):
+    """(pattern set, capture set) of a crosstalk folder; InputError/CaptureError naming the fault."""
+    from ..captures import match_captures
+    from ..patterns import MANIFEST_NAME, PatternSet, read_pattern_folder
+
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise CaptureError("is not a folder", source=str(directory),
+                           hint="give the folder 'lenticalib crosstalk patterns' wrote, with the photos in captures/")
+    pattern_set = read_pattern_folder(directory)
+    if isinstance(pattern_set, PatternSet):
+        raise InputError("holds calibration patterns, not crosstalk patterns", source=str(directory / MANIFEST_NAME),
+                         hint="fit them with 'lenticalib fit'; write crosstalk patterns with "
+                              "'lenticalib crosstalk patterns --profile P -o DIR'")
+    if profile is not None:
+        drawn = pattern_set.profile
+        if (profile.width, profile.height, profile.views) != (drawn.width, drawn.height, drawn.views):
+            raise InputError(f"is for a {profile.width}x{profile.height} panel with {profile.views} views, the "
+                             f"patterns for {drawn.width}x{drawn.height} with {drawn.views}", source=profile_source,
+                             hint="give the profile the crosstalk patterns were drawn from")
+        if profile.routing_key() != drawn.routing_key():
+            raise InputError("is not the profile the crosstalk patterns were drawn from", source=profile_source,
+                             hint=f"give that profile, or write the patterns again from this one with "
+                                  f"'lenticalib crosstalk patterns --profile {profile_source}'")
+    return pattern_set, match_captures(directory, pattern_set)
+
+
+def _linear_rgb_sum(raw: np.ndarray, mode: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo."""
+    from ..patterns import srgb_decode
+
+    if raw.ndim != 3 or raw.shape[2] < 3:
+        raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
+    raw = raw[:, :, :3]
+    if raw.dtype == np.uint8:
+        codes = np.arange(256) / 255.0
+        lut = (codes if mode == "linear" else srgb_decode(codes)).astype(np.float32)
+        return lut[raw].sum(axis=2, dtype=np.float32), raw.max(axis=2) >= 250
+    top = 65535.0 if raw.dtype == np.uint16 else 1.0
+    value = raw.astype(np.float32) / np.float32(top)
+    linear = value if mode == "linear" else srgb_decode(value).astype(np.float32)
+    return linear.sum(axis=2, dtype=np.float32), value.max(axis=2) >= 250 / 255
+
+
+def _working(image: np.ndarray, factor: int) -> np.ndarray:
+    import cv2
+
+    h, w = image.shape
+    hh, ww = h // factor, w // factor
+    return cv2.resize(image[:hh * factor, :ww * factor].astype(np.float32), (ww, hh), interpolation=cv2.INTER_AREA)
+
+
+def _load_all(capture, pattern_set, mode, progress):
+    """Working-resolution linear luma of every photo, the white photo's clipped map, and factor."""
+    from ...imageio import read_image
+    from ..captures import check_photo_size
+
+    luma: dict[str, np.ndarray] = {}
+    clipped = None
+    size = None
+    factor = 1
+    codes: dict[str, np.ndarray] = {}
+    for pattern in pattern_set.patterns:
+        path = capture.photo(pattern.name)
+        raw = read_image(path, camera_orientation=True)
+        h, w = raw.shape[:2]
+        check_photo_size(path, w, h)
+        if size is None:
+            size = (w, h)
+            factor = max(1, int(round(w / WORKING_WIDTH)))
+        elif (w, h) != size:
+            raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
+                               hint="take every photo of the set with the same camera settings, without cropping")
+        linear, clip = _linear_rgb_sum(raw, mode, path)
+        luma[pattern.name] = _working(linear, factor)
+        if pattern.name == "white":
+            clipped = _working(clip.astype(np.float32), factor)
+        if pattern.kind == "half" or pattern.name in ("white", "black"):
+            if raw.dtype == np.uint8:
+                codes[pattern.name] = photometry.block_medians(raw[:, :, :3], photometry.BLOCK)
+        if progress:
+            progress(f"read {path.name}")
+    return luma, clipped, factor, codes
+
+
+def _panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
+    """bool: the panel's lit inside (where white clearly exceeds black), the largest blob, eroded."""
+    import cv2
+
+    level = float(np.percentile(lit, 95))
+    if not level > 0:
+        raise CaptureError("is no brighter than the black photo", source=str(white_path),
+                           hint="show white.png full screen on the panel and photograph it")
+    mask = (lit > 0.5 * level).astype(np.uint8)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if count < 2:
+        raise CaptureError("shows no panel", source=str(white_path), hint="show the patterns full screen")
+    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    mask = (labels == biggest).astype(np.uint8)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    if mask.mean() < 0.05:
+        raise CaptureError(f"the panel fills only {100 * mask.mean():.1f}% of the photo", source=str(white_path),
+                           hint="fill most of the frame with the panel (the same camera position as the fit)")
+    edge = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
+    if edge.mean() > 0.02:
+        raise CaptureError("the panel is cut off by the edge of the photo", source=str(white_path),
+                           hint="step back or zoom out so the whole panel is inside every photo")
+    return mask > 0
+
+
+def _register(luma, names, photos, lit, frame_fraction, warnings):
+    """Undo shake: every photo aligned to white on the panel outline; CaptureError for a moved camera."""
+    from .. import register
+
+    reference = register.Reference.from_mean_image(luma["white"], lit.astype(np.complex64), frame_fraction)
+    if reference is None:
+        warnings.append("camera motion between photos could not be measured; it is not corrected")
+        return {}
+    shifts = {}
+    for name in names:
+        if name == "white":
+            continue
+        shift = reference.measure(luma[name])
+        shifts[name] = {"dx": shift.dx, "dy": shift.dy, "measured": shift.measured}
+        if not shift.measured:
+            warnings.append(f"camera motion of {photos[name].name} could not be measured ({shift.note})")
+            continue
+        if shift.size > MAX_SHIFT and shift.size > 5 * shift.sigma and shift.improvement > 0.5:
+            raise CaptureError(f"the camera moved: this photo is shifted by {shift.size:.1f} working pixels against "
+                               "white", source=str(photos[name]),
+                               hint="keep the camera still (tripod, remote release) and retake the set")
+        luma[name] = register.shift_image(luma[name], shift.dx, shift.dy)
+    return shifts
+
+
+def _tone_spread(codes: dict[str, np.ndarray], warnings: list[str], first_photo: Path) -> tuple[float, float]:
+    """(best power on sRGB-decoded light for half-0 + half-1 = white, its residual); (1, nan) without codes."""
+    from ..patterns import srgb_decode
+
+    if not all(k in codes for k in ("half-0", "half-1", "white", "black")):
+        return 1.0, math.nan
+    dec = {k: srgb_decode(v / 255.0) for k, v in codes.items()}
+    w = dec["white"] - dec["black"]
+    keep = (w > 0.3 * np.percentile(w, 95)) & (codes["white"] < 250)
+    if keep.sum() < 200:
+        return 1.0, math.nan
+    best = (1.0, math.inf)
+    for power in np.arange(0.7, 1.5001, 0.01):
+        parts = [np.maximum(dec[k][keep], 0.0) ** power for k in ("half-0", "half-1", "white", "black")]
+        a = np.stack([parts[0] - parts[3], parts[1] - parts[3]], axis=1)
+        y = parts[2] - parts[3]
+        gains, *_ = np.linalg.lstsq(a / y[:, None], np.ones_like(y), rcond=None)
+        resid = float(np.sqrt(np.mean(((a @ gains) / y - 1.0) ** 2)))
+        if resid < best[1]:
+            best = (float(power), resid)
+    if best[1] > 0.15:
+        raise CaptureError(f"half-0 and half-1 do not add up to white (relative residual {best[1]:.2f})",
+                           source=str(first_photo), hint="photograph every pattern of this folder in its own photo, "
+                                                         "with the camera still and the exposure locked")
+    if abs(best[0] - 1.0) > 0.15:
+        warnings.append(f"the photos do not look like plain sRGB (the half patterns add up best after a power "
+                        f"{best[0]:.2f} on the decoded light): a tone curve or picture style bends them; the "
+                        "uncertainty includes it, but for a precise measurement use a neutral picture style or "
+                        "linear photos from RAW (--photos linear)")
+    return best
+
+
+def _region_masks(mask: np.ndarray) -> tuple[tuple[int, int, int, int], np.ndarray]:
+    rows, cols = np.nonzero(mask)
+    return (int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())), (rows, cols)
+
+
+def _row_from(fit, ratios, rows, cols, shifts, views) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row (N,), cone (B,), counts (B,)) of the samples given, normalised so the row sums to 1."""
+    grid, profile, counts = cone.profile_for(fit, ratios, rows, cols, shifts)
+    row = cone.values_at_integers(grid, profile, counts, views)
+    total = float(row.sum())
+    if not total > 0:
+        return np.full(views, np.nan), np.full(grid.size, np.nan), counts
+    return row / total, profile / total, counts
+
+
+def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None = None, *,
+                      photos: str = "srgb", profile_source: str = "--profile",
+                      progress: Callable[[str], None] | None = None) -> Measurement:
+    """Measure the crosstalk of the panel from the photos in ``DIR/captures``.
+
+    ARGUMENTS
+    directory   folder from ``lenticalib crosstalk patterns`` with ``captures/``
+    profile     optional: must be the profile the patterns were drawn from
+    photos      "srgb" (JPEG or 8/16-bit sRGB-encoded) or "linear" (16-bit linear from RAW)
+
+    Raises InputError / CaptureError (one line, naming the file) for every problem with the
+    inputs, before the long work where possible.
+    """
+    from ..patterns import FRAME_FRACTION
+
+    start = time.perf_counter()
+    if photos not in PHOTO_MODES:
+        raise InputError(f"unknown photo encoding {photos!r}", source="--photos", hint="use srgb or linear")
+    pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
+    n = pattern_set.views
+    warnings: list[str] = []
+    luma, clipped, factor, codes = _load_all(capture, pattern_set, photos, progress)
+    white_path = capture.photo("white")
+    lit0 = luma["white"] - luma["black"]
+    mask = _panel_mask(lit0, white_path)
+    clip_fraction = float(clipped[mask].mean())
+    if clip_fraction > MAX_CLIPPED:
+        raise CaptureError(f"is overexposed: {100 * clip_fraction:.0f}% of the panel is clipped", source=str(white_path),
+                           hint="lower the exposure until white is not pure white, lock it, and retake every photo")
+    shifts = _register(luma, pattern_set.names, capture.photos, lit0, FRAME_FRACTION, warnings)
+    power, tone_residual = _tone_spread(codes, warnings, capture.photo("half-0")) if photos == "srgb" else (1.0, math.nan)
+    if progress:
+        progress("photometry")
+    return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
+                    power, tone_residual, photos, factor, start, progress)
+
+
+def _ratios(luma, mask, pattern_set, glare, power=1.0):
+    """(float32 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask."""
+    import cv2
+
+    def corrected(name):
+        img = np.maximum(luma[name], 0.0) ** power - np.maximum(luma["black"], 0.0) ** power
+        return photometry.remove_glare(img.astype(np.float32), glare)
+
+    white = corrected("white")
+    inner = cv2.erode(mask.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    inner &= white > 0.2 * np.percentile(white[mask], 50)
+    rows, cols = np.nonzero(inner)
+    bands = pattern_set.bands
+    ratios = np.stack([(corrected(p.name) / np.maximum(white, 1e-6))[rows, cols] for p in bands], axis=1)
+    return ratios.astype(np.float64), rows, cols, white
+
+
+def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power, tone_residual, photos,
+             factor, start, progress) -> Measurement:
+    import cv2
+
+    n = pattern_set.views
+    lit = luma["white"] - luma["black"]
+    outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
+    glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
+    ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare)
+    bands = pattern_set.bands
+    band_shifts = np.array([p.shift for p in bands])
+    fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
+    _check_band_photos(fit, ratios, rows, cols, band_shifts, bands, capture)
+    if progress:
+        progress("view cone")
+    (r0, r1, c0, c1), _ = _region_masks(mask)
+    height, width = r1 - r0, c1 - c0
+    lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
+    centre = ((rows >= r0 + lo * height) & (rows <= r0 + hi * height)
+              & (cols >= c0 + lo * width) & (cols <= c0 + hi * width))
+    row, cone_values, counts = _row_from(fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
+    samples: dict[str, np.ndarray] = {}
+    # statistical spread: blocks of the centre region
+    block_rows, block_cones = [], []
+    rr, cc = rows[centre], cols[centre]
+    ry = np.minimum(((rr - (r0 + lo * height)) / (CENTRE_FRACTION * height) * BLOCK_GRID).astype(int), BLOCK_GRID - 1)
+    rx = np.minimum(((cc - (c0 + lo * width)) / (CENTRE_FRACTION * width) * BLOCK_GRID).astype(int), BLOCK_GRID - 1)
+    for by in range(BLOCK_GRID):
+        for bx in range(BLOCK_GRID):
+            sel = (ry == by) & (rx == bx)
+            if sel.sum() < 50:
+                continue
+            b_row, b_cone, _ = _row_from(fit, ratios[centre][sel], rr[sel], cc[sel], band_shifts, n)
+            block_rows.append(b_row)
+            block_cones.append(b_cone)
+    block_rows = np.array(block_rows)
+    k = max(1, len(block_rows))
+    stat_sigma = np.nanstd(block_rows, axis=0, ddof=1) / math.sqrt(k) if k > 1 else np.zeros(n)
+    cone_stat = np.nanstd(np.array(block_cones), axis=0, ddof=1) / math.sqrt(k) if k > 1 else np.zeros_like(cone_values)
+    # systematic: glare size and tone curve
+    perturbed = {}
+    for label, g_scale, p in (("glare-", 1 - GLARE_RELATIVE_SIGMA, 1.0), ("glare+", 1 + GLARE_RELATIVE_SIGMA, 1.0)):
+        g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
+        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, g, p)
+        sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
+        perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
+    tone_sigma = max(TONE_FLOOR, abs(power - 1.0) / 2.0) if photos == "srgb" else 0.005
+    for label, p in (("tone-", 1.0 - tone_sigma), ("tone+", 1.0 + tone_sigma)):
+        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p)
+        sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
+        perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
+    glare_sigma = np.abs(perturbed["glare+"][0] - perturbed["glare-"][0]) / 2
+    tone_sig = np.abs(perturbed["tone+"][0] - perturbed["tone-"][0]) / 2
+    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2)
+    cone_sigma = np.sqrt(cone_stat ** 2 + ((perturbed["glare+"][1] - perturbed["glare-"][1]) / 2) ** 2
+                         + ((perturbed["tone+"][1] - perturbed["tone-"][1]) / 2) ** 2)
+    samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()}}
+    # uniformity map: own-view share per region
+    cols_n, rows_n = REGION_GRID
+    regions = np.full((rows_n, cols_n), np.nan)
+    regions_sigma = np.full((rows_n, cols_n), np.nan)
+    gy = np.minimum(((rows - r0) / max(height, 1) * rows_n).astype(int), rows_n - 1)
+    gx = np.minimum(((cols - c0) / max(width, 1) * cols_n).astype(int), cols_n - 1)
+    for j in range(rows_n):
+        for i in range(cols_n):
+            sel = (gy == j) & (gx == i)
+            if sel.sum() < 200:
+                continue
+            own = _row_from(fit, ratios[sel], rows[sel], cols[sel], band_shifts, n)[0][0]
+            halves = []
+            for part in range(2):
+                sub = sel & ((cols % 2) == part)
+                halves.append(_row_from(fit, ratios[sub], rows[sub], cols[sub], band_shifts, n)[0][0])
+            regions[j, i] = own
+            regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
+                                            + glare_sigma[0] ** 2 + tone_sig[0] ** 2)
+    photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
+                         "tone_power_best": power, "tone_power_sigma": tone_sigma,
+                         "half_residual": None if not math.isfinite(tone_residual) else round(tone_residual, 4),
+                         "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, fit.gains)},
+                         "shifts": shifts}
+    diagnostics = {"cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
+                   "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig}
+    delta = np.full(mask.shape, np.nan)
+    delta[rows, cols] = fit.delta(rows, cols)
+    images = {"white": white, "delta": delta, "mask": mask,
+              "centre_box": np.array([r0 + lo * height, r0 + hi * height, c0 + lo * width, c0 + hi * width]),
+              "region_box": np.array([r0, r1, c0, c1])}
+    return Measurement(n, row, row_sigma, fit.grid.copy(), cone_values, cone_sigma, regions, regions_sigma, samples,
+                       photometry_record, diagnostics, warnings, capture.inputs, profile, pattern_set,
+                       time.perf_counter() - start, images)
+
+
+def _check_band_photos(fit, ratios, rows, cols, shifts, bands, capture) -> None:
+    """Each band photo must show its band where the fit puts it: a photo of another pattern (or set) does not."""
+    t = fit.delta(rows, cols)[:, None] + shifts[None, :]
+    model = cone.profile_at(fit.grid, fit.profile, t, fit.views) * fit.gains[None, :]
+    contrast = float(np.max(fit.profile) - np.min(fit.profile))
+    for j, pattern in enumerate(bands):
+        err = float(np.sqrt(np.mean((ratios[:, j] - model[:, j]) ** 2)))
+        if err > 0.25 * contrast or not 0.6 < fit.gains[j] < 1.6:
+            raise CaptureError(f"does not show pattern {pattern.name} where the other band photos say it should be "
+                               f"(residual {err / max(contrast, 1e-9):.2f} of the band's contrast)",
+                               source=str(capture.photo(pattern.name)),
+                               hint=f"show {pattern.file} of this folder full screen and photograph it again from "
+                                    "the same place")

@@ -1,0 +1,231 @@
+"""The crosstalk patterns: view bands swept across the panel, drawn from a fitted profile.
+
+Frames and units: panel raster pixels ``(x, y)``, subpixel index ``x_s = 3 x + rho(c)``; view
+coordinates ``w`` in views (``docs/optics.md``): subpixel ``(x_s, y)`` shows view
+``floor(w(x_s, y)) mod N`` and, with a calibrated profile, the camera of the fit sits at
+``w = N/2``.
+
+A *band* pattern lights (every colour, full white) the subpixels whose ``w`` lies within half a
+view of a centre ``b`` that moves slowly across the panel:
+
+    b(x_s) = N/2 + shift + N (x_s + 0.5) / (3 sweep)        (views; sweep in pixels)
+
+so the camera, which sees ``w = N/2`` everywhere, sees at panel column ``x`` a one-view band
+centred ``delta = b - N/2`` views away from it: one photo samples the whole view cone across the
+panel (a slow spatial sweep: ``sweep / N`` pixels per view, many lenses), and ``BAND_PATTERNS``
+photos with shifts ``k N / BAND_PATTERNS`` put every part of the panel at every offset.  The two
+*half* patterns light the half of the views around ``b`` and the other half: their light adds
+up to white's at every camera pixel whatever the camera's tone curve does to each, which is what
+measures the tone curve (:mod:`.photometry`).  ``black`` and ``white`` are the references.  Every
+pattern carries the calibration patterns' registration frame (the same even frame on all four
+sides), so shake is measured and undone as in the fit.
+
+The manifest ``patterns.json`` (format ``lenticalib.crosstalk-patterns``) records the profile the
+bands were drawn from; the measurement uses exactly that profile.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from ...errors import InputError
+from ...profile import PanelProfile, profile_from_dict
+from ..patterns import FRAME_LEVEL, MANIFEST_NAME, frame_width, srgb_encode
+
+FORMAT_NAME = "lenticalib.crosstalk-patterns"
+FORMAT_VERSION = 1
+BAND_PATTERNS = 10
+SWEEP_FRACTION = 0.5  # sweep period, of the panel width (one view: sweep / N pixels)
+_ROWS_PER_CHUNK = 128
+
+
+@dataclasses.dataclass(frozen=True)
+class CrosstalkPattern:
+    """One crosstalk pattern: ``kind`` "black", "white", "band" or "half"; ``shift`` in views;
+    ``complement``: light what the pattern would leave dark (the second half pattern)."""
+
+    name: str
+    kind: str
+    shift: float = 0.0
+    complement: bool = False
+
+    @property
+    def file(self) -> str:
+        return f"{self.name}.png"
+
+    @property
+    def group(self) -> str:
+        return self.kind
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "file": self.file, "kind": self.kind, "shift": self.shift,
+                "complement": self.complement}
+
+
+@dataclasses.dataclass(frozen=True)
+class CrosstalkPatternSet:
+    """All crosstalk patterns for one fitted profile.
+
+    ``sweep``: the sweep period in pixels (the band moves by N views over this many columns).
+    """
+
+    profile: PanelProfile
+    sweep: float
+    patterns: tuple[CrosstalkPattern, ...]
+
+    @property
+    def width(self) -> int:
+        return self.profile.width
+
+    @property
+    def height(self) -> int:
+        return self.profile.height
+
+    @property
+    def views(self) -> int:
+        return self.profile.views
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.patterns]
+
+    @property
+    def bands(self) -> list[CrosstalkPattern]:
+        return [p for p in self.patterns if p.kind == "band"]
+
+    def group(self, name: str) -> list[CrosstalkPattern]:
+        return [p for p in self.patterns if p.group == name]
+
+    def _profile_dict(self) -> dict[str, Any]:
+        data = self.profile.to_dict()
+        data.pop("provenance", None)  # the manifest's own provenance is enough; the routing is what counts
+        return data
+
+    @property
+    def set_id(self) -> str:
+        body = json.dumps([FORMAT_VERSION, self._profile_dict(), self.sweep, [p.to_dict() for p in self.patterns]],
+                          sort_keys=True)
+        return hashlib.sha256(body.encode()).hexdigest()[:16]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "set_id": self.set_id,
+                "width": self.width, "height": self.height, "views": self.views, "sweep_pixels": self.sweep,
+                "frame_pixels": frame_width(self.height), "frame_level": FRAME_LEVEL, "encoding": "sRGB",
+                "profile": self._profile_dict(), "patterns": [p.to_dict() for p in self.patterns]}
+
+    def render(self, pattern: CrosstalkPattern) -> np.ndarray:
+        """The pattern as the panel shows it: uint8 RGB ``(height, width, 3)``."""
+        return render_crosstalk_pattern(self, pattern)
+
+
+def design_crosstalk_patterns(profile: PanelProfile, sweep: float | None = None) -> CrosstalkPatternSet:
+    """The crosstalk pattern set for ``profile``: black, white, ``BAND_PATTERNS`` band sweeps, two halves."""
+    if sweep is None:
+        sweep = SWEEP_FRACTION * profile.width
+    n = profile.views
+    patterns = [CrosstalkPattern("black", "black"), CrosstalkPattern("white", "white")]
+    patterns += [CrosstalkPattern(f"band-{k:02d}", "band", shift=k * n / BAND_PATTERNS) for k in range(BAND_PATTERNS)]
+    patterns += [CrosstalkPattern("half-0", "half"), CrosstalkPattern("half-1", "half", complement=True)]
+    return CrosstalkPatternSet(profile, float(sweep), tuple(patterns))
+
+
+def band_centre(pattern_set: CrosstalkPatternSet, xs: np.ndarray, shift: float) -> np.ndarray:
+    """Band centre ``b`` (views) at subpixel indices ``xs`` for a pattern of ``shift`` views."""
+    n = pattern_set.views
+    return n / 2.0 + shift + n * (np.asarray(xs, np.float64) + 0.5) / (3.0 * pattern_set.sweep)
+
+
+def lit_subpixels(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, rows: np.ndarray) -> np.ndarray:
+    """bool ``(len(rows), 3 W)`` indexed ``[y, x_s]``: which subpixels the pattern lights (frame excluded)."""
+    from ...render.routing import view_coordinate
+
+    profile = pattern_set.profile
+    nsub = profile.subpixels_per_row
+    if pattern.kind == "black":
+        return np.zeros((len(rows), nsub), dtype=bool)
+    if pattern.kind == "white":
+        return np.ones((len(rows), nsub), dtype=bool)
+    n = profile.views
+    w = view_coordinate(profile, rows)
+    relative = w - band_centre(pattern_set, np.arange(nsub), pattern.shift)[None, :]
+    if pattern.kind == "band":
+        return np.mod(relative + 0.5, n) < 1.0
+    lit = np.mod(relative + n / 4.0, n) < n / 2.0
+    return ~lit if pattern.complement else lit
+
+
+def render_crosstalk_pattern(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern) -> np.ndarray:
+    """uint8 RGB ``(H, W, 3)``: lit subpixels at 255, others 0, inside the registration frame."""
+    profile = pattern_set.profile
+    h, w = profile.height, profile.width
+    image = np.zeros((h, w, 3), dtype=np.uint8)
+    rho = profile.rho  # subpixel position of R, G, B
+    for start in range(0, h, _ROWS_PER_CHUNK):
+        rows = np.arange(start, min(h, start + _ROWS_PER_CHUNK))
+        lit = lit_subpixels(pattern_set, pattern, rows)
+        for channel in range(3):
+            image[rows[0]:rows[-1] + 1, :, channel] = np.where(lit[:, rho[channel]::3], 255, 0)
+    f = frame_width(h)
+    frame = np.rint(255.0 * srgb_encode(np.float64(FRAME_LEVEL))).astype(np.uint8)
+    for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
+        part[...] = frame
+    return image
+
+
+def write_crosstalk_patterns(directory: str | os.PathLike, pattern_set: CrosstalkPatternSet,
+                             progress: Iterable | None = None, extra: dict[str, Any] | None = None) -> Path:
+    """Write every pattern as ``DIR/NAME.png`` and the manifest ``DIR/patterns.json`` (atomic files).
+
+    Refuses a folder whose ``captures/`` holds photos of another pattern set.  ``extra``: free
+    manifest keys (``created``, ``lenticalib_version``, ``note``).
+    """
+    from ...atomic import write_text_atomic
+    from ...imageio import write_image
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    manifest_path = directory / MANIFEST_NAME
+    if manifest_path.exists() and (directory / "captures").is_dir() and any((directory / "captures").iterdir()):
+        try:
+            old_id = json.loads(manifest_path.read_text()).get("set_id")
+        except (OSError, ValueError, AttributeError):
+            old_id = None
+        if old_id != pattern_set.set_id:
+            raise InputError("holds photos of another pattern set", source=str(directory / "captures"),
+                             hint="write the patterns into an empty folder")
+    for pattern in (pattern_set.patterns if progress is None else progress):
+        write_image(directory / pattern.file, pattern_set.render(pattern))
+    write_text_atomic(manifest_path, json.dumps({**pattern_set.to_dict(), **(extra or {})}, indent=2) + "\n")
+    return manifest_path
+
+
+_FREE_KEYS = ("created", "lenticalib_version", "note")
+
+
+def crosstalk_set_from_manifest(data: dict[str, Any], source: str) -> CrosstalkPatternSet:
+    """The crosstalk pattern set a parsed ``patterns.json`` describes; InputError naming ``source``."""
+    if data.get("format_version") != FORMAT_VERSION:
+        raise InputError(f"crosstalk pattern format version {data.get('format_version')!r} is not supported "
+                         f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
+                         hint="write the patterns again with 'lenticalib crosstalk patterns'")
+    if not isinstance(data.get("profile"), dict):
+        raise InputError("field 'profile' is missing", source=source,
+                         hint="write the patterns again with 'lenticalib crosstalk patterns'")
+    profile = profile_from_dict(data["profile"], source=f"{source} (profile)")
+    sweep = data.get("sweep_pixels")
+    if not (isinstance(sweep, (int, float)) and math.isfinite(sweep) and sweep > 0):
+        raise InputError("field 'sweep_pixels' is missing or not a positive number", source=source)
+    expected = design_crosstalk_patterns(profile, float(sweep))
+    if data != {**expected.to_dict(), **{k: data[k] for k in _FREE_KEYS if k in data}}:
+        raise InputError("describes crosstalk patterns this lenticalib did not draw (edited, or from another "
+                         "version)", source=source,
+                         hint="write the patterns again with 'lenticalib crosstalk patterns' and photograph them")
+    return expected

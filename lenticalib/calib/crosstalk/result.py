@@ -1,0 +1,161 @@
+"""``crosstalk.json``: the measured mixing matrix, the figures derived from it, reading and checking.
+
+Definitions (``docs/crosstalk.md``), for a circulant ``M`` with row ``h = M[i]`` (``h[m]`` the
+share of the light an eye at the centre of a view's zone receives from the view ``m`` further
+on, ``m`` modulo N):
+
+    own-view share          h[0]
+    adjacent crosstalk      (h[1] + h[-1]) / h[0]           (Woods: leakage over signal, black-corrected)
+    non-adjacent crosstalk  sum_{2 <= |m| <= N/2} h[m] / h[0]
+    eye-pair crosstalk      h[e] / h[0], e = the eye separation rounded to whole views (the mean
+                            of +e and -e: what each eye of a centred viewer gets of the other's view)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ...errors import InputError
+
+FORMAT_NAME = "lenticalib.crosstalk"
+FORMAT_VERSION = 1
+
+
+def derived_figures(row: np.ndarray, eye_separation: float | None) -> dict[str, float]:
+    """The figures above from one row ``h`` (N,) summing to 1 (``eye_separation`` in views, or None)."""
+    n = row.size
+    own = float(row[0])
+    adjacent = float(row[1] + row[-1]) / own if n > 2 else float(row[1]) / own
+    rest = float(row.sum() - row[0] - row[1] - (row[-1] if n > 2 else 0.0)) / own
+    figures = {"own_view_share": own, "adjacent_left_share": float(row[-1]), "adjacent_right_share": float(row[1]),
+               "adjacent_crosstalk": adjacent, "non_adjacent_crosstalk": rest, "total_crosstalk": (1.0 - own) / own}
+    if eye_separation is not None:
+        e = int(round(eye_separation)) % n
+        figures["eye_pair_crosstalk"] = float(row[e] + row[-e]) / (2.0 * own) if e else 1.0
+    return figures
+
+
+def figures_with_sigma(row: np.ndarray, row_sigma: np.ndarray, samples: Mapping[str, np.ndarray],
+                       eye_separation: float | None) -> dict[str, dict[str, float]]:
+    """Each derived figure with its 1-sigma: the block spread and the photometric perturbations
+    propagated (the block rows' spread / sqrt(k), the perturbed rows' half differences)."""
+    base = derived_figures(row, eye_separation)
+    out = {k: {"value": v, "sigma": 0.0} for k, v in base.items()}
+    blocks = samples.get("blocks")
+    variance = {k: 0.0 for k in base}
+    if blocks is not None and len(blocks) > 1:
+        values = [derived_figures(b, eye_separation) for b in blocks if np.all(np.isfinite(b))]
+        for k in base:
+            variance[k] += float(np.var([v[k] for v in values], ddof=1)) / len(values)
+    for low, high in (("glare-", "glare+"), ("tone-", "tone+")):
+        if low in samples and high in samples:
+            a, b = derived_figures(samples[low], eye_separation), derived_figures(samples[high], eye_separation)
+            for k in base:
+                variance[k] += ((a[k] - b[k]) / 2.0) ** 2
+    for k in base:
+        out[k]["sigma"] = math.sqrt(variance[k])
+    return out
+
+
+def eye_separation_views(millimetres: float, distance: float, cone_angle: float, views: int) -> float:
+    """Views between two eyes ``millimetres`` apart at ``distance`` mm from a panel whose N views span
+    ``cone_angle`` degrees: one view is ``2 D tan(cone/2) / N`` mm wide there."""
+    zone = 2.0 * distance * math.tan(math.radians(cone_angle) / 2.0) / views
+    return millimetres / zone
+
+
+def _r(value: float, digits: int = 6):
+    return None if value is None or not math.isfinite(value) else round(float(value), digits)
+
+
+def crosstalk_document(measurement, eye_separation: float | None, eye_note: str | None,
+                       provenance: Mapping[str, Any]) -> dict[str, Any]:
+    """The JSON document of a measurement (see ``docs/crosstalk.md`` for every key)."""
+    m = measurement
+    n = m.views
+    matrix = m.matrix
+    sigma = m.row_sigma[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
+    figures = figures_with_sigma(m.row, m.row_sigma, m.samples, eye_separation)
+    per_view = [{"view": i, **{k: _r(v["value"]) for k, v in figures.items()}} for i in range(n)]
+    diag = {k: (v.round(6).tolist() if isinstance(v, np.ndarray) else v) for k, v in m.diagnostics.items()}
+    return {
+        "format": FORMAT_NAME, "format_version": FORMAT_VERSION,
+        "views": n, "width": m.profile.width, "height": m.profile.height,
+        "definition": "matrix[i][j]: share of the light an eye at the centre of view i's zone receives from view j "
+                      "(rows sum to 1, black-corrected), through the panel's centre region",
+        "matrix": [[_r(v) for v in r] for r in matrix],
+        "matrix_sigma": [[_r(v) for v in r] for r in sigma],
+        "circulant_row": [_r(v) for v in m.row], "circulant_row_sigma": [_r(v) for v in m.row_sigma],
+        "figures": {k: {"value": _r(v["value"]), "sigma": _r(v["sigma"])} for k, v in figures.items()},
+        "per_view": per_view,
+        "eye_separation_views": _r(eye_separation, 4), "eye_separation_note": eye_note,
+        "view_cone": {"offsets_views": [_r(v, 5) for v in m.cone_grid], "share": [_r(v) for v in m.cone],
+                      "sigma": [_r(v) for v in m.cone_sigma]},
+        "uniformity": {"grid": list(m.regions.shape[::-1]), "own_view_share": [[_r(v) for v in r] for r in m.regions],
+                       "sigma": [[_r(v) for v in r] for r in m.regions_sigma],
+                       "layout": "rows top to bottom, columns left to right, over the panel as photographed"},
+        "photometry": m.photometry, "diagnostics": diag, "warnings": list(m.warnings),
+        "profile": {k: v for k, v in m.profile.to_dict().items() if k != "provenance"},
+        "provenance": dict(provenance),
+    }
+
+
+def write_crosstalk(path: str | os.PathLike, document: Mapping[str, Any]) -> Path:
+    from ...atomic import write_text_atomic
+
+    return write_text_atomic(path, json.dumps(document, indent=2) + "\n")
+
+
+def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: str | None = None) -> dict[str, Any]:
+    """A ``crosstalk.json`` document, checked: format, a square N x N ``matrix`` of numbers whose rows sum
+    to 1, ``views`` equal to ``views`` when given.  InputError naming the file otherwise."""
+    from ...profile import read_json_file
+
+    source = source or str(path)
+    data = read_json_file(path, "crosstalk file", "measure it with 'lenticalib crosstalk measure'")
+    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
+        raise InputError("is not a lenticalib crosstalk file", source=source,
+                         hint="give the crosstalk.json written by 'lenticalib crosstalk measure'")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise InputError(f"crosstalk format version {data.get('format_version')!r} is not supported", source=source)
+    n = data.get("views")
+    matrix = data.get("matrix")
+    if not (isinstance(n, int) and 2 <= n <= 254):
+        raise InputError("field 'views' is missing or not a whole number 2..254", source=source)
+    if (not isinstance(matrix, list) or len(matrix) != n
+            or any(not isinstance(r, list) or len(r) != n for r in matrix)
+            or any(not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) for r in matrix for v in r)):
+        raise InputError(f"field 'matrix' must be {n} rows of {n} numbers", source=source)
+    array = np.asarray(matrix, np.float64)
+    if np.any(array < -0.05) or np.any(np.abs(array.sum(axis=1) - 1.0) > 0.02):
+        raise InputError("field 'matrix' is not a mixing matrix (rows must be shares summing to 1)", source=source)
+    if views is not None and n != views:
+        raise InputError(f"is for {n} views, the profile has {views}", source=source,
+                         hint="measure the crosstalk of this panel with this profile's view count")
+    return data
+
+
+def check_crosstalk(data: Mapping[str, Any], max_adjacent: float | None, max_eye_pair: float | None) -> list[str]:
+    """One line per failed limit (empty: pass).  Limits are fractions (0.08 = 8 %)."""
+    failures = []
+    figures = data.get("figures", {})
+    if max_adjacent is not None:
+        value = (figures.get("adjacent_crosstalk") or {}).get("value")
+        if value is None:
+            failures.append("adjacent crosstalk is missing from the file")
+        elif value > max_adjacent:
+            failures.append(f"adjacent crosstalk {100 * value:.2f}% exceeds the limit {100 * max_adjacent:.2f}%")
+    if max_eye_pair is not None:
+        value = (figures.get("eye_pair_crosstalk") or {}).get("value")
+        if value is None:
+            failures.append("eye-pair crosstalk was not measured (measure with --eye-separation VIEWS)")
+        elif value > max_eye_pair:
+            failures.append(f"eye-pair crosstalk {100 * value:.2f}% exceeds the limit {100 * max_eye_pair:.2f}% "
+                            f"(eye separation {data.get('eye_separation_views')} views)")
+    return failures

@@ -1,0 +1,197 @@
+"""``lenticalib crosstalk patterns|measure|check``: verify per-view crosstalk from photos.
+
+    patterns --profile P -o DIR      the sweep patterns from a fitted profile (show/capture them
+                                     like calibration patterns, from the fit's camera position)
+    measure DIR -o crosstalk.json    the mixing matrix, the view cone, the derived figures with
+                                     uncertainties, provenance; ``--report DIR`` the figures
+    check crosstalk.json --max-adjacent A --max-eye-pair E
+                                     pass (exit 0) or fail (exit 1, one line per failure)
+
+Every option and output path is checked before the long work; outputs are written atomically
+(the report folder staged as a whole), so a failed run leaves earlier results as they were.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="crosstalk_command", metavar="STEP")
+    sub.required = True
+    p = sub.add_parser("patterns", help="write the crosstalk patterns for a fitted profile",
+                       description="write the crosstalk patterns (band sweeps, halves, black, white) for a profile")
+    p.add_argument("--profile", required=True, metavar="P", help="the fitted profile (profile.json)")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the patterns and patterns.json")
+    p.add_argument("--sweep", type=float, metavar="PIXELS", help="columns over which a band sweeps through all "
+                   "views (default: half the panel width)")
+    p.set_defaults(run=run_patterns)
+    m = sub.add_parser("measure", help="measure the crosstalk from photos of the crosstalk patterns",
+                       description="measure the mixing matrix and the view cone from DIR/captures/")
+    m.add_argument("directory", metavar="DIR", help="folder from 'crosstalk patterns' with captures/")
+    m.add_argument("--profile", metavar="P", help="the profile the patterns were drawn from (checked against "
+                   "the patterns' own record)")
+    m.add_argument("-o", "--output", required=True, metavar="FILE", help="crosstalk JSON to write")
+    m.add_argument("--report", metavar="DIR", help="folder for the report figures")
+    m.add_argument("--eye-separation", type=float, metavar="VIEWS",
+                   help="eye separation of a viewer in views, for the eye-pair crosstalk")
+    m.add_argument("--eye-separation-mm", type=float, metavar="MM",
+                   help="eye separation in mm (typically 63-65), with --distance and --cone-angle")
+    m.add_argument("--distance", type=float, metavar="MM", help="viewing distance for --eye-separation-mm")
+    m.add_argument("--cone-angle", type=float, metavar="DEG", help="the panel's full view-cone angle in degrees "
+                   "(data sheet), for --eye-separation-mm")
+    m.add_argument("--photos", choices=("srgb", "linear"), default="srgb",
+                   help="how the photos encode light: srgb (camera JPEGs; default) or linear (16-bit from RAW)")
+    m.add_argument("--json", action="store_true", help="print the crosstalk document")
+    m.set_defaults(run=run_measure)
+    c = sub.add_parser("check", help="pass/fail a crosstalk measurement against limits",
+                       description="pass (exit 0) or fail (exit 1) a crosstalk.json against limits")
+    c.add_argument("file", metavar="FILE", help="crosstalk.json from 'crosstalk measure'")
+    c.add_argument("--max-adjacent", type=_fraction, metavar="A", help="limit of the adjacent crosstalk "
+                   "(fraction 0.08 or percent 8%%)")
+    c.add_argument("--max-eye-pair", type=_fraction, metavar="E", help="limit of the eye-pair crosstalk")
+    c.set_defaults(run=run_check)
+
+
+def _fraction(text: str) -> float:
+    value = text.strip()
+    try:
+        number = float(value[:-1]) / 100.0 if value.endswith("%") else float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a fraction (0.08) or a percentage (8%)") from None
+    if not (math.isfinite(number) and 0.0 <= number <= 10.0):
+        raise argparse.ArgumentTypeError(f"{text!r} is out of range (0..10, or 0%..1000%)")
+    return number
+
+
+def run_patterns(args: argparse.Namespace) -> int:
+    from ..calib.crosstalk.patterns import design_crosstalk_patterns, write_crosstalk_patterns
+    from ..calib.patterns import MANIFEST_NAME
+    from ..errors import InputError
+    from ..outputs import check_output_folder, restored_on_failure
+    from ..profile import load_profile
+    from ._progress import progress_bar
+
+    profile = load_profile(args.profile, "--profile")
+    if args.sweep is not None and not (math.isfinite(args.sweep) and 4 * profile.views <= args.sweep <= 4 * profile.width):
+        raise InputError(f"sweep {args.sweep} pixels is out of range", source="--sweep",
+                         hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {profile.width / 2:g})")
+    folder = check_output_folder(args.output, "crosstalk patterns")
+    pattern_set = design_crosstalk_patterns(profile, args.sweep)
+    written = ([folder / p.file for p in pattern_set.patterns] + [folder / MANIFEST_NAME]
+               if folder.exists() else [folder])
+    with restored_on_failure(written, "patterns"), \
+            progress_bar(len(pattern_set.patterns), "writing patterns") as bar:
+        write_crosstalk_patterns(folder, pattern_set, progress=bar.wrap(pattern_set.patterns))
+    print(f"wrote {len(pattern_set.patterns)} crosstalk patterns and {folder / MANIFEST_NAME} (set {pattern_set.set_id})")
+    print(f"next: photograph them from the fit's camera position, without moving the camera "
+          f"('lenticalib capture {args.output} --camera ...', or show each PNG and save captures/NAME.jpg); then "
+          f"'lenticalib crosstalk measure {args.output} -o crosstalk.json --report crosstalk-report'")
+    return 0
+
+
+def _eye_separation(args, views: int):
+    from ..calib.crosstalk.result import eye_separation_views
+    from ..errors import InputError
+
+    if args.eye_separation is not None and args.eye_separation_mm is not None:
+        raise InputError("give the eye separation once", source="--eye-separation-mm",
+                         hint="use --eye-separation VIEWS or --eye-separation-mm MM, not both")
+    if args.eye_separation is not None:
+        if not (math.isfinite(args.eye_separation) and 0.5 <= args.eye_separation <= views / 2):
+            raise InputError(f"{args.eye_separation} views is out of range", source="--eye-separation",
+                             hint=f"use 0.5..{views / 2:g} views")
+        return args.eye_separation, None
+    if args.eye_separation_mm is None:
+        if args.distance is not None or args.cone_angle is not None:
+            raise InputError("is only used with --eye-separation-mm", source="--distance" if args.distance is not None
+                             else "--cone-angle", hint="add --eye-separation-mm MM")
+        return None, None
+    for flag, value, lo, hi in (("--eye-separation-mm", args.eye_separation_mm, 20.0, 120.0),
+                                ("--distance", args.distance, 100.0, 10000.0),
+                                ("--cone-angle", args.cone_angle, 1.0, 120.0)):
+        if value is None:
+            raise InputError("is needed with --eye-separation-mm", source=flag,
+                             hint="give the viewing distance in mm and the panel's full view-cone angle in degrees")
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise InputError(f"{value} is out of range", source=flag, hint=f"use {lo:g}..{hi:g}")
+    e = eye_separation_views(args.eye_separation_mm, args.distance, args.cone_angle, views)
+    if not 0.5 <= e <= views / 2:
+        raise InputError(f"{args.eye_separation_mm} mm is {e:.2f} views at {args.distance:g} mm", source="--eye-separation-mm",
+                         hint=f"the eyes must be 0.5..{views / 2:g} views apart; check --distance and --cone-angle")
+    return e, (f"{args.eye_separation_mm:g} mm at {args.distance:g} mm from a panel with a {args.cone_angle:g} degree "
+               f"view cone")
+
+
+def run_measure(args: argparse.Namespace) -> int:
+    import os
+    import sys
+
+    from ..calib.crosstalk.measure import measure_crosstalk, open_crosstalk_set
+    from ..calib.crosstalk.report import REPORT_FILES, write_crosstalk_report
+    from ..calib.crosstalk.result import crosstalk_document, write_crosstalk
+    from ..errors import InputError
+    from ..outputs import check_output_file, check_output_folder, staged_folder
+    from ..profile import load_profile, make_provenance
+    from ._progress import progress_bar
+
+    profile = load_profile(args.profile, "--profile") if args.profile else None
+    pattern_set, capture = open_crosstalk_set(args.directory, profile)
+    eye, eye_note = _eye_separation(args, pattern_set.views)
+    output = check_output_file(args.output, "crosstalk file", example="crosstalk.json")
+    if args.report:
+        check_output_folder(args.report, "crosstalk report", contents=REPORT_FILES)
+        if os.path.abspath(args.report) == os.path.abspath(output):
+            raise InputError("is also the crosstalk file path", source="--report", hint="give the report a folder")
+    with progress_bar(len(pattern_set.patterns) + 2, "measuring") as bar:
+        measurement = measure_crosstalk(args.directory, profile, photos=args.photos, progress=bar.update)
+    for warning in measurement.warnings:
+        print(f"lenticalib: warning: {warning}", file=sys.stderr)
+    provenance = make_provenance("crosstalk measurement", inputs=measurement.inputs,
+                                 **({"profile_file": str(args.profile)} if args.profile else {}),
+                                 pattern_set=pattern_set.set_id, seconds=round(measurement.seconds, 2))
+    document = crosstalk_document(measurement, eye, eye_note, provenance)
+    if args.report:
+        with staged_folder(args.report, "crosstalk report", contents=REPORT_FILES) as stage:
+            write_crosstalk_report(measurement, stage)
+            write_crosstalk(output, document)
+    else:
+        write_crosstalk(output, document)
+    if args.json:
+        print(json.dumps(document, indent=2))
+        return 0
+    f = document["figures"]
+
+    def pct(key):
+        return f"{100 * f[key]['value']:.2f}% +- {100 * f[key]['sigma']:.2f}%"
+
+    print(f"own-view share {f['own_view_share']['value']:.4f} +- {f['own_view_share']['sigma']:.4f}; adjacent "
+          f"crosstalk {pct('adjacent_crosstalk')}; non-adjacent {pct('non_adjacent_crosstalk')}"
+          + (f"; eye pair ({eye:.2f} views) {pct('eye_pair_crosstalk')}" if eye is not None else ""))
+    print(f"wrote {output}" + (f" and the report {args.report}" if args.report else "")
+          + f" ({measurement.seconds:.1f} s)")
+    return 0
+
+
+def run_check(args: argparse.Namespace) -> int:
+    from ..calib.crosstalk.result import check_crosstalk, read_crosstalk
+    from ..errors import InputError
+
+    if args.max_adjacent is None and args.max_eye_pair is None:
+        raise InputError("no limit given", source="--max-adjacent", hint="give --max-adjacent A and/or --max-eye-pair E")
+    data = read_crosstalk(args.file)
+    failures = check_crosstalk(data, args.max_adjacent, args.max_eye_pair)
+    for line in failures:
+        print(f"FAIL {args.file}: {line}")
+    if failures:
+        return 1
+    f = data["figures"]
+    parts = []
+    if args.max_adjacent is not None:
+        parts.append(f"adjacent {100 * f['adjacent_crosstalk']['value']:.2f}% <= {100 * args.max_adjacent:.2f}%")
+    if args.max_eye_pair is not None:
+        parts.append(f"eye pair {100 * f['eye_pair_crosstalk']['value']:.2f}% <= {100 * args.max_eye_pair:.2f}%")
+    print(f"PASS {args.file}: " + "; ".join(parts))
+    return 0
