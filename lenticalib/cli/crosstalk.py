@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--profile", required=True, metavar="P", help="the fitted profile (profile.json)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the patterns and patterns.json")
     p.add_argument("--sweep", type=float, metavar="PIXELS", help="columns over which a band sweeps through all "
-                   "views (default: half the panel width)")
+                   "views (default: half the panel width, or 8 lenses per view if longer)")
     p.set_defaults(run=run_patterns)
     m = sub.add_parser("measure", help="measure the crosstalk from photos of the crosstalk patterns",
                        description="measure the mixing matrix and the view cone from DIR/captures/")
@@ -67,7 +67,7 @@ def _fraction(text: str) -> float:
 
 
 def run_patterns(args: argparse.Namespace) -> int:
-    from ..calib.crosstalk.patterns import design_crosstalk_patterns, write_crosstalk_patterns
+    from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns, write_crosstalk_patterns
     from ..calib.patterns import MANIFEST_NAME
     from ..errors import InputError
     from ..outputs import check_output_folder, restored_on_failure
@@ -77,7 +77,7 @@ def run_patterns(args: argparse.Namespace) -> int:
     profile = load_profile(args.profile, "--profile")
     if args.sweep is not None and not (math.isfinite(args.sweep) and 4 * profile.views <= args.sweep <= 4 * profile.width):
         raise InputError(f"sweep {args.sweep} pixels is out of range", source="--sweep",
-                         hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {profile.width / 2:g})")
+                         hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {default_sweep(profile):g})")
     folder = check_output_folder(args.output, "crosstalk patterns")
     pattern_set = design_crosstalk_patterns(profile, args.sweep)
     written = ([folder / p.file for p in pattern_set.patterns] + [folder / MANIFEST_NAME]

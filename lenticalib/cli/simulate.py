@@ -48,6 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "80..95)")
     parser.add_argument("--subsamples", type=int, metavar="K",
                         help="rays per sensor pixel side, K x K per pixel, 1..16 (default 3, or the --scene's)")
+    parser.add_argument("--raw", action="store_true", help="write 16-bit linear PNG photos (captures/NAME.png) as a "
+                        "raw converter makes them, instead of camera JPEGs (for 'crosstalk measure --photos linear')")
     parser.add_argument("--json", action="store_true", help="print a JSON summary instead of sentences")
     parser.set_defaults(run=run)
 
@@ -181,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     with restored_on_failure(written, "simulation"), \
             progress_bar(len(pattern_set.patterns), "photographing") as bar:
-        summary = simulate_capture_set(args.directory, scene, progress=bar.wrap)
+        summary = simulate_capture_set(args.directory, scene, raw=args.raw, progress=bar.wrap)
     summary["seconds"] = round(time.perf_counter() - start, 2)
     if args.json:
         print(json.dumps(summary))

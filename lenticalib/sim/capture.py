@@ -2,7 +2,8 @@
 
 Layout written into the pattern folder ``DIR`` (the one ``lenticalib patterns`` wrote):
 
-    DIR/captures/NAME.jpg   one camera JPEG per pattern NAME.png (nothing else goes here)
+    DIR/captures/NAME.jpg   one camera JPEG per pattern NAME.png (nothing else goes here); with
+                            ``raw``: NAME.png, 16-bit linear RGB as a raw converter writes it
     DIR/simulation.json     the scene (every optics and camera parameter), its seed, the
                             per-photo noise seeds, the pattern set id and the lenticalib
                             version: enough to reproduce every photo bit for bit
@@ -54,24 +55,25 @@ def photo_scene(scene: Scene, pattern_name: str) -> tuple[Scene, dict[str, float
         k: getattr(camera, k) for k in ("exposure", "cx", "cy")})), draws
 
 
-def photo_record(scene: Scene, pattern_name: str, file: str | None = None) -> dict[str, Any]:
+def photo_record(scene: Scene, pattern_name: str, file: str | None = None, raw: bool = False) -> dict[str, Any]:
     """The ``simulation.json`` entry of photo ``pattern_name``: pattern, file (relative to the pattern
     folder; default ``captures/NAME.jpg``), noise seed and the per-photo camera draws."""
-    return {"pattern": pattern_name, "file": file or f"{CAPTURE_FOLDER}/{pattern_name}.jpg",
+    return {"pattern": pattern_name, "file": file or f"{CAPTURE_FOLDER}/{pattern_name}.{'png' if raw else 'jpg'}",
             "noise_seed": noise_seed(scene, pattern_name), "photo": photo_scene(scene, pattern_name)[1]}
 
 
-def photograph_pattern(scene: Scene, pattern_name: str, raster: np.ndarray) -> bytes:
+def photograph_pattern(scene: Scene, pattern_name: str, raster: np.ndarray, raw: bool = False) -> bytes:
     """The camera JPEG of the panel of ``scene`` showing ``raster`` as photo ``pattern_name``.
 
     ``raster`` is uint8 ``(H, W, 3)`` sRGB at the panel's size.  The noise and the per-photo draws
     come from :func:`noise_seed` / :func:`photo_scene`, so the same scene, name and raster give the
     same bytes (what ``simulation.json`` promises).
     """
-    from .render import photograph_jpeg
+    from .render import photograph_jpeg, photograph_raw_png
 
     rng = np.random.default_rng(noise_seed(scene, pattern_name))
-    return photograph_jpeg(raster, photo_scene(scene, pattern_name)[0], rng)
+    shoot = photograph_raw_png if raw else photograph_jpeg
+    return shoot(raster, photo_scene(scene, pattern_name)[0], rng)
 
 
 def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tuple[Path, dict[str, Any]]:
@@ -138,7 +140,7 @@ def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[di
     return record
 
 
-def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
+def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene, raw: bool = False,
                          progress: Callable[[Iterable], Iterable] | None = None) -> dict[str, Any]:
     """Photograph every pattern of ``pattern_dir`` on the virtual panel of ``scene``.
 
@@ -179,7 +181,7 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
         raise InputError(f"cannot create: {exc.strerror}", source=str(captures),
                          hint="choose a writable pattern folder") from None
 
-    records = [photo_record(scene, p.name) for p in pattern_set.patterns]
+    records = [photo_record(scene, p.name, raw=raw) for p in pattern_set.patterns]
     write_simulation_record(directory, scene, pattern_set, "in progress", records, None)
 
     items: Iterable = pattern_set.patterns if progress is None else progress(pattern_set.patterns)
@@ -190,7 +192,8 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene,
             raise ImageError(f"expected an 8-bit {optics.width}x{optics.height} pattern, got {raster.dtype} "
                              f"{raster.shape[1]}x{raster.shape[0]}", source=str(source),
                              hint="write the patterns again with 'lenticalib patterns'")
-        write_bytes_atomic(captures / f"{pattern.name}.jpg", photograph_pattern(scene, pattern.name, raster))
+        write_bytes_atomic(captures / f"{pattern.name}.{'png' if raw else 'jpg'}",
+                           photograph_pattern(scene, pattern.name, raster, raw=raw))
 
     truth_path, constants = write_truth(directory, scene, pattern_set)
     write_simulation_record(directory, scene, pattern_set, "complete", records, {"file": TRUTH_NAME, **constants})

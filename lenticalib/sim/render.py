@@ -384,7 +384,7 @@ def _lateral_chromatic(img: np.ndarray, camera: Camera) -> np.ndarray:
     return cv2.merge(planes)
 
 
-def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator) -> np.ndarray:
+def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator, linear: bool = False) -> np.ndarray:
     """The camera's photometric chain: radiance per panel primary -> 8-bit sRGB photo.
 
     ARGUMENTS
@@ -392,8 +392,11 @@ def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator) -> n
     camera     photometric settings (see :class:`.camera.Camera`)
     rng        noise source (only used when ``camera.full_well`` is set)
 
+    linear     stop after demosaicing: the camera's raw data as a raw converter writes it
+               (linear 16-bit RGB, no tone curve, no sharpening, no JPEG)
+
     RETURNED VALUE
-    uint8 ``(h, w, 3)`` RGB, before JPEG compression.
+    uint8 ``(h, w, 3)`` RGB, before JPEG compression (uint16 linear with ``linear``).
     """
     import cv2
 
@@ -429,6 +432,8 @@ def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator) -> n
         raw = (electrons + rng.standard_normal((h, w), dtype=np.float32) * sigma) / fw
     raw16 = np.clip(raw * np.float32(65535.0) + np.float32(0.5), 0.0, 65535.0).astype(np.uint16)
     rgb16 = cv2.demosaicing(raw16, cv2.COLOR_BayerRGGB2RGB_EA)
+    if linear:
+        return rgb16
     enc = _tone_lut(float(camera.tone_gamma), float(camera.tone_contrast))[rgb16]
     if camera.sharpen > 0:
         soft = cv2.GaussianBlur(enc, (0, 0), 1.0, borderType=cv2.BORDER_REFLECT)
@@ -443,6 +448,18 @@ def encode_jpeg(photo: np.ndarray, quality: int) -> bytes:
     ok, data = cv2.imencode(".jpg", np.ascontiguousarray(photo[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ImageError("JPEG encoding failed", source="photo")
+    return data.tobytes()
+
+
+def photograph_raw_png(raster: np.ndarray, scene: Scene, rng: np.random.Generator) -> bytes:
+    """The camera's raw photo of the panel showing ``raster``: 16-bit linear RGB PNG bytes (as a raw
+    converter such as dcraw -4 or rawpy writes them: demosaiced, no tone curve)."""
+    import cv2
+
+    rgb16 = develop(render_radiance(raster, scene), scene.camera, rng, linear=True)
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(rgb16[:, :, ::-1]))
+    if not ok:
+        raise ImageError("PNG encoding failed", source="photo")
     return data.tobytes()
 
 

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 BINS_PER_VIEW = 16
-DEGREE = 4
+DEGREE = 6
 MAX_SAMPLES = 40_000
 ROUNDS = 6
 

@@ -13,9 +13,10 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    (:mod:`.cone`); ``h`` of the centre region at integer offsets, normalised, is the row of the
    circulant ``M``;
 4. uncertainties: the spread between 16 blocks of the centre region (noise, moire, local
-   non-uniformity) and, in quadrature, what the photometric assumptions could move: the
-   glare's size (+-30 %) and the tone curve (a power ``1 +- d`` on the decoded light, with
-   ``d`` from how well the two half photos add up to white).
+   non-uniformity; a robust spread) and, in quadrature, what the photometric assumptions could
+   move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the decoded light:
+   ``d`` = 0.05 for camera JPEGs, which are sRGB only to about +-8 %, more when the two half
+   photos say so; 0.005 for linear photos) and the dark floor every entry sits on.
 """
 
 from __future__ import annotations
@@ -39,10 +40,13 @@ REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCK_GRID = 4  # the centre region is split BLOCK_GRID x BLOCK_GRID for the statistical spread
 WORKING_WIDTH = 1000  # working pixels across (about)
 GLARE_RELATIVE_SIGMA = 0.3
-TONE_FLOOR = 0.02  # smallest 1-sigma of the power on decoded light (cameras are never exactly sRGB)
+TONE_FLOOR = 0.05  # 1-sigma of the power on sRGB-decoded light: camera JPEGs are sRGB only to about +-8 %
+LINEAR_TONE_SIGMA = 0.005  # the same for linear photos (sensor non-linearity)
 MAX_CLIPPED = 0.02
 MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
 PHOTO_MODES = ("srgb", "linear")
+FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
+FLOOR_GLARE_SHARE = 0.2  # ... plus this share of the glare fraction, spread over the N views
 
 
 @dataclasses.dataclass
@@ -327,9 +331,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
     ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare)
     bands = pattern_set.bands
+    _check_distinct(ratios, bands, capture)
     band_shifts = np.array([p.shift for p in bands])
     fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
-    _check_band_photos(fit, ratios, rows, cols, band_shifts, bands, capture)
+    _check_band_photos(fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
     if progress:
         progress("view cone")
     (r0, r1, c0, c1), _ = _region_masks(mask)
@@ -354,8 +359,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
             block_cones.append(b_cone)
     block_rows = np.array(block_rows)
     k = max(1, len(block_rows))
-    stat_sigma = np.nanstd(block_rows, axis=0, ddof=1) / math.sqrt(k) if k > 1 else np.zeros(n)
-    cone_stat = np.nanstd(np.array(block_cones), axis=0, ddof=1) / math.sqrt(k) if k > 1 else np.zeros_like(cone_values)
+    stat_sigma = _robust_spread(block_rows) / math.sqrt(k) if k > 1 else np.zeros(n)
+    cone_stat = _robust_spread(np.array(block_cones)) / math.sqrt(k) if k > 1 else np.zeros_like(cone_values)
     # systematic: glare size and tone curve
     perturbed = {}
     for label, g_scale, p in (("glare-", 1 - GLARE_RELATIVE_SIGMA, 1.0), ("glare+", 1 + GLARE_RELATIVE_SIGMA, 1.0)):
@@ -363,15 +368,17 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
         r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, g, p)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
-    tone_sigma = max(TONE_FLOOR, abs(power - 1.0) / 2.0) if photos == "srgb" else 0.005
+    tone_sigma = max(TONE_FLOOR, abs(power - 1.0) / 2.0) if photos == "srgb" else LINEAR_TONE_SIGMA
     for label, p in (("tone-", 1.0 - tone_sigma), ("tone+", 1.0 + tone_sigma)):
         r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
     glare_sigma = np.abs(perturbed["glare+"][0] - perturbed["glare-"][0]) / 2
     tone_sig = np.abs(perturbed["tone+"][0] - perturbed["tone-"][0]) / 2
-    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2)
-    cone_sigma = np.sqrt(cone_stat ** 2 + ((perturbed["glare+"][1] - perturbed["glare-"][1]) / 2) ** 2
+    # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
+    floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
+    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + floor_sigma ** 2)
+    cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + ((perturbed["glare+"][1] - perturbed["glare-"][1]) / 2) ** 2
                          + ((perturbed["tone+"][1] - perturbed["tone-"][1]) / 2) ** 2)
     samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()}}
     # uniformity map: own-view share per region
@@ -399,7 +406,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, fit.gains)},
                          "shifts": shifts}
     diagnostics = {"cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
-                   "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig}
+                   "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
+                   "sigma_floor": floor_sigma}
     delta = np.full(mask.shape, np.nan)
     delta[rows, cols] = fit.delta(rows, cols)
     images = {"white": white, "delta": delta, "mask": mask,
@@ -410,16 +418,69 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
                        time.perf_counter() - start, images)
 
 
-def _check_band_photos(fit, ratios, rows, cols, shifts, bands, capture) -> None:
-    """Each band photo must show its band where the fit puts it: a photo of another pattern (or set) does not."""
+def _robust_spread(values: np.ndarray) -> np.ndarray:
+    """Per column: 1.4826 x the median absolute deviation (a standard deviation that one odd block cannot inflate)."""
+    med = np.nanmedian(values, axis=0)
+    return 1.4826 * np.nanmedian(np.abs(values - med), axis=0)
+
+
+def _check_distinct(ratios, bands, capture) -> None:
+    """Two band photos that are the same image (one pattern photographed twice, or a copy)."""
+    energy = np.mean(ratios ** 2, axis=0)
+    lit = energy > 0.3 * energy.max()  # a band may lie off the panel in some photos (a long sweep)
+    for i in range(len(bands)):
+        for j in range(i + 1, len(bands)):
+            if lit[i] and lit[j] and float(np.mean((ratios[:, i] - ratios[:, j]) ** 2)) < 0.02 * min(energy[i], energy[j]):
+                raise CaptureError(f"shows the same pattern as {capture.photo(bands[i].name).name}",
+                                   source=str(capture.photo(bands[j].name)),
+                                   hint=f"photograph {bands[j].file} and {bands[i].file} each in its own photo")
+
+
+def _photo_misfit(fit, ratios, rows, cols, shifts) -> np.ndarray:
+    """Per band photo: RMS of ``r_k - a h(delta + c_k)`` with the photo's own best exposure ``a``, over the
+    profile's contrast (a right photo: a few hundredths; a photo of another band: ~0.3 or more)."""
     t = fit.delta(rows, cols)[:, None] + shifts[None, :]
-    model = cone.profile_at(fit.grid, fit.profile, t, fit.views) * fit.gains[None, :]
-    contrast = float(np.max(fit.profile) - np.min(fit.profile))
-    for j, pattern in enumerate(bands):
-        err = float(np.sqrt(np.mean((ratios[:, j] - model[:, j]) ** 2)))
-        if err > 0.25 * contrast or not 0.6 < fit.gains[j] < 1.6:
-            raise CaptureError(f"does not show pattern {pattern.name} where the other band photos say it should be "
-                               f"(residual {err / max(contrast, 1e-9):.2f} of the band's contrast)",
-                               source=str(capture.photo(pattern.name)),
-                               hint=f"show {pattern.file} of this folder full screen and photograph it again from "
-                                    "the same place")
+    model = cone.profile_at(fit.grid, fit.profile, t, fit.views)
+    contrast = max(float(np.max(fit.profile) - np.min(fit.profile)), 1e-9)
+    out = []
+    for j in range(ratios.shape[1]):
+        a = float(np.dot(ratios[:, j], model[:, j]) / max(np.dot(model[:, j], model[:, j]), 1e-30))
+        out.append(float(np.sqrt(np.mean((ratios[:, j] - a * model[:, j]) ** 2))) / contrast)
+    return np.array(out)
+
+
+MAX_MISFIT = 0.15  # of the profile's contrast
+
+
+def _check_band_photos(fit, ratios, rows, cols, shifts, bands, capture, shape) -> None:
+    """Each band photo must show its band where the others put it.  When one does not, each photo is
+    judged against a fit of the others (a wrong photo pulls a fit that includes it towards itself):
+    the one that fits badly while all the others then fit well is named."""
+    misfit = _photo_misfit(fit, ratios, rows, cols, shifts)
+    if misfit.max() <= MAX_MISFIT and np.all((fit.gains > 0.6) & (fit.gains < 1.6)):
+        return
+    best = None
+    for j in range(len(bands)):
+        keep = np.arange(len(bands)) != j
+        others = cone.fit_cone(ratios[:, keep], rows, cols, shifts[keep], fit.views, shape)
+        rest = _photo_misfit(others, ratios[:, keep], rows, cols, shifts[keep])
+        t = others.delta(rows, cols) + shifts[j]
+        model = cone.profile_at(others.grid, others.profile, t, others.views)
+        a = float(np.dot(ratios[:, j], model) / max(np.dot(model, model), 1e-30))
+        contrast = max(float(np.max(others.profile) - np.min(others.profile)), 1e-9)
+        alone = float(np.sqrt(np.mean((ratios[:, j] - a * model) ** 2))) / contrast
+        if rest.max() <= MAX_MISFIT and (alone > MAX_MISFIT or not 0.6 < a < 1.6):
+            if best is None or alone > best[1]:
+                best = (j, alone, a)
+    if best is not None:
+        j, alone, a = best
+        raise CaptureError(f"does not show pattern {bands[j].name} where the other band photos say it should be "
+                           f"(misfit {alone:.2f} of the band's contrast, exposure {a:.2f} of the others')",
+                           source=str(capture.photo(bands[j].name)),
+                           hint=f"show {bands[j].file} of this folder full screen and photograph it again from "
+                                "the same place")
+    worst = int(np.argmax(misfit))
+    raise CaptureError(f"the band photos do not agree with each other (worst: {bands[worst].name}, misfit "
+                       f"{misfit[worst]:.2f})", source=str(capture.directory / "captures"),
+                       hint="photograph every pattern of this folder from one camera position, with the exposure "
+                            "locked; they may be photos of another pattern set")

@@ -12,7 +12,7 @@ view of a centre ``b`` that moves slowly across the panel:
 
 so the camera, which sees ``w = N/2`` everywhere, sees at panel column ``x`` a one-view band
 centred ``delta = b - N/2`` views away from it: one photo samples the whole view cone across the
-panel (a slow spatial sweep: ``sweep / N`` pixels per view, many lenses), and ``BAND_PATTERNS``
+panel (a slow spatial sweep: ``sweep / N`` pixels per view, at least ``LENSES_PER_VIEW`` lenses), and ``BAND_PATTERNS``
 photos with shifts ``k N / BAND_PATTERNS`` put every part of the panel at every offset.  The two
 *half* patterns light the half of the views around ``b`` and the other half: their light adds
 up to white's at every camera pixel whatever the camera's tone curve does to each, which is what
@@ -43,7 +43,8 @@ from ..patterns import FRAME_LEVEL, MANIFEST_NAME, frame_width, srgb_encode
 FORMAT_NAME = "lenticalib.crosstalk-patterns"
 FORMAT_VERSION = 1
 BAND_PATTERNS = 10
-SWEEP_FRACTION = 0.5  # sweep period, of the panel width (one view: sweep / N pixels)
+SWEEP_FRACTION = 0.5  # sweep period, at least this share of the panel width ...
+LENSES_PER_VIEW = 8  # ... and long enough that one view spans this many lenses (Delta_r / 3 pixels each)
 _ROWS_PER_CHUNK = 128
 
 
@@ -129,12 +130,19 @@ class CrosstalkPatternSet:
 def design_crosstalk_patterns(profile: PanelProfile, sweep: float | None = None) -> CrosstalkPatternSet:
     """The crosstalk pattern set for ``profile``: black, white, ``BAND_PATTERNS`` band sweeps, two halves."""
     if sweep is None:
-        sweep = SWEEP_FRACTION * profile.width
+        sweep = default_sweep(profile)
     n = profile.views
     patterns = [CrosstalkPattern("black", "black"), CrosstalkPattern("white", "white")]
     patterns += [CrosstalkPattern(f"band-{k:02d}", "band", shift=k * n / BAND_PATTERNS) for k in range(BAND_PATTERNS)]
     patterns += [CrosstalkPattern("half-0", "half"), CrosstalkPattern("half-1", "half", complement=True)]
     return CrosstalkPatternSet(profile, float(sweep), tuple(patterns))
+
+
+def default_sweep(profile: PanelProfile) -> float:
+    """The default sweep period (pixels): half the panel width, or longer where one view would span
+    fewer than ``LENSES_PER_VIEW`` lenses (the camera and the lens sheet blur the sweep over about a
+    lens: a view a few lenses wide would come out measurably broadened)."""
+    return float(max(SWEEP_FRACTION * profile.width, LENSES_PER_VIEW * profile.views * profile.period / 3.0))
 
 
 def band_centre(pattern_set: CrosstalkPatternSet, xs: np.ndarray, shift: float) -> np.ndarray:
