@@ -172,3 +172,24 @@ def test_bad_inputs_end_in_one_line(demo, directed, tmp_path):
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (args, result.stderr)
     assert not (tmp_path / "a.png").exists()
+
+
+def test_crosstalk_compensation_in_the_loop_changes_what_is_encoded(demo, directed, tmp_path):
+    n = 32
+    row = np.full(n, 0.002)
+    row[0], row[1], row[-1] = 0.5, 0.2, 0.2
+    row /= row.sum()
+    matrix = row[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
+    crosstalk = tmp_path / "crosstalk.json"
+    crosstalk.write_text(json.dumps({"format": "lenticalib.crosstalk", "format_version": 1, "views": n,
+                                     "matrix": matrix.tolist()}))
+    result = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "frame.png", "--view-size", SMALL_VIEWS,
+                  "--views-out", tmp_path / "views", "--compensate", crosstalk, "--black-lift", "0.03")
+    assert result.returncode == 0, result.stderr
+    raster = read_image(tmp_path / "frame.png")
+    views = np.stack([read_image(tmp_path / "views" / "frame-00000" / f"view-{i:02d}.png") for i in range(n)])
+    assert np.array_equal(encode(views, load_profile(PROFILE)), raster)  # the compensated views are what was encoded
+    plain = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "plain.png", "--view-size", SMALL_VIEWS)
+    assert plain.returncode == 0, plain.stderr
+    assert not np.array_equal(read_image(tmp_path / "plain.png"), raster)
+    assert np.abs(views[:, :5, :5].astype(int) - 48).max() <= 1  # the black background is lifted to 0.03 (sRGB 48)

@@ -46,12 +46,16 @@ def circulant_row(matrix: np.ndarray) -> np.ndarray:
 
 
 def _circulant_taps(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(offsets, weights) of a circulant row, dropping taps below TAP_FLOOR (relative to the largest)."""
+    """(offsets, weights) of a circulant row, dropping taps below TAP_FLOOR (relative to the largest) and
+    rescaling the rest so the filter keeps its response to an even picture (the sum of the row)."""
     n = row.size
     offsets = np.arange(n) - n * (np.arange(n) > n // 2)
     keep = np.abs(row) >= TAP_FLOOR * np.abs(row).max()
     order = np.argsort(offsets[keep])
-    return offsets[keep][order].astype(np.int64), row[keep][order].astype(np.float32)
+    weights = row[keep][order]
+    if abs(weights.sum()) > 1e-12:
+        weights = weights * (row.sum() / weights.sum())
+    return offsets[keep][order].astype(np.int64), weights.astype(np.float32)
 
 
 @dataclasses.dataclass(frozen=True)
