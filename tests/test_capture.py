@@ -174,3 +174,23 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path):
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (args, result.stderr)
     assert not (folder / "captures").exists() or not any((folder / "captures").iterdir())
+
+
+def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path):
+    """``crosstalk patterns`` from the fitted profile, then ``capture`` shows and photographs them on the
+    same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set."""
+    folder, _, fit = captured
+    assert fit.returncode == 0, fit.stderr
+    xt = tmp_path / "xt"
+    assert _cli(["crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt]).returncode == 0
+    result = _cli(["capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA])
+    assert result.returncode == 0, result.stderr
+    names = sorted(p.stem for p in (xt / "captures").iterdir())
+    assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)])
+    assert (xt / "crosstalk-truth.json").exists()
+    measured = _cli(["crosstalk", "measure", xt, "-o", tmp_path / "crosstalk.json"])
+    assert measured.returncode == 0, measured.stderr
+    truth = np.asarray(json.loads((xt / "crosstalk-truth.json").read_text())["matrix"])
+    data = json.loads((tmp_path / "crosstalk.json").read_text())
+    assert len(data["matrix"]) == VIEWS
+    assert abs(data["matrix"][0][0] - truth[0, 0]) <= 3 * data["matrix_sigma"][0][0] + 0.005
