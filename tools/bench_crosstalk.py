@@ -50,7 +50,7 @@ def run_case(index: int, root: Path, resolution, conditions: str) -> dict:
     scene = random_scene(seed, resolution=resolution, conditions=conditions, blur=(blur, blur), order=order,
                          distance=distance, slant=sign * abs(draw.optics.slant))
     folder = root / f"case-{index}"
-    cal, xt = folder / "cal", folder / "xt"
+    cal = folder / "cal"
     t0 = time.perf_counter()
     write_patterns(cal, design_patterns(3840, 2160, 32))
     simulate_capture_set(cal, scene)

@@ -2,7 +2,9 @@
 
 Modules
     patterns     the sweep patterns and their manifest (``lenticalib crosstalk patterns``)
-    photometry   camera response (tone curve), exposure drift and veiling glare, from the photos
+    photos       reading the photos: linear light, the panel's lit area, registration, the halves
+    photometry   camera response (tone curve) and veiling glare, from the photos
+    checks       duplicate photos and band photos that do not fit the others
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps
     measure      the whole measurement (``lenticalib crosstalk measure``)
     result       ``crosstalk.json``: the mixing matrix, derived figures, reading and checking

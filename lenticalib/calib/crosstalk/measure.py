@@ -33,17 +33,16 @@ import numpy as np
 from ...errors import CaptureError, InputError
 from ...profile import PanelProfile
 from . import cone, photometry
+from .checks import check_band_photos, check_distinct
+from .photos import MAX_CLIPPED, load_all, panel_mask, register_photos, tone_spread
 from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCK_GRID = 4  # the centre region is split BLOCK_GRID x BLOCK_GRID for the statistical spread
-WORKING_WIDTH = 1000  # working pixels across (about)
 GLARE_RELATIVE_SIGMA = 0.3
 TONE_FLOOR = 0.05  # 1-sigma of the power on sRGB-decoded light: camera JPEGs are sRGB only to about +-8 %
 LINEAR_TONE_SIGMA = 0.005  # the same for linear photos (sensor non-linearity)
-MAX_CLIPPED = 0.02
-MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
 PHOTO_MODES = ("srgb", "linear")
 FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
 FLOOR_GLARE_SHARE = 0.2  # ... plus this share of the glare fraction, spread over the N views
@@ -112,146 +111,6 @@ def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | Non
     return pattern_set, match_captures(directory, pattern_set)
 
 
-def _linear_rgb_sum(raw: np.ndarray, mode: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo."""
-    from ..patterns import srgb_decode
-
-    if raw.ndim != 3 or raw.shape[2] < 3:
-        raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
-    raw = raw[:, :, :3]
-    if raw.dtype == np.uint8:
-        codes = np.arange(256) / 255.0
-        lut = (codes if mode == "linear" else srgb_decode(codes)).astype(np.float32)
-        return lut[raw].sum(axis=2, dtype=np.float32), raw.max(axis=2) >= 250
-    top = 65535.0 if raw.dtype == np.uint16 else 1.0
-    value = raw.astype(np.float32) / np.float32(top)
-    linear = value if mode == "linear" else srgb_decode(value).astype(np.float32)
-    return linear.sum(axis=2, dtype=np.float32), value.max(axis=2) >= 250 / 255
-
-
-def _working(image: np.ndarray, factor: int) -> np.ndarray:
-    import cv2
-
-    h, w = image.shape
-    hh, ww = h // factor, w // factor
-    return cv2.resize(image[:hh * factor, :ww * factor].astype(np.float32), (ww, hh), interpolation=cv2.INTER_AREA)
-
-
-def _load_all(capture, pattern_set, mode, progress):
-    """Working-resolution linear luma of every photo, the white photo's clipped map, and factor."""
-    from ...imageio import read_image
-    from ..captures import check_photo_size
-
-    luma: dict[str, np.ndarray] = {}
-    clipped = None
-    size = None
-    factor = 1
-    codes: dict[str, np.ndarray] = {}
-    for pattern in pattern_set.patterns:
-        path = capture.photo(pattern.name)
-        raw = read_image(path, camera_orientation=True)
-        h, w = raw.shape[:2]
-        check_photo_size(path, w, h)
-        if size is None:
-            size = (w, h)
-            factor = max(1, int(round(w / WORKING_WIDTH)))
-        elif (w, h) != size:
-            raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
-                               hint="take every photo of the set with the same camera settings, without cropping")
-        linear, clip = _linear_rgb_sum(raw, mode, path)
-        luma[pattern.name] = _working(linear, factor)
-        if pattern.name == "white":
-            clipped = _working(clip.astype(np.float32), factor)
-        if pattern.kind == "half" or pattern.name in ("white", "black"):
-            if raw.dtype == np.uint8:
-                codes[pattern.name] = photometry.block_medians(raw[:, :, :3], photometry.BLOCK)
-        if progress:
-            progress(f"read {path.name}")
-    return luma, clipped, factor, codes
-
-
-def _panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
-    """bool: the panel's lit inside (where white clearly exceeds black), the largest blob, eroded."""
-    import cv2
-
-    level = float(np.percentile(lit, 95))
-    if not level > 0:
-        raise CaptureError("is no brighter than the black photo", source=str(white_path),
-                           hint="show white.png full screen on the panel and photograph it")
-    mask = (lit > 0.5 * level).astype(np.uint8)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    if count < 2:
-        raise CaptureError("shows no panel", source=str(white_path), hint="show the patterns full screen")
-    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    mask = (labels == biggest).astype(np.uint8)
-    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
-    if mask.mean() < 0.05:
-        raise CaptureError(f"the panel fills only {100 * mask.mean():.1f}% of the photo", source=str(white_path),
-                           hint="fill most of the frame with the panel (the same camera position as the fit)")
-    edge = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
-    if edge.mean() > 0.02:
-        raise CaptureError("the panel is cut off by the edge of the photo", source=str(white_path),
-                           hint="step back or zoom out so the whole panel is inside every photo")
-    return mask > 0
-
-
-def _register(luma, names, photos, lit, frame_fraction, warnings):
-    """Undo shake: every photo aligned to white on the panel outline; CaptureError for a moved camera."""
-    from .. import register
-
-    reference = register.Reference.from_mean_image(luma["white"], lit.astype(np.complex64), frame_fraction)
-    if reference is None:
-        warnings.append("camera motion between photos could not be measured; it is not corrected")
-        return {}
-    shifts = {}
-    for name in names:
-        if name == "white":
-            continue
-        shift = reference.measure(luma[name])
-        shifts[name] = {"dx": shift.dx, "dy": shift.dy, "measured": shift.measured}
-        if not shift.measured:
-            warnings.append(f"camera motion of {photos[name].name} could not be measured ({shift.note})")
-            continue
-        if shift.size > MAX_SHIFT and shift.size > 5 * shift.sigma and shift.improvement > 0.5:
-            raise CaptureError(f"the camera moved: this photo is shifted by {shift.size:.1f} working pixels against "
-                               "white", source=str(photos[name]),
-                               hint="keep the camera still (tripod, remote release) and retake the set")
-        luma[name] = register.shift_image(luma[name], shift.dx, shift.dy)
-    return shifts
-
-
-def _tone_spread(codes: dict[str, np.ndarray], warnings: list[str], first_photo: Path) -> tuple[float, float]:
-    """(best power on sRGB-decoded light for half-0 + half-1 = white, its residual); (1, nan) without codes."""
-    from ..patterns import srgb_decode
-
-    if not all(k in codes for k in ("half-0", "half-1", "white", "black")):
-        return 1.0, math.nan
-    dec = {k: srgb_decode(v / 255.0) for k, v in codes.items()}
-    w = dec["white"] - dec["black"]
-    keep = (w > 0.3 * np.percentile(w, 95)) & (codes["white"] < 250)
-    if keep.sum() < 200:
-        return 1.0, math.nan
-    best = (1.0, math.inf)
-    for power in np.arange(0.7, 1.5001, 0.01):
-        parts = [np.maximum(dec[k][keep], 0.0) ** power for k in ("half-0", "half-1", "white", "black")]
-        a = np.stack([parts[0] - parts[3], parts[1] - parts[3]], axis=1)
-        y = parts[2] - parts[3]
-        gains, *_ = np.linalg.lstsq(a / y[:, None], np.ones_like(y), rcond=None)
-        resid = float(np.sqrt(np.mean(((a @ gains) / y - 1.0) ** 2)))
-        if resid < best[1]:
-            best = (float(power), resid)
-    if best[1] > 0.15:
-        raise CaptureError(f"half-0 and half-1 do not add up to white (relative residual {best[1]:.2f})",
-                           source=str(first_photo), hint="photograph every pattern of this folder in its own photo, "
-                                                         "with the camera still and the exposure locked")
-    if abs(best[0] - 1.0) > 0.15:
-        warnings.append(f"the photos do not look like plain sRGB (the half patterns add up best after a power "
-                        f"{best[0]:.2f} on the decoded light): a tone curve or picture style bends them; the "
-                        "uncertainty includes it, but for a precise measurement use a neutral picture style or "
-                        "linear photos from RAW (--photos linear)")
-    return best
-
-
 def _region_masks(mask: np.ndarray) -> tuple[tuple[int, int, int, int], np.ndarray]:
     rows, cols = np.nonzero(mask)
     return (int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())), (rows, cols)
@@ -286,18 +145,17 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     if photos not in PHOTO_MODES:
         raise InputError(f"unknown photo encoding {photos!r}", source="--photos", hint="use srgb or linear")
     pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
-    n = pattern_set.views
     warnings: list[str] = []
-    luma, clipped, factor, codes = _load_all(capture, pattern_set, photos, progress)
+    luma, clipped, factor, codes = load_all(capture, pattern_set, photos, progress)
     white_path = capture.photo("white")
     lit0 = luma["white"] - luma["black"]
-    mask = _panel_mask(lit0, white_path)
+    mask = panel_mask(lit0, white_path)
     clip_fraction = float(clipped[mask].mean())
     if clip_fraction > MAX_CLIPPED:
         raise CaptureError(f"is overexposed: {100 * clip_fraction:.0f}% of the panel is clipped", source=str(white_path),
                            hint="lower the exposure until white is not pure white, lock it, and retake every photo")
-    shifts = _register(luma, pattern_set.names, capture.photos, lit0, FRAME_FRACTION, warnings)
-    power, tone_residual = _tone_spread(codes, warnings, capture.photo("half-0")) if photos == "srgb" else (1.0, math.nan)
+    shifts = register_photos(luma, pattern_set.names, capture.photos, lit0, FRAME_FRACTION, warnings)
+    power, tone_residual = tone_spread(codes, warnings, capture.photo("half-0")) if photos == "srgb" else (1.0, math.nan)
     if progress:
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
@@ -331,10 +189,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
     ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare)
     bands = pattern_set.bands
-    _check_distinct(ratios, bands, capture)
+    check_distinct(ratios, bands, capture)
     band_shifts = np.array([p.shift for p in bands])
     fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
-    _check_band_photos(fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
+    check_band_photos(fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
     if progress:
         progress("view cone")
     (r0, r1, c0, c1), _ = _region_masks(mask)
@@ -422,65 +280,3 @@ def _robust_spread(values: np.ndarray) -> np.ndarray:
     """Per column: 1.4826 x the median absolute deviation (a standard deviation that one odd block cannot inflate)."""
     med = np.nanmedian(values, axis=0)
     return 1.4826 * np.nanmedian(np.abs(values - med), axis=0)
-
-
-def _check_distinct(ratios, bands, capture) -> None:
-    """Two band photos that are the same image (one pattern photographed twice, or a copy)."""
-    energy = np.mean(ratios ** 2, axis=0)
-    lit = energy > 0.3 * energy.max()  # a band may lie off the panel in some photos (a long sweep)
-    for i in range(len(bands)):
-        for j in range(i + 1, len(bands)):
-            if lit[i] and lit[j] and float(np.mean((ratios[:, i] - ratios[:, j]) ** 2)) < 0.02 * min(energy[i], energy[j]):
-                raise CaptureError(f"shows the same pattern as {capture.photo(bands[i].name).name}",
-                                   source=str(capture.photo(bands[j].name)),
-                                   hint=f"photograph {bands[j].file} and {bands[i].file} each in its own photo")
-
-
-def _photo_misfit(fit, ratios, rows, cols, shifts) -> np.ndarray:
-    """Per band photo: RMS of ``r_k - a h(delta + c_k)`` with the photo's own best exposure ``a``, over the
-    profile's contrast (a right photo: a few hundredths; a photo of another band: ~0.3 or more)."""
-    t = fit.delta(rows, cols)[:, None] + shifts[None, :]
-    model = cone.profile_at(fit.grid, fit.profile, t, fit.views)
-    contrast = max(float(np.max(fit.profile) - np.min(fit.profile)), 1e-9)
-    out = []
-    for j in range(ratios.shape[1]):
-        a = float(np.dot(ratios[:, j], model[:, j]) / max(np.dot(model[:, j], model[:, j]), 1e-30))
-        out.append(float(np.sqrt(np.mean((ratios[:, j] - a * model[:, j]) ** 2))) / contrast)
-    return np.array(out)
-
-
-MAX_MISFIT = 0.15  # of the profile's contrast
-
-
-def _check_band_photos(fit, ratios, rows, cols, shifts, bands, capture, shape) -> None:
-    """Each band photo must show its band where the others put it.  When one does not, each photo is
-    judged against a fit of the others (a wrong photo pulls a fit that includes it towards itself):
-    the one that fits badly while all the others then fit well is named."""
-    misfit = _photo_misfit(fit, ratios, rows, cols, shifts)
-    if misfit.max() <= MAX_MISFIT and np.all((fit.gains > 0.6) & (fit.gains < 1.6)):
-        return
-    best = None
-    for j in range(len(bands)):
-        keep = np.arange(len(bands)) != j
-        others = cone.fit_cone(ratios[:, keep], rows, cols, shifts[keep], fit.views, shape)
-        rest = _photo_misfit(others, ratios[:, keep], rows, cols, shifts[keep])
-        t = others.delta(rows, cols) + shifts[j]
-        model = cone.profile_at(others.grid, others.profile, t, others.views)
-        a = float(np.dot(ratios[:, j], model) / max(np.dot(model, model), 1e-30))
-        contrast = max(float(np.max(others.profile) - np.min(others.profile)), 1e-9)
-        alone = float(np.sqrt(np.mean((ratios[:, j] - a * model) ** 2))) / contrast
-        if rest.max() <= MAX_MISFIT and (alone > MAX_MISFIT or not 0.6 < a < 1.6):
-            if best is None or alone > best[1]:
-                best = (j, alone, a)
-    if best is not None:
-        j, alone, a = best
-        raise CaptureError(f"does not show pattern {bands[j].name} where the other band photos say it should be "
-                           f"(misfit {alone:.2f} of the band's contrast, exposure {a:.2f} of the others')",
-                           source=str(capture.photo(bands[j].name)),
-                           hint=f"show {bands[j].file} of this folder full screen and photograph it again from "
-                                "the same place")
-    worst = int(np.argmax(misfit))
-    raise CaptureError(f"the band photos do not agree with each other (worst: {bands[worst].name}, misfit "
-                       f"{misfit[worst]:.2f})", source=str(capture.directory / "captures"),
-                       hint="photograph every pattern of this folder from one camera position, with the exposure "
-                            "locked; they may be photos of another pattern set")

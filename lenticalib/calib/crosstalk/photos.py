@@ -1,0 +1,160 @@
+"""Reading the crosstalk photos: linear light at working resolution, the panel's lit area,
+registration on its outline, and how well the two half photos add up (``docs/crosstalk.md``).
+
+Frames: photo pixels -> working pixels (area-averaged by an integer factor so that the working
+image is about ``WORKING_WIDTH`` pixels across).  Light: linear, R + G + B.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import CaptureError
+from . import photometry
+
+WORKING_WIDTH = 1000  # working pixels across (about)
+MAX_CLIPPED = 0.02
+MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
+
+
+def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo."""
+    from ..patterns import srgb_decode
+
+    if raw.ndim != 3 or raw.shape[2] < 3:
+        raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
+    raw = raw[:, :, :3]
+    if raw.dtype == np.uint8:
+        codes = np.arange(256) / 255.0
+        lut = (codes if mode == "linear" else srgb_decode(codes)).astype(np.float32)
+        return lut[raw].sum(axis=2, dtype=np.float32), raw.max(axis=2) >= 250
+    top = 65535.0 if raw.dtype == np.uint16 else 1.0
+    value = raw.astype(np.float32) / np.float32(top)
+    linear = value if mode == "linear" else srgb_decode(value).astype(np.float32)
+    return linear.sum(axis=2, dtype=np.float32), value.max(axis=2) >= 250 / 255
+
+
+def working(image: np.ndarray, factor: int) -> np.ndarray:
+    import cv2
+
+    h, w = image.shape
+    hh, ww = h // factor, w // factor
+    return cv2.resize(image[:hh * factor, :ww * factor].astype(np.float32), (ww, hh), interpolation=cv2.INTER_AREA)
+
+
+def load_all(capture, pattern_set, mode, progress):
+    """Working-resolution linear luma of every photo, the white photo's clipped map, and factor."""
+    from ...imageio import read_image
+    from ..captures import check_photo_size
+
+    luma: dict[str, np.ndarray] = {}
+    clipped = None
+    size = None
+    factor = 1
+    codes: dict[str, np.ndarray] = {}
+    for pattern in pattern_set.patterns:
+        path = capture.photo(pattern.name)
+        raw = read_image(path, camera_orientation=True)
+        h, w = raw.shape[:2]
+        check_photo_size(path, w, h)
+        if size is None:
+            size = (w, h)
+            factor = max(1, int(round(w / WORKING_WIDTH)))
+        elif (w, h) != size:
+            raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
+                               hint="take every photo of the set with the same camera settings, without cropping")
+        linear, clip = linear_rgb_sum(raw, mode, path)
+        luma[pattern.name] = working(linear, factor)
+        if pattern.name == "white":
+            clipped = working(clip.astype(np.float32), factor)
+        if pattern.kind == "half" or pattern.name in ("white", "black"):
+            if raw.dtype == np.uint8:
+                codes[pattern.name] = photometry.block_medians(raw[:, :, :3], photometry.BLOCK)
+        if progress:
+            progress(f"read {path.name}")
+    return luma, clipped, factor, codes
+
+
+def panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
+    """bool: the panel's lit inside (where white clearly exceeds black), the largest blob, eroded."""
+    import cv2
+
+    level = float(np.percentile(lit, 95))
+    if not level > 0:
+        raise CaptureError("is no brighter than the black photo", source=str(white_path),
+                           hint="show white.png full screen on the panel and photograph it")
+    mask = (lit > 0.5 * level).astype(np.uint8)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if count < 2:
+        raise CaptureError("shows no panel", source=str(white_path), hint="show the patterns full screen")
+    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    mask = (labels == biggest).astype(np.uint8)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    if mask.mean() < 0.05:
+        raise CaptureError(f"the panel fills only {100 * mask.mean():.1f}% of the photo", source=str(white_path),
+                           hint="fill most of the frame with the panel (the same camera position as the fit)")
+    edge = np.concatenate([mask[0], mask[-1], mask[:, 0], mask[:, -1]])
+    if edge.mean() > 0.02:
+        raise CaptureError("the panel is cut off by the edge of the photo", source=str(white_path),
+                           hint="step back or zoom out so the whole panel is inside every photo")
+    return mask > 0
+
+
+def register_photos(luma, names, photos, lit, frame_fraction, warnings):
+    """Undo shake: every photo aligned to white on the panel outline; CaptureError for a moved camera."""
+    from .. import register
+
+    reference = register.Reference.from_mean_image(luma["white"], lit.astype(np.complex64), frame_fraction)
+    if reference is None:
+        warnings.append("camera motion between photos could not be measured; it is not corrected")
+        return {}
+    shifts = {}
+    for name in names:
+        if name == "white":
+            continue
+        shift = reference.measure(luma[name])
+        shifts[name] = {"dx": shift.dx, "dy": shift.dy, "measured": shift.measured}
+        if not shift.measured:
+            warnings.append(f"camera motion of {photos[name].name} could not be measured ({shift.note})")
+            continue
+        if shift.size > MAX_SHIFT and shift.size > 5 * shift.sigma and shift.improvement > 0.5:
+            raise CaptureError(f"the camera moved: this photo is shifted by {shift.size:.1f} working pixels against "
+                               "white", source=str(photos[name]),
+                               hint="keep the camera still (tripod, remote release) and retake the set")
+        luma[name] = register.shift_image(luma[name], shift.dx, shift.dy)
+    return shifts
+
+
+def tone_spread(codes: dict[str, np.ndarray], warnings: list[str], first_photo: Path) -> tuple[float, float]:
+    """(best power on sRGB-decoded light for half-0 + half-1 = white, its residual); (1, nan) without codes."""
+    from ..patterns import srgb_decode
+
+    if not all(k in codes for k in ("half-0", "half-1", "white", "black")):
+        return 1.0, math.nan
+    dec = {k: srgb_decode(v / 255.0) for k, v in codes.items()}
+    w = dec["white"] - dec["black"]
+    keep = (w > 0.3 * np.percentile(w, 95)) & (codes["white"] < 250)
+    if keep.sum() < 200:
+        return 1.0, math.nan
+    best = (1.0, math.inf)
+    for power in np.arange(0.7, 1.5001, 0.01):
+        parts = [np.maximum(dec[k][keep], 0.0) ** power for k in ("half-0", "half-1", "white", "black")]
+        a = np.stack([parts[0] - parts[3], parts[1] - parts[3]], axis=1)
+        y = parts[2] - parts[3]
+        gains, *_ = np.linalg.lstsq(a / y[:, None], np.ones_like(y), rcond=None)
+        resid = float(np.sqrt(np.mean(((a @ gains) / y - 1.0) ** 2)))
+        if resid < best[1]:
+            best = (float(power), resid)
+    if best[1] > 0.15:
+        raise CaptureError(f"half-0 and half-1 do not add up to white (relative residual {best[1]:.2f})",
+                           source=str(first_photo), hint="photograph every pattern of this folder in its own photo, "
+                                                         "with the camera still and the exposure locked")
+    if abs(best[0] - 1.0) > 0.15:
+        warnings.append(f"the photos do not look like plain sRGB (the half patterns add up best after a power "
+                        f"{best[0]:.2f} on the decoded light): a tone curve or picture style bends them; the "
+                        "uncertainty includes it, but for a precise measurement use a neutral picture style or "
+                        "linear photos from RAW (--photos linear)")
+    return best
