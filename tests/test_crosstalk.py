@@ -213,3 +213,46 @@ def test_crosstalk_file_for_another_view_count_is_refused(tmp_path, capsys):
         read_crosstalk(bad)
     assert main(["crosstalk", "check", str(tmp_path / "missing.json"), "--max-adjacent", "0.1"]) == 2
     assert "missing.json" in capsys.readouterr().err
+
+
+def test_glare_is_measured_outside_the_panel_and_removed():
+    import cv2
+
+    from lenticalib.calib.crosstalk.photometry import fit_glare, remove_glare
+
+    h, w = 300, 400
+    direct = np.zeros((h, w), np.float32)
+    direct[80:220, 100:300] = 1.0
+    sigma = 0.05 * w
+    seen = (0.97 * direct + 0.03 * cv2.GaussianBlur(direct, (0, 0), sigma, borderType=cv2.BORDER_CONSTANT)).astype(np.float32)
+    outside = np.ones((h, w), bool)
+    outside[70:230, 90:310] = False
+    glare = fit_glare(seen, outside)
+    assert glare.fraction == pytest.approx(0.03, rel=0.1) and glare.sigma == pytest.approx(sigma, rel=0.01)
+    cleaned = remove_glare(seen, glare)
+    assert np.abs(cleaned - direct)[100:200, 120:280].max() < 0.003
+
+
+def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
+    from lenticalib.calib.crosstalk import cone
+
+    n, k = 32, 10
+    rng = np.random.default_rng(4)
+    rows, cols = np.mgrid[0:200, 0:300]
+    rows, cols = rows.ravel(), cols.ravel()
+    delta = 0.11 * cols + 0.01 * rows + 1e-4 * (cols - 150) ** 2 - 7.3  # views: a sweep through a perspective
+
+    def profile(t):
+        t = np.mod(t + n / 2, n) - n / 2
+        return 0.002 + 0.45 * np.exp(-0.5 * (t / 0.7) ** 2)
+
+    shifts = np.arange(k) * n / k
+    gains = 1 + 0.03 * np.sin(np.arange(k))
+    ratios = gains[None, :] * profile(delta[:, None] + shifts[None, :]) + rng.normal(0, 0.01, (rows.size, k))
+    fit = cone.fit_cone(ratios, rows, cols, shifts, n, (200, 300))
+    assert np.allclose(fit.gains / fit.gains.mean(), gains / gains.mean(), atol=0.01)
+    assert np.abs(fit.delta(rows, cols) - delta).max() < 0.05
+    grid, values, counts = cone.profile_for(fit, ratios, rows, cols, shifts)
+    row = cone.values_at_integers(grid, values, counts, n)
+    truth = profile(np.arange(n) - n * (np.arange(n) >= n / 2)) * gains.mean()
+    assert np.abs(row - truth).max() < 0.006
