@@ -108,6 +108,8 @@ def _uniformity(fig, m) -> None:
         if np.isfinite(v):
             ax.text(i, j, f"{v:.3f}\n+-{m.regions_sigma[j, i]:.3f}", ha="center", va="center", color="white",
                     fontsize=11, bbox={"facecolor": "black", "alpha": 0.35, "pad": 1, "edgecolor": "none"})
+    ax.set_xticks(range(values.shape[1]))
+    ax.set_yticks(range(values.shape[0]))
     ax.set_title("Own-view share per region of the panel (as photographed)")
     ax.set_xlabel("region column (left to right)")
     ax.set_ylabel("region row (top to bottom)")
