@@ -42,6 +42,7 @@ class ConeFit:
     views: int
     coefficients: np.ndarray
     scale: tuple[float, float, float]
+    degree: int
     gains: np.ndarray
     grid: np.ndarray
     profile: np.ndarray
@@ -49,14 +50,14 @@ class ConeFit:
 
     def delta(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """delta (views, unwrapped) at working pixels."""
-        return _terms(rows, cols, self.scale) @ self.coefficients
+        return _terms(rows, cols, self.scale, self.degree) @ self.coefficients
 
 
-def _terms(rows, cols, scale):
+def _terms(rows, cols, scale, degree=DEGREE):
     x0, y0, s = scale
     u = (np.asarray(cols, np.float64) - x0) / s
     v = (np.asarray(rows, np.float64) - y0) / s
-    return np.stack([u ** i * v ** j for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i)], axis=-1)
+    return np.stack([u ** i * v ** j for i in range(degree + 1) for j in range(degree + 1 - i)], axis=-1)
 
 
 def binned_profile(t: np.ndarray, values: np.ndarray, views: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -96,10 +97,10 @@ def _initial_delta(ratios: np.ndarray, shifts: np.ndarray, views: int) -> np.nda
     return np.angle(z) * views / (2 * math.pi)
 
 
-def _unwrap_to_plane(rows, cols, wrapped, views, scale):
+def _unwrap_to_plane(rows, cols, wrapped, views, scale, degree):
     """Fit delta's polynomial to wrapped samples: a plane first (2D FFT-free grid search of the
     sweep's gradient), then unwrapping against it and the full polynomial."""
-    terms = _terms(rows, cols, scale)
+    terms = _terms(rows, cols, scale, degree)
     x0, y0, s = scale
     u = (cols - x0) / s
     v = (rows - y0) / s
@@ -136,7 +137,7 @@ def _unwrap_to_plane(rows, cols, wrapped, views, scale):
 
 
 def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.ndarray, views: int,
-             shape: tuple[int, int], seed: int = 0) -> ConeFit:
+             shape: tuple[int, int], seed: int = 0, degree: int = DEGREE) -> ConeFit:
     """Fit delta(p), the gains and the profile h to band ratios.
 
     ARGUMENTS
@@ -145,14 +146,15 @@ def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.
     shifts       float (K,): c_k, views
     views        N
     shape        (h, w) of the working image (for the coordinate normalisation)
+    degree       of delta's polynomial (the whole panel: DEGREE; one region: less)
     """
     rng = np.random.default_rng(seed)
     n, k = ratios.shape
     pick = rng.choice(n, size=min(MAX_SAMPLES, n), replace=False)
     r, rr, cc = ratios[pick], rows[pick].astype(np.float64), cols[pick].astype(np.float64)
-    scale = (shape[1] / 2.0, shape[0] / 2.0, max(shape) / 2.0)
-    coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale)
-    terms = _terms(rr, cc, scale)
+    scale = (float(cc.mean()), float(rr.mean()), max(shape) / 2.0)
+    coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, degree)
+    terms = _terms(rr, cc, scale, degree)
     gains = np.ones(k)
     grid = profile = None
     rms = math.nan
@@ -180,7 +182,7 @@ def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.
     t = delta[:, None] + shifts[None, :]
     grid, profile, _ = binned_profile(t.ravel(), (r / gains[None, :]).ravel(), views)
     coef[0] -= centre_of(grid, profile, views)
-    return ConeFit(views, coef, scale, gains, grid, profile, rms)
+    return ConeFit(views, coef, scale, degree, gains, grid, profile, rms)
 
 
 def profile_for(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray,
@@ -191,9 +193,10 @@ def profile_for(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.nda
 
 
 def values_at_integers(grid: np.ndarray, profile: np.ndarray, counts: np.ndarray, views: int,
-                       half_width: float = 0.5) -> np.ndarray:
+                       half_width: float = 0.25) -> np.ndarray:
     """h at integer offsets m = 0, 1, ..., N-1 (m and m - N the same): a weighted local quadratic
-    fit of the bin means within ``half_width`` views of each integer."""
+    fit of the bin means within ``half_width`` views of each integer (narrow: over +-0.5 view a
+    quadratic would flatten a sharp view's peak by about 1 %)."""
     out = np.empty(views)
     for m in range(views):
         centre = m if m < views / 2 else m - views

@@ -38,6 +38,7 @@ from .photos import MAX_CLIPPED, load_all, panel_mask, register_photos, tone_spr
 from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
+CENTRE_DEGREE = 3  # of the centre region's own sweep model
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCK_GRID = 4  # the centre region is split BLOCK_GRID x BLOCK_GRID for the statistical spread
 GLARE_RELATIVE_SIGMA = 0.3
@@ -191,8 +192,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     bands = pattern_set.bands
     check_distinct(ratios, bands, capture)
     band_shifts = np.array([p.shift for p in bands])
-    fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
-    check_band_photos(fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
+    panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
+    check_band_photos(panel_fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
     if progress:
         progress("view cone")
     (r0, r1, c0, c1), _ = _region_masks(mask)
@@ -200,6 +201,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
     centre = ((rows >= r0 + lo * height) & (rows <= r0 + hi * height)
               & (cols >= c0 + lo * width) & (cols <= c0 + hi * width))
+    # the centre region gets its own, lower-degree sweep model: a whole-panel polynomial leaves
+    # errors of a tenth of a view here and there, which smear (broaden) the cone
+    fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
+                        degree=CENTRE_DEGREE)
     row, cone_values, counts = _row_from(fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
     samples: dict[str, np.ndarray] = {}
     # statistical spread: blocks of the centre region
@@ -250,24 +255,24 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
             sel = (gy == j) & (gx == i)
             if sel.sum() < 200:
                 continue
-            own = _row_from(fit, ratios[sel], rows[sel], cols[sel], band_shifts, n)[0][0]
+            own = _row_from(panel_fit, ratios[sel], rows[sel], cols[sel], band_shifts, n)[0][0]
             halves = []
             for part in range(2):
                 sub = sel & ((cols % 2) == part)
-                halves.append(_row_from(fit, ratios[sub], rows[sub], cols[sub], band_shifts, n)[0][0])
+                halves.append(_row_from(panel_fit, ratios[sub], rows[sub], cols[sub], band_shifts, n)[0][0])
             regions[j, i] = own
             regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
                                             + glare_sigma[0] ** 2 + tone_sig[0] ** 2)
     photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
                          "tone_power_best": power, "tone_power_sigma": tone_sigma,
                          "half_residual": None if not math.isfinite(tone_residual) else round(tone_residual, 4),
-                         "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, fit.gains)},
+                         "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts}
-    diagnostics = {"cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
+    diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
                    "sigma_floor": floor_sigma}
     delta = np.full(mask.shape, np.nan)
-    delta[rows, cols] = fit.delta(rows, cols)
+    delta[rows, cols] = panel_fit.delta(rows, cols)
     images = {"white": white, "delta": delta, "mask": mask,
               "centre_box": np.array([r0 + lo * height, r0 + hi * height, c0 + lo * width, c0 + hi * width]),
               "region_box": np.array([r0, r1, c0, c1])}

@@ -12,7 +12,7 @@ view of a centre ``b`` that moves slowly across the panel:
 
 so the camera, which sees ``w = N/2`` everywhere, sees at panel column ``x`` a one-view band
 centred ``delta = b - N/2`` views away from it: one photo samples the whole view cone across the
-panel (a slow spatial sweep: ``sweep / N`` pixels per view, at least ``LENSES_PER_VIEW`` lenses), and ``BAND_PATTERNS``
+panel (a slow spatial sweep: ``sweep / N`` pixels per view, ``LENSES_PER_VIEW`` lenses), and ``BAND_PATTERNS``
 photos with shifts ``k N / BAND_PATTERNS`` put every part of the panel at every offset.  The two
 *half* patterns light the half of the views around ``b`` and the other half: their light adds
 up to white's at every camera pixel whatever the camera's tone curve does to each, which is what
@@ -44,7 +44,8 @@ FORMAT_NAME = "lenticalib.crosstalk-patterns"
 FORMAT_VERSION = 1
 BAND_PATTERNS = 10
 SWEEP_FRACTION = 0.5  # sweep period, at least this share of the panel width ...
-LENSES_PER_VIEW = 8  # ... and long enough that one view spans this many lenses (Delta_r / 3 pixels each)
+LENSES_PER_VIEW = 16  # ... and long enough that one view spans this many lenses (Delta_r / 3 pixels each) ...
+MAX_SWEEP_FRACTION = 1.6  # ... but at most this many panel widths (every sixth of the panel still sees all offsets)
 _ROWS_PER_CHUNK = 128
 
 
@@ -140,9 +141,13 @@ def design_crosstalk_patterns(profile: PanelProfile, sweep: float | None = None)
 
 def default_sweep(profile: PanelProfile) -> float:
     """The default sweep period (pixels): half the panel width, or longer where one view would span
-    fewer than ``LENSES_PER_VIEW`` lenses (the camera and the lens sheet blur the sweep over about a
-    lens: a view a few lenses wide would come out measurably broadened)."""
-    return float(max(SWEEP_FRACTION * profile.width, LENSES_PER_VIEW * profile.views * profile.period / 3.0))
+    fewer than ``LENSES_PER_VIEW`` lenses (the lens sheet samples the sweep once per lens and the
+    camera blurs it over a pixel or two: a view a few lenses wide comes out measurably broadened,
+    8 lenses per view by 0.05-0.08 view, 1 % of a sharp view's own share), up to
+    ``MAX_SWEEP_FRACTION`` panel widths (the ten shifts then still put every sixth of the panel,
+    a column of the uniformity map, at every offset)."""
+    wanted = max(SWEEP_FRACTION * profile.width, LENSES_PER_VIEW * profile.views * profile.period / 3.0)
+    return float(min(wanted, MAX_SWEEP_FRACTION * profile.width))
 
 
 def band_centre(pattern_set: CrosstalkPatternSet, xs: np.ndarray, shift: float) -> np.ndarray:
