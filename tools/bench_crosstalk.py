@@ -16,7 +16,7 @@ its cost on this machine (median of 5, 32 views of 960x540).  Every case is meas
 camera's JPEGs (sRGB assumed; their unknown tone curve is in the reported uncertainty).
 
     python tools/bench_crosstalk.py [--cases 1-8] [--resolution 3000x2000] [--conditions standard]
-                                    [--keep DIR] [--jobs J]
+                                    [--keep DIR [--reuse]] [--jobs J]
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          (107, 0.18, +1, "BGR", 700.0), (108, 0.32, -1, "RGB", 450.0)]
 
 
-def run_case(index: int, root: Path, resolution, conditions: str) -> dict:
+def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = False) -> dict:
     import numpy as np
 
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
@@ -52,11 +52,20 @@ def run_case(index: int, root: Path, resolution, conditions: str) -> dict:
     folder = root / f"case-{index}"
     cal = folder / "cal"
     t0 = time.perf_counter()
-    write_patterns(cal, design_patterns(3840, 2160, 32))
-    simulate_capture_set(cal, scene)
-    fit = fit_capture_set(cal)
+    fitted = folder / "fitted-profile.json"
+    if reuse and fitted.exists():
+        from lenticalib.profile import load_profile
+
+        profile = load_profile(fitted)
+    else:
+        from lenticalib.profile import save_profile
+
+        write_patterns(cal, design_patterns(3840, 2160, 32))
+        simulate_capture_set(cal, scene)
+        profile = fit_capture_set(cal).profile
+        save_profile(profile, fitted)
     t1 = time.perf_counter()
-    pattern_set = design_crosstalk_patterns(fit.profile)
+    pattern_set = design_crosstalk_patterns(profile)
     out = {"case": index, "seed": seed, "blur": blur, "slant": scene.optics.slant, "order": order,
            "distance": distance, "period": scene.optics.period_at(scene.camera.distance),
            "tone_gamma": scene.camera.tone_gamma, "glare_true": scene.camera.glare_fraction, "fit_s": t1 - t0}
@@ -65,7 +74,7 @@ def run_case(index: int, root: Path, resolution, conditions: str) -> dict:
         write_crosstalk_patterns(folder_k, pattern_set)
         simulate_capture_set(folder_k, scene, raw=raw)
         t2 = time.perf_counter()
-        m = measure_crosstalk(folder_k, fit.profile, photos="linear" if raw else "srgb")
+        m = measure_crosstalk(folder_k, profile, photos="linear" if raw else "srgb")
         t3 = time.perf_counter()
         truth = np.asarray(json.loads((folder_k / CROSSTALK_TRUTH_NAME).read_text())["matrix"])
         n = m.views
@@ -120,6 +129,8 @@ def main() -> int:
     parser.add_argument("--conditions", default="standard", choices=("standard", "hard"))
     parser.add_argument("--keep", metavar="DIR")
     parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--reuse", action="store_true", help="with --keep: reuse each case's fitted profile "
+                        "(fitted-profile.json) instead of photographing and fitting the calibration patterns again")
     args = parser.parse_args()
     lo, _, hi = args.cases.partition("-")
     cases = list(range(int(lo), int(hi or lo) + 1))
@@ -133,9 +144,9 @@ def main() -> int:
         os.environ.setdefault("NUMBA_NUM_THREADS", "1")
         with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
             rows = list(pool.map(run_case, cases, [root] * len(cases), [resolution] * len(cases),
-                                 [args.conditions] * len(cases)))
+                                 [args.conditions] * len(cases), [args.reuse] * len(cases)))
     else:
-        rows = [run_case(c, root, resolution, args.conditions) for c in cases]
+        rows = [run_case(c, root, resolution, args.conditions, args.reuse) for c in cases]
     print("case seed  blur  slant    order  D mm   Delta_r  gamma  photos  own true  own meas  +-sigma  max|err|  "
           "max|z|  rms z  glare (true)     fit s  measure s")
     for r in rows:

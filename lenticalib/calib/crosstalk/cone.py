@@ -137,7 +137,7 @@ def _unwrap_to_plane(rows, cols, wrapped, views, scale, degree):
 
 
 def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.ndarray, views: int,
-             shape: tuple[int, int], seed: int = 0, degree: int = DEGREE) -> ConeFit:
+             shape: tuple[int, int], seed: int = 0, degree: int = DEGREE, start: "ConeFit | None" = None) -> ConeFit:
     """Fit delta(p), the gains and the profile h to band ratios.
 
     ARGUMENTS
@@ -147,15 +147,20 @@ def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.
     views        N
     shape        (h, w) of the working image (for the coordinate normalisation)
     degree       of delta's polynomial (the whole panel: DEGREE; one region: less)
+    start        a fit to start from (its delta and gains), instead of the harmonic start and search
     """
     rng = np.random.default_rng(seed)
     n, k = ratios.shape
     pick = rng.choice(n, size=min(MAX_SAMPLES, n), replace=False)
     r, rr, cc = ratios[pick], rows[pick].astype(np.float64), cols[pick].astype(np.float64)
     scale = (float(cc.mean()), float(rr.mean()), max(shape) / 2.0)
-    coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, degree)
     terms = _terms(rr, cc, scale, degree)
-    gains = np.ones(k)
+    if start is None:
+        coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, degree)
+        gains = np.ones(k)
+    else:
+        coef, *_ = np.linalg.lstsq(terms, start.delta(rr, cc), rcond=None)
+        gains = start.gains.copy()
     grid = profile = None
     rms = math.nan
     for _ in range(ROUNDS):

@@ -40,7 +40,7 @@ from .patterns import CrosstalkPatternSet
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 CENTRE_DEGREE = 3  # of the centre region's own sweep model
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
-BLOCK_GRID = 4  # the centre region is split BLOCK_GRID x BLOCK_GRID for the statistical spread
+BLOCKS = 16  # the centre region is split into this many strips of rows for the statistical spread
 GLARE_RELATIVE_SIGMA = 0.3
 TONE_FLOOR = 0.05  # 1-sigma of the power on sRGB-decoded light: camera JPEGs are sRGB only to about +-8 %
 LINEAR_TONE_SIGMA = 0.005  # the same for linear photos (sensor non-linearity)
@@ -204,22 +204,21 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     # the centre region gets its own, lower-degree sweep model: a whole-panel polynomial leaves
     # errors of a tenth of a view here and there, which smear (broaden) the cone
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
-                        degree=CENTRE_DEGREE)
+                        degree=CENTRE_DEGREE, start=panel_fit)
     row, cone_values, counts = _row_from(fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
     samples: dict[str, np.ndarray] = {}
     # statistical spread: blocks of the centre region
     block_rows, block_cones = [], []
     rr, cc = rows[centre], cols[centre]
-    ry = np.minimum(((rr - (r0 + lo * height)) / (CENTRE_FRACTION * height) * BLOCK_GRID).astype(int), BLOCK_GRID - 1)
-    rx = np.minimum(((cc - (c0 + lo * width)) / (CENTRE_FRACTION * width) * BLOCK_GRID).astype(int), BLOCK_GRID - 1)
-    for by in range(BLOCK_GRID):
-        for bx in range(BLOCK_GRID):
-            sel = (ry == by) & (rx == bx)
-            if sel.sum() < 50:
-                continue
-            b_row, b_cone, _ = _row_from(fit, ratios[centre][sel], rr[sel], cc[sel], band_shifts, n)
-            block_rows.append(b_row)
-            block_cones.append(b_cone)
+    # blocks are strips of rows: the sweep runs along x, so each strip sees every offset
+    strip = np.minimum(((rr - (r0 + lo * height)) / (CENTRE_FRACTION * height) * BLOCKS).astype(int), BLOCKS - 1)
+    for index in range(BLOCKS):
+        sel = strip == index
+        if sel.sum() < 50:
+            continue
+        b_row, b_cone, _ = _row_from(fit, ratios[centre][sel], rr[sel], cc[sel], band_shifts, n)
+        block_rows.append(b_row)
+        block_cones.append(b_cone)
     block_rows = np.array(block_rows)
     k = max(1, len(block_rows))
     stat_sigma = _robust_spread(block_rows) / math.sqrt(k) if k > 1 else np.zeros(n)
