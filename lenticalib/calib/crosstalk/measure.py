@@ -12,7 +12,7 @@ views.  The method is in ``docs/crosstalk.md``; in short:
 3. the view cone ``h(t)`` with ``delta(p)`` and the photos' exposures fitted to all ``r_k``
    (:mod:`.cone`); ``h`` of the centre region at integer offsets, normalised, is the row of the
    circulant ``M``;
-4. uncertainties: the spread between 16 blocks of the centre region (noise, moire, local
+4. uncertainties: the spread between 16 strips of rows of the centre region (noise, moire, local
    non-uniformity; a robust spread) and, in quadrature, what the photometric assumptions could
    move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the decoded light:
    ``d`` = 0.05 for camera JPEGs, which are sRGB only to about +-8 %, more when the two half
