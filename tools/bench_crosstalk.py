@@ -71,8 +71,9 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
            "tone_gamma": scene.camera.tone_gamma, "glare_true": scene.camera.glare_fraction, "fit_s": t1 - t0}
     for kind, raw in (("raw", True), ("jpeg", False)):
         folder_k = folder / f"xt-{kind}"
-        write_crosstalk_patterns(folder_k, pattern_set)
-        simulate_capture_set(folder_k, scene, raw=raw)
+        if not (reuse and _complete(folder_k, pattern_set)):
+            write_crosstalk_patterns(folder_k, pattern_set)
+            simulate_capture_set(folder_k, scene, raw=raw)
         t2 = time.perf_counter()
         m = measure_crosstalk(folder_k, profile, photos="linear" if raw else "srgb")
         t3 = time.perf_counter()
@@ -87,6 +88,15 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
                      "glare": m.photometry["glare"]["fraction"], "measure_s": t3 - t2,
                      "truth_row": truth[0].tolist(), "row": m.row.tolist()}
     return out
+
+
+def _complete(folder: Path, pattern_set) -> bool:
+    """A crosstalk set already photographed for exactly these patterns (``--reuse``)."""
+    try:
+        record = json.loads((folder / "simulation.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return record.get("status") == "complete" and record["pattern_set"]["set_id"] == pattern_set.set_id
 
 
 def compensation_summary(rows) -> list[str]:
@@ -130,7 +140,7 @@ def main() -> int:
     parser.add_argument("--keep", metavar="DIR")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--reuse", action="store_true", help="with --keep: reuse each case's fitted profile "
-                        "(fitted-profile.json) instead of photographing and fitting the calibration patterns again")
+                        "(fitted-profile.json) and its crosstalk photos instead of photographing and fitting again")
     args = parser.parse_args()
     lo, _, hi = args.cases.partition("-")
     cases = list(range(int(lo), int(hi or lo) + 1))

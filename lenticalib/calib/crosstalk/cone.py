@@ -215,3 +215,29 @@ def values_at_integers(grid: np.ndarray, profile: np.ndarray, counts: np.ndarray
         coef, *_ = np.linalg.lstsq(a * np.sqrt(w)[:, None], profile[near] * np.sqrt(w), rcond=None)
         out[m] = coef[0]
     return out
+
+
+def local_offsets(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.ndarray,
+                  tile: int = 16) -> np.ndarray:
+    """How far the sweep model is off, tile by tile: for each ``tile`` x ``tile`` block of working
+    pixels, the shift of delta (views, searched over +-0.5 in 1/32 steps) that best fits its
+    samples.  Their spread is the model's local error, which smears the measured cone."""
+    key = (rows // tile) * 100_000 + cols // tile
+    order = np.argsort(key, kind="stable")
+    key, r, rr, cc = key[order], ratios[order], rows[order], cols[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    ends = np.r_[starts[1:], key.size]
+    candidates = np.arange(-16, 17) / 32.0
+    out = []
+    for a, b in zip(starts, ends):
+        if b - a < tile * tile // 2:
+            continue
+        t = fit.delta(rr[a:b], cc[a:b])[:, None] + shifts[None, :]
+        best, best_err = 0.0, math.inf
+        for c in candidates:
+            model = profile_at(fit.grid, fit.profile, t + c, fit.views) * fit.gains[None, :]
+            err = float(np.sum((r[a:b] - model) ** 2))
+            if err < best_err:
+                best, best_err = c, err
+        out.append(best)
+    return np.array(out)

@@ -206,6 +206,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                         degree=CENTRE_DEGREE, start=panel_fit)
     row, cone_values, counts = _row_from(fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
+    # the sweep model itself: the row as the whole-panel model would have it (its own smear included)
+    panel_row, panel_cone, _ = _row_from(panel_fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
     samples: dict[str, np.ndarray] = {}
     # statistical spread: blocks of the centre region
     block_rows, block_cones = [], []
@@ -237,10 +239,16 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
     glare_sigma = np.abs(perturbed["glare+"][0] - perturbed["glare-"][0]) / 2
     tone_sig = np.abs(perturbed["tone+"][0] - perturbed["tone-"][0]) / 2
+    # the sweep model: its local error (tile by tile) smears the cone by eps^2 / 2 h''; and how the
+    # row changes with the whole-panel model instead
+    offsets = cone.local_offsets(fit, ratios[centre], rr, cc, band_shifts)
+    eps2 = float(np.mean(offsets ** 2)) if offsets.size else 0.0
+    curvature = np.array([row[(m + 1) % n] - 2 * row[m] + row[m - 1] for m in range(n)])
+    model_sigma = np.sqrt((0.5 * eps2 * curvature) ** 2 + (row - panel_row) ** 2)
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
     floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
-    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + floor_sigma ** 2)
-    cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + ((perturbed["glare+"][1] - perturbed["glare-"][1]) / 2) ** 2
+    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + floor_sigma ** 2 + model_sigma ** 2)
+    cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2 + ((perturbed["glare+"][1] - perturbed["glare-"][1]) / 2) ** 2
                          + ((perturbed["tone+"][1] - perturbed["tone-"][1]) / 2) ** 2)
     samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()}}
     # uniformity map: own-view share per region
@@ -261,7 +269,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
                 halves.append(_row_from(panel_fit, ratios[sub], rows[sub], cols[sub], band_shifts, n)[0][0])
             regions[j, i] = own
             regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
-                                            + glare_sigma[0] ** 2 + tone_sig[0] ** 2)
+                                            + glare_sigma[0] ** 2 + tone_sig[0] ** 2 + model_sigma[0] ** 2)
     photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
                          "tone_power_best": power, "tone_power_sigma": tone_sigma,
                          "half_residual": None if not math.isfinite(tone_residual) else round(tone_residual, 4),
@@ -269,7 +277,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
                          "shifts": shifts}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
-                   "sigma_floor": floor_sigma}
+                   "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
+                   "sweep_model_local_error_views": math.sqrt(eps2)}
     delta = np.full(mask.shape, np.nan)
     delta[rows, cols] = panel_fit.delta(rows, cols)
     images = {"white": white, "delta": delta, "mask": mask,
