@@ -139,7 +139,10 @@ def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured
     assert len(data["matrix"]) == VIEWS and all(len(r) == VIEWS for r in data["matrix"])
     assert {"own_view_share", "adjacent_crosstalk", "non_adjacent_crosstalk", "eye_pair_crosstalk"} <= set(data["figures"])
     assert data["provenance"]["inputs"] and data["eye_separation_note"].startswith("64 mm")
-    assert sorted(p.name for p in report.iterdir()) == ["matrix.png", "photos.png", "uniformity.png", "view-cone.png"]
+    assert sorted(p.name for p in report.iterdir()) == ["compensation.png", "matrix.png", "photos.png", "uniformity.png",
+                                                         "view-cone.png"]
+    prediction = data["compensation_prediction"]
+    assert prediction["mean_rms_with"] < prediction["mean_rms_without"]
     capsys.readouterr()
     adjacent = data["figures"]["adjacent_crosstalk"]["value"]
     assert main(["crosstalk", "check", str(out), "--max-adjacent", str(adjacent + 0.01)]) == 0

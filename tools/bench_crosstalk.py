@@ -102,16 +102,13 @@ def _complete(folder: Path, pattern_set) -> bool:
 def compensation_summary(rows) -> list[str]:
     import numpy as np
 
-    from lenticalib.render.compensation import Compensator, compensation_study
+    from lenticalib.render.compensation import Compensator, compensation_study, test_views
 
     lines = []
     rng = np.random.default_rng(7)
-    p = 20000
-    base = rng.uniform(0.1, 0.9, (1, p))
-    phase = rng.uniform(0, 2 * np.pi, (1, p))
     for r in rows:
         n = len(r["row"])
-        views = np.clip(base + 0.2 * np.sin(2 * np.pi * np.arange(n)[:, None] / n * 3 + phase), 0, 1).astype(np.float32)
+        views = test_views(n)
         measured = np.asarray(r["row"])[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
         truth = np.asarray(r["truth_row"])[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
         for lift in (0.0, 0.05):

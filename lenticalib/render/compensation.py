@@ -303,3 +303,14 @@ def compensation_study(compensator: Compensator, true_matrix: np.ndarray, linear
             "residual_crosstalk_without": residual(np.asarray(true_matrix)),
             "residual_crosstalk_with": residual(effective), "black_lift": compensator.black_lift,
             "regularisation": compensator.regularisation, "iterations": compensator.iterations}
+
+
+def test_views(views: int, pixels: int = 20000, seed: int = 7) -> np.ndarray:
+    """float32 (N, pixels) linear test views for a compensation study: a random mid-grey level per
+    pixel and a smooth change across the views (three cycles, random phase), like a scene seen from
+    N places; fixed seed."""
+    rng = np.random.default_rng(seed)
+    base = rng.uniform(0.1, 0.9, (1, pixels))
+    phase = rng.uniform(0.0, 2.0 * np.pi, (1, pixels))
+    index = np.arange(views)[:, None]
+    return np.clip(base + 0.2 * np.sin(2.0 * np.pi * 3.0 * index / views + phase), 0.0, 1.0).astype(np.float32)
