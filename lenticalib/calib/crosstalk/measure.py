@@ -39,6 +39,7 @@ from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 CENTRE_DEGREE = 3  # of the centre region's own sweep model
+SWEEP_BLUR_PIXELS = 1.5  # working pixels: the camera's blur of the sweep (defocus, demosaicing, averaging)
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCKS = 16  # the centre region is split into this many strips of rows for the statistical spread
 GLARE_RELATIVE_SIGMA = 0.3
@@ -243,6 +244,11 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     # row changes with the whole-panel model instead
     offsets = cone.local_offsets(fit, ratios[centre], rr, cc, band_shifts)
     eps2 = float(np.mean(offsets ** 2)) if offsets.size else 0.0
+    # ... and the blur the measurement leaves uncorrected: the camera blurs the sweep over about
+    # SWEEP_BLUR_PIXELS working pixels, the lens sheet samples it once per lens (a box)
+    views_per_pixel = float(np.median(np.abs(fit.delta(rr, cc + 1.0) - fit.delta(rr, cc))))
+    lens_views = n * (pattern_set.profile.period / 3.0) / pattern_set.sweep
+    eps2 += (SWEEP_BLUR_PIXELS * views_per_pixel) ** 2 + lens_views ** 2 / 12.0
     curvature = np.array([row[(m + 1) % n] - 2 * row[m] + row[m - 1] for m in range(n)])
     model_sigma = np.sqrt((0.5 * eps2 * curvature) ** 2 + (row - panel_row) ** 2)
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
@@ -278,7 +284,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
-                   "sweep_model_local_error_views": math.sqrt(eps2)}
+                   "sweep_smear_views": math.sqrt(eps2)}
     delta = np.full(mask.shape, np.nan)
     delta[rows, cols] = panel_fit.delta(rows, cols)
     images = {"white": white, "delta": delta, "mask": mask,
