@@ -39,7 +39,7 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     import numpy as np
 
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
-    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns, write_crosstalk_patterns
+    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
     from lenticalib.calib.fit import fit_capture_set
     from lenticalib.calib.patterns import design_patterns, write_patterns
     from lenticalib.sim.capture import CROSSTALK_TRUTH_NAME, simulate_capture_set
@@ -72,7 +72,7 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     for kind, raw in (("raw", True), ("jpeg", False)):
         folder_k = folder / f"xt-{kind}"
         if not (reuse and _complete(folder_k, pattern_set)):
-            write_crosstalk_patterns(folder_k, pattern_set)
+            write_patterns(folder_k, pattern_set)
             simulate_capture_set(folder_k, scene, raw=raw)
         t2 = time.perf_counter()
         m = measure_crosstalk(folder_k, profile, photos="linear" if raw else "srgb")

@@ -203,9 +203,12 @@ def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
     return image
 
 
-def write_patterns(directory: str | os.PathLike, pattern_set: PatternSet,
+def write_patterns(directory: str | os.PathLike, pattern_set,
                    progress: Iterable | None = None) -> Path:
     """Write every pattern as ``DIR/NAME.png`` and the manifest ``DIR/patterns.json``.
+
+    ``pattern_set``: any pattern set (calibration or crosstalk) with ``patterns``, ``render``,
+    ``set_id`` and ``to_dict``.
 
     Refuses to overwrite a manifest of a *different* pattern set when ``DIR/captures`` holds
     photos (they would no longer match).  Returns the manifest path.
@@ -227,7 +230,7 @@ def write_patterns(directory: str | os.PathLike, pattern_set: PatternSet,
                              hint="write the patterns into an empty folder")
     items = pattern_set.patterns if progress is None else progress
     for pattern in items:
-        write_image(directory / pattern.file, render_pattern(pattern, pattern_set.width, pattern_set.height))
+        write_image(directory / pattern.file, pattern_set.render(pattern))
     write_text_atomic(manifest_path, json.dumps(pattern_set.to_dict(), indent=2) + "\n")
     return manifest_path
 

@@ -77,28 +77,34 @@ def write_report(result, directory: str | os.PathLike, capture_dir: str | os.Pat
     ``directory`` is created if missing (its parent must exist).  ``summary`` is written as
     ``summary.json`` (default: :func:`fit_summary` of the result).
     """
+    directory = Path(directory)
+    directory.mkdir(exist_ok=True)
+    write_figures(directory, [("panel.png", _panel_figure), ("view-map.png", _view_map_figure),
+                              ("residual.png", _residual_figure)], FIGURE_SIZES, result)
+    summary = fit_summary(result, capture_dir, report=directory) if summary is None else summary
+    write_text_atomic(directory / "summary.json", json.dumps(summary, indent=2) + "\n")
+    return directory
+
+
+def write_figures(directory: Path, drawings, sizes: dict, subject) -> None:
+    """Draw each ``(name, draw)`` of ``drawings`` as ``draw(fig, subject)`` on a figure of ``sizes[name]``
+    pixels (the report style: fonts of at least 10 pt) and write it as ``directory/name``, atomically."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    directory = Path(directory)
-    directory.mkdir(exist_ok=True)
     with plt.rc_context(_STYLE):
-        for name, draw in (("panel.png", _panel_figure), ("view-map.png", _view_map_figure),
-                           ("residual.png", _residual_figure)):
-            w, h = FIGURE_SIZES[name]
+        for name, draw in drawings:
+            w, h = sizes[name]
             fig = plt.figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
             try:
-                draw(fig, result)
+                draw(fig, subject)
                 buf = io.BytesIO()
                 fig.savefig(buf, format="png", dpi=_DPI)
             finally:
                 plt.close(fig)
             write_bytes_atomic(directory / name, buf.getvalue())
-    summary = fit_summary(result, capture_dir, report=directory) if summary is None else summary
-    write_text_atomic(directory / "summary.json", json.dumps(summary, indent=2) + "\n")
-    return directory
 
 
 def _colorbar(fig, ax, mappable, label: str, extend: str = "neither"):

@@ -67,8 +67,8 @@ def _fraction(text: str) -> float:
 
 
 def run_patterns(args: argparse.Namespace) -> int:
-    from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns, write_crosstalk_patterns
-    from ..calib.patterns import MANIFEST_NAME
+    from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns
+    from ..calib.patterns import MANIFEST_NAME, write_patterns
     from ..errors import InputError
     from ..outputs import check_output_folder, restored_on_failure
     from ..profile import load_profile
@@ -84,7 +84,7 @@ def run_patterns(args: argparse.Namespace) -> int:
                if folder.exists() else [folder])
     with restored_on_failure(written, "patterns"), \
             progress_bar(len(pattern_set.patterns), "writing patterns") as bar:
-        write_crosstalk_patterns(folder, pattern_set, progress=bar.wrap(pattern_set.patterns))
+        write_patterns(folder, pattern_set, progress=bar.wrap(pattern_set.patterns))
     print(f"wrote {len(pattern_set.patterns)} crosstalk patterns and {folder / MANIFEST_NAME} (set {pattern_set.set_id})")
     print(f"next: photograph them from the fit's camera position, without moving the camera "
           f"('lenticalib capture {args.output} --camera ...', or show each PNG and save captures/NAME.jpg); then "
@@ -135,6 +135,7 @@ def run_measure(args: argparse.Namespace) -> int:
     from ..errors import InputError
     from ..outputs import check_output_file, check_output_folder, staged_folder
     from ..profile import load_profile, make_provenance
+    from ..render.compensation import Compensator, compensation_study, test_views
     from ._progress import progress_bar
 
     profile = load_profile(args.profile, "--profile") if args.profile else None
@@ -153,8 +154,6 @@ def run_measure(args: argparse.Namespace) -> int:
                                  **({"profile_file": str(args.profile)} if args.profile else {}),
                                  pattern_set=pattern_set.set_id, seconds=round(measurement.seconds, 2))
     document = crosstalk_document(measurement, eye, eye_note, provenance)
-    from ..render.compensation import Compensator, compensation_study, test_views
-
     # what pre-compensation with this matrix would do, if the matrix is right (synthetic test views)
     study = compensation_study(Compensator.from_matrix(measurement.matrix, black_lift=0.02),
                                measurement.matrix, test_views(measurement.views))

@@ -26,7 +26,8 @@ import dataclasses
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 from ..errors import InputError
 
@@ -124,7 +125,7 @@ class Compensator:
         if linear.ndim != 2 or linear.shape[0] != self.views:
             raise InputError(f"expected {self.views} views, got shape {linear.shape}", source="views")
         out = np.empty_like(linear)
-        _compensate_float(linear, out, *self._kernel_args())
+        _compensate(linear, out, _NO_TABLE_F, _NO_TABLE_U, *self._kernel_args())
         return out
 
     def apply(self, views: np.ndarray) -> np.ndarray:
@@ -135,7 +136,7 @@ class Compensator:
                              f"{getattr(views, 'dtype', type(views))} {getattr(views, 'shape', '')}", source="views")
         flat = np.ascontiguousarray(views).reshape(self.views, -1)
         out = np.empty_like(flat)
-        _compensate_uint8(flat, out, _decode_lut(), _encode_lut(), *self._kernel_args())
+        _compensate(flat, out, _decode_lut(), _encode_lut(), *self._kernel_args())
         return out.reshape(views.shape)
 
     def _kernel_args(self):
@@ -172,22 +173,25 @@ class Compensator:
 
 _DECODE = None
 _ENCODE = None
+_NO_TABLE_F = np.zeros(0, np.float32)
+_NO_TABLE_U = np.zeros(0, np.uint8)
 
 
 def _decode_lut() -> np.ndarray:
     global _DECODE
     if _DECODE is None:
-        v = np.arange(256) / 255.0
-        _DECODE = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+        from ..calib.patterns import srgb_decode
+
+        _DECODE = srgb_decode(np.arange(256) / 255.0).astype(np.float32)
     return _DECODE
 
 
 def _encode_lut() -> np.ndarray:
     global _ENCODE
     if _ENCODE is None:
-        v = (np.arange(_LEVELS) + 0.0) / (_LEVELS - 1)
-        enc = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
-        _ENCODE = np.clip(np.rint(enc * 255.0), 0, 255).astype(np.uint8)
+        from ..calib.patterns import srgb_encode
+
+        _ENCODE = np.rint(255.0 * srgb_encode(np.arange(_LEVELS) / (_LEVELS - 1))).astype(np.uint8)
     return _ENCODE
 
 
@@ -218,11 +222,42 @@ def _solve_chunk(t, e, g, b, so, sw, no, nw, ro, rw, step, iterations, n, width)
                     e[i, p] = min(max(e[i, p] - step * (g[i, p] - b[i, p]), 0.0), 1.0)
 
 
+def _load(src, decode, i, k):
+    """Linear light of ``src[i, k]`` (decoded through ``decode`` when ``src`` holds integer codes)."""
+
+
+def _store(out, encode, i, k, value):
+    """``out[i, k] = value`` (linear), encoded through ``encode`` when ``out`` holds integer codes."""
+
+
+@overload(_load, inline="always")
+def _load_typed(src, decode, i, k):
+    if isinstance(src.dtype, types.Integer):
+        return lambda src, decode, i, k: decode[src[i, k]]
+    return lambda src, decode, i, k: src[i, k]
+
+
+@overload(_store, inline="always")
+def _store_typed(out, encode, i, k, value):
+    if isinstance(out.dtype, types.Integer):
+        def store(out, encode, i, k, value):
+            out[i, k] = encode[int(value * (encode.shape[0] - 1) + 0.5)]
+        return store
+
+    def store_linear(out, encode, i, k, value):
+        out[i, k] = value
+    return store_linear
+
+
 @njit(parallel=True, cache=True, fastmath=True)
-def _compensate_uint8(src, out, decode, encode, so, sw, no, nw, ro, rw, step, lift, iterations):
+def _compensate(src, out, decode, encode, so, sw, no, nw, ro, rw, step, lift, iterations):
+    """``out`` = the views to send for intended views ``src`` (N, P), chunk by chunk.
+
+    uint8 sRGB in and out through the tables ``decode`` (256,) and ``encode`` (levels,); float
+    linear light in and out (the tables unused): :func:`_load` and :func:`_store` are compiled per type.
+    """
     n, total = src.shape
     chunks = (total + _CHUNK - 1) // _CHUNK
-    top = encode.shape[0] - 1
     for c in prange(chunks):
         start = c * _CHUNK
         width = min(_CHUNK, total - start)
@@ -232,31 +267,11 @@ def _compensate_uint8(src, out, decode, encode, so, sw, no, nw, ro, rw, step, li
         b = np.empty((n, _CHUNK), np.float32)
         for i in range(n):
             for p in range(width):
-                t[i, p] = lift + (1.0 - lift) * decode[src[i, start + p]]
+                t[i, p] = lift + (1.0 - lift) * _load(src, decode, i, start + p)
         _solve_chunk(t, e, g, b, so, sw, no, nw, ro, rw, step, iterations, n, width)
         for i in range(n):
             for p in range(width):
-                out[i, start + p] = encode[int(e[i, p] * top + 0.5)]
-
-
-@njit(parallel=True, cache=True, fastmath=True)
-def _compensate_float(src, out, so, sw, no, nw, ro, rw, step, lift, iterations):
-    n, total = src.shape
-    chunks = (total + _CHUNK - 1) // _CHUNK
-    for c in prange(chunks):
-        start = c * _CHUNK
-        width = min(_CHUNK, total - start)
-        t = np.empty((n, _CHUNK), np.float32)
-        e = np.empty((n, _CHUNK), np.float32)
-        g = np.empty((n, _CHUNK), np.float32)
-        b = np.empty((n, _CHUNK), np.float32)
-        for i in range(n):
-            for p in range(width):
-                t[i, p] = lift + (1.0 - lift) * src[i, start + p]
-        _solve_chunk(t, e, g, b, so, sw, no, nw, ro, rw, step, iterations, n, width)
-        for i in range(n):
-            for p in range(width):
-                out[i, start + p] = e[i, p]
+                _store(out, encode, i, start + p, e[i, p])
 
 
 def compensator_from_file(path, views: int, regularisation: float = DEFAULT_REGULARISATION,

@@ -113,9 +113,10 @@ def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | Non
     return pattern_set, match_captures(directory, pattern_set)
 
 
-def _region_masks(mask: np.ndarray) -> tuple[tuple[int, int, int, int], np.ndarray]:
+def _bounding_box(mask: np.ndarray) -> tuple[int, int, int, int]:
+    """(first row, last row, first column, last column) of the true pixels of ``mask``."""
     rows, cols = np.nonzero(mask)
-    return (int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())), (rows, cols)
+    return int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())
 
 
 def _row_from(fit, ratios, rows, cols, shifts, views) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -197,7 +198,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     check_band_photos(panel_fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
     if progress:
         progress("view cone")
-    (r0, r1, c0, c1), _ = _region_masks(mask)
+    r0, r1, c0, c1 = _bounding_box(mask)
     height, width = r1 - r0, c1 - c0
     lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
     centre = ((rows >= r0 + lo * height) & (rows <= r0 + hi * height)

@@ -30,15 +30,13 @@ import dataclasses
 import hashlib
 import json
 import math
-import os
-from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
 from ...errors import InputError
 from ...profile import PanelProfile, profile_from_dict
-from ..patterns import FRAME_LEVEL, MANIFEST_NAME, frame_width, srgb_encode
+from ..patterns import FRAME_LEVEL, frame_width, srgb_encode
 
 FORMAT_NAME = "lenticalib.crosstalk-patterns"
 FORMAT_VERSION = 1
@@ -191,33 +189,6 @@ def render_crosstalk_pattern(pattern_set: CrosstalkPatternSet, pattern: Crosstal
     for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
         part[...] = frame
     return image
-
-
-def write_crosstalk_patterns(directory: str | os.PathLike, pattern_set: CrosstalkPatternSet,
-                             progress: Iterable | None = None, extra: dict[str, Any] | None = None) -> Path:
-    """Write every pattern as ``DIR/NAME.png`` and the manifest ``DIR/patterns.json`` (atomic files).
-
-    Refuses a folder whose ``captures/`` holds photos of another pattern set.  ``extra``: free
-    manifest keys (``created``, ``lenticalib_version``, ``note``).
-    """
-    from ...atomic import write_text_atomic
-    from ...imageio import write_image
-
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    manifest_path = directory / MANIFEST_NAME
-    if manifest_path.exists() and (directory / "captures").is_dir() and any((directory / "captures").iterdir()):
-        try:
-            old_id = json.loads(manifest_path.read_text()).get("set_id")
-        except (OSError, ValueError, AttributeError):
-            old_id = None
-        if old_id != pattern_set.set_id:
-            raise InputError("holds photos of another pattern set", source=str(directory / "captures"),
-                             hint="write the patterns into an empty folder")
-    for pattern in (pattern_set.patterns if progress is None else progress):
-        write_image(directory / pattern.file, pattern_set.render(pattern))
-    write_text_atomic(manifest_path, json.dumps({**pattern_set.to_dict(), **(extra or {})}, indent=2) + "\n")
-    return manifest_path
 
 
 _FREE_KEYS = ("created", "lenticalib_version", "note")

@@ -16,27 +16,18 @@ Written into one folder (``lenticalib crosstalk measure --report DIR``, staged a
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 
-from ...atomic import write_bytes_atomic
-
 FIGURE_SIZES = {"view-cone.png": (1600, 1200), "matrix.png": (1200, 1050), "uniformity.png": (1400, 900),
                 "photos.png": (1800, 800), "compensation.png": (1400, 800)}
 REPORT_FILES = tuple(FIGURE_SIZES)
-_DPI = 100
-_STYLE = {"font.size": 12, "axes.titlesize": 13, "axes.labelsize": 12, "xtick.labelsize": 11,
-          "ytick.labelsize": 11, "legend.fontsize": 11}
 
 
 def write_crosstalk_report(measurement, directory: str | Path, compensation: dict | None = None) -> Path:
     """Write the figures of ``measurement`` (:class:`.measure.Measurement`) into ``directory``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..report import write_figures
 
     directory = Path(directory)
     directory.mkdir(exist_ok=True)
@@ -44,17 +35,7 @@ def write_crosstalk_report(measurement, directory: str | Path, compensation: dic
                 ("photos.png", _photos)]
     if compensation is not None:
         drawings.append(("compensation.png", lambda fig, m: _compensation(fig, compensation)))
-    with plt.rc_context(_STYLE):
-        for name, draw in drawings:
-            w, h = FIGURE_SIZES[name]
-            fig = plt.figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
-            try:
-                draw(fig, measurement)
-                buf = io.BytesIO()
-                fig.savefig(buf, format="png", dpi=_DPI)
-            finally:
-                plt.close(fig)
-            write_bytes_atomic(directory / name, buf.getvalue())
+    write_figures(directory, drawings, FIGURE_SIZES, measurement)
     return directory
 
 

@@ -41,7 +41,7 @@ def derived_figures(row: np.ndarray, eye_separation: float | None) -> dict[str, 
     return figures
 
 
-def figures_with_sigma(row: np.ndarray, row_sigma: np.ndarray, samples: Mapping[str, np.ndarray],
+def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
                        eye_separation: float | None) -> dict[str, dict[str, float]]:
     """Each derived figure with its 1-sigma: the block spread and the photometric perturbations
     propagated (the block rows' spread / sqrt(k), the perturbed rows' half differences)."""
@@ -81,7 +81,7 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
     n = m.views
     matrix = m.matrix
     sigma = m.row_sigma[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
-    figures = figures_with_sigma(m.row, m.row_sigma, m.samples, eye_separation)
+    figures = figures_with_sigma(m.row, m.samples, eye_separation)
     per_view = [{"view": i, **{k: _r(v["value"]) for k, v in figures.items()}} for i in range(n)]
     diag = {k: (v.round(6).tolist() if isinstance(v, np.ndarray) else v) for k, v in m.diagnostics.items()}
     return {
