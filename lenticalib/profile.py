@@ -10,8 +10,10 @@ A profile holds the routing constants (see ``docs/optics.md``; format: ``docs/pr
     width, height    panel raster in pixels (int)
     subpixel_order   "RGB" or "BGR": which colour sits at subpixel position 0, 1, 2
 
-plus a format version, the optional ``view_direction`` (+1: the view index grows as the viewer
-moves to the right; -1: it falls; absent: unknown), optional 1-sigma uncertainties, optional
+plus a format version, the optional ``physical`` block (lens pitch, gap, pixel pitch, the eye
+the constants are for: :mod:`lenticalib.physical`), the optional ``view_direction`` (+1: the
+view index grows as the viewer moves to the right; -1: it falls; absent: unknown), optional
+1-sigma uncertainties, optional
 Looking Glass extras and a provenance record (how, when and from which inputs it was made,
 with which lenticalib).
 
@@ -55,7 +57,7 @@ SUBPIXEL_ORDERS = ("RGB", "BGR")
 CONSTANT_KEYS = ("views", "slant", "period", "offset", "reference_view", "width", "height",
                  "subpixel_order")
 OPTIONAL_KEYS = ("format", "format_version", "view_direction", "uncertainty", "provenance", "looking_glass",
-                 "name", "notes")
+                 "name", "notes", "physical")
 VIEW_DIRECTIONS = (1, -1)
 
 
@@ -92,6 +94,7 @@ class PanelProfile:
     looking_glass: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
     name: str | None = dataclasses.field(default=None, compare=False, hash=False)
     view_direction: int | None = dataclasses.field(default=None, compare=False, hash=False)
+    physical: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
 
     def __post_init__(self):
         _validate_constants(dataclasses.asdict(self), source="profile")
@@ -128,6 +131,8 @@ class PanelProfile:
             out["uncertainty"] = dict(self.uncertainty)
         if self.looking_glass:
             out["looking_glass"] = dict(self.looking_glass)
+        if self.physical:
+            out["physical"] = dict(self.physical)
         if self.provenance:
             out["provenance"] = dict(self.provenance)
         return out
@@ -212,6 +217,10 @@ def _validate_constants(data: Mapping[str, Any], source: str) -> None:
     for key in ("provenance", "looking_glass"):
         if data.get(key) is not None and not isinstance(data[key], Mapping):
             fail(key, "must be a JSON object")
+    if data.get("physical") is not None:
+        from .physical import validate_physical
+
+        validate_physical(data["physical"], source)
     direction = data.get("view_direction")
     if direction is not None and not (_is_int(direction) and direction in VIEW_DIRECTIONS):
         fail("view_direction", f"must be 1 or -1 (or absent when unknown), got {direction!r}",
@@ -241,13 +250,17 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
                            hint="check the spelling; known fields are "
                                 + ", ".join(CONSTANT_KEYS + OPTIONAL_KEYS))
     fields = {k: data[k] for k in CONSTANT_KEYS}
-    for key in ("uncertainty", "provenance", "looking_glass", "name", "view_direction"):
+    for key in ("uncertainty", "provenance", "looking_glass", "name", "view_direction", "physical"):
         fields[key] = data.get(key)
     if fields["name"] is not None and not isinstance(fields["name"], str):
         raise ProfileError("field 'name': must be a string", source=source)
     _validate_constants(fields, source)
     for key in ("slant", "period", "offset", "reference_view"):
         fields[key] = float(fields[key])
+    if fields["physical"] is not None:
+        from .physical import validate_physical
+
+        fields["physical"] = validate_physical(fields["physical"], source)
     return PanelProfile(**fields)
 
 

@@ -1,4 +1,4 @@
-"""``lenticalib profile show|validate|import-lkg|export-lkg|compare|set-direction``."""
+"""``lenticalib profile show|validate|import-lkg|export-lkg|compare|set-direction|set-physical|retarget``."""
 
 from __future__ import annotations
 
@@ -40,6 +40,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     direction.add_argument("profile", metavar="PROFILE")
     direction.add_argument("direction", metavar="+1|-1|unknown")
     direction.set_defaults(run=run_set_direction)
+    physical = sub.add_parser("set-physical", help="record the panel's physical constants from a data sheet",
+                              description="Write the profile's physical block (docs/physical.md) from a data "
+                                          "sheet: what 'profile retarget' needs is the pixel pitch, the gap (or the "
+                                          "view-cone angle and lens pitch) and the eye the constants are for.")
+    physical.add_argument("profile", metavar="PROFILE")
+    physical.add_argument("--pixel-pitch", type=float, metavar="MM", help="pixel pitch, mm")
+    physical.add_argument("--gap", type=float, metavar="MM", help="effective lens-to-pixel gap, mm")
+    physical.add_argument("--lens-pitch", type=float, metavar="MM", help="horizontal lens pitch, mm")
+    physical.add_argument("--view-cone", type=float, metavar="DEG", help="full view-cone angle in air, degrees "
+                          "(gives the gap with --lens-pitch)")
+    physical.add_argument("--design-distance", type=float, metavar="MM", help="the viewing distance the profile's "
+                          "constants are for, when no eye position is recorded (a centred viewer)")
+    physical.set_defaults(run=run_set_physical)
+    retarget = sub.add_parser("retarget", help="the routing constants for a viewer at another distance/position",
+                              description="Carry a profile to another eye position: the period and offset a viewer "
+                                          "at --distance (and --lateral/--vertical) needs.  Needs the profile's "
+                                          "physical block with the gap (lenticalib fit --camera ... "
+                                          "--second-distance, or profile set-physical).")
+    retarget.add_argument("profile", metavar="PROFILE")
+    retarget.add_argument("--distance", type=float, required=True, metavar="MM",
+                          help="the viewer's distance from the panel surface, mm")
+    retarget.add_argument("--lateral", type=float, default=0.0, metavar="MM",
+                          help="the viewer's position right of the panel centre, mm (default 0)")
+    retarget.add_argument("--vertical", type=float, default=0.0, metavar="MM",
+                          help="the viewer's eye height below the panel centre, mm (default 0; above: negative)")
+    retarget.add_argument("-o", "--output", required=True, metavar="PROFILE2")
+    retarget.add_argument("--json", action="store_true", help="print the new profile's JSON")
+    retarget.set_defaults(run=run_retarget)
 
 
 def _print_profile(profile) -> None:
@@ -59,6 +87,12 @@ def _print_profile(profile) -> None:
     how = (f"; {how['method']}" + (f" on {how['set']}" if how.get("set") else "")
            if isinstance(how, dict) and how.get("method") and profile.view_direction is not None else "")
     print(f"{'view_direction':>15}  {describe_direction(profile.view_direction)}{how}")
+    phys = profile.physical or {}
+    if phys:
+        parts = [f"{k} {v:g}" for k, v in phys.items() if isinstance(v, float)]
+        if phys.get("eye_mm"):
+            parts.append("eye_mm [" + ", ".join(f"{v:.1f}" for v in phys["eye_mm"]) + "]")
+        print(f"{'physical':>15}  " + ", ".join(parts) + (f" ({phys['source']})" if phys.get("source") else ""))
     if profile.provenance and set(profile.provenance) - {"view_direction"}:
         for label, line in zip(("made by", "from"), describe_provenance(profile.provenance)):
             print(f"{label:>15}  {line}")
@@ -165,4 +199,56 @@ def run_set_direction(args) -> int:
     print(f"{args.profile}: view_direction {describe_direction(direction)}"
           + ("" if profile.view_direction == direction else
              f" (was {_direction_text(profile.view_direction)})"))
+    return 0
+
+
+def run_set_physical(args) -> int:
+    from ..errors import InputError
+    from ..physical import gap_from_view_cone, validate_physical
+    from ..profile import load_profile, save_profile
+
+    given = {"pixel_pitch_mm": args.pixel_pitch, "gap_mm": args.gap, "lens_pitch_mm": args.lens_pitch,
+             "view_cone_deg": args.view_cone, "design_distance_mm": args.design_distance}
+    given = {k: v for k, v in given.items() if v is not None}
+    if not given:
+        raise InputError("nothing to set", source="set-physical",
+                         hint="give --pixel-pitch, --gap, --lens-pitch, --view-cone or --design-distance")
+    profile = load_profile(args.profile, "PROFILE")
+    block = dict(profile.physical or {})
+    block.update(given)
+    if "gap_mm" not in block and "view_cone_deg" in block and "lens_pitch_mm" in block:
+        import math
+
+        block["gap_mm"] = gap_from_view_cone(block["lens_pitch_mm"], math.degrees(math.atan(profile.slant)),
+                                             block["view_cone_deg"])
+    block["source"] = "data sheet" if block.get("source") in (None, "data sheet") else f"{block['source']} + data sheet"
+    block = validate_physical(block, "set-physical")  # names the option's field before anything is written
+    save_profile(profile.replace(physical=block), args.profile)
+    print(f"{args.profile}: physical " + ", ".join(f"{k} {v:g}" for k, v in block.items() if isinstance(v, float)))
+    return 0
+
+
+def run_retarget(args) -> int:
+    from ..outputs import check_output_file
+    from ..profile import format_constant, load_profile, save_profile
+    from ..retarget import Eye, calibration_eye, retarget_profile, routing_difference
+
+    eye = Eye.parse((args.lateral, args.vertical, args.distance), "--distance")
+    output = check_output_file(args.output, "profile", example="profile-900mm.json")
+    profile = load_profile(args.profile, "PROFILE")
+    new = retarget_profile(profile, eye, source=args.profile)
+    save_profile(new, output)
+    if args.json:
+        print(new.to_json(), end="")
+        return 0
+    old = calibration_eye(profile)
+    unc = new.uncertainty or {}
+    print(f"from the eye at ({old.x:+.1f}, {old.y:+.1f}, {old.distance:.1f}) mm to ({eye.x:+.1f}, {eye.y:+.1f}, "
+          f"{eye.distance:.1f}) mm:")
+    for name in ("period", "offset"):
+        sigma = f" +- {unc[name]:.2g}" if name in unc else ""
+        print(f"{name:>8}  {format_constant(name, getattr(profile, name))} -> "
+              f"{format_constant(name, getattr(new, name))}{sigma} subpixels")
+    print(f"the routing moves by up to {routing_difference(profile, new):.2f} views on the panel")
+    print(f"wrote {output}")
     return 0

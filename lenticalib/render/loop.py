@@ -163,6 +163,7 @@ class AvatarPipeline:
         self.edge_desaturation = float(edge_desaturation)
         self.compensator = compensator  # crosstalk pre-compensation (render.compensation), part of compose
         self._torch_encoder = None
+        self._retargeter = None  # built on the first set_eye (a tracked viewer)
         view_aspect, panel_aspect = cameras.width / cameras.height, profile.width / profile.height
         if abs(view_aspect / panel_aspect - 1.0) > ASPECT_TOLERANCE:  # checked now, not after the first render
             raise InputError(f"views of {cameras.width}x{cameras.height} (aspect {view_aspect:.3f}) do not fit the "
@@ -217,6 +218,24 @@ class AvatarPipeline:
             raster = self.encode_fn(views, self.profile)
         t3 = time.perf_counter()
         return raster, views, {"drive": 1e3 * (t1 - t0), "render": 1e3 * (t2 - t1), "compose": 1e3 * (t3 - t2)}
+
+    def set_eye(self, eye) -> bool:
+        """Route the next frames for a tracked viewer's eye ``(x, y, D)`` mm (panel-centred: x right,
+        y down, D in front of the panel surface): the session profile retargeted
+        (:class:`lenticalib.retarget.Retargeter`; needs its physical block).  Returns True when the
+        routing changed by more than the retargeter's tolerance (0.01 view), when the encoder's
+        per-profile tables are rebuilt on the next frame; False when the current routing stands.
+        """
+        from ..retarget import Retargeter
+
+        if self._retargeter is None:
+            self._retargeter = Retargeter(self.profile)
+        new = self._retargeter.profile_for(eye)
+        if new is self.profile:
+            return False
+        self.profile = new
+        self._torch_encoder = None
+        return True
 
     def _gpu_encoder(self):
         if self._torch_encoder is None:
