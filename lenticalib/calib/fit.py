@@ -25,14 +25,16 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from ..errors import CalibrationError, CaptureError
+from ..errors import CalibrationError, CaptureError, InputError
+from ..imageio import read_image
 from ..profile import PanelProfile, make_provenance
 from . import model, phase, photometric
-from .camera import estimate_camera, load_camera_model
+from .camera import describe_pose, estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
 from .groups import Group, Registration, demodulate_group, group_photos
 from .patterns import FINE_PERIODS, PERIOD_RANGE
+from .pose import PanelPose, camera_pose
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
 ProgressFn = Callable[[str], None]
@@ -60,6 +62,7 @@ class FitResult:
     seconds: float
     warnings: list[str] = dataclasses.field(default_factory=list)
     direction: dict | None = None  # evidence of --moved-right (calib/direction.py), when given
+    pose: PanelPose | None = None  # the camera's pose in mm (a camera model and the pixel pitch given)
 
 
 def _correct_photometry(groups: dict[str, "Group"], mask: np.ndarray) -> dict[str, bool]:
@@ -130,18 +133,21 @@ def _modulation_weight(group: Group, mask: np.ndarray) -> np.ndarray:
 
 
 def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
-                    camera_model: str | os.PathLike | None = None,
+                    camera_model: str | os.PathLike | None = None, pixel_pitch_mm: float | None = None,
                     progress: ProgressFn | None = None) -> FitResult:
     """Fit the panel profile from the capture set in ``directory``; see the module docstring.
 
     Raises CaptureError for unusable photos and CalibrationError when no plane fits.  A fit
     that converges but fails a quality gate is returned with ``trusted=False`` and the
-    reasons in ``problems``.
+    reasons in ``problems``.  With ``camera_model`` and ``pixel_pitch_mm`` the result carries the
+    camera's pose in mm (``pose``, distances to the pixel plane: :mod:`.pose`).
     """
     start = time.perf_counter()
     given_camera = load_camera_model(camera_model) if camera_model else None
     capture = open_capture_set(directory)
     ps = capture.patterns
+    if given_camera is not None:
+        _check_camera_size(given_camera, capture)
     n_views = views or ps.views
     groups: dict[str, Group] = {}
     shape = None
@@ -223,7 +229,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration)
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
 
-    camera = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera)
+    camera, pose = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera, pixel_pitch_mm)
     reg_var = registration_variance(groups, registration.shifts, x_sm, y_sm, valid, fit, used)
     quality, cov = quality_and_covariance(fit, samples, final_weights, cov, ps, n_views, reg_var)
     constants, sigmas = constants_with_uncertainty(fit, cov)
@@ -267,7 +273,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     maps = {"block_residual_map": block_map, "mask": mask, "x": x_sm, "y": y_sm, "valid": valid, "fit": fit,
             "dc": groups["y1"].dc, "samples": samples, "weights": final_weights,
             "fine_z": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
-    return FitResult(profile, not problems, problems, quality, maps, seconds, warnings)
+    return FitResult(profile, not problems, problems, quality, maps, seconds, warnings, pose=pose)
 
 
 def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
@@ -344,15 +350,31 @@ def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:
         check_photo_steps(g, pred, valid, capture, "(checked against the fitted panel model)")
 
 
-def _camera(photo: Photo, x_sm, y_sm, valid, ps, given) -> dict:
-    """Camera estimate from ~2500 correspondences on a grid over the measured panel."""
+def _check_camera_size(model, capture) -> None:
+    """InputError before the fit when the camera model was calibrated at another image size."""
+    if model.image_size is None:
+        return
+    first = capture.photo(capture.patterns.names[0])
+    h, w = read_image(first, camera_orientation=True).shape[:2]
+    if (w, h) != tuple(model.image_size):
+        raise InputError(f"the camera model is for {model.image_size[0]}x{model.image_size[1]} images, the photos are "
+                         f"{w}x{h}", source=str(model.source),
+                         hint="use the model of the camera (and resolution) that took these photos; do not resize "
+                              "the photos")
 
+
+def _camera(photo: Photo, x_sm, y_sm, valid, ps, given, pixel_pitch_mm) -> tuple[dict, PanelPose | None]:
+    """Camera estimate from ~2500 correspondences on a grid over the measured panel; with a
+    camera model, the pose from ~20000 (and in mm with the pixel pitch)."""
     rows, cols = np.nonzero(valid)
-    step = max(1, rows.size // 2500)
+    step = max(1, rows.size // (20000 if given is not None else 2500))
     rows, cols = rows[::step], cols[::step]
     pixels = np.column_stack([(cols + 0.5) / photo.scale - 0.5, (rows + 0.5) / photo.scale - 0.5])
     panel = np.column_stack([x_sm[rows, cols] / 3.0 - ps.width / 2.0, y_sm[rows, cols] - ps.height / 2.0])
+    if given is not None:  # the user asked for a metric pose: a failure is an error, not a note
+        pose = camera_pose(pixels, panel, given, pixel_pitch_mm or 1.0)
+        return describe_pose(pose, given, pixel_pitch_mm), pose if pixel_pitch_mm else None
     try:
-        return estimate_camera(pixels, panel, (photo.shape[1], photo.shape[0]), given)
+        return estimate_camera(pixels, panel, (photo.shape[1], photo.shape[0])), None
     except (cv2.error, np.linalg.LinAlgError, ValueError) as exc:  # informative only: never fail the fit
-        return {"source": "not estimated", "reason": str(exc).strip().splitlines()[-1][:200]}
+        return {"source": "not estimated", "reason": str(exc).strip().splitlines()[-1][:200]}, None

@@ -1,0 +1,201 @@
+"""A calibrated camera from a file: mrcal ``.cameramodel`` (read by mrcal) or OpenCV YAML/JSON.
+
+:class:`CameraModel` turns photo pixels into normalised camera rays for any lens model mrcal
+knows (OPENCV4/5/8/12, splined, CAHVOR, ...), and, when the file carries mrcal's
+``optimization_inputs`` (every model ``lenticalib camera calibrate`` writes does), draws
+intrinsics from the calibration's own uncertainty so that poses computed with the model carry
+the camera's uncertainty (:meth:`CameraModel.intrinsics_draws`).
+
+Frames and units: photo pixels in the OpenCV/mrcal convention ((0, 0) is the centre of the
+top-left pixel); the camera frame is x right, y down, z along the optical axis; normalised
+coordinates are (x/z, y/z).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BackendUnavailableError, InputError
+
+MRCAL_INSTALL = "pip install --no-deps mrcal==2.5.2.post1 (see the README's set-up command)"
+HINT = ("give an mrcal .cameramodel ('lenticalib camera calibrate' writes one) or OpenCV YAML/JSON with "
+        "camera_matrix and distortion")
+
+
+@dataclasses.dataclass
+class CameraModel:
+    """A camera's lens model and intrinsics.
+
+    ``lensmodel``: mrcal's name (``LENSMODEL_OPENCV5``, ...); OpenCV files become
+    ``LENSMODEL_OPENCV4/5/8/12`` with the same coefficient order as mrcal's.  ``intrinsics``:
+    (Nparams,) float64, ``fx fy cx cy`` then the distortion.  ``image_size`` (w, h) pixels or None.
+    ``optimization_inputs``: mrcal's, when the file has them (for :meth:`intrinsics_draws`).
+    """
+
+    lensmodel: str
+    intrinsics: np.ndarray
+    image_size: tuple[int, int] | None = None
+    source: str | None = None
+    optimization_inputs: dict | None = None
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(3, 3) pinhole matrix of the core (fx, fy, cx, cy), pixels."""
+        fx, fy, cx, cy = self.intrinsics[:4]
+        return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def distortion(self) -> np.ndarray:
+        """OpenCV distortion coefficients (k1 k2 p1 p2 [k3 ...]) of an OPENCV/PINHOLE model."""
+        if not (self.lensmodel.startswith("LENSMODEL_OPENCV") or self.lensmodel == "LENSMODEL_PINHOLE"):
+            raise InputError(f"lens model {self.lensmodel} has no OpenCV distortion vector", source=self.source)
+        return self.intrinsics[4:].copy() if self.intrinsics.size > 4 else np.zeros(4)
+
+    def normalized(self, pixels: np.ndarray, intrinsics: np.ndarray | None = None) -> np.ndarray:
+        """Photo pixels (n, 2) -> normalised coordinates (n, 2) (x/z, y/z), with ``intrinsics``
+        (default: the model's) -- mrcal for every lens model, OpenCV's iterative undistortion
+        when mrcal is absent and the model is an OpenCV one."""
+        q = np.ascontiguousarray(pixels, np.float64).reshape(-1, 2)
+        params = self.intrinsics if intrinsics is None else np.asarray(intrinsics, np.float64)
+        try:
+            import mrcal
+        except ImportError:
+            mrcal = None
+        if mrcal is not None:
+            v = mrcal.unproject(q, self.lensmodel, params)
+            return v[:, :2] / v[:, 2:3]
+        import cv2
+
+        fx, fy, cx, cy = params[:4]
+        matrix = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+        out = cv2.undistortPointsIter(q.reshape(-1, 1, 2), matrix, params[4:] if params.size > 4 else None, None,
+                                      None, (3, 100, 1e-12))
+        return out.reshape(-1, 2)
+
+    def intrinsics_draws(self, count: int, seed: int = 0) -> np.ndarray | None:
+        """(count, Nparams) intrinsics drawn from the calibration's Gaussian uncertainty, or None
+        when the file has no ``optimization_inputs`` (an OpenCV file: uncertainty unknown).
+
+        Var(b) = sigma^2 D inv(J*^T J*) D over the optimised intrinsics (mrcal's packed state b*,
+        unpacking scale D), sigma the RMS of the board residuals -- the observation noise mrcal
+        itself estimates.  Parameters the calibration held fixed (a splined model's core) stay.
+        """
+        oi = self.optimization_inputs
+        if oi is None:
+            return None
+        import mrcal
+
+        _, x, _, factorization = mrcal.optimizer_callback(**oi)
+        if factorization is None:
+            return None
+        n_state = mrcal.num_states_intrinsics(**oi)
+        first = mrcal.state_index_intrinsics(0, **oi)
+        n_total = mrcal.num_states(**oi)
+        if first is None or n_state == 0:
+            return None
+        rows = np.zeros((n_state, n_total))
+        rows[np.arange(n_state), first + np.arange(n_state)] = 1.0
+        inverse = factorization.solve_xt_JtJ_bt(rows)[:, first:first + n_state]
+        ones = np.ones(n_total)
+        scale = _unpack_scale(ones, oi)[first:first + n_state]
+        residuals = mrcal.measurements_board(oi, x=x).ravel()
+        sigma = float(np.sqrt(np.mean(residuals ** 2))) if residuals.size else 0.0
+        cov = sigma ** 2 * (scale[:, None] * inverse * scale[None, :])
+        cov = 0.5 * (cov + cov.T)
+        w, v = np.linalg.eigh(cov)
+        root = v * np.sqrt(np.clip(w, 0.0, None))
+        rng = np.random.default_rng(seed)
+        draws = np.repeat(self.intrinsics[None], count, axis=0)
+        offset = self.intrinsics.size - n_state  # a fixed core comes first
+        draws[:, offset:] += rng.standard_normal((count, n_state)) @ root.T
+        return draws
+
+
+def _unpack_scale(packed: np.ndarray, oi: dict) -> np.ndarray:
+    """mrcal's packed (unitless) state -> real units, on a copy (mrcal scales in place)."""
+    import mrcal
+
+    out = packed.copy()
+    mrcal.unpack_state(out, **oi)
+    return out
+
+
+def load_camera_model(path: str | os.PathLike) -> CameraModel:
+    """Read a camera model: ``.cameramodel`` by mrcal (every lens model it knows; no other parser),
+    ``.yaml/.yml/.xml`` by ``cv2.FileStorage``, anything else as JSON
+    (``camera_matrix``, ``distortion``, optional ``image_size``).  Every failure is one
+    InputError naming the file; a missing mrcal is a BackendUnavailableError saying how to install it.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("camera model not found", source=str(path), hint="give an existing .cameramodel or .yaml")
+    try:
+        if path.suffix == ".cameramodel":
+            return _from_mrcal(path)
+        if path.suffix in (".yaml", ".yml", ".xml"):
+            return _from_opencv_storage(path)
+        data = json.loads(path.read_text(errors="replace"))
+        matrix = np.asarray(data["camera_matrix"], float).reshape(3, 3)
+        dist = np.asarray(data.get("distortion", [0, 0, 0, 0]), float).ravel()
+        return _opencv_model(matrix, dist, tuple(data["image_size"]) if "image_size" in data else None, path)
+    except (InputError, BackendUnavailableError):
+        raise
+    except Exception as exc:  # any parse failure of a user file is a user error
+        reason = str(exc).strip().splitlines()[-1][:160] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read the camera model ({reason})", source=str(path), hint=HINT) from None
+
+
+def _from_mrcal(path: Path) -> CameraModel:
+    try:
+        import mrcal
+    except ImportError:
+        raise BackendUnavailableError("reading a .cameramodel needs mrcal, which is not installed", source=str(path),
+                                      hint=MRCAL_INSTALL) from None
+    model = mrcal.cameramodel(str(path))
+    lensmodel, intrinsics = model.intrinsics()
+    size = model.imagersize()
+    try:
+        oi = model.optimization_inputs()
+    except Exception:  # a model without (or with unusable) optimization inputs is still a model
+        oi = None
+    return CameraModel(lensmodel, np.asarray(intrinsics, np.float64).copy(),
+                       None if size is None else (int(size[0]), int(size[1])), str(path), oi)
+
+
+def _opencv_model(matrix: np.ndarray, dist: np.ndarray, size, path: Path) -> CameraModel:
+    """An OpenCV matrix + distortion as the mrcal lens model with the same coefficients."""
+    if matrix[0, 1] != 0 or matrix[1, 0] != 0 or matrix[2, 0] != 0 or matrix[2, 1] != 0:
+        raise InputError("the camera matrix has skew, which no lens model here supports", source=str(path))
+    counts = {0: 4, 4: 4, 5: 5, 8: 8, 12: 12}
+    if dist.size not in counts:
+        raise InputError(f"{dist.size} distortion coefficients", source=str(path),
+                         hint="give 4, 5, 8 or 12 OpenCV coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4]]])")
+    n = counts[dist.size]
+    full = np.zeros(n)
+    full[:dist.size] = dist
+    intrinsics = np.concatenate([[matrix[0, 0], matrix[1, 1], matrix[0, 2], matrix[1, 2]], full])
+    return CameraModel(f"LENSMODEL_OPENCV{n}", intrinsics, size, str(path))
+
+
+def _from_opencv_storage(path: Path) -> CameraModel:
+    import cv2
+
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        matrix = fs.getNode("camera_matrix").mat()
+        dist = fs.getNode("distortion_coefficients").mat()
+        if dist is None:
+            dist = fs.getNode("distortion").mat()
+        width, height = fs.getNode("image_width").real(), fs.getNode("image_height").real()
+    finally:
+        fs.release()
+    if matrix is None:
+        raise InputError("has no camera_matrix", source=str(path), hint="write it with cv2.FileStorage")
+    size = (int(width), int(height)) if width > 0 and height > 0 else None
+    return _opencv_model(np.asarray(matrix, float), np.zeros(4) if dist is None else np.asarray(dist, float).ravel(),
+                         size, path)

@@ -1,0 +1,146 @@
+"""The fit in millimetres: camera pose, gap from two distances, physical constants, retargeting.
+
+One virtual panel photographed by one camera (fixed intrinsics, the simulator's OpenCV model
+written as an mrcal .cameramodel) from 600 and 850 mm; both sets fitted through the CLI
+(``lenticalib fit --camera --pixel-pitch --second-distance``).  Checked against the scene's
+truth: the camera's distance (and the lens-sheet magnification's share of it), the gap, lens
+pitch, lens position, and the retargeted profile at 400-900 mm against the ray-traced routing.
+"""
+
+import dataclasses
+import json
+import shutil
+import types
+
+import numpy as np
+import pytest
+
+from lenticalib.calib.patterns import design_patterns, write_patterns
+from lenticalib.cli import main
+from lenticalib.profile import load_profile
+from lenticalib.retarget import retarget_profile
+from lenticalib.sim.capture import simulate_capture_set
+from lenticalib.sim.optics import view_coordinate_truth
+from lenticalib.sim.scene import random_scene
+
+DISTANCES = (600.0, 850.0)
+
+
+def _true_model(camera, path):
+    import mrcal
+
+    intrinsics = np.array([camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion])
+    mrcal.cameramodel(intrinsics=("LENSMODEL_OPENCV5", intrinsics), imagersize=(camera.width, camera.height)).write(
+        str(path))
+    return path
+
+
+def simulate_two_distances(root, seed=7, distances=DISTANCES):
+    """Two capture sets of one panel, one camera (same intrinsics) at two distances."""
+    patterns = root / "patterns"
+    write_patterns(patterns, design_patterns(1920, 1080, 32))
+    scene = random_scene(seed, width=1920, height=1080, resolution=(1500, 1000), distance=distances[0],
+                         jpeg_quality=90)
+    sets = []
+    for distance in distances:
+        cam = scene.camera
+        moved = dataclasses.replace(scene, camera=cam.replace(position=(cam.position[0], cam.position[1], -distance)))
+        folder = root / f"set-{distance:.0f}"
+        shutil.copytree(patterns, folder)
+        simulate_capture_set(folder, moved)
+        sets.append((folder, moved))
+    return scene, sets
+
+
+@pytest.fixture(scope="module")
+def two_distances(tmp_path_factory):
+    root = tmp_path_factory.mktemp("two-distances")
+    scene, sets = simulate_two_distances(root)
+    model = _true_model(scene.camera, root / "camera.cameramodel")
+    out = root / "out"
+    out.mkdir()
+    code = main(["fit", str(sets[0][0]), "-o", str(out / "profile.json"), "--camera", str(model), "--pixel-pitch",
+                 str(scene.optics.pixel_pitch), "--second-distance", str(sets[1][0]), "--json"])
+    assert code == 0
+    summary = json.loads((out / "profile-report" / "summary.json").read_text())
+    return types.SimpleNamespace(scene=scene, sets=sets, profile=load_profile(out / "profile.json"),
+                                 summary=summary, root=root, model=model)
+
+
+def _w_error(profile, optics, eye):
+    n = profile.views
+    ys = np.linspace(0, optics.height - 1, 50).astype(int)
+    xs = np.linspace(0, 3 * optics.width - 1, 240).astype(int)
+    yy, xx = np.meshgrid(ys, xs, indexing="ij")
+    w = profile.reference_view + (3 * profile.slant * yy + profile.offset - xx) * n / profile.period
+    return np.mod(w - view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n) + n / 2, n) - n / 2
+
+
+def test_the_camera_distance_is_right_and_refers_to_the_lens_surface(two_distances):
+    t = two_distances
+    optics, camera = t.scene.optics, t.sets[0][1].camera
+    true_eye = np.array([camera.position[0], camera.position[1], -camera.position[2]])
+    block = t.profile.physical
+    eye, sigma = np.array(block["eye_mm"]), np.array(block["uncertainty"]["eye_mm"])
+    assert abs(eye[2] - true_eye[2]) / true_eye[2] < 0.01  # the acceptance: within 1 %
+    assert np.all(np.abs(eye - true_eye) < 3 * sigma)  # and within its own 3 sigma
+    assert np.all(sigma < [1.0, 1.0, 1.0])  # an exactly known camera: sub-millimetre
+    # the lens-sheet magnification: read as distance it would put the camera g too far, which
+    # is many sigma here (g / D = 0.4 %) -- this check fails without the correction
+    pixel_plane = t.summary["quality"]["physical"]["pixel_plane_distance_mm"]
+    assert abs(pixel_plane - true_eye[2]) > 5 * sigma[2]
+    assert pixel_plane == pytest.approx(true_eye[2] + optics.gap, abs=3 * sigma[2])
+
+
+def test_the_gap_and_the_lens_sheet_come_out_of_two_distances(two_distances):
+    t = two_distances
+    optics = t.scene.optics
+    block = t.profile.physical
+    unc = block["uncertainty"]
+    assert abs(block["gap_mm"] / optics.gap - 1) < 0.02  # the acceptance: within 2 %
+    assert abs(block["gap_mm"] - optics.gap) < 3 * unc["gap_mm"]
+    assert abs(block["lens_pitch_mm"] - optics.lens_pitch) < max(3 * unc["lens_pitch_mm"], 1e-5 * optics.lens_pitch)
+    assert block["slant_angle_deg"] == pytest.approx(np.degrees(optics.slant_angle), abs=3 * unc["slant_angle_deg"])
+    lens_error = (block["lens_position_mm"] - optics.x0 + optics.lens_pitch / 2) % optics.lens_pitch \
+        - optics.lens_pitch / 2
+    assert abs(lens_error) < 0.002 * optics.lens_pitch
+
+
+@pytest.mark.parametrize("distance, lateral", [(400.0, 0.0), (500.0, 40.0), (750.0, -60.0), (900.0, 0.0)])
+def test_the_retargeted_profile_meets_the_target(two_distances, distance, lateral):
+    t = two_distances
+    optics = t.scene.optics
+    moved = retarget_profile(t.profile, (lateral, 0.0, distance))
+    error = _w_error(moved, optics, (lateral, 0.0, -distance))
+    assert np.sqrt(np.mean(error ** 2)) < 0.05 and np.abs(error).max() < 0.15
+    # the profile as fitted would be wrong there by views
+    assert np.abs(_w_error(t.profile, optics, (lateral, 0.0, -distance))).max() > 1.0
+
+
+def test_without_the_gap_the_profile_says_why(two_distances, tmp_path, capsys):
+    t = two_distances
+    code = main(["fit", str(t.sets[1][0]), "-o", str(tmp_path / "p.json"), "--camera", str(t.model),
+                 "--pixel-pitch", str(t.scene.optics.pixel_pitch)])
+    out = capsys.readouterr().out
+    assert code == 0 and "gap unknown" in out
+    block = load_profile(tmp_path / "p.json").physical
+    assert "gap_mm" not in block and "eye_mm" not in block and block["pixel_pitch_mm"] > 0
+    code = main(["profile", "retarget", str(tmp_path / "p.json"), "--distance", "700", "-o", str(tmp_path / "q.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "gap" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--pixel-pitch", "0.2"], "needs a camera model"),
+    (["--camera", "{model}"], "--pixel-pitch"),
+    (["--camera", "{model}", "--pixel-pitch", "9"], "out of range"),
+    (["--camera", "{model}", "--pixel-pitch", "0.3", "--second-distance", "{set0}"], "same capture set"),
+    (["--camera", "{model}", "--pixel-pitch", "0.3", "--gap", "1", "--second-distance", "{set1}"], "one way"),
+])
+def test_physical_options_are_checked_before_the_fit(two_distances, tmp_path, capsys, argv, words):
+    t = two_distances
+    names = {"model": str(t.model), "set0": str(t.sets[0][0]), "set1": str(t.sets[1][0])}
+    code = main(["fit", str(t.sets[0][0]), "-o", str(tmp_path / "p.json")] + [a.format(**names) for a in argv])
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and err.count("\n") == 1
+    assert not (tmp_path / "p.json").exists()
