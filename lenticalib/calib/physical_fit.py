@@ -153,8 +153,9 @@ def add_physical(result, pixel_pitch: float, *, second=None, gap: float | None =
         other = (second.profile, second.pose)
     block, report = physical_block(result.profile, result.pose, pixel_pitch, second=other, gap=gap)
     if second is not None:
+        pose2 = second.pose.with_gap(block["gap_mm"]) if block.get("gap_mm") else second.pose
         report.update({"second_set": str(second_directory), "second_trusted": bool(second.trusted),
-                       "second_pose": second.pose.to_dict()})
+                       "second_pose": pose2.to_dict()})
     if block.get("gap_mm"):
         result.pose = result.pose.with_gap(block["gap_mm"])
         result.quality["camera"]["pose"] = result.pose.to_dict()
