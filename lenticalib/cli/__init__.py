@@ -22,6 +22,8 @@ _COMMANDS = {
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
     "capture": ("lenticalib.cli.capture", "show each calibration pattern on the panel and photograph it"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
+    "camera": ("lenticalib.cli.camera", "calibrate the camera's lens (mrcal): chessboard patterns, calibrate, "
+               "simulate"),
     "crosstalk": ("lenticalib.cli.crosstalk", "verify per-view crosstalk: patterns from a profile, measure from "
                   "photos, check against limits"),
     "show": ("lenticalib.cli.show", "show an image, a pattern set or a folder on the panel, pixel-exact"),

@@ -1,0 +1,21 @@
+"""Camera intrinsics: calibrating the camera that photographs the panel, with mrcal.
+
+A chessboard is shown on the panel (or printed), photographed 15-30 times from varied, tilted
+views, its corners found in every photo, and one camera model solved with mrcal together with
+every board pose.  Modules, in the order ``lenticalib camera`` uses them:
+
+    board     the chessboard: geometry, design (panel or printed), ``board.json``
+    draw      the panel raster and the printable sheet (PDF, 300 dpi PNG)
+    corners   corner detection (OpenCV's findChessboardCornersSB), in parallel over photos
+    solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
+    quality   residuals, noise, coverage and projection uncertainty of a solve; truth comparison
+    report    the figures (residuals.png, coverage.png, uncertainty.png) and summary.json
+
+Frames and units.  Camera pixels: OpenCV's and mrcal's convention, (0, 0) is the centre of the
+top-left pixel.  Board frame (mm): origin at inner corner (0, 0), x along a row of corners (to the
+right as the board is drawn), y down the columns, z into the board; corner (i, j) (row i, column
+j) is at ``(j s, i s, 0)``, s the square size.  For a board shown on a panel the corners lie in
+the panel's pixel plane, so board poses refer to that plane (``docs/camera.md``).
+
+mrcal is imported only by ``solve`` and ``quality`` (and the simulator's truth model).
+"""

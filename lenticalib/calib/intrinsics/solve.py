@@ -1,0 +1,333 @@
+"""The mrcal solve of one camera: a stationary camera, a moving board, one frame per photo.
+
+Procedure (after mrcal's own ``mrcal-calibrate-cameras``):
+
+1. observations ``(Nframes, rows, cols, 3)``: (x, y, weight 1); the camera is the reference
+   (extrinsics index -1), so every frame pose is ``rt_cam_board``.
+2. a focal-length estimate from the board homographies (``cv2.initCameraMatrix2D``), then
+   ``mrcal.seed_stereographic``; pre-solves with ``LENSMODEL_STEREOGRAPHIC``: the geometry only, then
+   the geometry and the core (fx, fy, cx, cy).
+3. each candidate lens model: the stereographic core expanded with (near-)zero distortions,
+   optimised with outlier rejection and regularisation, then once more with the board's warp
+   (``calobject_warp``) free.  For a splined model the core stays at the pre-solve's value (the
+   spline absorbs it), as mrcal does.
+4. the lens model, chosen by the data (:func:`choose`): ``LENSMODEL_OPENCV8`` always;
+   ``LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=..._fov_x_deg=...`` (the field of view from
+   the OPENCV8 solution, 10 % wider) too when there are at least ``SPLINE_MIN_FRAMES`` frames and
+   the corners cover at least ``SPLINE_MIN_COVERAGE`` of the image (cells of an 8 x 6 grid).
+   The splined model is kept only when it lowers the Bayesian information criterion
+   ``BIC = n ln(RSS / n) + k ln(n)`` over the corners that both solves kept (n measurements,
+   k free intrinsics, the shared board poses cancel): it must explain the residuals so much
+   better that it pays for its hundreds of parameters.  ``lensmodel=`` forces one model.
+
+Output: an ``mrcal.cameramodel`` holding its optimisation inputs (so mrcal's tools can show
+its residuals and uncertainty), written by mrcal with a note of how it was made, atomically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import os
+import re
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ...errors import BackendUnavailableError, CalibrationError, InputError
+
+OPENCV8 = "LENSMODEL_OPENCV8"
+SPLINE_KNOTS_X = 12
+SPLINE_MIN_FRAMES = 20
+SPLINE_MIN_COVERAGE = 0.7
+COVERAGE_GRID = (8, 6)
+LENSMODEL_PATTERNS = (r"LENSMODEL_(PINHOLE|STEREOGRAPHIC|OPENCV4|OPENCV5|OPENCV8|OPENCV12)",
+                      r"LENSMODEL_SPLINED_STEREOGRAPHIC_order=[23]_Nx=\d+_Ny=\d+_fov_x_deg=\d+(\.\d+)?")
+
+
+def import_mrcal():
+    """The ``mrcal`` module, or a one-line BackendUnavailableError saying how to get it."""
+    try:
+        import mrcal
+    except ImportError as exc:
+        from ..camera_file import MRCAL_INSTALL
+
+        raise BackendUnavailableError(f"calibrating a camera needs mrcal, which is not available ({exc})",
+                                      source="mrcal", hint=MRCAL_INSTALL) from None
+    return mrcal
+
+
+def check_lensmodel(name: str) -> str:
+    """``name`` if it is a lens model this calibration can fit; InputError naming ``--lensmodel`` otherwise."""
+    if not any(re.fullmatch(p, name or "") for p in LENSMODEL_PATTERNS):
+        raise InputError(f"unknown lens model {name!r}", source="--lensmodel",
+                         hint="use LENSMODEL_OPENCV8, LENSMODEL_OPENCV5, LENSMODEL_OPENCV4, LENSMODEL_PINHOLE, "
+                              "LENSMODEL_STEREOGRAPHIC or "
+                              "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=9_fov_x_deg=70")
+    return name
+
+
+@contextlib.contextmanager
+def _quiet_c_stderr():
+    """Hold back what mrcal's C code prints on stderr during a solve ("Threw out some outliers ...":
+    the outliers are counted and reported by us)."""
+    import sys
+
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, ValueError, OSError):  # a replaced sys.stderr (tests): nothing to redirect
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(fd)
+    try:
+        with tempfile.TemporaryFile() as sink:
+            os.dup2(sink.fileno(), fd)
+            try:
+                yield
+            finally:
+                os.dup2(saved, fd)
+    finally:
+        os.close(saved)
+
+
+def _optimize(mrcal, **inputs) -> dict:
+    with _quiet_c_stderr():
+        return mrcal.optimize(**inputs)
+
+
+@dataclasses.dataclass
+class Solve:
+    """One lens model's solve: its ``optimization_inputs`` (mrcal's dict, solved in place) and the
+    ``residuals`` float64 ``(Nframes, rows, cols, 2)`` px (projected - observed, every corner, outliers
+    included), ``inlier`` bool ``(Nframes, rows, cols)``."""
+
+    lensmodel: str
+    optimization_inputs: dict
+    residuals: np.ndarray
+    inlier: np.ndarray
+    seconds: float
+
+    @property
+    def rms(self) -> float:
+        """RMS of the inlier residuals per coordinate (px), as mrcal reports it."""
+        r = self.residuals[self.inlier]
+        return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+    @property
+    def n_intrinsics(self) -> int:
+        """Free intrinsics: the core (unless locked) plus the distortion parameters."""
+        oi = self.optimization_inputs
+        n = oi["intrinsics"].shape[-1]
+        return n if oi.get("do_optimize_intrinsics_core", True) else n - 4
+
+
+@dataclasses.dataclass
+class Calibration:
+    """The chosen solve (``solve``), every candidate tried (``candidates``: dicts of lensmodel, rms,
+    outliers, free intrinsics, BIC), why the model was chosen (``choice``) and the seconds taken."""
+
+    solve: Solve
+    candidates: list[dict]
+    choice: str
+    seconds: float
+
+    @property
+    def lensmodel(self) -> str:
+        return self.solve.lensmodel
+
+    def cameramodel(self):
+        """The ``mrcal.cameramodel`` of the chosen solve (camera 0, with its optimisation inputs)."""
+        mrcal = import_mrcal()
+        return mrcal.cameramodel(optimization_inputs=self.solve.optimization_inputs, icam_intrinsics=0)
+
+
+def board_residuals(optimization_inputs: dict) -> np.ndarray:
+    """Projected minus observed corners of every board observation, float64 ``(Nframes, rows, cols, 2)``
+    pixels, computed afresh (outliers included, so two solves can be compared on the same corners)."""
+    mrcal = import_mrcal()
+    oi = optimization_inputs
+    obs = oi["observations_board"]
+    rows, cols = obs.shape[1:3]
+    points = mrcal.ref_calibration_object(cols, rows, oi["calibration_object_spacing"],
+                                          calobject_warp=oi.get("calobject_warp"))
+    frames = oi["rt_ref_frame"][oi["indices_frame_camintrinsics_camextrinsics"][:, 0]]
+    p_cam = mrcal.transform_point_rt(frames[:, None, None, :], points)
+    q = mrcal.project(p_cam, oi["lensmodel"], oi["intrinsics"][0])
+    return q - obs[..., :2]
+
+
+def coverage(observations: np.ndarray, imagersize: tuple[int, int], grid=COVERAGE_GRID) -> float:
+    """Share of the cells of a ``grid`` (nx, ny) over the image holding at least one observed corner."""
+    w, h = imagersize
+    q = observations.reshape(-1, observations.shape[-1])[:, :2]
+    cx = np.clip((q[:, 0] + 0.5) / w * grid[0], 0, grid[0] - 1).astype(int)
+    cy = np.clip((q[:, 1] + 0.5) / h * grid[1], 0, grid[1] - 1).astype(int)
+    return len(set(zip(cx.tolist(), cy.tolist()))) / (grid[0] * grid[1])
+
+
+def _focal_estimate(corners: np.ndarray, board, imagersize) -> float:
+    import cv2
+
+    obj = board.object_points().reshape(-1, 3).astype(np.float32)
+    try:
+        k = cv2.initCameraMatrix2D([obj] * len(corners), [c.reshape(-1, 1, 2).astype(np.float32) for c in corners],
+                                   tuple(int(v) for v in imagersize))
+        f = 0.5 * (k[0, 0] + k[1, 1])
+    except cv2.error:
+        f = float("nan")
+    w = imagersize[0]
+    return float(f) if math.isfinite(f) and 0.2 * w < f < 20 * w else float(w)
+
+
+def _seed(mrcal, observations, indices, imagersizes, spacing, focal):
+    """Stereographic seed and its two pre-solves (geometry; geometry + core)."""
+    intrinsics, rt_cam_ref, rt_ref_frame = mrcal.seed_stereographic(
+        imagersizes=imagersizes, focal_estimate=focal, indices_frame_camera=indices[:, :2],
+        observations=observations, object_spacing=spacing)
+    common = dict(intrinsics=intrinsics, rt_cam_ref=rt_cam_ref, rt_ref_frame=rt_ref_frame,
+                  observations_board=observations, indices_frame_camintrinsics_camextrinsics=indices,
+                  lensmodel="LENSMODEL_STEREOGRAPHIC", imagersizes=imagersizes,
+                  do_optimize_intrinsics_distortions=False, do_optimize_calobject_warp=False,
+                  calibration_object_spacing=spacing, do_apply_outlier_rejection=False,
+                  do_apply_regularization=False, verbose=False)
+    _optimize(mrcal, **common, do_optimize_intrinsics_core=False)
+    _optimize(mrcal, **common, do_optimize_intrinsics_core=True)
+    return intrinsics, rt_ref_frame
+
+
+def _solve_model(mrcal, lensmodel, seed, observations, indices, imagersizes, spacing) -> Solve:
+    start = time.perf_counter()
+    core, rt_ref_frame = seed
+    n_new = mrcal.lensmodel_num_params(lensmodel) - core.shape[-1]
+    rng = np.random.default_rng(0)  # mrcal breaks exact symmetry with tiny random distortions
+    extra = (rng.random((1, n_new)) - 0.5) * 2e-6
+    if re.search(r"OPENCV(8|12)", lensmodel):
+        extra[:, 5:8] *= 1e-3  # the rational denominator starts at ~0 (see mrcal-calibrate-cameras)
+    splined = lensmodel.startswith("LENSMODEL_SPLINED_STEREOGRAPHIC")
+    oi = dict(intrinsics=np.concatenate([core.copy(), extra], axis=-1), rt_cam_ref=np.zeros((0, 6)),
+              rt_ref_frame=rt_ref_frame.copy(), points=None, observations_board=observations.copy(),
+              indices_frame_camintrinsics_camextrinsics=indices, observations_point=None,
+              indices_point_camintrinsics_camextrinsics=None, lensmodel=lensmodel, imagersizes=imagersizes,
+              calobject_warp=None, do_optimize_intrinsics_core=not splined,
+              do_optimize_intrinsics_distortions=lensmodel not in ("LENSMODEL_PINHOLE", "LENSMODEL_STEREOGRAPHIC"),
+              do_optimize_extrinsics=False, do_optimize_frames=True, do_optimize_calobject_warp=False,
+              calibration_object_spacing=spacing, do_apply_outlier_rejection=True,
+              do_apply_regularization=True, verbose=False)
+    _optimize(mrcal, **oi)
+    oi["calobject_warp"] = np.zeros(2)
+    oi["do_optimize_calobject_warp"] = True
+    _optimize(mrcal, **oi)
+    residuals = board_residuals(oi)
+    return Solve(lensmodel, oi, residuals, oi["observations_board"][..., 2] > 0, time.perf_counter() - start)
+
+
+def spline_model_name(opencv: Solve, imagersize) -> str:
+    """The splined model for this camera: ``SPLINE_KNOTS_X`` knots across, as many down as keep them
+    square (plus one), over the OPENCV8 solution's horizontal field of view widened by 10 %."""
+    mrcal = import_mrcal()
+    w, h = imagersize
+    oi = opencv.optimization_inputs
+    cy = oi["intrinsics"][0, 3]
+    v = mrcal.unproject(np.array([[-0.5, cy], [w - 0.5, cy]]), oi["lensmodel"], oi["intrinsics"][0], normalize=True)
+    fov = math.degrees(math.acos(float(np.clip(v[0] @ v[1], -1.0, 1.0))))
+    ny = int(math.ceil(SPLINE_KNOTS_X * h / w)) + 1
+    return (f"LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx={SPLINE_KNOTS_X}_Ny={ny}_"
+            f"fov_x_deg={int(math.ceil(min(fov * 1.1, 179.0)))}")
+
+
+def choose(a: Solve, b: Solve) -> tuple[Solve, dict, dict]:
+    """The solve with the lower BIC over the corners both kept: (winner, candidate record of a, of b)."""
+    common = a.inlier & b.inlier
+    n = 2 * int(common.sum())
+    records = []
+    for s in (a, b):
+        rss = float(np.sum(s.residuals[common] ** 2))
+        bic = n * math.log(max(rss, 1e-300) / n) + s.n_intrinsics * math.log(n)
+        records.append(_record(s, bic))
+    return (a if records[0]["bic"] <= records[1]["bic"] else b), records[0], records[1]
+
+
+def _record(s: Solve, bic: float | None = None) -> dict:
+    return {"lensmodel": s.lensmodel, "rms_px": round(s.rms, 5), "outliers": int((~s.inlier).sum()),
+            "free_intrinsics": s.n_intrinsics, "bic": None if bic is None else round(bic, 2),
+            "seconds": round(s.seconds, 2)}
+
+
+def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel: str | None = None,
+              progress: Callable[[str], None] | None = None) -> Calibration:
+    """Solve one camera from the board corners of several photos.
+
+    ARGUMENTS
+    corners      float64 ``(Nframes, rows, cols, 2)``: the corners of each photo (pixels)
+    board        the :class:`~.board.Board` (its ``square_mm`` sets the unit of the poses: mm)
+    imagersize   (width, height) of the photos, pixels
+    lensmodel    force this mrcal lens model; None: chosen by the data (module docstring)
+    progress     called with a short message before each solve
+
+    RETURNED VALUE
+    :class:`Calibration`.  Raises CalibrationError when a solve fails.
+    """
+    mrcal = import_mrcal()
+    start = time.perf_counter()
+    n = len(corners)
+    observations = np.concatenate([np.asarray(corners, np.float64), np.ones(corners.shape[:3] + (1,))], axis=-1)
+    indices = np.stack([np.arange(n), np.zeros(n, int), -np.ones(n, int)], axis=1).astype(np.int32)
+    imagersizes = np.array([imagersize], dtype=np.int32)
+    spacing = float(board.square_mm)
+    say = progress or (lambda message: None)
+    try:
+        say("seeding")
+        seed = _seed(mrcal, observations.copy(), indices, imagersizes, spacing,
+                     _focal_estimate(corners, board, imagersize))
+        if lensmodel is not None:
+            say(f"solving {lensmodel}")
+            solve = _solve_model(mrcal, lensmodel, seed, observations, indices, imagersizes, spacing)
+            return Calibration(solve, [_record(solve)], "forced with --lensmodel", time.perf_counter() - start)
+        say(f"solving {OPENCV8}")
+        opencv = _solve_model(mrcal, OPENCV8, seed, observations, indices, imagersizes, spacing)
+        covered = coverage(corners, imagersize)
+        if n < SPLINE_MIN_FRAMES or covered < SPLINE_MIN_COVERAGE:
+            why = (f"{OPENCV8}: a splined model was not tried ({n} frames, corners in {100 * covered:.0f}% of the "
+                   f"image; it needs >= {SPLINE_MIN_FRAMES} frames and >= {100 * SPLINE_MIN_COVERAGE:.0f}%)")
+            return Calibration(opencv, [_record(opencv)], why, time.perf_counter() - start)
+        name = spline_model_name(opencv, imagersize)
+        say("solving splined model")
+        spline = _solve_model(mrcal, name, seed, observations, indices, imagersizes, spacing)
+    except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
+        raise CalibrationError(f"the mrcal solve failed: {exc}", source="camera calibrate",
+                               hint="check that the photos show the board sharply, from varied tilted views") from None
+    best, rec_o, rec_s = choose(opencv, spline)
+    why = (f"{best.lensmodel}: lower BIC over the {int((opencv.inlier & spline.inlier).sum())} corners both solves "
+           f"kept ({rec_o['bic']:.1f} for {OPENCV8} with {rec_o['free_intrinsics']} intrinsics, {rec_s['bic']:.1f} "
+           f"for the splined model with {rec_s['free_intrinsics']})")
+    return Calibration(best, [rec_o, rec_s], why, time.perf_counter() - start)
+
+
+def write_cameramodel(model, path: str | os.PathLike, note: str | None = None) -> Path:
+    """Write ``model`` with mrcal's writer into a temporary file beside ``path``, then move it into
+    place (an earlier file survives any failure); ``note`` goes into the file's header comment."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    os.close(fd)
+    try:
+        model.write(tmp, note=note)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, target)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        if isinstance(exc, OSError):
+            raise InputError(f"cannot write the camera model: {exc.strerror}", source=str(target),
+                             hint="check free space and permissions") from None
+        raise
+    return target

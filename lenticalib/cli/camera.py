@@ -1,0 +1,187 @@
+"""``lenticalib camera``: calibrate the camera (its intrinsics, with mrcal) from photos of a chessboard.
+
+    lenticalib camera patterns -o DIR (--profile P | --panel WxH --pixel-pitch MM)
+        DIR/board.png (the board as a panel raster), DIR/board.json, DIR/print/board-print.pdf
+        and .png (a board to print, with its own DIR/print/board.json)
+    lenticalib camera calibrate PHOTOS... -o camera.cameramodel [--report DIR]
+        corners, mrcal solve, camera model, report; the board comes from the board.json next
+        to the photos (DIR/captures/*.jpg -> DIR/board.json) or --board/--square
+    lenticalib camera simulate DIR
+        a synthetic set: DIR/captures/board-NN.jpg photographed by a known camera, with
+        DIR/truth.cameramodel and the true board poses in DIR/simulation.json
+
+Every user error ends as one line before the long work (detection, solve, rendering) starts.
+See ``docs/camera.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+from ._camera_calibrate import add_calibrate_arguments, run_calibrate
+
+_SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+SIM_CONTENTS_EXTRA = ("report", "camera.cameramodel")  # what the suggested next step writes into DIR
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="camera_command", metavar="SUBCOMMAND")
+    sub.required = True
+    text = "write the calibration chessboard: a panel raster to show, and a sheet to print"
+    p = sub.add_parser("patterns", help=text, description=text)
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for board.png, board.json and print/")
+    p.add_argument("--profile", metavar="P", help="the panel's profile (size; pixel pitch from its physical block)")
+    p.add_argument("--panel", metavar="WxH", help="panel raster size in pixels (instead of --profile)")
+    p.add_argument("--pixel-pitch", type=float, metavar="MM", help="panel pixel pitch in mm (data sheet)")
+    p.add_argument("--squares", metavar="COLSxROWS", help="inner corners of the panel board (default: 9 squares "
+                   "down the short side, square squares; one count odd, one even)")
+    p.add_argument("--print-square", type=float, default=20.0, metavar="MM",
+                   help="square size of the printable board in mm (default 20)")
+    p.add_argument("--paper", choices=("A4", "letter"), default="A4", help="paper of the printable board (landscape)")
+    p.set_defaults(run=run_patterns)
+
+    text = "calibrate the camera from photos of the board (mrcal): a .cameramodel and a report"
+    c = sub.add_parser("calibrate", help=text, description=text)
+    add_calibrate_arguments(c)
+    c.set_defaults(run=run_calibrate)
+
+    text = "photograph a board with a known virtual camera (a synthetic calibration set with its truth)"
+    s = sub.add_parser("simulate", help=text, description=text)
+    s.add_argument("directory", metavar="DIR", help="folder to write (new, or one this command wrote before)")
+    s.add_argument("--seed", type=int, metavar="N", help="seed of the camera, panel, poses and noise "
+                   "(default: a fresh one, recorded in simulation.json)")
+    s.add_argument("--photos", type=int, default=24, metavar="K", help="number of photos (default 24)")
+    s.add_argument("--kind", choices=("panel", "print"), default="panel",
+                   help="'panel': the board shown on a virtual panel, through its lens sheet; 'print': a printed "
+                        "board (default panel)")
+    s.add_argument("--resolution", default="1600x1200", metavar="WxH", help="camera resolution (default 1600x1200)")
+    s.add_argument("--conditions", choices=("standard", "hard"), default="standard",
+                   help="'hard': a phone's S-curve, exposure drift and high-ISO noise")
+    s.add_argument("--subsamples", type=int, default=2, metavar="N", help="rays per pixel side, 1..8 (default 2)")
+    s.add_argument("--json", action="store_true", help="print a JSON summary instead of sentences")
+    s.set_defaults(run=run_simulate)
+
+
+def parse_size(text: str, source: str, lo: int, hi: int, example: str) -> tuple[int, int]:
+    """``"WxH"`` -> (W, H) within [lo, hi] per side; InputError naming ``source`` otherwise."""
+    from ..errors import InputError
+
+    match = _SIZE.match(text or "")
+    if not match:
+        raise InputError(f"bad size {text!r}", source=source,
+                         hint=f"write it as WIDTHxHEIGHT in pixels, e.g. {example}")
+    w, h = int(match.group(1)), int(match.group(2))
+    if not (lo <= w <= hi and lo <= h <= hi):
+        raise InputError(f"{w}x{h} is out of range", source=source, hint=f"use {lo}..{hi} pixels per side")
+    return w, h
+
+
+def _panel_geometry(args: argparse.Namespace):
+    """(width, height, pixel pitch mm, lens pitch in pixels or None) from --profile or --panel/--pixel-pitch."""
+    import math
+
+    from ..errors import InputError
+
+    if (args.profile is None) == (args.panel is None):
+        raise InputError("give the panel once: --profile P, or --panel WxH with --pixel-pitch MM",
+                         source="--profile" if args.profile else "--panel",
+                         hint="e.g. lenticalib camera patterns -o board --panel 3840x2160 --pixel-pitch 0.1796")
+    pitch, lens_px = args.pixel_pitch, None
+    if args.profile is not None:
+        from ..profile import load_profile
+
+        profile = load_profile(args.profile, "--profile")
+        width, height = profile.width, profile.height
+        lens_px = profile.period / 3.0
+        physical = getattr(profile, "physical", None)
+        if pitch is None and physical:
+            pitch = physical.get("pixel_pitch_mm") if hasattr(physical, "get") else getattr(physical,
+                                                                                             "pixel_pitch_mm", None)
+        if pitch is None:
+            raise InputError("the profile does not give the panel's pixel pitch", source=args.profile,
+                             hint="pass --pixel-pitch MM (from the panel's data sheet)")
+    else:
+        width, height = parse_size(args.panel, "--panel", 64, 16384, "3840x2160")
+        if pitch is None:
+            raise InputError("the panel's pixel pitch is needed for the board's square size", source="--panel",
+                             hint="pass --pixel-pitch MM (from the panel's data sheet)")
+    if not (isinstance(pitch, (int, float)) and math.isfinite(pitch) and 0.005 <= pitch <= 5.0):
+        raise InputError(f"pixel pitch {pitch!r} mm is out of range", source="--pixel-pitch",
+                         hint="give the panel's pixel pitch in mm, 0.005..5 (e.g. 0.1796)")
+    return width, height, float(pitch), lens_px
+
+
+def run_patterns(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..calib.intrinsics.board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG,
+                                          panel_board, parse_squares, print_board, write_manifest)
+    from ..calib.intrinsics.draw import panel_raster, write_print_sheet
+    from ..imageio import write_image
+    from ..outputs import check_output_folder, staged_folder
+
+    width, height, pitch, lens_px = _panel_geometry(args)
+    squares = parse_squares(args.squares) if args.squares else None
+    board = panel_board(width, height, pitch, squares, lens_pitch_px=lens_px)
+    sheet = print_board(args.print_square, args.paper)
+    contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER)
+    check_output_folder(args.output, "camera board folder", contents)
+    with staged_folder(args.output, "camera board folder", contents) as stage:
+        write_image(stage / PANEL_IMAGE, panel_raster(board))
+        write_manifest(board, stage)
+        (stage / PRINT_FOLDER).mkdir()
+        write_print_sheet(sheet, stage / PRINT_FOLDER)
+        write_manifest(sheet, stage / PRINT_FOLDER)
+    out = Path(args.output)
+    print(f"wrote {out / PANEL_IMAGE} ({width}x{height}: {board.cols}x{board.rows} inner corners, squares of "
+          f"{board.square_px} px = {board.square_mm:.4f} mm, edges {board.edge_px} px) and {out / MANIFEST_NAME}")
+    print(f"wrote {out / PRINT_FOLDER / PRINT_PDF} and {PRINT_PNG} ({sheet.cols}x{sheet.rows} inner corners, "
+          f"{sheet.square_mm:g} mm squares on {args.paper}; print at 100 % and check the 100 mm bar)")
+    print(f"next: 'lenticalib show {out / PANEL_IMAGE}', photograph the panel 15-30 times from varied, tilted "
+          f"views with the board reaching the image corners, save the photos in {out / 'captures'}/, then "
+          f"'lenticalib camera calibrate {out / 'captures'} -o camera.cameramodel --report camera-report'")
+    return 0
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    import json
+    import secrets
+    import time
+
+    from ..errors import InputError
+    from ..outputs import check_output_folder, staged_folder
+    from ..sim.board_set import CAPTURE_FOLDER, CONTENTS, TRUTH_NAME, simulate_board_set
+    from ._progress import progress_bar
+
+    resolution = parse_size(args.resolution, "--resolution", 320, 8000, "1600x1200")
+    if not 3 <= args.photos <= 500:
+        raise InputError(f"{args.photos} photos is out of range", source="--photos",
+                         hint="use 3..500 (15-30 is typical)")
+    if not 1 <= args.subsamples <= 8:
+        raise InputError(f"{args.subsamples} subsamples is out of range", source="--subsamples", hint="use 1..8")
+    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
+        raise InputError(f"seed {args.seed} is out of range", source="--seed", hint="use 0..2^63-1")
+    contents = CONTENTS + SIM_CONTENTS_EXTRA
+    check_output_folder(args.directory, "camera simulation", contents)
+    seed = args.seed if args.seed is not None else secrets.randbelow(2 ** 31)
+    start = time.perf_counter()
+    with staged_folder(args.directory, "camera simulation", contents) as stage, \
+            progress_bar(args.photos, "photographing") as bar:
+        doc = simulate_board_set(stage, kind=args.kind, seed=seed, photos=args.photos, resolution=resolution,
+                                 conditions=args.conditions, subsamples=args.subsamples, progress=bar.update)
+    seconds = round(time.perf_counter() - start, 2)
+    if args.json:
+        print(json.dumps({"directory": str(args.directory), "kind": args.kind, "seed": seed, "photos": args.photos,
+                          "resolution": list(resolution), "seconds": seconds,
+                          "seconds_per_photo": doc["seconds_per_photo"], "truth": f"{args.directory}/{TRUTH_NAME}"}))
+        return 0
+    cam = doc["camera"]
+    print(f"wrote {args.photos} photos of a {args.kind} board to {args.directory}/{CAPTURE_FOLDER} "
+          f"({resolution[0]}x{resolution[1]}, seed {seed}, {doc['seconds_per_photo']:.2f} s per photo)")
+    print(f"truth: {args.directory}/{TRUTH_NAME} (fx {cam['fx']:.2f}, fy {cam['fy']:.2f}, cx {cam['cx']:.2f}, "
+          f"cy {cam['cy']:.2f} px; k1 k2 p1 p2 k3 {', '.join(f'{v:.5f}' for v in cam['distortion'])}); the board "
+          "poses are in simulation.json")
+    print(f"next: lenticalib camera calibrate {args.directory}/{CAPTURE_FOLDER} -o {args.directory}/camera.cameramodel "
+          f"--report {args.directory}/report")
+    return 0
