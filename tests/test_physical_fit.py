@@ -144,3 +144,41 @@ def test_physical_options_are_checked_before_the_fit(two_distances, tmp_path, ca
     err = capsys.readouterr().err
     assert code == 2 and words in err and err.count("\n") == 1
     assert not (tmp_path / "p.json").exists()
+
+
+@pytest.fixture(scope="module")
+def calibrated(two_distances):
+    """The user's path: the same camera calibrated by 'lenticalib camera calibrate' from 20 simulated
+    photos of a board shown on the same panel, then both sets fitted with that model."""
+    from lenticalib.sim.board_set import simulate_board_set
+
+    t = two_distances
+    boards = t.root / "boards"
+    boards.mkdir()
+    simulate_board_set(boards, kind="panel", seed=7, photos=20, scene=t.scene)
+    model = t.root / "calibrated.cameramodel"
+    assert main(["camera", "calibrate", str(boards / "captures"), "-o", str(model), "--report",
+                 str(t.root / "camera-report")]) == 0
+    out = t.root / "out-calibrated"
+    out.mkdir()
+    assert main(["fit", str(t.sets[0][0]), "-o", str(out / "profile.json"), "--camera", str(model), "--pixel-pitch",
+                 str(t.scene.optics.pixel_pitch), "--second-distance", str(t.sets[1][0])]) == 0
+    return types.SimpleNamespace(profile=load_profile(out / "profile.json"), model=model)
+
+
+def test_with_a_calibrated_camera_distance_gap_and_retargeting_meet_the_targets(two_distances, calibrated):
+    t = two_distances
+    optics, camera = t.scene.optics, t.sets[0][1].camera
+    block = calibrated.profile.physical
+    unc = block["uncertainty"]
+    true_eye = np.array([camera.position[0], camera.position[1], -camera.position[2]])
+    eye, sigma = np.array(block["eye_mm"]), np.array(unc["eye_mm"])
+    assert abs(eye[2] / true_eye[2] - 1) < 0.01
+    assert np.all(np.abs(eye - true_eye) < 3 * sigma)
+    # the camera's intrinsics uncertainty is part of the pose's (the calibrated model has its inputs)
+    assert sigma[2] > np.array(t.profile.physical["uncertainty"]["eye_mm"])[2]
+    assert abs(block["gap_mm"] / optics.gap - 1) < 0.02
+    for lateral, distance in ((0.0, 400.0), (-60.0, 750.0), (0.0, 900.0)):
+        error = _w_error(retarget_profile(calibrated.profile, (lateral, 0.0, distance)), optics,
+                         (lateral, 0.0, -distance))
+        assert np.sqrt(np.mean(error ** 2)) < 0.05 and np.abs(error).max() < 0.15

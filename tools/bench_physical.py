@@ -56,11 +56,14 @@ def _camera_model(kind: str, scene, root: Path, seed: int) -> Path:
             str(path))
         return path
     from lenticalib.cli import main
-    from lenticalib.sim.board_sets import simulate_board_set
+    from lenticalib.sim.board_set import simulate_board_set
 
     boards = root / "boards"
-    simulate_board_set(boards, kind="panel", seed=seed, camera=cam, optics=scene.optics, photos=20)
-    if main(["camera", "calibrate", str(boards / "captures"), "-o", str(path), "--json"]) != 0:
+    boards.mkdir()
+    simulate_board_set(boards, kind="panel", seed=seed, photos=20, scene=scene)
+    with contextlib.redirect_stdout(io.StringIO()):
+        code = main(["camera", "calibrate", str(boards / "captures"), "-o", str(path), "--jobs", "1"])
+    if code != 0:
         raise RuntimeError(f"seed {seed}: camera calibration failed")
     return path
 

@@ -141,20 +141,14 @@ def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False) -> Ph
     return PhotoCorners(str(path), size, corners)
 
 
-def _worker_init() -> None:
-    import cv2
-
-    cv2.setNumThreads(1)  # one process per core instead
-
-
 def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
                   progress: Callable[[], None] | None = None) -> list[PhotoCorners]:
-    """Find ``board`` in every photo of ``paths`` (in that order) with ``jobs`` worker processes.
+    """Find ``board`` in every photo of ``paths`` (in that order) with ``jobs`` worker threads.
 
     ``progress`` is called once per finished photo.  An unreadable photo raises the
-    :class:`~lenticalib.errors.ImageError` of :func:`lenticalib.imageio.read_image`.  Workers are
-    *spawned* (not forked: the caller may hold numba or OpenCV threads), so a script calling this
-    with ``jobs > 1`` needs the usual ``if __name__ == "__main__":`` guard.
+    :class:`~lenticalib.errors.ImageError` of :func:`lenticalib.imageio.read_image`.  Threads, not
+    processes: OpenCV releases the GIL in decoding, the corner search and the refinement, and
+    threads need no ``__main__`` guard in a caller's script.
     """
     paths = [str(Path(p)) for p in paths]
     args = (board.cols, board.rows, board.symmetric)
@@ -165,13 +159,10 @@ def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
             if progress:
                 progress()
         return results
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    # spawn: the parent may run numba or OpenCV threads, which do not survive a fork
-    context = multiprocessing.get_context("spawn")
     results: list[PhotoCorners | None] = [None] * len(paths)
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(paths)), mp_context=context, initializer=_worker_init)
+    pool = ThreadPoolExecutor(max_workers=min(jobs, len(paths)))
     try:
         futures = {pool.submit(detect_photo, p, *args): k for k, p in enumerate(paths)}
         for future in as_completed(futures):
