@@ -13,9 +13,8 @@ A profile holds the routing constants (see ``docs/optics.md``; format: ``docs/pr
 plus a format version, the optional ``physical`` block (lens pitch, gap, pixel pitch, the eye
 the constants are for: :mod:`lenticalib.physical`), the optional ``view_direction`` (+1: the
 view index grows as the viewer moves to the right; -1: it falls; absent: unknown), optional
-1-sigma uncertainties, optional
-Looking Glass extras and a provenance record (how, when and from which inputs it was made,
-with which lenticalib).
+1-sigma uncertainties, optional Looking Glass extras and a provenance record (how, when and from
+which inputs it was made, with which lenticalib).
 
 A hand-written file with only the eight constants loads as the current format.  Loading
 parses JSON only: nothing in the file is ever executed.  Saving is atomic.

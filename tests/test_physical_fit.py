@@ -182,3 +182,19 @@ def test_with_a_calibrated_camera_distance_gap_and_retargeting_meet_the_targets(
         error = _w_error(retarget_profile(calibrated.profile, (lateral, 0.0, distance)), optics,
                          (lateral, 0.0, -distance))
         assert np.sqrt(np.mean(error ** 2)) < 0.05 and np.abs(error).max() < 0.15
+
+
+
+def test_the_camera_model_records_its_cross_validated_uncertainty(two_distances, calibrated):
+    """'camera calibrate' writes the cross-validation scale into the model's note; the loader reads
+    it and the intrinsics draws (and so every pose sigma) carry it."""
+    from lenticalib.calib.camera_file import load_camera_model
+    from lenticalib.calib.intrinsics.crossval import NOTE_KEY
+
+    text = calibrated.model.read_text()
+    assert NOTE_KEY in text.split("{", 1)[0]
+    model = load_camera_model(calibrated.model)
+    assert model.uncertainty_scale >= 1.0
+    unscaled = dataclasses.replace(model, uncertainty_scale=1.0)
+    ratio = model.intrinsics_draws(300, seed=3)[:, 0].std() / unscaled.intrinsics_draws(300, seed=3)[:, 0].std()
+    assert ratio == pytest.approx(model.uncertainty_scale, rel=1e-9)

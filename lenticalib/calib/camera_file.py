@@ -42,6 +42,7 @@ class CameraModel:
     image_size: tuple[int, int] | None = None
     source: str | None = None
     optimization_inputs: dict | None = None
+    uncertainty_scale: float = 1.0  # from 'camera calibrate''s cross-validation (calib.intrinsics.crossval)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -83,7 +84,9 @@ class CameraModel:
 
         Var(b) = sigma^2 D inv(J*^T J*) D over the optimised intrinsics (mrcal's packed state b*,
         unpacking scale D), sigma the RMS of the board residuals -- the observation noise mrcal
-        itself estimates.  Parameters the calibration held fixed (a splined model's core) stay.
+        itself estimates, times ``uncertainty_scale`` (the cross-validation of ``lenticalib camera
+        calibrate``, recorded in the model's note).  Parameters the calibration held fixed (a
+        splined model's core) stay.
         """
         oi = self.optimization_inputs
         if oi is None:
@@ -105,7 +108,7 @@ class CameraModel:
         scale = _unpack_scale(ones, oi)[first:first + n_state]
         residuals = mrcal.measurements_board(oi, x=x).ravel()
         sigma = float(np.sqrt(np.mean(residuals ** 2))) if residuals.size else 0.0
-        cov = sigma ** 2 * (scale[:, None] * inverse * scale[None, :])
+        cov = (self.uncertainty_scale * sigma) ** 2 * (scale[:, None] * inverse * scale[None, :])
         cov = 0.5 * (cov + cov.T)
         w, v = np.linalg.eigh(cov)
         root = v * np.sqrt(np.clip(w, 0.0, None))
@@ -163,8 +166,11 @@ def _from_mrcal(path: Path) -> CameraModel:
         oi = model.optimization_inputs()
     except Exception:  # a model without (or with unusable) optimization inputs is still a model
         oi = None
+    from .intrinsics.crossval import read_scale
+
     return CameraModel(lensmodel, np.asarray(intrinsics, np.float64).copy(),
-                       None if size is None else (int(size[0]), int(size[1])), str(path), oi)
+                       None if size is None else (int(size[0]), int(size[1])), str(path), oi,
+                       read_scale(path.read_text(errors="replace")))
 
 
 def _opencv_model(matrix: np.ndarray, dist: np.ndarray, size, path: Path) -> CameraModel:

@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import InputError
 from ..physical import view_cone_deg
 from ..profile import PanelProfile, _describe_input
-from .pose import PanelPose
+from .pose import SYSTEMATIC_FRACTION, PanelPose
 
 MIN_DISTANCE_RATIO = 1.15  # two capture sets closer than this in distance do not determine the gap
 
@@ -134,6 +134,9 @@ def _gap_from_sets(profile1: PanelProfile, pose1: PanelPose, profile2: PanelProf
     jack1, jack2 = pose1.jackknife_sigma_mm[2], pose2.jackknife_sigma_mm[2]
     terms += [(gap_from_two_distances(d1, q1 + h2, d2, q2) - gap) / h2 * jack1,
               (gap_from_two_distances(d1, q1, d2, q2 + h2) - gap) / h2 * jack2]
+    # the distance floor (pose.SYSTEMATIC_FRACTION) is a scale error of the seen-point maps, alike in
+    # both sets: a common relative error of both distances scales g with them
+    terms.append(gap * SYSTEMATIC_FRACTION)
     variance = float(np.sum(np.square(terms)))
     if pose1.drawn_distances is not None and pose2.drawn_distances is not None:
         drawn = gap_from_two_distances(d1, pose1.drawn_distances, d2, pose2.drawn_distances)

@@ -57,7 +57,7 @@ class PanelPose:
     rms_px              reprojection RMS of the correspondences, photo pixels
     points              correspondences used
     intrinsics_sigma    whether sigma_mm includes the camera's intrinsics uncertainty
-    jackknife_sigma_mm  (3,) the correspondences' part of sigma_mm alone
+    jackknife_sigma_mm  (3,) the jackknife's part of sigma_mm alone (no floor, no intrinsics)
     drawn_distances     (draws,) pixel-plane distances solved with each intrinsics draw (the same
                         draws for every set fitted with one camera model), or None
     """
@@ -132,8 +132,8 @@ def camera_pose(pixels: np.ndarray, panel_px: np.ndarray, model: CameraModel, pi
     centres = np.array(centres)
     k = len(centres)
     var = (k - 1) / k * np.sum((centres - centres.mean(0)) ** 2, axis=0) if k > 1 else np.zeros(3)
-    var[2] += (SYSTEMATIC_FRACTION * -centre[2]) ** 2
     jackknife = np.sqrt(var)
+    var[2] += (SYSTEMATIC_FRACTION * -centre[2]) ** 2
     drawn_distances = None
     sampled = model.intrinsics_draws(draws, seed) if draws > 0 else None
     if sampled is not None:

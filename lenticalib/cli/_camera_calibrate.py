@@ -150,7 +150,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
     with progress_bar(3, "solving") as bar:
         cal = calibrate(corners, board, size, lensmodel=args.lensmodel, progress=lambda m: bar.update(m))
     model = cal.cameramodel()
-    qual = quality(model, cal.solve, [f.path for f in used])
+    from ..calib.intrinsics.crossval import cross_validation
+
+    with progress_bar(1, "cross-validating") as bar:
+        check = cross_validation(corners, board, size, cal.lensmodel)
+        bar.update()
+    qual = quality(model, cal.solve, [f.path for f in used], cross_validation=check)
     summary = calibration_summary(cal, qual, board, found, photos, output=output, report=args.report,
                                   manifest=manifest, seconds=time.perf_counter() - start)
     write_cameramodel(model, output, note=summary["note"])

@@ -34,6 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--profile", metavar="P", help="the panel's profile (size; pixel pitch from its physical block)")
     p.add_argument("--panel", metavar="WxH", help="panel raster size in pixels (instead of --profile)")
     p.add_argument("--pixel-pitch", type=float, metavar="MM", help="panel pixel pitch in mm (data sheet)")
+    p.add_argument("--lens-pitch", type=float, metavar="MM", help="the lens sheet's horizontal lens pitch in mm (data "
+                   "sheet), when no --profile gives it: the squares' soft edges then span at least two lenses")
     p.add_argument("--squares", metavar="COLSxROWS", help="inner corners of the panel board (default: 9 squares "
                    "down the short side, square squares; one count odd, one even)")
     p.add_argument("--print-square", type=float, default=20.0, metavar="MM",
@@ -94,10 +96,9 @@ def _panel_geometry(args: argparse.Namespace):
         profile = load_profile(args.profile, "--profile")
         width, height = profile.width, profile.height
         lens_px = profile.period / 3.0
-        physical = getattr(profile, "physical", None)
-        if pitch is None and physical:
-            pitch = physical.get("pixel_pitch_mm") if hasattr(physical, "get") else getattr(physical,
-                                                                                             "pixel_pitch_mm", None)
+        physical = profile.physical or {}
+        if pitch is None:
+            pitch = physical.get("pixel_pitch_mm")
         if pitch is None:
             raise InputError("the profile does not give the panel's pixel pitch", source=args.profile,
                              hint="pass --pixel-pitch MM (from the panel's data sheet)")
@@ -109,6 +110,11 @@ def _panel_geometry(args: argparse.Namespace):
     if not (isinstance(pitch, (int, float)) and math.isfinite(pitch) and 0.005 <= pitch <= 5.0):
         raise InputError(f"pixel pitch {pitch!r} mm is out of range", source="--pixel-pitch",
                          hint="give the panel's pixel pitch in mm, 0.005..5 (e.g. 0.1796)")
+    if args.lens_pitch is not None:
+        if not (math.isfinite(args.lens_pitch) and 0.005 <= args.lens_pitch <= 50.0):
+            raise InputError(f"lens pitch {args.lens_pitch!r} mm is out of range", source="--lens-pitch",
+                             hint="give the sheet's horizontal lens pitch in mm, 0.005..50")
+        lens_px = args.lens_pitch / pitch
     return width, height, float(pitch), lens_px
 
 

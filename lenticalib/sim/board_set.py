@@ -71,7 +71,8 @@ def truth_cameramodel(camera):
 
 def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", seed: int = 0, photos: int = 24,
                        resolution: tuple[int, int] = (1600, 1200), conditions: str = "standard",
-                       subsamples: int = 2, progress: Callable[[], None] | None = None, scene=None) -> dict:
+                       subsamples: int = 2, progress: Callable[[], None] | None = None, scene=None,
+                       board=None) -> dict:
     """Photograph a board ``photos`` times into ``directory`` (an existing, empty or fresh folder).
 
     ARGUMENTS
@@ -86,6 +87,8 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                  (its panel, and its camera's intrinsics and photometry: the camera that will
                  photograph the calibration patterns too); ``resolution``, ``conditions`` and
                  ``subsamples`` are then the scene's
+    board        a panel set's board (:func:`lenticalib.calib.intrinsics.board.panel_board`) instead of
+                 the default one, whose soft edges span two of the scene's lens pitches
 
     RETURNED VALUE
     the ``simulation.json`` document (also written).
@@ -105,7 +108,10 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
         scene = panel_scene(seed, resolution, conditions, subsamples) if scene is None else scene
         camera, optics = scene.camera, scene.optics
         resolution = (camera.width, camera.height)
-        board = panel_board(optics.width, optics.height, optics.pixel_pitch)
+        # the edges matched to the sheet, as 'camera patterns --profile' does (a profile's period / 3)
+        if board is None:
+            board = panel_board(optics.width, optics.height, optics.pixel_pitch,
+                                lens_pitch_px=optics.lens_pitch / optics.pixel_pitch)
         raster = panel_raster(board)
         write_image(folder / PANEL_IMAGE, raster)
     else:

@@ -96,21 +96,26 @@ def _at_points(stdev: np.ndarray) -> dict:
     return out
 
 
-def quality(model, solve: Solve, photos: list[str] | None = None) -> dict:
+def quality(model, solve: Solve, photos: list[str] | None = None, cross_validation: dict | None = None) -> dict:
     """Everything the report shows of a solve, as JSON-ready numbers (see the module docstring).
 
     Keys: ``residuals`` (:func:`residual_stats`), ``working_distance_mm``, ``coverage`` (share of
     an 8 x 6 cell grid holding corners), ``uncertainty`` {``at_working_distance``, ``at_infinity``}
     each with the worst-direction stdev at the centre, the four image corners, the median and the
     worst of the grid; and, not JSON, ``_maps`` (grid and both stdev maps, for the figures).
+    With ``cross_validation`` (:func:`.crossval.cross_validation`) every uncertainty is mrcal's
+    times its ``scale``, and the dict is kept under that key.
     """
     distance = working_distance(solve.optimization_inputs)
+    scale = (cross_validation or {}).get("scale", 1.0)
     q, near = uncertainty_map(model, distance)
     _, far = uncertainty_map(model, None)
+    near, far = near * scale, far * scale
     obs = solve.optimization_inputs["observations_board"]
     return {"residuals": residual_stats(solve, photos), "working_distance_mm": round(distance, 2),
             "coverage": round(coverage(obs[..., :2], model.imagersize(), COVERAGE_GRID), 3),
             "uncertainty": {"at_working_distance": _at_points(near), "at_infinity": _at_points(far)},
+            "cross_validation": cross_validation or {"scale": 1.0, "skipped": "not run"},
             "_maps": {"grid": q, "near": near, "far": far, "distance": distance}}
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from ...atomic import write_text_atomic
 from ..report import write_figures
+from .crossval import note_line
 
 FIGURE_SIZES = {"residuals.png": (1800, 1200), "coverage.png": (1800, 1200), "uncertainty.png": (1800, 860)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
@@ -90,6 +91,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
     inputs = [str(p) for p in photos] + ([str(manifest)] if manifest is not None else [])
     res = qual["residuals"]
     unc = qual["uncertainty"]
+    scale = (qual.get("cross_validation") or {}).get("scale", 1.0)
     summary = {"format": FORMAT_NAME, "version": 1, "output": str(output),
                "report": None if report is None else str(report), "lensmodel": lens,
                "lensmodel_choice": cal.choice, "candidates": cal.candidates, "imagersize": list(model.imagersize()),
@@ -98,13 +100,16 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
                "photos": {"given": len(photos), "used": len(used), "rejected": rejected,
                           "frames": [f.path for f in used]},
                "residuals": res, "coverage": qual["coverage"], "working_distance_mm": qual["working_distance_mm"],
-               "uncertainty": unc, "provenance": make_provenance("camera calibrate (mrcal)", inputs),
+               "uncertainty": unc, "cross_validation": qual.get("cross_validation"),
+               "provenance": make_provenance("camera calibrate (mrcal)", inputs),
                "seconds": round(float(seconds), 2)}
     summary["note"] = (f"lenticalib camera calibrate: {summary['provenance']['command'] or 'library call'}\n"
                        f"{len(used)} of {len(photos)} photos of a {board.describe()}; {lens} ({cal.choice})\n"
                        f"RMS {res['rms_px']:.4f} px, {res['outliers']} outliers of {res['corners']} corners; "
                        f"uncertainty {unc['at_working_distance']['centre']:.3f} px at the centre, "
-                       f"{unc['at_working_distance']['worst']:.3f} px worst at {qual['working_distance_mm']:.0f} mm")
+                       f"{unc['at_working_distance']['worst']:.3f} px worst at {qual['working_distance_mm']:.0f} mm"
+                       + (f" (mrcal's, x{scale:.3f} from cross-validation)" if scale > 1.0 else "")
+                       + f"\n{note_line(scale)}")
     return json.loads(json.dumps(summary, default=lambda v: v.item() if isinstance(v, np.generic) else str(v)))
 
 
@@ -127,7 +132,14 @@ def summary_lines(summary: dict) -> list[str]:
              f"{near['centre']:.3f} px "
              f"at the centre, {min(corners):.3f}-{max(corners):.3f} px at the image corners; at infinity "
              f"{far['centre']:.3f} px / {far['worst']:.3f} px worst"]
-    if summary.get("report"):
+    cv = summary.get("cross_validation") or {}
+    if cv.get("skipped"):
+        lines.append(f"cross-validation skipped: {cv['skipped']}")
+    elif cv:
+        lines.append(f"cross-validation: the two halves of the photos differ by {cv['median_difference_px']:.3f} px "
+                     f"(median); mean squared Mahalanobis distance {cv['mean_squared_mahalanobis']:.2f} against 2 "
+                     f"expected, so uncertainties are x{cv['scale']:.2f}")
+    if summary["report"] is not None:
         lines.append(f"report: {summary['report']} (residuals.png, coverage.png, uncertainty.png, summary.json)")
     return lines
 
@@ -227,8 +239,10 @@ def _uncertainty_figure(fig, subject) -> None:
         ax.set_title(f"Projection uncertainty {where}")
         _colorbar(fig, ax, im, "worst-direction stdev (px, 1 sigma); colours stop at the 98th percentile",
                   extend="max" if stdev.max() > top else "neither")
+    scale = qual.get("cross_validation", {}).get("scale", 1.0)
+    scaled = f", x{scale:.2f} from cross-validation" if scale > 1.0 else ""
     fig.suptitle(f"{cal.lensmodel}: how far a projection may be off (1 sigma, from the observed pixel noise "
-                 f"{qual['residuals']['noise_px']:.4f} px)", fontsize=14)
+                 f"{qual['residuals']['noise_px']:.4f} px{scaled})", fontsize=14)
 
 
 def write_report(directory: str | os.PathLike, cal, qual: dict, summary: dict) -> Path:

@@ -1,0 +1,100 @@
+"""Cross-validation of a camera calibration: is mrcal's uncertainty as large as the real error?
+
+mrcal's projection uncertainty assumes independent corner noise of the size the residuals show.
+Photos of a board shown through a lens sheet break that assumption a little (the sheet samples
+the board once per lens, so a photo's corner errors share a pattern), and so may a real camera's
+processing.  The check: solve the two halves of the photos (even and odd frames) separately with
+the chosen lens model, and compare the two models' projections where the corners were observed
+(``mrcal.projection_diff``, after the rotation that best lines up their frames) with what their
+own uncertainties predict for that difference (``Var_0 + Var_1``), for points at infinity: there
+two cameras differ by a rotation only, which ``projection_diff`` fits, while at a finite distance
+the unknown translation between the halves' frames would dominate the comparison.  With honest uncertainties the
+squared Mahalanobis distance averages 2 (two coordinates); the scale
+
+    k = max(1, sqrt(mean(d^T (C_0 + C_1)^-1 d) / 2))
+
+is how much the reported uncertainty must grow to be honest.  It is written into the camera
+model's note (``lenticalib-uncertainty-scale: k``), read back by
+:func:`lenticalib.calib.camera_file.load_camera_model`, and applied to every uncertainty
+lenticalib derives from the model (the report's maps, intrinsics draws, camera poses).  mrcal's
+own tools do not read it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+NOTE_KEY = "lenticalib-uncertainty-scale"
+MIN_FRAMES_PER_HALF = 5
+GRID = 24  # cells across the image
+
+
+def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel: str) -> dict:
+    """The scale ``k`` (module docstring) and how it was found.
+
+    ARGUMENTS
+    corners      float64 ``(Nframes, rows, cols, 2)`` pixels, the photos the full solve used
+    board        the board; imagersize (width, height) pixels; lensmodel the chosen model
+
+    RETURNED VALUE
+    dict: ``scale`` (>= 1), ``mean_squared_mahalanobis`` (2 when honest), ``points`` compared,
+    ``frames`` per half, ``median_difference_px``, or ``{"scale": 1.0, "skipped": why}`` with too few frames.
+    """
+    from .solve import calibrate, import_mrcal
+
+    n = len(corners)
+    if n < 2 * MIN_FRAMES_PER_HALF:
+        return {"scale": 1.0, "skipped": f"{n} photos: cross-validation needs >= {2 * MIN_FRAMES_PER_HALF}"}
+    mrcal = import_mrcal()
+    halves = [calibrate(corners[i::2], board, imagersize, lensmodel=lensmodel).cameramodel() for i in (0, 1)]
+    w, h = imagersize
+    _, diff, q0, rt10 = mrcal.projection_diff(halves, gridn_width=GRID, distance=None)
+    q0 = q0.reshape(-1, 2)
+    diff = diff.reshape(-1, 2)
+    seen = _observed_region(corners, q0)
+    if seen.sum() < 10:
+        return {"scale": 1.0, "skipped": "too few grid points where corners were observed"}
+    q0, diff = q0[seen], diff[seen]
+    v0 = mrcal.unproject(q0, *halves[0].intrinsics(), normalize=True)
+    v1 = mrcal.rotate_point_R(rt10[:3, :], v0)
+    cov0 = mrcal.projection_uncertainty(v0, halves[0], what="covariance", atinfinity=True)
+    cov1 = mrcal.projection_uncertainty(v1, halves[1], what="covariance", atinfinity=True)
+    total = cov0 + cov1
+    d2 = np.einsum("ni,nij,nj->n", diff, np.linalg.inv(total), diff)
+    mean = float(np.mean(d2))
+    return {"scale": max(1.0, float(np.sqrt(mean / 2.0))), "mean_squared_mahalanobis": mean,
+            "median_difference_px": float(np.median(np.linalg.norm(diff, axis=1))),
+            "points": int(seen.sum()), "frames": [len(corners[0::2]), len(corners[1::2])], "at": "infinity"}
+
+
+def _observed_region(corners: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Grid points ``q`` (n, 2) inside the convex hull of every observed corner."""
+    import cv2
+
+    points = corners.reshape(-1, 2).astype(np.float32)
+    hull = cv2.convexHull(points)
+    return np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), False) >= 0 for x, y in q])
+
+
+def note_line(scale: float) -> str:
+    """The note line that records ``scale`` in the written .cameramodel."""
+    return f"{NOTE_KEY}: {scale:.4f}"
+
+
+def read_scale(text: str) -> float:
+    """The recorded scale from a .cameramodel's leading comment lines (1.0 when absent).  Only the
+    header comments are looked at; the model itself is read by mrcal."""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if not stripped.startswith("#"):
+            if stripped:
+                break
+            continue
+        body = stripped.lstrip("#").strip()
+        if body.startswith(NOTE_KEY + ":"):
+            try:
+                value = float(body.split(":", 1)[1])
+            except ValueError:
+                return 1.0
+            return value if np.isfinite(value) and 1.0 <= value <= 100.0 else 1.0
+    return 1.0
