@@ -282,3 +282,26 @@ def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, capsys, 
     out = tmp_path / "cam.cameramodel"
     _expect_error(capsys, ["camera", "calibrate", photos, "-o", out, "--board", "11x6", "--square", "20",
                            "--jobs", "1"], "found in 3 of 12 photos", "at least 10", "tilt", absent=[out])
+
+
+def test_lenticalib_simulate_photographs_the_board_of_a_camera_patterns_folder(tmp_path, capsys):
+    from lenticalib.calib.camera_file import load_camera_model
+
+    folder = tmp_path / "board"
+    code, out, err = _run(["camera", "patterns", "-o", folder, "--panel", "1920x1080", "--pixel-pitch", "0.36",
+                           "--lens-pitch", "1.9"], capsys)
+    assert code == 0, err
+    code, out, err = _run(["simulate", folder, "--seed", 4, "--photos", 12, "--resolution", "1280x960"], capsys)
+    assert code == 0, err
+    assert len(list((folder / "captures").glob("board-*.jpg"))) == 12
+    doc = json.loads((folder / "simulation.json").read_text())
+    assert doc["optics"]["width"] == 1920 and doc["optics"]["pixel_pitch"] == pytest.approx(0.36)
+    code, out, err = _run(["camera", "calibrate", folder / "captures", "-o", tmp_path / "c.cameramodel"], capsys)
+    assert code == 0, err
+    fitted, truth = load_camera_model(tmp_path / "c.cameramodel"), load_camera_model(folder / "truth.cameramodel")
+    assert np.allclose(fitted.intrinsics[:2], truth.intrinsics[:2], rtol=0.01)
+    for argv, words in ((["simulate", folder / "print"], "printed board"),
+                        (["simulate", folder, "--distance", 500], "--distance"),
+                        (["simulate", folder, "--photos", 1], "--photos")):
+        code, out, err = _run(argv, capsys)
+        assert code == 2 and words in err and err.count("\n") == 1

@@ -8,6 +8,11 @@ the panel's true mixing matrix for the profile the patterns were drawn from.  To
 crosstalk patterns from the fit's camera position, pass the fit's scene: ``--scene
 FITDIR/simulation.json``.
 
+A folder from ``lenticalib camera patterns`` (``board.json`` of a panel board, no patterns.json) is
+photographed as a camera-calibration set instead: ``--photos`` views of its board on a virtual
+panel of its size and pixel pitch, by a known camera (``DIR/captures/board-NN.jpg``,
+``DIR/truth.cameramodel``, ``DIR/simulation.json``; :mod:`lenticalib.sim.board_set`).
+
 Every option is checked, and the folder found writable, before the first photo is taken.  The
 three results are all or nothing: a run that fails (or is interrupted) removes what it wrote and
 puts an earlier simulation of the folder back as it was (:func:`lenticalib.outputs.restored_on_failure`),
@@ -50,6 +55,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rays per sensor pixel side, K x K per pixel, 1..16 (default 3, or the --scene's)")
     parser.add_argument("--raw", action="store_true", help="write 16-bit linear PNG photos (captures/NAME.png) as a "
                         "raw converter makes them, instead of camera JPEGs (for 'crosstalk measure --photos linear')")
+    parser.add_argument("--photos", type=int, default=24, metavar="K", help="for a camera board folder ('lenticalib "
+                        "camera patterns'): the number of board photos, 3..500 (default 24)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary instead of sentences")
     parser.set_defaults(run=run)
 
@@ -177,6 +184,8 @@ def run(args: argparse.Namespace) -> int:
     from ._progress import progress_bar
 
     _check_options(args)
+    if _is_board_folder(args.directory):
+        return run_board(args)
     pattern_set = read_pattern_folder(args.directory)
     scene = build_scene(args, pattern_set)
     written = _check_outputs(args.directory)
@@ -197,4 +206,62 @@ def run(args: argparse.Namespace) -> int:
           f"offset {p['offset']:.6f}, reference view {p['reference_view']:g}, order {p['subpixel_order']}, "
           f"{p['views']} views")
     print(f"scene: {summary['simulation']} (reproduce with: lenticalib simulate DIR --scene {summary['simulation']})")
+    return 0
+
+
+def _is_board_folder(directory: str) -> bool:
+    from pathlib import Path
+
+    folder = Path(directory)
+    return (folder / "board.json").is_file() and not (folder / "patterns.json").exists()
+
+
+def run_board(args: argparse.Namespace) -> int:
+    """Photograph the panel board of a 'camera patterns' folder (module docstring)."""
+    import secrets
+    import time
+    from pathlib import Path
+
+    from ..calib.intrinsics.board import read_board
+    from ..errors import InputError
+    from ..outputs import check_output_file, check_output_folder, restored_on_failure
+    from ..sim.board_set import CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME, simulate_board_set
+    from ._progress import progress_bar
+
+    folder = Path(args.directory)
+    board = read_board(folder / "board.json")
+    if board.kind != "panel":
+        raise InputError("is a printed board's folder", source=str(folder / "board.json"),
+                         hint="simulate the panel board folder (the one with board.png), or use 'lenticalib camera "
+                              "simulate DIR --kind print'")
+    ignored = [flag for flag, value in (("--scene", args.scene), ("--slant", args.slant), ("--period", args.period),
+                                        ("--order", args.order), ("--distance", args.distance),
+                                        ("--raw", args.raw or None)) if value is not None]
+    if ignored:
+        raise InputError(f"does not apply to a camera board folder: {', '.join(ignored)}", source=str(folder),
+                         hint="the board folder fixes the panel; the camera moves around it")
+    if not 3 <= args.photos <= 500:
+        raise InputError(f"{args.photos} photos is out of range", source="--photos", hint="use 3..500 (15-30 is typical)")
+    resolution = parse_resolution(args.resolution) if args.resolution else (1600, 1200)
+    captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos")
+    written = [captures, check_output_file(folder / SIMULATION_NAME, "simulation record"),
+               check_output_file(folder / TRUTH_NAME, "true camera model")]
+    if captures.is_dir() and any(captures.iterdir()) and not (folder / SIMULATION_NAME).exists():
+        raise InputError("holds files that the simulator did not write (real photos?)", source=str(captures),
+                         hint="simulate into a fresh 'camera patterns' folder")
+    seed = args.seed if args.seed is not None else secrets.randbelow(2 ** 31)
+    start = time.perf_counter()
+    with restored_on_failure(written, "simulation"), progress_bar(args.photos, "photographing") as bar:
+        doc = simulate_board_set(folder, kind="panel", seed=seed, photos=args.photos, resolution=resolution,
+                                 conditions=args.conditions, subsamples=args.subsamples or 2, progress=bar.update,
+                                 board=board)
+    seconds = round(time.perf_counter() - start, 2)
+    if args.json:
+        print(json.dumps({"directory": str(folder), "kind": "panel", "seed": seed, "photos": args.photos,
+                          "resolution": list(resolution), "seconds": seconds, "truth": str(folder / TRUTH_NAME)}))
+        return 0
+    print(f"wrote {args.photos} photos of the board of {folder / 'board.json'} on a virtual panel to "
+          f"{folder / CAPTURE_FOLDER} ({resolution[0]}x{resolution[1]}, seed {seed}, {doc['seconds_per_photo']:.2f} s "
+          f"per photo); the true camera: {folder / TRUTH_NAME}")
+    print(f"next: lenticalib camera calibrate {folder / CAPTURE_FOLDER} -o camera.cameramodel")
     return 0

@@ -46,14 +46,18 @@ def photo_name(k: int) -> str:
     return f"board-{k + 1:02d}.jpg"
 
 
-def panel_scene(seed: int, resolution: tuple[int, int], conditions: str = "standard", subsamples: int = 2):
-    """The virtual panel (a random 3840 x 2160 panel drawn from ``seed``) with the calibration camera
-    of :func:`.boards.calibration_camera` (its geometry and noise) in place of the scene's camera
+def panel_scene(seed: int, resolution: tuple[int, int], conditions: str = "standard", subsamples: int = 2,
+                panel=None):
+    """The virtual panel (a random panel drawn from ``seed``: 3840 x 2160, or ``panel`` = a board's
+    ``{"width", "height", "pixel_pitch_mm"}``) with the calibration camera of
+    :func:`.boards.calibration_camera` (its geometry and noise) in place of the scene's camera
     geometry; the panel's colour mixing and exposure are kept."""
     from .scene import random_scene
 
-    scene = random_scene(int(seed), width=PANEL_SIZE[0], height=PANEL_SIZE[1], resolution=resolution,
-                         subsamples=subsamples, conditions=conditions)
+    size = PANEL_SIZE if panel is None else (int(panel["width"]), int(panel["height"]))
+    ranges = {} if panel is None else {"panel_width": float(panel["pixel_pitch_mm"]) * size[0]}
+    scene = random_scene(int(seed), width=size[0], height=size[1], resolution=resolution,
+                         subsamples=subsamples, conditions=conditions, **ranges)
     cal = calibration_camera(seed, resolution, conditions, subsamples)
     keep = ("width", "height", "fx", "fy", "cx", "cy", "distortion", "defocus_sigma", "full_well", "read_noise",
             "tone_gamma", "tone_contrast", "sharpen", "jpeg_quality", "exposure_jitter")
@@ -87,8 +91,10 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                  (its panel, and its camera's intrinsics and photometry: the camera that will
                  photograph the calibration patterns too); ``resolution``, ``conditions`` and
                  ``subsamples`` are then the scene's
-    board        a panel set's board (:func:`lenticalib.calib.intrinsics.board.panel_board`) instead of
-                 the default one, whose soft edges span two of the scene's lens pitches
+    board        a panel set's board (:func:`lenticalib.calib.intrinsics.board.panel_board`, e.g. from
+                 the user's ``camera patterns`` folder) instead of the default one, whose soft edges
+                 span two of the scene's lens pitches; without ``scene`` the panel drawn from
+                 ``seed`` then has the board's panel size and pixel pitch
 
     RETURNED VALUE
     the ``simulation.json`` document (also written).
@@ -105,7 +111,8 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     captures.mkdir(exist_ok=True)
     records, seconds = [], []
     if kind == "panel":
-        scene = panel_scene(seed, resolution, conditions, subsamples) if scene is None else scene
+        if scene is None:
+            scene = panel_scene(seed, resolution, conditions, subsamples, None if board is None else board.panel)
         camera, optics = scene.camera, scene.optics
         resolution = (camera.width, camera.height)
         # the edges matched to the sheet, as 'camera patterns --profile' does (a profile's period / 3)
