@@ -378,13 +378,13 @@ def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) 
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "lenticalib_version": __version__,
         "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]) if sys.argv and sys.argv[0] else None,
-        "inputs": [_describe_input(p) for p in inputs],
+        "inputs": [describe_input(p) for p in inputs],
     }
     record.update(extra)
     return record
 
 
-def _describe_input(path) -> dict[str, Any]:
+def describe_input(path) -> dict[str, Any]:
     p = Path(path)
     entry: dict[str, Any] = {"path": str(p)}
     try:

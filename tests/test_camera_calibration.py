@@ -168,9 +168,8 @@ def test_write_cameramodel_leaves_an_earlier_file_when_it_fails(tmp_path):
     before = path.read_text()
 
     class Broken:
-        def write(self, f, note=None):
-            with open(f, "w") as fh:
-                fh.write("half a mod")
+        def write(self, f, note=None):  # mrcal's writer, given a file object, fails half way
+            f.write("half a mod")
             raise RuntimeError("disk went away")
 
     with pytest.raises(RuntimeError):

@@ -20,7 +20,7 @@ from lenticalib.cli import main
 from lenticalib.profile import load_profile
 from lenticalib.retarget import retarget_profile
 from lenticalib.sim.capture import simulate_capture_set
-from lenticalib.sim.optics import view_coordinate_truth
+from lenticalib.sim.optics import routing_error
 from lenticalib.sim.scene import random_scene
 
 DISTANCES = (600.0, 850.0)
@@ -67,15 +67,6 @@ def two_distances(tmp_path_factory):
                                  summary=summary, root=root, model=model)
 
 
-def _w_error(profile, optics, eye):
-    n = profile.views
-    ys = np.linspace(0, optics.height - 1, 50).astype(int)
-    xs = np.linspace(0, 3 * optics.width - 1, 240).astype(int)
-    yy, xx = np.meshgrid(ys, xs, indexing="ij")
-    w = profile.reference_view + (3 * profile.slant * yy + profile.offset - xx) * n / profile.period
-    return np.mod(w - view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n) + n / 2, n) - n / 2
-
-
 def test_the_camera_distance_is_right_and_refers_to_the_lens_surface(two_distances):
     t = two_distances
     optics, camera = t.scene.optics, t.sets[0][1].camera
@@ -111,10 +102,11 @@ def test_the_retargeted_profile_meets_the_target(two_distances, distance, latera
     t = two_distances
     optics = t.scene.optics
     moved = retarget_profile(t.profile, (lateral, 0.0, distance))
-    error = _w_error(moved, optics, (lateral, 0.0, -distance))
+    error = routing_error(optics, (lateral, 0.0, -distance), moved, rows=50, cols=240)
     assert np.sqrt(np.mean(error ** 2)) < 0.05 and np.abs(error).max() < 0.15
     # the profile as fitted would be wrong there by views
-    assert np.abs(_w_error(t.profile, optics, (lateral, 0.0, -distance))).max() > 1.0
+    unmoved = routing_error(optics, (lateral, 0.0, -distance), t.profile, rows=50, cols=240)
+    assert np.abs(unmoved).max() > 1.0
 
 
 def test_without_the_gap_the_profile_says_why(two_distances, tmp_path, capsys):
@@ -179,8 +171,8 @@ def test_with_a_calibrated_camera_distance_gap_and_retargeting_meet_the_targets(
     assert sigma[2] > np.array(t.profile.physical["uncertainty"]["eye_mm"])[2]
     assert abs(block["gap_mm"] / optics.gap - 1) < 0.02
     for lateral, distance in ((0.0, 400.0), (-60.0, 750.0), (0.0, 900.0)):
-        error = _w_error(retarget_profile(calibrated.profile, (lateral, 0.0, distance)), optics,
-                         (lateral, 0.0, -distance))
+        moved = retarget_profile(calibrated.profile, (lateral, 0.0, distance))
+        error = routing_error(optics, (lateral, 0.0, -distance), moved, rows=50, cols=240)
         assert np.sqrt(np.mean(error ** 2)) < 0.05 and np.abs(error).max() < 0.15
 
 

@@ -16,18 +16,8 @@ from lenticalib.errors import InputError, ProfileError
 from lenticalib.physical import gap_from_view_cone, validate_physical, view_cone_deg
 from lenticalib.profile import load_profile, profile_from_dict, save_profile
 from lenticalib.retarget import Eye, Retargeter, retarget_profile, routing_difference
-from lenticalib.sim.optics import truth_profile, view_coordinate_truth
+from lenticalib.sim.optics import routing_error, truth_profile
 from lenticalib.sim.scene import random_scene
-
-
-def _w_error(profile, optics, eye):
-    """w - w* (views, circular) on a grid of subpixels over the whole panel, eye in world mm."""
-    n = profile.views
-    ys = np.linspace(0, optics.height - 1, 40).astype(int)
-    xs = np.linspace(0, 3 * optics.width - 1, 160).astype(int)
-    yy, xx = np.meshgrid(ys, xs, indexing="ij")
-    w = profile.reference_view + (3 * profile.slant * yy + profile.offset - xx) * n / profile.period
-    return np.mod(w - view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n) + n / 2, n) - n / 2
 
 
 def _exact(optics, eye_world, views=32):
@@ -44,10 +34,10 @@ def test_retargeting_an_exact_profile_gives_the_ray_traced_truth(seed, target):
     source = _exact(optics, (12.0, -30.0, -600.0))
     moved = retarget_profile(source, target)
     eye = (target[0], target[1], -target[2])
-    assert np.abs(_w_error(moved, optics, eye)).max() < 1e-6
+    assert np.abs(routing_error(optics, eye, moved)).max() < 1e-6
     assert moved.physical["eye_mm"] == list(target)
     # and without retargeting the routing would be wrong by views
-    assert np.abs(_w_error(source, optics, eye)).max() > 0.5
+    assert np.abs(routing_error(optics, eye, source)).max() > 0.5
 
 
 def test_retargeting_there_and_back_is_the_identity():
@@ -167,7 +157,7 @@ def test_profile_retarget_cli(tmp_path, capsys):
     assert code == 0, err
     assert "period" in out and "wrote" in out
     moved = load_profile(tmp_path / "p850.json")
-    assert np.abs(_w_error(moved, optics, (-40.0, 0.0, -850.0))).max() < 1e-6
+    assert np.abs(routing_error(optics, (-40.0, 0.0, -850.0), moved)).max() < 1e-6
     assert moved.provenance["method"] == "retarget" and moved.provenance["to_eye_mm"] == [-40.0, 0.0, 850.0]
 
 
@@ -200,6 +190,7 @@ def test_set_physical_from_a_data_sheet_then_retarget(tmp_path, capsys):
     code, out, err = _run(capsys, "profile", "retarget", tmp_path / "p.json", "--distance", 450, "-o",
                           tmp_path / "p450.json")
     assert code == 0, err
-    assert np.abs(_w_error(load_profile(tmp_path / "p450.json"), optics, (0.0, 0.0, -450.0))).max() < 1e-6
+    moved = load_profile(tmp_path / "p450.json")
+    assert np.abs(routing_error(optics, (0.0, 0.0, -450.0), moved)).max() < 1e-6
     code, out, err = _run(capsys, "profile", "set-physical", tmp_path / "p.json", "--gap", -1)
     assert code == 2 and "physical.gap_mm" in err

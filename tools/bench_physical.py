@@ -34,17 +34,6 @@ import numpy as np
 TARGETS = [(0.0, 400.0), (50.0, 500.0), (0.0, 750.0), (50.0, 900.0)]
 
 
-def _w_error(profile, optics, eye):
-    from lenticalib.sim.optics import view_coordinate_truth
-
-    n = profile.views
-    ys = np.linspace(0, optics.height - 1, 50).astype(int)
-    xs = np.linspace(0, 3 * optics.width - 1, 240).astype(int)
-    yy, xx = np.meshgrid(ys, xs, indexing="ij")
-    w = profile.reference_view + (3 * profile.slant * yy + profile.offset - xx) * n / profile.period
-    return np.mod(w - view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n) + n / 2, n) - n / 2
-
-
 def _camera_model(kind: str, scene, root: Path, seed: int) -> Path:
     import mrcal
 
@@ -74,6 +63,7 @@ def one_seed(seed: int, model_kind: str) -> dict:
     from lenticalib.profile import load_profile
     from lenticalib.retarget import retarget_profile
     from lenticalib.sim.capture import simulate_capture_set
+    from lenticalib.sim.optics import routing_error
     from lenticalib.sim.scene import random_scene
 
     start = time.perf_counter()
@@ -114,7 +104,8 @@ def one_seed(seed: int, model_kind: str) -> dict:
                "lens_pitch_error_ppm": float(1e6 * (block["lens_pitch_mm"] / optics.lens_pitch - 1))}
         retarget = []
         for lateral, distance in TARGETS:
-            err = _w_error(retarget_profile(profile, (lateral, 0.0, distance)), optics, (lateral, 0.0, -distance))
+            moved = retarget_profile(profile, (lateral, 0.0, distance))
+            err = routing_error(optics, (lateral, 0.0, -distance), moved, rows=50, cols=240)
             retarget.append({"lateral_mm": lateral, "distance_mm": distance, "rms_views": float(np.sqrt(np.mean(err ** 2))),
                              "worst_views": float(np.abs(err).max())})
         out["retarget"] = retarget

@@ -43,6 +43,7 @@ class CameraModel:
     source: str | None = None
     optimization_inputs: dict | None = None
     uncertainty_scale: float = 1.0  # from 'camera calibrate''s cross-validation (calib.intrinsics.crossval)
+    _covariance_root: np.ndarray | None = dataclasses.field(default=None, init=False, repr=False, compare=False)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -88,35 +89,40 @@ class CameraModel:
         calibrate``, recorded in the model's note).  Parameters the calibration held fixed (a
         splined model's core) stay.
         """
-        oi = self.optimization_inputs
-        if oi is None:
+        root = self._unit_covariance_root()
+        if root is None:
             return None
+        rng = np.random.default_rng(seed)
+        draws = np.repeat(self.intrinsics[None], count, axis=0)
+        n_state = root.shape[0]
+        offset = self.intrinsics.size - n_state  # a fixed core comes first
+        draws[:, offset:] += self.uncertainty_scale * (rng.standard_normal((count, n_state)) @ root.T)
+        return draws
+
+    def _unit_covariance_root(self) -> np.ndarray | None:
+        """A square root R (R R^T = Var) of the optimised intrinsics' covariance, before
+        ``uncertainty_scale``; computed once per model (the mrcal factorisation is the costly part)."""
+        if self._covariance_root is not None or self.optimization_inputs is None:
+            return self._covariance_root
         import mrcal
 
+        oi = self.optimization_inputs
         _, x, _, factorization = mrcal.optimizer_callback(**oi)
-        if factorization is None:
-            return None
         n_state = mrcal.num_states_intrinsics(**oi)
         first = mrcal.state_index_intrinsics(0, **oi)
-        n_total = mrcal.num_states(**oi)
-        if first is None or n_state == 0:
+        if factorization is None or first is None or n_state == 0:
             return None
+        n_total = mrcal.num_states(**oi)
         rows = np.zeros((n_state, n_total))
         rows[np.arange(n_state), first + np.arange(n_state)] = 1.0
         inverse = factorization.solve_xt_JtJ_bt(rows)[:, first:first + n_state]
-        ones = np.ones(n_total)
-        scale = _unpack_scale(ones, oi)[first:first + n_state]
+        scale = _unpack_scale(np.ones(n_total), oi)[first:first + n_state]
         residuals = mrcal.measurements_board(oi, x=x).ravel()
         sigma = float(np.sqrt(np.mean(residuals ** 2))) if residuals.size else 0.0
-        cov = (self.uncertainty_scale * sigma) ** 2 * (scale[:, None] * inverse * scale[None, :])
-        cov = 0.5 * (cov + cov.T)
-        w, v = np.linalg.eigh(cov)
-        root = v * np.sqrt(np.clip(w, 0.0, None))
-        rng = np.random.default_rng(seed)
-        draws = np.repeat(self.intrinsics[None], count, axis=0)
-        offset = self.intrinsics.size - n_state  # a fixed core comes first
-        draws[:, offset:] += rng.standard_normal((count, n_state)) @ root.T
-        return draws
+        cov = sigma ** 2 * (scale[:, None] * inverse * scale[None, :])
+        w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+        self._covariance_root = v * np.sqrt(np.clip(w, 0.0, None))
+        return self._covariance_root
 
 
 def _unpack_scale(packed: np.ndarray, oi: dict) -> np.ndarray:

@@ -29,11 +29,13 @@ IGNORED_NAMES = {"thumbs.db", "desktop.ini"}
 
 @dataclasses.dataclass(frozen=True)
 class CaptureSet:
-    """A pattern folder with its manifest and the photo path of every pattern (by name)."""
+    """A pattern folder with its manifest, the photo path of every pattern (by name) and the first
+    photo's (width, height) in pixels as taken (EXIF orientation applied)."""
 
     directory: Path
     patterns: PatternSet
     photos: dict[str, Path]
+    photo_size: tuple[int, int] | None = None
 
     def photo(self, name: str) -> Path:
         return self.photos[name]
@@ -88,7 +90,7 @@ def match_captures(directory: Path, patterns) -> CaptureSet:
     first = photos[patterns.names[0]]
     raw = read_image(first, camera_orientation=True)
     check_photo_size(first, raw.shape[1], raw.shape[0])
-    return CaptureSet(directory, patterns, photos)
+    return CaptureSet(directory, patterns, photos, (int(raw.shape[1]), int(raw.shape[0])))
 
 
 def check_photo_size(path: Path, width: int, height: int) -> None:

@@ -26,10 +26,9 @@ import cv2
 import numpy as np
 
 from ..errors import CalibrationError, CaptureError, InputError
-from ..imageio import read_image
 from ..profile import PanelProfile, make_provenance
 from . import model, phase, photometric
-from .camera import describe_pose, estimate_camera, load_camera_model
+from .camera import CameraModel, describe_pose, estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
 from .groups import Group, Registration, demodulate_group, group_photos
@@ -133,7 +132,8 @@ def _modulation_weight(group: Group, mask: np.ndarray) -> np.ndarray:
 
 
 def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
-                    camera_model: str | os.PathLike | None = None, pixel_pitch_mm: float | None = None,
+                    camera_model: CameraModel | str | os.PathLike | None = None,
+                    pixel_pitch_mm: float | None = None,
                     progress: ProgressFn | None = None) -> FitResult:
     """Fit the panel profile from the capture set in ``directory``; see the module docstring.
 
@@ -143,7 +143,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     camera's pose in mm (``pose``, distances to the pixel plane: :mod:`.pose`).
     """
     start = time.perf_counter()
-    given_camera = load_camera_model(camera_model) if camera_model else None
+    given_camera = None if not camera_model else \
+        camera_model if isinstance(camera_model, CameraModel) else load_camera_model(camera_model)
     capture = open_capture_set(directory)
     ps = capture.patterns
     if given_camera is not None:
@@ -354,8 +355,7 @@ def _check_camera_size(model, capture) -> None:
     """InputError before the fit when the camera model was calibrated at another image size."""
     if model.image_size is None:
         return
-    first = capture.photo(capture.patterns.names[0])
-    h, w = read_image(first, camera_orientation=True).shape[:2]
+    w, h = capture.photo_size
     if (w, h) != tuple(model.image_size):
         raise InputError(f"the camera model is for {model.image_size[0]}x{model.image_size[1]} images, the photos are "
                          f"{w}x{h}", source=str(model.source),

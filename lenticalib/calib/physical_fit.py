@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..physical import view_cone_deg
-from ..profile import PanelProfile, _describe_input
+from ..profile import PanelProfile, describe_input
 from .pose import SYSTEMATIC_FRACTION, PanelPose
 
 MIN_DISTANCE_RATIO = 1.15  # two capture sets closer than this in distance do not determine the gap
@@ -164,7 +164,7 @@ def add_physical(result, pixel_pitch: float, *, second=None, gap: float | None =
         result.quality["camera"]["pose"] = result.pose.to_dict()
     result.quality["physical"] = report
     provenance = dict(result.profile.provenance or {})
-    provenance["camera_model"] = _describe_input(result.quality["camera"].get("source"))
+    provenance["camera_model"] = describe_input(result.quality["camera"].get("source"))
     if second is not None:
         provenance["second_distance_inputs"] = (second.profile.provenance or {}).get("inputs", [])
     result.profile = result.profile.replace(physical=block, provenance=provenance)

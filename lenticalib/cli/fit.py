@@ -102,8 +102,8 @@ def check_physical_options(args: argparse.Namespace) -> None:
     if needs_camera and not args.camera:
         raise InputError("needs a camera model", source=needs_camera[0],
                          hint="calibrate the camera ('lenticalib camera calibrate ...') and pass --camera MODEL")
+    args.camera_model = load_camera_model(args.camera) if args.camera else None  # read once for every fit
     if args.camera:
-        load_camera_model(args.camera)
         if args.pixel_pitch is None:
             raise InputError("a camera model gives the camera's pose in mm only with the panel's pixel pitch",
                              source="--camera", hint="pass --pixel-pitch MM (the panel's width in mm / its pixels)")
@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
 
     output, report_dir = check_arguments(args)
     sets = 1 + bool(args.moved_right) + bool(args.second_distance)
-    options = dict(views=args.views, camera_model=args.camera, pixel_pitch_mm=args.pixel_pitch)
+    options = dict(views=args.views, camera_model=args.camera_model, pixel_pitch_mm=args.pixel_pitch)
     with progress_bar(24 * sets, "fitting") as bar:
         result = fit_capture_set(args.directory, progress=bar.update, **options)
         if args.moved_right:

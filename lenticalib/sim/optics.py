@@ -310,6 +310,18 @@ def view_coordinate_truth(optics: PanelOptics, eye, X, Y, views: int) -> np.ndar
     return np.mod(w, views)
 
 
+def routing_error(optics: PanelOptics, eye, profile: PanelProfile, rows: int = 40, cols: int = 160) -> np.ndarray:
+    """w - w* (views, circular, in [-N/2, N/2)) of ``profile`` for an eye at ``eye`` (world mm,
+    z < 0) on a ``rows`` x ``cols`` grid of subpixels spread over the whole panel: the profile's
+    ``w`` at each subpixel's index against :func:`view_coordinate_truth` at its centre."""
+    n = profile.views
+    ys = np.linspace(0, optics.height - 1, rows).astype(np.int64)
+    xs = np.linspace(0, 3 * optics.width - 1, cols).astype(np.int64)
+    yy, xx = np.meshgrid(ys, xs, indexing="ij")
+    w = profile.reference_view + (3 * profile.slant * yy + profile.offset - xx) * n / profile.period
+    return np.mod(w - view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n) + n / 2, n) - n / 2
+
+
 def truth_constants(optics: PanelOptics, eye, views: int) -> dict[str, float]:
     """The ideal routing constants for an eye at ``eye`` (closed form, see :func:`truth_profile`).
 

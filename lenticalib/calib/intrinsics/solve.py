@@ -38,6 +38,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...atomic import write_text_atomic
 from ...errors import BackendUnavailableError, CalibrationError, InputError
 
 OPENCV8 = "LENSMODEL_OPENCV8"
@@ -309,25 +310,11 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
 
 
 def write_cameramodel(model, path: str | os.PathLike, note: str | None = None) -> Path:
-    """Write ``model`` with mrcal's writer into a temporary file beside ``path``, then move it into
-    place (an earlier file survives any failure); ``note`` goes into the file's header comment."""
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
-    try:
-        model.write(tmp, note=note)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        if isinstance(exc, OSError):
-            raise InputError(f"cannot write the camera model: {exc.strerror}", source=str(target),
-                             hint="check free space and permissions") from None
-        raise
-    return target
+    """Write ``model`` with mrcal's writer (``note`` goes into the file's header comment) and put it
+    in place atomically (:func:`lenticalib.atomic.write_text_atomic`: an earlier file survives any
+    failure)."""
+    import io
+
+    text = io.StringIO()
+    model.write(text, note=note)
+    return write_text_atomic(path, text.getvalue())
