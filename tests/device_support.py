@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -60,3 +61,18 @@ def wait_exit(proc, timeout: float = 10.0) -> int:
     while proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
     return proc.poll()
+
+
+@contextmanager
+def no_hang(seconds: int):
+    """Fail the test (AssertionError) instead of hanging when the block runs past ``seconds``."""
+    def expire(signum, frame):
+        raise AssertionError(f"still running after {seconds} s: hung")
+
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

@@ -10,7 +10,7 @@ import pytest
 from lenticalib.device import PanelController
 from lenticalib.errors import DeviceDisconnectedError, DeviceError, DeviceTimeoutError
 
-from .device_support import VIAS, emulator_process, profile_a, profile_b, same_constants
+from .device_support import VIAS, emulator_process, no_hang, profile_a, profile_b, same_constants
 
 FAULTS = {
     "drop": "drop=0.3",
@@ -95,6 +95,21 @@ def test_silent_device_times_out_with_a_clear_message():
         with pytest.raises(DeviceTimeoutError, match="no valid reply to IDENTIFY.*3 attempts"):
             panel.identify()
         assert time.monotonic() - start < 3 * TIMEOUT + 1
+
+
+@pytest.mark.parametrize("via", VIAS)
+def test_chatty_device_ends_in_one_timeout_line_within_the_command_timeout(via):
+    """A controller that always has bytes ready (``babble``: a HID device with a report always
+    pending) never lets the host's input drain; the drain is bounded by the command's timeout,
+    so the very first request fails with one DeviceTimeoutError line instead of draining for ever."""
+    with open_fast(f"emu://chatty?via={via}&babble=1") as panel, no_hang(30):
+        start = time.monotonic()
+        with pytest.raises(DeviceTimeoutError, match="keeps sending unasked") as info:
+            panel.identify()
+        elapsed = time.monotonic() - start
+    assert "\n" not in str(info.value) and "emu://chatty" in str(info.value)
+    assert elapsed < TIMEOUT + 2.0  # the drain's own bound, not the retries' (which would also end)
+    assert panel.resends == 0  # it never got as far as sending
 
 
 def test_faults_over_tcp_and_pty_processes(tmp_path):

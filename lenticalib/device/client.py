@@ -105,14 +105,15 @@ class PanelController:
                 accept: tuple[Status, ...] = (Status.OK,)) -> tuple[Status, bytes]:
         """Send one request and return (status, reply body after the status byte).
 
-        Raises DeviceTimeoutError after ``retries`` resends without a valid reply, and
+        Raises DeviceTimeoutError after ``retries`` resends without a valid reply, or within
+        ``timeout`` when the controller keeps sending unasked (the input is never drained), and
         DeviceProtocolError for a status not in ``accept``.
         """
         timeout = self.command_timeout if timeout is None else timeout
         self._seq = (self._seq + 1) & 0xFF
         seq = self._seq
         frame = encode_frame(command, seq, payload)
-        self.transport.discard_input()
+        self.transport.discard_input(timeout)  # bounded too: a controller that never stops talking fails here
         self._parser.reset()
         errors_before = self._parser.errors
         for attempt in range(self.retries + 1):

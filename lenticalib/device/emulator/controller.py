@@ -187,6 +187,8 @@ class EmulatedController:
                     self._queued -= len(take)
                     if len(take) < len(data):
                         self._outbox.insert(0, (ready, data[len(take):]))
+                if not out and self.faults.babble and max_bytes > 0:
+                    out += self.faults.noise(min(max_bytes, 64))
                 if out:
                     return bytes(out)
                 if now >= deadline:
@@ -198,7 +200,7 @@ class EmulatedController:
 _URL_FAULTS = {"drop": "drop_rate", "corrupt": "corrupt_rate", "duplicate": "duplicate_rate",
                "delay": "delay_rate", "delay-s": "delay_s", "stale": "stale_rate",
                "disconnect-after": "disconnect_after", "power-cut-after": "power_cut_after",
-               "torn": "torn", "seed": "seed"}
+               "torn": "torn", "babble": "babble", "seed": "seed"}
 _URL_SETUP = ("panel", "order", "views", "protocol")
 URL_OPTIONS = ("via", *_URL_SETUP, *_URL_FAULTS)
 
@@ -209,7 +211,7 @@ def controller_for_url(url) -> EmulatedController:
     The flash image is NAME.flash in :func:`default_image_dir` (created blank on first use);
     ``panel=WxH``, ``order=RGB|BGR``, ``views=N[,N...]`` set the panel it drives (default: the
     family's) and ``protocol=1.0|1.1`` the firmware generation; fault options (``drop=0.1``,
-    ``power-cut-after=3``, ``torn=1``, ``seed=7``, ...) map onto :class:`FaultPlan` fields.
+    ``power-cut-after=3``, ``torn=1``, ``babble=1``, ``seed=7``, ...) map onto :class:`FaultPlan` fields.
     Raises InputError naming the URL and the bad parameter.
     """
     from ...errors import InputError
@@ -231,7 +233,7 @@ def controller_for_url(url) -> EmulatedController:
             continue
         field = _URL_FAULTS[key]
         try:
-            if field == "torn":
+            if field in ("torn", "babble"):
                 values[field] = text.lower() in ("1", "true", "yes")
             elif field in ("disconnect_after", "power_cut_after", "seed"):
                 values[field] = int(text)

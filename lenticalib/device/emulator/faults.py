@@ -25,6 +25,8 @@ class FaultPlan:
     disconnect_after  the link goes away after this many request frames (None: never)
     power_cut_after   the power fails after this many flash operations (None: never)
     torn              the power cut interrupts the operation halfway instead of after it
+    babble            the controller talks unasked: whenever no reply is ready, noise is (a
+                      device streaming reports of its own, so the host's input never drains)
     """
 
     drop_rate: float = 0.0
@@ -36,6 +38,7 @@ class FaultPlan:
     disconnect_after: int | None = None
     power_cut_after: int | None = None
     torn: bool = False
+    babble: bool = False
     seed: int = 0
 
     def __post_init__(self):
@@ -59,6 +62,10 @@ class FaultPlan:
         index = self.random.randrange(len(out))
         out[index] ^= 1 << self.random.randrange(8)
         return bytes(out)
+
+    def noise(self, size: int) -> bytes:
+        """``size`` bytes the controller sends unasked (``babble``)."""
+        return self.random.randbytes(size)
 
 
 def _opt(name: str) -> str:

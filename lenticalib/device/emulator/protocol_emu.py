@@ -14,7 +14,7 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from ...errors import LenticalibError
 from ..url import parse_device_url
-from .controller import LinkDown, controller_for_url
+from .controller import TRANSMIT_BUFFER, LinkDown, controller_for_url
 
 
 class Serial(SerialBase):
@@ -73,8 +73,8 @@ class Serial(SerialBase):
         pass
 
     def reset_input_buffer(self):
-        while self.is_open and self.controller.host_read(4096, 0.0):
-            pass
+        if self.is_open:  # what is ready now, once: a babbling controller never runs dry
+            self.controller.host_read(TRANSMIT_BUFFER, 0.0)
 
     def reset_output_buffer(self):
         pass

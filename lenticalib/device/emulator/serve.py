@@ -22,7 +22,7 @@ import tty
 from pathlib import Path
 
 from ...errors import InputError
-from .controller import EmulatedController, LinkDown
+from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 
 EXIT_POWER_CUT = 75
 EXIT_DISCONNECT = 76
@@ -114,12 +114,15 @@ def serve_pty(controller: EmulatedController) -> None:
 
 
 def _flush(controller: EmulatedController, send) -> None:
-    """Send every reply byte that is ready.  ``send`` is non-blocking: what a host that does not
-    read cannot take is dropped, as a device's full transmit buffer drops it; never a wait."""
-    while True:
+    """Send the reply bytes that are ready, at most one transmit buffer's worth per call (the
+    server loop comes back).  ``send`` is non-blocking: what a host that does not read cannot
+    take is dropped, as a device's full transmit buffer drops it; never a wait."""
+    sent = 0
+    while sent < TRANSMIT_BUFFER:
         out = controller.host_read(4096, 0.0)  # LinkDown propagates to the server loop
         if not out:
             return
+        sent += len(out)
         view = memoryview(out)
         while view:
             try:

@@ -1,8 +1,9 @@
 """The transport base class: a byte pipe to one controller, with uniform errors and timeouts.
 
 Template method (as python-can's ``BusABC``): the public :meth:`Transport.open`,
-:meth:`write`, :meth:`read` and :meth:`close` own error mapping and argument checks; a backend
-overrides only ``_open``, ``_close``, ``_write`` and ``_read``.  Framing, retries and
+:meth:`write`, :meth:`read`, :meth:`discard_input` and :meth:`close` own error mapping,
+argument checks and every deadline; a backend overrides only ``_open``, ``_close``, ``_write``
+and ``_read`` (one bounded attempt), plus ``_discard_buffered`` when it buffers input itself.  Framing, retries and
 sequence numbers live above, in :mod:`lenticalib.device.client`, identical for every
 transport: each transport only carries the protocol's byte stream (a serial port carries it
 as is, HID packs it into 64-byte reports, USB into control transfers).
@@ -11,8 +12,9 @@ as is, HID packs it into 64-byte reports, USB into control transfers).
 from __future__ import annotations
 
 import re
+import time
 
-from ...errors import DeviceDisconnectedError, DeviceNotFoundError, LenticalibError
+from ...errors import DeviceDisconnectedError, DeviceNotFoundError, DeviceTimeoutError, LenticalibError
 from ..drivers import ControllerFamily, TransportDescription
 from ..url import DeviceURL
 
@@ -84,20 +86,45 @@ class Transport:
                                           hint="check the cable and the controller's power") from None
 
     def read(self, max_bytes: int, timeout: float) -> bytes:
-        """Up to ``max_bytes`` received bytes, waiting at most ``timeout`` seconds (b"" if none)."""
+        """Up to ``max_bytes`` received bytes, waiting at most ``timeout`` seconds (b"" if none).
+
+        The deadline is kept here: ``_read`` makes one attempt bounded by the time left and may
+        come back empty early (a report dropped, an empty USB poll); it is asked again until
+        bytes come or the deadline passes.  ``timeout`` 0 makes exactly one attempt.
+        """
         self._require_open()
+        deadline = time.monotonic() + max(0.0, timeout)
         try:
-            return self._read(max_bytes, max(0.0, timeout))
+            while True:
+                data = self._read(max_bytes, max(0.0, deadline - time.monotonic()))
+                if data or time.monotonic() >= deadline:
+                    return data
         except LenticalibError:
             raise
         except (OSError, ValueError) as exc:
             raise DeviceDisconnectedError(f"read failed: {reason(exc)}", source=str(self.url),
                                           hint="check the cable and the controller's power") from None
 
-    def discard_input(self) -> None:
-        """Throw away bytes already received (stale replies) before a new request."""
-        while self.read(4096, 0.0):
-            pass
+    def discard_input(self, timeout: float) -> int:
+        """Throw away bytes already received (stale replies) before a new request; their count.
+
+        Bounded like every wait by ``timeout`` seconds (the command's timeout): a controller
+        that is still sending when it has passed talks unasked, no request could be told apart
+        from its stream, and DeviceTimeoutError says so.
+        """
+        self._require_open()
+        deadline = time.monotonic() + max(0.0, timeout)
+        dropped = self._discard_buffered()
+        while True:
+            data = self.read(4096, 0.0)
+            if not data:
+                return dropped
+            dropped += len(data)
+            if time.monotonic() >= deadline:
+                raise DeviceTimeoutError(f"the controller keeps sending unasked ({dropped} bytes in {timeout:g} s "
+                                         "before the request), so no request can be sent", source=str(self.url),
+                                         hint="check that the URL names a panel controller speaking protocol v1; "
+                                              "unplug and replug it")
 
     def open_hint(self) -> str:
         return "check the URL, that the controller is plugged in, and the udev rules (drivers/70-lenticalib.rules)"
@@ -124,4 +151,9 @@ class Transport:
         raise NotImplementedError
 
     def _read(self, max_bytes: int, timeout: float) -> bytes:
+        """One attempt: bytes received, waiting at most ``timeout`` s; b"" when none (yet)."""
         raise NotImplementedError
+
+    def _discard_buffered(self) -> int:
+        """Drop input the backend buffers itself (beyond what ``_read`` returns); the bytes dropped."""
+        return 0

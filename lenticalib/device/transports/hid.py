@@ -9,8 +9,6 @@ dropped (the frame CRC above catches what is left).
 
 from __future__ import annotations
 
-import time
-
 from ...errors import DeviceNotFoundError
 from .base import Transport
 
@@ -57,24 +55,22 @@ class HidTransport(Transport):
                 raise OSError("HID write failed (device gone?)")
 
     def _read(self, max_bytes: int, timeout: float) -> bytes:
-        deadline = time.monotonic() + timeout
         size = self.description.report_size
-        while not self._pending:
-            ms = max(1, int(round((deadline - time.monotonic()) * 1000)))
-            report = self.device.read(size, ms)
-            if report:
-                if report[0] != self.description.in_report_id or len(report) < 2 or report[1] > min(
-                        size, len(report)) - 2:
-                    self.dropped_reports += 1
-                else:
-                    self._pending += bytes(report[2:2 + report[1]])
-                    break
-            if time.monotonic() >= deadline:
+        if not self._pending:
+            # hidapi's read(size, 0) would block without end: wait at least 1 ms, at most the time left
+            report = self.device.read(size, max(1, int(round(timeout * 1000))))
+            if not report:
                 return b""
+            if report[0] != self.description.in_report_id or len(report) < 2 or report[1] > min(
+                    size, len(report)) - 2:
+                self.dropped_reports += 1
+                return b""
+            self._pending += bytes(report[2:2 + report[1]])
         out = bytes(self._pending[:max_bytes])
         del self._pending[:max_bytes]
         return out
 
-    def discard_input(self) -> None:
+    def _discard_buffered(self) -> int:
+        dropped = len(self._pending)
         self._pending.clear()
-        super().discard_input()
+        return dropped

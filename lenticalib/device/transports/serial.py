@@ -8,8 +8,6 @@ is, 8N1, no flow control.
 
 from __future__ import annotations
 
-import time
-
 import serial
 
 try:
@@ -61,16 +59,12 @@ class SerialTransport(Transport):
             raise OSError(exc.args[-1] if exc.args else "the port went away") from None
 
     def _read(self, max_bytes: int, timeout: float) -> bytes:
-        deadline = time.monotonic() + timeout
         try:
-            while True:
-                self.port.timeout = max(0.0, deadline - time.monotonic())
-                first = self.port.read(1)
-                if not first:
-                    if time.monotonic() >= deadline:
-                        return b""
-                    continue
-                self.port.timeout = 0  # then whatever else has arrived, without waiting
-                return first + (self.port.read(max_bytes - 1) if max_bytes > 1 else b"")
+            self.port.timeout = timeout
+            first = self.port.read(1)
+            if not first:
+                return b""
+            self.port.timeout = 0  # then whatever else has arrived, without waiting
+            return first + (self.port.read(max_bytes - 1) if max_bytes > 1 else b"")
         except serial.SerialException as exc:
             raise OSError(str(exc)) from None

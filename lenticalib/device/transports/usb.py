@@ -9,6 +9,7 @@ its deadline (``drivers/protocol-v1.md`` section 6.3).
 from __future__ import annotations
 
 import errno
+import math
 import time
 
 import usb.core
@@ -63,21 +64,18 @@ class UsbTransport(Transport):
             raise OSError(f"control transfer sent {sent} of {len(data)} bytes")
 
     def _read(self, max_bytes: int, timeout: float) -> bytes:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                data = self.device.ctrl_transfer(0xC0, self.description.request_in, 0, 0,
-                                                 min(max_bytes, self.description.max_in), self._timeout_ms())
-            except usb.core.USBTimeoutError:
-                data = b""
-            except usb.core.USBError as exc:
-                raise self._usb_error(exc) from None
-            if len(data):
-                return bytes(data)
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return b""
-            time.sleep(min(_POLL_S, left))
+        try:  # pyusb's timeout 0 means none: at least 1 ms, at most the time left
+            data = self.device.ctrl_transfer(0xC0, self.description.request_in, 0, 0,
+                                             min(max_bytes, self.description.max_in),
+                                             max(1, math.ceil(timeout * 1000)))
+        except usb.core.USBTimeoutError:
+            data = b""
+        except usb.core.USBError as exc:
+            raise self._usb_error(exc) from None
+        if len(data):
+            return bytes(data)
+        time.sleep(min(_POLL_S, timeout))  # nothing pending yet: poll again (protocol-v1.md 6.3)
+        return b""
 
     def _usb_error(self, exc: Exception) -> Exception:
         if getattr(exc, "errno", None) in (errno.ENODEV, errno.EIO) or getattr(exc, "backend_error_code", None) == -4:
