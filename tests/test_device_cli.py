@@ -237,3 +237,48 @@ def test_flash_refuses_a_profile_for_another_panel_unless_forced(tmp_path):
         assert warning.startswith("lenticalib: warning: ") and "3840x2160" in warning and "1920x1080" in warning
         assert "verified by read-back" in forced.stdout
         assert cli("device", "verify", url, str(profile)).returncode == 0
+
+
+def test_emulator_announces_itself_only_in_a_private_folder(tmp_path):
+    """Without XDG_RUNTIME_DIR the running emulator announces itself under TMP/lenticalib-UID, a
+    name anyone may have taken first: a symbolic link or a folder others can write there is
+    refused in one line before anything is created, and nothing is written through it."""
+    import os
+    import stat
+
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "keep.txt").write_text("mine")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    root = tmp / f"lenticalib-{os.getuid()}"
+    env = {"XDG_RUNTIME_DIR": "", "TMPDIR": str(tmp), "LENTICALIB_EMULATOR_DIR": str(tmp_path / "emu")}
+    image = tmp_path / "a.flash"
+
+    def refused(expect: str):
+        result = cli("emulate", "--flash", str(image), env=env)
+        assert result.returncode == 2, result.stdout + result.stderr
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and str(root) in lines[0] and expect in lines[0], result.stderr
+        assert not image.exists()  # refused before the flash image was created
+        listed = cli("device", "list", "--json", env=env)
+        assert listed.returncode == 0 and expect in " ".join(json.loads(listed.stdout)["notes"])
+
+    root.symlink_to(victim, target_is_directory=True)
+    refused("is a symbolic link")
+    root.unlink()
+    root.mkdir()
+    os.chmod(root, 0o777)
+    refused("is writable by others")
+    if os.geteuid() == 0:  # only root can give a folder away
+        os.chmod(root, 0o700)
+        os.chown(root, 65534, 65534)
+        refused("belongs to another user")
+        os.chown(root, 0, 0)
+    os.chmod(root, 0o755)  # ours, as an older lenticalib left it: made private and used
+    with emulator_process("--flash", str(image), env=env) as (_, url):
+        assert stat.S_IMODE(os.stat(root).st_mode) == 0o700
+        assert stat.S_IMODE(os.stat(root / "emulators").st_mode) == 0o700
+        listed = cli("device", "list", "--json", env=env)
+        assert url in [d["url"] for d in json.loads(listed.stdout)["devices"]]
+    assert sorted(os.listdir(victim)) == ["keep.txt"] and (victim / "keep.txt").read_text() == "mine"

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from ..device.emulator import config
     from ..device.emulator.controller import EmulatedController, default_image_dir, default_panel, ensure_image
     from ..device.emulator.faults import FaultPlan
-    from ..device.emulator.serve import serve_pty, serve_tcp
+    from ..device.emulator.serve import runtime_dir, serve_pty, serve_tcp
     from ..errors import InputError
     from ..outputs import check_output_file
 
@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
                 panel = config.panel_geometry(panel, **{argument: text})
             except ValueError as exc:
                 raise InputError(str(exc), source=option) from None
+    runtime_dir()  # where the running emulator announces itself: an unsafe folder is refused before anything
     if args.flash:
         image = Path(args.flash)
         if not image.exists():

@@ -91,7 +91,14 @@ def _emulators(found, notes):
     from .emulator.controller import default_image_dir
     from .emulator.serve import running_emulators
 
-    for entry in running_emulators():
+    from ..errors import LenticalibError
+
+    try:
+        running = running_emulators()
+    except LenticalibError as exc:  # an unsafe runtime folder: say so, list the rest
+        notes.append(f"running emulators not listed: {exc}")
+        running = []
+    for entry in running:
         found.append(FoundDevice(entry["url"], entry.get("transport", "?"), "lc32",
                                  f"running emulator (pid {entry['pid']}, flash {entry.get('flash')})",
                                  entry.get("serial")))

@@ -22,6 +22,7 @@ from __future__ import annotations
 import fcntl
 import os
 import struct
+import tempfile
 import zlib
 from pathlib import Path
 
@@ -66,8 +67,8 @@ def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_v
     if not folder.is_dir():
         raise InputError("the folder for the flash image does not exist", source=str(folder),
                          hint="create it first, or choose another --flash path")
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)  # a new file: never a link's target
+    with os.fdopen(fd, "wb") as fh:
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())

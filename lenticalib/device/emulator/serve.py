@@ -16,11 +16,14 @@ import os
 import select
 import signal
 import socket
+import stat
 import sys
+import tempfile
 import time
 import tty
 from pathlib import Path
 
+from ...atomic import write_text_atomic
 from ...errors import InputError
 from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 
@@ -28,18 +31,67 @@ EXIT_POWER_CUT = 75
 EXIT_DISCONNECT = 76
 
 
-def runtime_dir() -> Path:
-    base = os.environ.get("XDG_RUNTIME_DIR") or os.path.join("/tmp", f"lenticalib-{os.getuid()}")
-    return Path(base) / "lenticalib" / "emulators"
+def runtime_dir(*, create: bool = True) -> Path | None:
+    """The folder where running emulators announce themselves, private to this user.
+
+    ``$XDG_RUNTIME_DIR/lenticalib/emulators``, else ``TMP/lenticalib-UID/emulators`` (TMP is
+    ``$TMPDIR`` or ``/tmp``, where anyone may have created that name first).  Both folders must
+    be real folders (not symbolic links) owned by this user and private (mode 0700): they are
+    created so, and a folder of ours that an older lenticalib left readable by others is made
+    private; anything else is refused with one InputError line.  None when ``create`` is False
+    and the folder does not exist.
+    """
+    xdg = os.environ.get("XDG_RUNTIME_DIR")
+    root = Path(xdg) / "lenticalib" if xdg else Path(tempfile.gettempdir()) / f"lenticalib-{os.getuid()}"
+    folder = root / "emulators"
+    for path in (root, folder):
+        if not _private_folder(path, create=create):
+            return None
+    return folder
+
+
+def _private_folder(path: Path, *, create: bool) -> bool:
+    """Make sure ``path`` is a private folder of ours (see :func:`runtime_dir`); False if absent."""
+    if create:
+        try:
+            os.mkdir(path, 0o700)
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise InputError(f"cannot create the emulators' runtime folder: {exc.strerror}", source=str(path),
+                             hint="set XDG_RUNTIME_DIR to a private folder of yours") from None
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return False
+    if stat.S_ISLNK(st.st_mode):
+        problem = "is a symbolic link"
+    elif not stat.S_ISDIR(st.st_mode):
+        problem = "is not a folder"
+    elif st.st_uid != os.getuid():
+        problem = f"belongs to another user (uid {st.st_uid})"
+    elif st.st_mode & 0o022:
+        problem = f"is writable by others (mode {stat.S_IMODE(st.st_mode):o})"
+    else:
+        problem = None
+    if problem:
+        raise InputError(f"the emulators' runtime folder {problem}; lenticalib writes only into a private folder "
+                         "of its own", source=str(path),
+                         hint="remove it if it is not yours, or set XDG_RUNTIME_DIR to a private folder")
+    if st.st_mode & 0o077:
+        os.chmod(path, 0o700)  # ours and written by us alone (an older lenticalib made it 0755)
+    return True
 
 
 def running_emulators() -> list[dict]:
-    """Announcements of emulators whose process is still alive."""
+    """Announcements of emulators whose process is still alive (InputError: the folder is unsafe)."""
     found = []
-    folder = runtime_dir()
-    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+    folder = runtime_dir(create=False)
+    for path in sorted(folder.glob("*.json")) if folder is not None else []:
         try:
-            entry = json.loads(path.read_text())
+            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+            with os.fdopen(fd, "rb") as fh:
+                entry = json.loads(fh.read(65536))
             os.kill(int(entry["pid"]), 0)
         except (OSError, ValueError, KeyError, TypeError):
             continue
@@ -50,11 +102,11 @@ def running_emulators() -> list[dict]:
 class _Announcement:
     def __init__(self, url: str, controller: EmulatedController, transport: str):
         self.path = runtime_dir() / f"{os.getpid()}.json"
-        self.path.parent.mkdir(parents=True, exist_ok=True)  # lenticalib's own runtime folder, not a user path
         identity = controller.identity
-        self.path.write_text(json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
-                                         "flash": str(controller.flash.path), "serial": identity.serial,
-                                         "model": identity.model}))
+        # a new file renamed over the name: a link planted there is replaced, its target never written
+        write_text_atomic(self.path, json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
+                                                 "flash": str(controller.flash.path), "serial": identity.serial,
+                                                 "model": identity.model}))
 
     def remove(self):
         try:
