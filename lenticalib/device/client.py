@@ -29,8 +29,8 @@ from ..profile import PanelProfile
 from .framing import MAX_FRAME, REPLY_BIT, FrameParser, encode_frame
 from .protocol import (BEGIN_WRITE, CHUNK_HEADER, STATUS_HELP, VERIFY_REPLY, Command,
                        Identity, PanelGeometry, Status, panel_mismatches, status_name)
-from .record import (LAYOUT_VERSION, LEGACY_CRC_RESIDUE, RECORD_SIZE, CalibrationRecord, decode_record,
-                     encode_record, record_crc, record_from_profile, wire_crc)
+from .record import (LAST_SEQUENCE, LAYOUT_VERSION, LEGACY_CRC_RESIDUE, RECORD_SIZE, CalibrationRecord,
+                     decode_record, encode_record, next_sequence, record_crc, record_from_profile, wire_crc)
 from .transports import open_transport
 from .transports.base import Transport
 
@@ -228,8 +228,9 @@ class PanelController:
               warn: Warn | None = None, source: str = "profile") -> FlashResult:
         """Write ``profile`` as the next record; success only after a byte-exact read-back.
 
-        Steps: IDENTIFY (serial, layout, chunk size, panel), VERIFY (current sequence; a 1.0
-        controller also READ_RECORD, its record standing in for the panel it does not report),
+        Steps: IDENTIFY (serial, layout, chunk size, panel), VERIFY (current sequence s, the new
+        record's is s + 1 modulo 2**32; a 1.0 controller also READ_RECORD, its record standing in
+        for the panel it does not report),
         the panel check, BEGIN_WRITE (erases the inactive slot), WRITE_CHUNK x n, COMMIT
         (firmware checks and activates), READ_RECORD and VERIFY (the host compares).
         ``progress(done, total)`` after each write step.
@@ -256,7 +257,7 @@ class PanelController:
             elif warn:
                 warn(f"{self.url}: protocol {identity.version} firmware does not report its panel and holds no "
                      f"record, so the profile's {profile.width}x{profile.height} panel cannot be checked")
-        sequence = (current[1] if current else 0) + 1
+        sequence = next_sequence(current[1]) if current else 1  # 0xFFFFFFFF is followed by 0
         record = record_from_profile(profile, serial=identity.serial, sequence=sequence)
         data = encode_record(record)
         crc = wire_crc(data, identity.protocol_minor)
@@ -270,8 +271,17 @@ class PanelController:
             if progress:
                 progress(done, total)
 
-        self.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(LAYOUT_VERSION, RECORD_SIZE, crc, sequence),
-                     timeout=self.flash_timeout)
+        try:
+            self.request(Command.BEGIN_WRITE, BEGIN_WRITE.pack(LAYOUT_VERSION, RECORD_SIZE, crc, sequence),
+                         timeout=self.flash_timeout)
+        except DeviceProtocolError as exc:
+            if exc.code == Status.STALE_SEQUENCE and current and current[1] == LAST_SEQUENCE:
+                raise DeviceProtocolError(
+                    f"BEGIN_WRITE refused by the controller: STALE_SEQUENCE: its record sequence reached "
+                    f"0x{LAST_SEQUENCE:08X} and its firmware does not accept the next one, 0 (it predates sequence "
+                    "wrap-around, drivers/protocol-v1.md section 4.1)", source=self.url,
+                    hint="update the controller's firmware; the panel keeps its record", code=exc.code) from None
+            raise
         step()
         for offset in offsets:
             self.request(Command.WRITE_CHUNK, CHUNK_HEADER.pack(offset) + data[offset:offset + chunk])

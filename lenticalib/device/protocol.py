@@ -37,7 +37,7 @@ class Status(enum.IntEnum):
     OUT_OF_RANGE = 0x06     # a record field outside its range (checked at COMMIT)
     BAD_LAYOUT = 0x07       # unknown record layout version
     CRC_MISMATCH = 0x08     # the slot read back does not match BEGIN_WRITE's CRC-32
-    STALE_SEQUENCE = 0x09   # sequence not above the current record's
+    STALE_SEQUENCE = 0x09   # sequence not newer than the current record's (record.sequence_newer)
     NO_RECORD = 0x0A        # no valid record in either slot
     FLASH_ERROR = 0x0B      # erase or program failed
     BAD_RECORD = 0x0C       # magic or CRC wrong in the staged record

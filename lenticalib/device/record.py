@@ -7,7 +7,8 @@ normative table; this module and the emulated firmware both implement it):
          0    4  magic b"LTCR"
          4    2  layout_version (u16) = 1
          6    2  record_size (u16) = 128
-         8    4  sequence (u32): 1 for the first record, +1 for each flash; higher wins
+         8    4  sequence (u32): 1 for the first record, +1 modulo 2**32 for each flash;
+                 the newer by serial-number arithmetic wins (:func:`sequence_newer`)
         12   16  serial (ASCII, NUL-padded): the panel's serial number
         28    2  width (u16, pixels, 1..65535)
         30    2  height (u16, pixels, 1..65535)
@@ -168,6 +169,22 @@ def check_ranges(record: CalibrationRecord) -> None:
             need(math.isfinite(value) and 0 <= value <= F32_MAX, f"uncertainty.{key}",
                  f"must be a number in [0, 3e38] (stored as f32), got {value!r}")
     need(0 <= record.written <= 0xFFFFFFFFFFFFFFFF, "written", "must fit in 64 bits")
+
+
+SEQUENCE_MODULUS = 1 << 32
+LAST_SEQUENCE = SEQUENCE_MODULUS - 1
+
+
+def next_sequence(sequence: int) -> int:
+    """The sequence of the record after ``sequence``: +1 modulo 2**32, so 0xFFFFFFFF is followed by 0."""
+    return (sequence + 1) % SEQUENCE_MODULUS
+
+
+def sequence_newer(a: int, b: int) -> bool:
+    """Is record sequence ``a`` newer than ``b``?  Serial-number arithmetic (RFC 1982, 32 bits):
+    ``a`` is newer when ``(a - b) mod 2**32`` is 1..2**31-1, so 0 is newer than 0xFFFFFFFF.  Equal
+    sequences and sequences exactly 2**31 apart are neither (``drivers/protocol-v1.md`` 4.1)."""
+    return 0 < (a - b) % SEQUENCE_MODULUS < SEQUENCE_MODULUS >> 1
 
 
 # zlib.crc32 of *any* 128 bytes whose last four hold the CRC-32 of the first 124 (the CRC-32

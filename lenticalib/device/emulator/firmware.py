@@ -4,20 +4,25 @@
 frames.  It keeps the calibration in two flash slots (:mod:`.flash`): a write erases and
 fills the *inactive* slot, COMMIT reads the slot back, checks its CRC-32 against the one
 announced in BEGIN_WRITE and every field's range, and only then programs the slot's commit
-word.  At boot the valid committed slot with the higher sequence number is current; a blank,
-half-written or corrupt slot is simply not valid, so it never hides the good one.
+word.  At boot the valid committed slot with the newer sequence number is current; a blank,
+half-written or corrupt slot is simply not valid, so it never hides the good one.  "Newer" is
+serial-number arithmetic modulo 2**32 (:func:`~lenticalib.device.record.sequence_newer`), so the
+record after 0xFFFFFFFF is 0 and flashing never ends; protocol 1.0 firmware compared plain
+integers (``newer = a > b``) and so refuses every flash once its record reached 0xFFFFFFFF.
 
 A repeated request (same SEQ, same CMD and payload as the last one, i.e. a host retry after a
 lost reply) is answered from the cached reply without executing it again.
 
 ``protocol_minor`` picks the firmware generation: 1 (current, protocol 1.1) identifies records
-by the CRC-32 of bytes 0..123 and reports its panel in IDENTIFY; 0 behaves as 1.0 firmware did
-(CRC-32 over all 128 bytes, a constant for valid records; no panel in IDENTIFY), so the host's
-fallback for old controllers is tested against it.
+by the CRC-32 of bytes 0..123, reports its panel in IDENTIFY and wraps the record sequence; 0
+behaves as 1.0 firmware did (CRC-32 over all 128 bytes, a constant for valid records; no panel in
+IDENTIFY; plain sequence comparison), so the host's fallback for old controllers is tested
+against it.
 """
 
 from __future__ import annotations
 
+import operator
 import struct
 
 from ..framing import REPLY_BIT, Frame, FrameParser, encode_frame
@@ -25,7 +30,7 @@ from ..protocol import (BEGIN_WRITE, CAP_READ_BACK_COMMIT, CAP_TWO_SLOTS, CHUNK_
                         PROTOCOL_MINOR, PROTOCOL_VERSION, SLOT_SEQUENCE, VERIFY_REPLY, Command, Identity,
                         PanelGeometry, Status)
 from ..record import (KNOWN_LAYOUT_VERSIONS, LAYOUT_VERSION, RECORD_SIZE, RecordFormatError, parse_record,
-                      wire_crc)
+                      sequence_newer, wire_crc)
 from .flash import SLOT_COUNT, FlashImage
 
 COMMIT_WORD = 0x4C43_4D54  # b"TMCL" little-endian; programmed over the erased 0xFFFFFFFF
@@ -42,6 +47,7 @@ class Firmware:
         self.flash = flash
         self.panel = panel
         self.protocol_minor = protocol_minor
+        self.newer = sequence_newer if protocol_minor >= 1 else operator.gt  # is sequence a newer than b?
         self.parser = FrameParser()
         self.boot()
 
@@ -54,7 +60,7 @@ class Firmware:
         self.current_sequence = 0
         for slot in range(SLOT_COUNT):
             sequence = self._valid_sequence(slot)
-            if sequence is not None and (self.current_slot is None or sequence > self.current_sequence):
+            if sequence is not None and (self.current_slot is None or self.newer(sequence, self.current_sequence)):
                 self.current_slot, self.current_sequence = slot, sequence
 
     def _valid_sequence(self, slot: int) -> int | None:
@@ -131,7 +137,7 @@ class Firmware:
             return Status.BAD_LAYOUT, b""
         if length != RECORD_SIZE:
             return Status.BAD_LENGTH, b""
-        if sequence <= self.current_sequence and self.current_slot is not None:
+        if self.current_slot is not None and not self.newer(sequence, self.current_sequence):
             return Status.STALE_SEQUENCE, b""
         slot = 0 if self.current_slot is None else 1 - self.current_slot
         self.flash.erase_slot(slot)
