@@ -152,6 +152,14 @@ def test_emulator_survives_a_client_that_resets_or_never_reads(tmp_path):
     (["emulate", "--panel", "4k"], "--panel: must be WIDTHxHEIGHT", []),
     (["emulate", "--views", "1"], "--views: must be 1 to 32 view counts in 2..254", []),
     (["emulate", "--protocol", "0.9"], "--protocol: must be 1.0 or 1.1", []),
+    # a bare device path: the URL it most likely meant, not the generic examples
+    (["device", "info", "/dev/pts/0"], "/dev/pts/0: not a device URL (did you mean serial:///dev/pts/0?)",
+     ["write it like"]),
+    (["device", "info", "COM3"], "COM3: not a device URL (did you mean serial://COM3?)", ["write it like"]),
+    (["device", "info", "/dev/hidraw0"], "(did you mean hid://VID:PID?", ["write it like", "serial://"]),
+    # a controller that never stops talking: one timeout line, within the command timeout
+    (["device", "info", "emu://chatty?via=hid&babble=1"], "emu://chatty?via=hid&babble=1: the controller keeps "
+     "sending unasked", ["IDENTIFY", "attempts"]),
 ])
 def test_device_user_errors_name_the_real_cause(tmp_path, args, expect, absent):
     args = [a.replace("DIR", str(tmp_path)) for a in args]

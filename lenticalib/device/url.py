@@ -9,7 +9,9 @@
                                    lenticalib.device.emulator.controller.default_image_dir)
 
 Options after ``?`` (``&``-separated ``key=value``) are passed to the transport: ``via`` for
-``emu://``, ``baudrate`` for serial ports.
+``emu://``, ``baudrate`` for serial ports.  A bare device path is not a URL: the error for
+``/dev/pts/0`` or ``COM3`` suggests ``serial:///dev/pts/0`` or ``serial://COM3``, the one for
+``/dev/hidraw0`` ``hid://VID:PID``.
 """
 
 from __future__ import annotations
@@ -22,6 +24,21 @@ from ..errors import DeviceNotFoundError
 
 _HINT = "write it like serial:///dev/ttyACM0, socket://HOST:PORT, hid://VID:PID, usb://VID:PID or emu://NAME"
 _VIDPID = re.compile(r"^([0-9a-fA-F]{4}):([0-9a-fA-F]{4})(?:/(.+))?$")
+# bare names of serial ports: /dev/ttyACM0, /dev/pts/3, /dev/cu.usbmodem1, /dev/serial/by-id/..., COM3
+_SERIAL_PATH = re.compile(r"^(?:/dev/(?:tty|pts/|cu\.|serial/|rfcomm)\S*|COM\d+|\\\\\.\\COM\d+)$", re.IGNORECASE)
+_TTY_NAME = re.compile(r"^(?:tty(?:ACM|USB|S|AMA)\d+|pts/\d+)$")
+
+
+def _did_you_mean(text: str) -> str:
+    """The hint for something that is not a URL: the URL a bare device path most likely meant."""
+    if _SERIAL_PATH.match(text):
+        return f"did you mean serial://{text}?"
+    if _TTY_NAME.match(text):
+        return f"did you mean serial:///dev/{text}?"
+    if re.match(r"^(?:/dev/)?(?:hidraw|usb/hiddev)\d+$", text):
+        return ("did you mean hid://VID:PID? HID controllers are named by their USB vendor and product IDs; "
+                "'lenticalib device list' prints the URL of each")
+    return _HINT
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,7 +68,7 @@ class DeviceURL:
 def parse_device_url(text: str) -> DeviceURL:
     """Parse ``text``; raises DeviceNotFoundError naming it when it is not a device URL."""
     if "://" not in text:
-        raise DeviceNotFoundError("not a device URL", source=text, hint=_HINT)
+        raise DeviceNotFoundError("not a device URL", source=text, hint=_did_you_mean(text))
     scheme, rest = text.split("://", 1)
     scheme = scheme.lower()
     target, _, query = rest.partition("?")
