@@ -43,27 +43,33 @@ def check_device_holds_old_or_new(name: str, via: str):
     return held
 
 
-@pytest.mark.parametrize("via", VIAS)
 @pytest.mark.parametrize("fault", sorted(FAULTS))
-@pytest.mark.parametrize("seed", [1, 2])
-def test_faulty_link_gives_verified_success_or_clear_error(via, fault, seed):
-    name = f"{fault}-{seed}"
-    with PanelController.open(f"emu://{name}?via={via}") as panel:
-        panel.flash(profile_a())
-    start = time.monotonic()
-    with open_fast(f"emu://{name}?via={via}&{FAULTS[fault]}&seed={seed}") as panel:
-        try:
-            result = panel.flash(profile_b())
-        except DeviceError as exc:
-            assert str(exc) and "\n" not in str(exc)
-            outcome = "error"
-        else:
-            assert same_constants(result.record.to_profile(), profile_b())
-            outcome = "success"
-    assert time.monotonic() - start < BOUND
-    held = check_device_holds_old_or_new(name, via)
-    if outcome == "success":
-        assert same_constants(held, profile_b())  # never a wrong record reported as good
+def test_faulty_link_gives_verified_success_or_clear_error(fault):
+    """Six flashes over a faulty link (three transports, two seeds): each ends in a verified
+    success or one clean DeviceError line, the panel holds the old or the new record after each
+    (the new one after every success), and at least half succeed: retries must absorb the
+    faults, not merely fail cleanly."""
+    outcomes = []
+    for via in VIAS:
+        for seed in (1, 2):
+            name = f"{fault}-{via}-{seed}"
+            with PanelController.open(f"emu://{name}?via={via}") as panel:
+                panel.flash(profile_a())
+            start = time.monotonic()
+            with open_fast(f"emu://{name}?via={via}&{FAULTS[fault]}&seed={seed}") as panel:
+                try:
+                    result = panel.flash(profile_b())
+                except DeviceError as exc:
+                    assert str(exc) and "\n" not in str(exc)
+                    outcomes.append("error")
+                else:
+                    assert same_constants(result.record.to_profile(), profile_b())
+                    outcomes.append("success")
+            assert time.monotonic() - start < BOUND
+            held = check_device_holds_old_or_new(name, via)
+            if outcomes[-1] == "success":
+                assert same_constants(held, profile_b())  # never a wrong record reported as good
+    assert outcomes.count("success") >= len(outcomes) // 2, outcomes
 
 
 @pytest.mark.parametrize("via", VIAS)
@@ -95,6 +101,23 @@ def test_silent_device_times_out_with_a_clear_message():
         with pytest.raises(DeviceTimeoutError, match="no valid reply to IDENTIFY.*3 attempts"):
             panel.identify()
         assert time.monotonic() - start < 3 * TIMEOUT + 1
+
+
+@pytest.mark.parametrize("via", VIAS)
+def test_stale_reply_to_an_earlier_request_is_skipped(via):
+    """Every reply follows the controller's earlier reply to the same command (stale=1): same
+    CMD, an older SEQ, other contents (the VERIFY and READ_RECORD from before the flash name the
+    old record).  The host must skip each by its SEQ and take the reply to its own request: the
+    flash succeeds, verified, without a resend."""
+    with PanelController.open(f"emu://st?via={via}") as panel:
+        panel.flash(profile_a())
+    with PanelController.open(f"emu://st?via={via}&stale=1") as panel:
+        before = panel.read_record()
+        result = panel.flash(profile_b())  # its READ_RECORD and VERIFY each meet the old record's first
+        assert result.record.sequence == before.sequence + 1
+        assert panel.verify_crc()[1] == result.record.sequence
+        assert same_constants(panel.read_record().to_profile(), profile_b())
+        assert panel.resends == 0 and panel.discarded >= 10
 
 
 @pytest.mark.parametrize("via", VIAS)

@@ -36,7 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     faults.add_argument("--delay", type=float, default=0.0, metavar="P", help="hold a reply back by --delay-s")
     faults.add_argument("--delay-s", type=float, default=0.2, metavar="S", help="delay in seconds (default 0.2)")
     faults.add_argument("--stale", type=float, default=0.0, metavar="P",
-                        help="send the previous (stale) reply before the real one")
+                        help="send an earlier (stale) reply before the real one: the last reply to the same "
+                             "command, else the previous reply")
     faults.add_argument("--disconnect-after", type=int, metavar="N",
                         help="the link goes away after N request frames (exit status 76)")
     faults.add_argument("--seed", type=int, default=0, help="random seed of the faults (default 0)")

@@ -88,6 +88,7 @@ class EmulatedController:
         self._queued = 0  # bytes in _outbox
         self._last_rx = 0.0
         self._previous_reply: bytes | None = None
+        self._earlier: dict[int, bytes] = {}  # reply CMD -> the last reply with that CMD
         self._requests = 0
         self._lock = threading.Condition()
         self.down: str | None = None
@@ -152,9 +153,11 @@ class EmulatedController:
         faults, now = self.faults, time.monotonic()
         if self._queued + len(reply) > TRANSMIT_BUFFER:
             return  # transmit buffer full: the host is not reading, the reply is lost
-        if faults.hit(faults.stale_rate) and self._previous_reply is not None:
-            self._queue(now, self._previous_reply)
-        self._previous_reply = reply
+        command = reply[3]  # the frame's CMD byte (framing.HEADER)
+        stale = self._earlier.get(command, self._previous_reply)
+        if faults.hit(faults.stale_rate) and stale is not None:
+            self._queue(now, stale)  # same CMD and an older SEQ when it can: only the SEQ tells them apart
+        self._previous_reply = self._earlier[command] = reply
         if faults.hit(faults.drop_rate):
             return
         ready = now + (faults.delay_s if faults.hit(faults.delay_rate) else 0.0)

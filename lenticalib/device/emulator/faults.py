@@ -21,7 +21,9 @@ class FaultPlan:
     corrupt_rate      one byte of a request or reply is flipped (the CRC catches it)
     duplicate_rate    a reply is sent twice
     delay_rate        a reply is held back by ``delay_s`` seconds
-    stale_rate        the previous reply (an older SEQ) is sent again before the real one
+    stale_rate        an earlier reply is sent again before the real one: the last reply to
+                      the same command (an older SEQ, other contents) when there was one,
+                      else the previous reply
     disconnect_after  the link goes away after this many request frames (None: never)
     power_cut_after   the power fails after this many flash operations (None: never)
     torn              the power cut interrupts the operation halfway instead of after it
