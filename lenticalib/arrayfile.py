@@ -130,7 +130,8 @@ def load_npz(path: str | os.PathLike, *, wanted: Iterable[str] | None = None, re
         for name in required:
             if name not in members:
                 raise InputError(f"array {name!r} is missing", source=source, hint=hint)
-        names = [n for n in members if wanted is None or n in set(wanted)]
+        keep = None if wanted is None else set(wanted)
+        names = [n for n in members if keep is None or n in keep]
         try:
             headers = []
             for name in names:

@@ -39,13 +39,28 @@ def is_finite_number(value: Any) -> bool:
     return math.isfinite(value)
 
 
+def short_repr(value: Any, limit: int = 24) -> str:
+    """``repr(value)`` for one-line messages: at most about ``limit`` characters, a long one cut in
+    the middle with its length; an integer beyond 1.8e308 as such (never raises, even for an
+    integer too long for ``repr``)."""
+    if isinstance(value, int) and not isinstance(value, bool) and not is_finite_number(value):
+        return f"{'-' if value < 0 else ''}an integer beyond 1.8e308"
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):
+        return f"<{type(value).__name__}>"
+    return text if len(text) <= limit else f"{text[:12]}...{text[-6:]} ({len(text)} characters)"
+
+
 class UnusableNumber:
     """A number literal of a JSON document that no float can hold; ``text`` as written (shortened)."""
 
     __slots__ = ("text", "why")
 
     def __init__(self, text: str, why: str):
-        self.text = text if len(text) <= 24 else f"{text[:12]}...{text[-6:]} ({len(text.lstrip('-'))} digits)"
+        digits = text.lstrip("-")
+        unit = "digits" if digits.isdigit() else "characters"
+        self.text = text if len(text) <= 24 else f"{text[:12]}...{text[-6:]} ({len(digits)} {unit})"
         self.why = why
 
     def __repr__(self) -> str:

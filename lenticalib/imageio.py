@@ -8,6 +8,7 @@ SIZE LIMIT.  An image is refused before decoding when its header states more tha
 patterns' writes, and above any camera photo, 100-150 megapixels for medium format): the size is
 read from the header (Pillow reads it without decoding; an ``.npy``'s from its header), so a
 small file claiming a huge image costs no memory.  The error names the file, its size and the limit.
+A file Pillow does not recognise is left to OpenCV, whose own limit is 2^30 pixels.
 
 OpenCV is imported through :func:`cv2_quiet`, which silences OpenCV's own logging once: its
 ``[ WARN ... ]`` lines about a corrupt file would otherwise reach stderr beside our one-line

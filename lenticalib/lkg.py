@@ -87,7 +87,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .errors import ProfileError
-from .fields import is_finite_number, is_number
+from .fields import is_finite_number, is_number, short_repr
 from .profile import MAX_SIDE, MAX_VIEWS, PanelProfile, make_provenance, read_json_file
 
 REQUIRED_FIELDS = ("pitch", "slope", "center", "DPI", "screenW", "screenH")
@@ -141,8 +141,7 @@ def _normalize(raw: Any, source: str) -> dict[str, Any]:
             raise ProfileError(f"field '{key}': must be a number (or {{\"value\": number}}), "
                                f"got {raw[key]!r}", source=source)
         if not is_finite_number(value):
-            shown = repr(value) if isinstance(value, float) else f"an integer of {len(str(abs(value)))} digits"
-            raise ProfileError(f"field '{key}': must be finite, got {shown}", source=source)
+            raise ProfileError(f"field '{key}': must be finite, got {short_repr(value)}", source=source)
         out[key] = float(value)
     if not out["DPI"] > 0:
         raise ProfileError(f"field 'DPI': must be > 0 pixels per inch, got {out['DPI']!r}",

@@ -33,7 +33,7 @@ from typing import Any, Mapping
 
 from .atomic import write_text_atomic
 from .errors import ProfileError
-from .fields import is_finite_number, is_number, parse_json, unknown_key_message, unusable_number
+from .fields import is_finite_number, is_number, parse_json, short_repr, unknown_key_message, unusable_number
 
 FORMAT_NAME = "lenticalib.profile"
 FORMAT_VERSION = 1
@@ -153,42 +153,36 @@ def constants_problem(data: Mapping[str, Any]) -> tuple[str, str] | None:
     """
     for key in ("views", "width", "height"):
         if not _is_int(data[key]):
-            return key, f"must be a whole number, got {_short(data[key])}"
+            return key, f"must be a whole number, got {short_repr(data[key])}"
     for key in ("slant", "period", "offset", "reference_view"):
         value = data[key]
         if not is_number(value):
-            return key, f"must be a number, got {_short(value)}"
+            return key, f"must be a number, got {short_repr(value)}"
         if not is_finite_number(value):
-            return key, f"must be finite, got {_short(value)}"
+            return key, f"must be finite, got {short_repr(value)}"
     if not 2 <= data["views"] <= MAX_VIEWS:
-        return "views", f"must be between 2 and {MAX_VIEWS}, got {_short(data['views'])}"
+        return "views", f"must be between 2 and {MAX_VIEWS}, got {short_repr(data['views'])}"
     for key in ("width", "height"):
         if not 1 <= data[key] <= MAX_SIDE:
-            return key, f"must be between 1 and {MAX_SIDE} pixels, got {_short(data[key])}"
+            return key, f"must be between 1 and {MAX_SIDE} pixels, got {short_repr(data[key])}"
     if data["subpixel_order"] not in SUBPIXEL_ORDERS:
         return "subpixel_order", f"must be \"RGB\" or \"BGR\", got {data['subpixel_order']!r}"
     if not abs(data["slant"]) <= SLANT_LIMIT:
-        return "slant", f"must be within +-{SLANT_LIMIT:g} pixels/row, got {_short(data['slant'])}"
+        return "slant", f"must be within +-{SLANT_LIMIT:g} pixels/row, got {short_repr(data['slant'])}"
     period, row = data["period"], 3 * data["width"]
     if not period > 0:
-        return "period", f"must be > 0 subpixels, got {_short(period)}"
+        return "period", f"must be > 0 subpixels, got {short_repr(period)}"
     if period > PERIOD_LIMIT:
-        return "period", f"must be at most {PERIOD_LIMIT:g} subpixels, got {_short(period)}"
+        return "period", f"must be at most {PERIOD_LIMIT:g} subpixels, got {short_repr(period)}"
     if period > row:
-        return "period", (f"{_short(period)} subpixels is wider than the {data['width']}-pixel panel's row "
+        return "period", (f"{short_repr(period)} subpixels is wider than the {data['width']}-pixel panel's row "
                           f"({row} subpixels)")
     if not abs(data["offset"]) <= OFFSET_LIMIT:
-        return "offset", f"must be within +-{OFFSET_LIMIT:g} subpixels, got {_short(data['offset'])}"
+        return "offset", f"must be within +-{OFFSET_LIMIT:g} subpixels, got {short_repr(data['offset'])}"
     if not abs(data["reference_view"]) <= REFERENCE_VIEW_LIMIT:
         return "reference_view", (f"must be within +-{REFERENCE_VIEW_LIMIT:g} views, "
-                                  f"got {_short(data['reference_view'])}")
+                                  f"got {short_repr(data['reference_view'])}")
     return None
-
-
-def _short(value) -> str:
-    """``repr`` of a value, an integer of hundreds of digits shortened to its length."""
-    text = repr(value)
-    return text if len(text) <= 24 else f"{text[:12]}... ({len(text)} characters)"
 
 
 def _validate_constants(data: Mapping[str, Any], source: str) -> None:
