@@ -114,6 +114,15 @@ def _scene_doc(folder):
     return path, lambda p: Scene.from_dict(read_json_file(p, "scene", "check the --scene path"), str(p))
 
 
+def _camera_model_doc(folder):
+    from lenticalib.calib.camera_file import load_camera_model
+
+    path = folder / "camera.json"
+    path.write_text(json.dumps({"camera_matrix": [[1000.0, 0, 640.0], [0, 1000.0, 360.0], [0, 0, 1]],
+                                "distortion": [0.01, 0, 0, 0, 0], "image_size": [1280, 720]}))
+    return path, load_camera_model
+
+
 def _number_paths(doc, path=()):
     """Paths of the numbers in ``doc`` (the first two items of each list)."""
     if isinstance(doc, dict):
@@ -138,7 +147,7 @@ WRONG_TYPES = ["[1]", "true", '"5"', "null", "{}", "1e308", "5e-324"]
 
 
 @pytest.mark.parametrize("make", [_profile_doc, _visual_doc, _board_doc, _crosstalk_doc, _pattern_manifest,
-                                  _crosstalk_manifest, _cameras_doc, _scene_doc])
+                                  _crosstalk_manifest, _cameras_doc, _scene_doc, _camera_model_doc])
 def test_every_json_reader_refuses_absurd_numbers_in_one_line_naming_file_and_field(tmp_path, make):
     path, read = make(tmp_path)
     read(path)  # the untouched document loads
