@@ -149,7 +149,10 @@ def load_camera_model(path: str | os.PathLike) -> CameraModel:
             return _from_opencv_storage(path)
         from ..profile import read_json_file
 
-        data = read_json_file(path, "camera model", HINT)
+        try:
+            data = read_json_file(path, "camera model", HINT)
+        except InputError as exc:
+            raise InputError(f"cannot read the camera model ({exc.message})", source=str(path), hint=HINT) from None
         matrix = np.asarray(data["camera_matrix"], float).reshape(3, 3)
         dist = np.asarray(data.get("distortion", [0, 0, 0, 0]), float).ravel()
         return _opencv_model(matrix, dist, tuple(data["image_size"]) if "image_size" in data else None, path)
