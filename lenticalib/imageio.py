@@ -3,6 +3,13 @@
 Arrays are ``(H, W, 3)`` RGB in uint8, uint16 or float32 (OpenCV's BGR order is converted
 at this boundary only).  Grey images are expanded to RGB; an alpha channel is dropped.
 
+SIZE LIMIT.  An image is refused before decoding when its header states more than
+:data:`MAX_IMAGE_PIXELS` (16384 x 16384, 268 megapixels: the largest raster 'lenticalib
+patterns' writes, and above any camera photo, 100-150 megapixels for medium format): the size is
+read from the header (Pillow reads it without decoding; an ``.npy``'s from its header), so a
+small file claiming a huge image costs no memory.  The error names the file, its size and the limit.
+A file Pillow does not recognise is left to OpenCV, whose own limit is 2^30 pixels.
+
 OpenCV is imported through :func:`cv2_quiet`, which silences OpenCV's own logging once: its
 ``[ WARN ... ]`` lines about a corrupt file would otherwise reach stderr beside our one-line
 error.  Output paths are checked before the work with :func:`check_image_output`.
@@ -17,9 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import write_bytes_atomic
-from .errors import ImageError
+from .errors import ImageError, InputError
 from .outputs import check_output_file
 
+MAX_IMAGE_PIXELS = 16384 * 16384  # module docstring; equals 'lenticalib patterns' largest raster
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".npy")
 WRITE_FORMATS = {".png": (np.uint8, np.uint16), ".tif": (np.uint8, np.uint16, np.float32),
                  ".tiff": (np.uint8, np.uint16, np.float32), ".npy": None}
@@ -37,6 +45,53 @@ def cv2_quiet():
 
 
 _CV2_SILENCED = False
+
+
+def open_image_header(path: str | os.PathLike):
+    """``path`` opened lazily by Pillow: size, mode and metadata read, no pixel decoded; or None
+    when no Pillow plugin recognises the file.  The caller closes it.
+
+    Pillow's own decompression-bomb check is not applied: its limit (179 megapixels) is below
+    :data:`MAX_IMAGE_PIXELS`, which :func:`check_image_pixels` enforces instead.  OSError when
+    the file cannot be read.
+    """
+    import struct
+
+    from PIL import Image
+
+    with open(path, "rb") as fh:
+        prefix = fh.read(16)
+    Image.init()
+    for fmt in Image.ID:  # Image.open's loop, without the bomb check
+        factory, accept = Image.OPEN[fmt]
+        result = not accept or accept(prefix)
+        if not result or isinstance(result, str):
+            continue
+        try:
+            return factory(os.fspath(path))
+        except (SyntaxError, IndexError, TypeError, ValueError, EOFError, struct.error):
+            continue
+    return None
+
+
+def check_image_pixels(width: int, height: int, source: str) -> None:
+    """ImageError naming ``source`` when a ``width`` x ``height`` image exceeds :data:`MAX_IMAGE_PIXELS`."""
+    if width * height > MAX_IMAGE_PIXELS:
+        raise ImageError(f"is {width}x{height} pixels ({width * height / 1e6:.0f} megapixels), over the limit of "
+                         f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels ({int(MAX_IMAGE_PIXELS ** 0.5)} x "
+                         f"{int(MAX_IMAGE_PIXELS ** 0.5)})", source=source,
+                         hint="scale the image down; lenticalib reads images of up to 16384 x 16384 pixels")
+
+
+def _check_header(p: Path) -> None:
+    """Refuse an image whose header states more than :data:`MAX_IMAGE_PIXELS`, before decoding."""
+    try:
+        img = open_image_header(p)
+    except OSError:
+        return  # read_image reports an unreadable file itself
+    if img is not None:
+        with img:
+            check_image_pixels(img.size[0], img.size[1], str(p))
 
 
 def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image") -> Path:
@@ -74,10 +129,18 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
     if p.is_dir():
         raise ImageError("is a folder, not an image", source=str(p), hint="give an image file")
     if p.suffix.lower() == ".npy":
+        from .arrayfile import load_npy
+
+        def pixels(header):
+            if len(header.shape) in (2, 3):
+                check_image_pixels(header.shape[1], header.shape[0], str(p))
+
         try:
-            img = np.load(p, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ImageError(f"cannot read array: {exc}", source=str(p)) from None
+            img = load_npy(p, check=pixels, source=str(p))
+        except ImageError:
+            raise
+        except InputError as exc:
+            raise ImageError(exc.message, source=str(p), hint=exc.hint) from None
     else:
         try:
             data = np.fromfile(p, dtype=np.uint8)
@@ -86,6 +149,7 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
         flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH if camera_orientation else cv2.IMREAD_UNCHANGED
         if not data.size:
             raise ImageError("is empty (0 bytes), not an image", source=str(p), hint="use PNG, TIFF or JPEG")
+        _check_header(p)
         try:
             img = cv2.imdecode(data, flags)
         except cv2.error:  # e.g. a header promising more pixels than OpenCV accepts

@@ -87,6 +87,7 @@ import numpy as np
 
 from .atomic import write_text_atomic
 from .errors import ProfileError
+from .fields import is_finite_number, is_number, short_repr
 from .profile import MAX_SIDE, MAX_VIEWS, PanelProfile, make_provenance, read_json_file
 
 REQUIRED_FIELDS = ("pitch", "slope", "center", "DPI", "screenW", "screenH")
@@ -105,10 +106,6 @@ DEFAULT_SOURCE = "visual.json"
 
 # --------------------------------------------------------------------------------------------
 # reading and validation
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _unwrap(value):
@@ -140,13 +137,12 @@ def _normalize(raw: Any, source: str) -> dict[str, Any]:
         if key not in out:
             continue
         value = out[key]
-        if not _is_number(value):
+        if not is_number(value):
             raise ProfileError(f"field '{key}': must be a number (or {{\"value\": number}}), "
                                f"got {raw[key]!r}", source=source)
-        value = float(value)
-        if not math.isfinite(value):
-            raise ProfileError(f"field '{key}': must be finite, got {value!r}", source=source)
-        out[key] = value
+        if not is_finite_number(value):
+            raise ProfileError(f"field '{key}': must be finite, got {short_repr(value)}", source=source)
+        out[key] = float(value)
     if not out["DPI"] > 0:
         raise ProfileError(f"field 'DPI': must be > 0 pixels per inch, got {out['DPI']!r}",
                            source=source)
@@ -209,13 +205,13 @@ def routing_constants(visual: Mapping[str, Any], source: str = DEFAULT_SOURCE) -
         raise ProfileError(f"pitch {pitch!r}, slope {slope!r}, DPI {dpi!r} give no usable lens "
                            f"period (slant {slant!r}, period {period!r} subpixels)", source=source)
     offset = period * center - 1.5 - 3.0 * (height - 0.5) * slant
+    if not math.isfinite(offset):  # a centre near 1e308 overflows here; fmod would raise
+        raise ProfileError(f"field 'center': gives a non-finite offset ({center!r})", source=source)
     offset = math.fmod(offset, period)  # exact
     if offset < 0.0:
         offset += period
         if offset >= period:  # a tiny negative remainder rounds up to period
             offset = 0.0
-    if not math.isfinite(offset):
-        raise ProfileError(f"field 'center': gives a non-finite offset ({center!r})", source=source)
     return {"slant": slant, "period": period, "offset": offset, "reference_view": 0.0}
 
 
@@ -329,7 +325,7 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
         dpi, dpi_source = extras["DPI"], "looking_glass.DPI"
     else:
         dpi_source = "--dpi"
-    if not _is_number(dpi) or not math.isfinite(dpi) or not dpi > 0:
+    if not is_finite_number(dpi) or not dpi > 0:
         raise ProfileError(f"{dpi_source}: must be a finite number > 0 pixels per inch, got {dpi!r}",
                            source=name)
     dpi = float(dpi)

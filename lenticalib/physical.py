@@ -30,6 +30,7 @@ import math
 from typing import Any, Mapping
 
 from .errors import ProfileError
+from .fields import is_finite_number, unknown_key_message
 
 NUMBER_FIELDS = ("pixel_pitch_mm", "lens_pitch_mm", "gap_mm", "slant_angle_deg", "lens_position_mm",
                  "design_distance_mm", "view_cone_deg")
@@ -50,9 +51,10 @@ def validate_physical(data: Any, source: str = "profile") -> dict[str, Any]:
 
     if not isinstance(data, Mapping):
         fail(None, "must be a JSON object (pixel_pitch_mm, lens_pitch_mm, gap_mm, ...)")
-    unknown = sorted(set(data) - set(FIELDS))
+    unknown = set(data) - set(FIELDS)
     if unknown:
-        fail(unknown[0], "is not a known field", "known: " + ", ".join(FIELDS))
+        raise ProfileError(unknown_key_message([f"physical.{k}" for k in unknown], [f"physical.{k}" for k in FIELDS]),
+                           source=source, hint="known: " + ", ".join(FIELDS))
     if "pixel_pitch_mm" not in data:
         fail("pixel_pitch_mm", "is missing", "give the panel's pixel pitch in mm (panel width / pixels)")
     out: dict[str, Any] = {}
@@ -60,7 +62,7 @@ def validate_physical(data: Any, source: str = "profile") -> dict[str, Any]:
         if key not in data or data[key] is None:
             continue
         value = data[key]
-        if not _is_number(value) or not math.isfinite(value):
+        if not is_finite_number(value):
             fail(key, f"must be a finite number, got {value!r}")
         low, high = LIMITS[key]
         if not low <= value <= high:
@@ -69,7 +71,7 @@ def validate_physical(data: Any, source: str = "profile") -> dict[str, Any]:
     if data.get("eye_mm") is not None:
         eye = data["eye_mm"]
         if (not isinstance(eye, (list, tuple)) or len(eye) != 3
-                or not all(_is_number(v) and math.isfinite(v) for v in eye)):
+                or not all(is_finite_number(v) for v in eye)):
             fail("eye_mm", f"must be [x, y, D] in mm, got {eye!r}")
         if not eye[2] > 0:
             fail("eye_mm", f"the distance D must be > 0 mm, got {eye[2]!r}")
@@ -88,7 +90,7 @@ def validate_physical(data: Any, source: str = "profile") -> dict[str, Any]:
             values = value if key == "eye_mm" else [value]
             if key not in NUMBER_FIELDS + ("eye_mm",) or not isinstance(values, (list, tuple)) \
                     or (key == "eye_mm" and len(values) != 3) \
-                    or not all(_is_number(v) and math.isfinite(v) and v >= 0 for v in values):
+                    or not all(is_finite_number(v) and v >= 0 for v in values):
                 fail(f"uncertainty.{key}", f"must name a number field with a 1-sigma >= 0, got {value!r}")
             checked[key] = [float(v) for v in values] if key == "eye_mm" else float(value)
         out["uncertainty"] = checked
@@ -109,7 +111,3 @@ def view_cone_deg(lens_pitch_mm: float, slant_angle_deg: float, gap_mm: float) -
     """The inverse of :func:`gap_from_view_cone`: the full view-cone angle (degrees) in air."""
     p_u = lens_pitch_mm * math.cos(math.radians(slant_angle_deg))
     return math.degrees(2.0 * math.atan(p_u / (2.0 * gap_mm)))
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)

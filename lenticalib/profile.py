@@ -26,7 +26,6 @@ import dataclasses
 import datetime as _dt
 import hashlib
 import json
-import math
 import os
 import sys
 from pathlib import Path
@@ -34,6 +33,7 @@ from typing import Any, Mapping
 
 from .atomic import write_text_atomic
 from .errors import ProfileError
+from .fields import is_finite_number, is_number, parse_json, short_repr, unknown_key_message, unusable_number
 
 FORMAT_NAME = "lenticalib.profile"
 FORMAT_VERSION = 1
@@ -144,10 +144,6 @@ def _is_int(value) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def constants_problem(data: Mapping[str, Any]) -> tuple[str, str] | None:
     """The first of the eight constants outside its type or physical range, else None.
 
@@ -157,35 +153,35 @@ def constants_problem(data: Mapping[str, Any]) -> tuple[str, str] | None:
     """
     for key in ("views", "width", "height"):
         if not _is_int(data[key]):
-            return key, f"must be a whole number, got {data[key]!r}"
+            return key, f"must be a whole number, got {short_repr(data[key])}"
     for key in ("slant", "period", "offset", "reference_view"):
         value = data[key]
-        if not _is_number(value):
-            return key, f"must be a number, got {value!r}"
-        if not math.isfinite(value):
-            return key, f"must be finite, got {value!r}"
+        if not is_number(value):
+            return key, f"must be a number, got {short_repr(value)}"
+        if not is_finite_number(value):
+            return key, f"must be finite, got {short_repr(value)}"
     if not 2 <= data["views"] <= MAX_VIEWS:
-        return "views", f"must be between 2 and {MAX_VIEWS}, got {data['views']}"
+        return "views", f"must be between 2 and {MAX_VIEWS}, got {short_repr(data['views'])}"
     for key in ("width", "height"):
         if not 1 <= data[key] <= MAX_SIDE:
-            return key, f"must be between 1 and {MAX_SIDE} pixels, got {data[key]}"
+            return key, f"must be between 1 and {MAX_SIDE} pixels, got {short_repr(data[key])}"
     if data["subpixel_order"] not in SUBPIXEL_ORDERS:
         return "subpixel_order", f"must be \"RGB\" or \"BGR\", got {data['subpixel_order']!r}"
     if not abs(data["slant"]) <= SLANT_LIMIT:
-        return "slant", f"must be within +-{SLANT_LIMIT:g} pixels/row, got {data['slant']!r}"
+        return "slant", f"must be within +-{SLANT_LIMIT:g} pixels/row, got {short_repr(data['slant'])}"
     period, row = data["period"], 3 * data["width"]
     if not period > 0:
-        return "period", f"must be > 0 subpixels, got {period!r}"
+        return "period", f"must be > 0 subpixels, got {short_repr(period)}"
     if period > PERIOD_LIMIT:
-        return "period", f"must be at most {PERIOD_LIMIT:g} subpixels, got {period!r}"
+        return "period", f"must be at most {PERIOD_LIMIT:g} subpixels, got {short_repr(period)}"
     if period > row:
-        return "period", (f"{period!r} subpixels is wider than the {data['width']}-pixel panel's row "
+        return "period", (f"{short_repr(period)} subpixels is wider than the {data['width']}-pixel panel's row "
                           f"({row} subpixels)")
     if not abs(data["offset"]) <= OFFSET_LIMIT:
-        return "offset", f"must be within +-{OFFSET_LIMIT:g} subpixels, got {data['offset']!r}"
+        return "offset", f"must be within +-{OFFSET_LIMIT:g} subpixels, got {short_repr(data['offset'])}"
     if not abs(data["reference_view"]) <= REFERENCE_VIEW_LIMIT:
         return "reference_view", (f"must be within +-{REFERENCE_VIEW_LIMIT:g} views, "
-                                  f"got {data['reference_view']!r}")
+                                  f"got {short_repr(data['reference_view'])}")
     return None
 
 
@@ -211,7 +207,7 @@ def _validate_constants(data: Mapping[str, Any], source: str) -> None:
         if not isinstance(unc, Mapping):
             fail("uncertainty", "must be an object mapping constant names to 1-sigma values")
         for key, value in unc.items():
-            if not _is_number(value) or not math.isfinite(value) or value < 0:
+            if not is_finite_number(value) or value < 0:
                 fail(f"uncertainty.{key}", f"must be a finite number >= 0, got {value!r}")
     for key in ("provenance", "looking_glass"):
         if data.get(key) is not None and not isinstance(data[key], Mapping):
@@ -239,15 +235,15 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
     if not _is_int(version) or version != FORMAT_VERSION:
         raise ProfileError(f"field 'format_version': unknown version {version!r}", source=source,
                            hint=f"this lenticalib reads version {FORMAT_VERSION}; upgrade lenticalib")
+    unknown = set(data) - set(CONSTANT_KEYS) - set(OPTIONAL_KEYS)
+    if unknown:  # before the missing ones: a misspelt key is also a missing one
+        raise ProfileError(unknown_key_message(unknown, CONSTANT_KEYS + OPTIONAL_KEYS), source=source,
+                           hint="check the spelling; known fields are "
+                                + ", ".join(CONSTANT_KEYS + OPTIONAL_KEYS))
     missing = [k for k in CONSTANT_KEYS if k not in data]
     if missing:
         raise ProfileError(f"missing field(s): {', '.join(missing)}", source=source,
                            hint="a profile needs " + ", ".join(CONSTANT_KEYS))
-    unknown = sorted(set(data) - set(CONSTANT_KEYS) - set(OPTIONAL_KEYS))
-    if unknown:
-        raise ProfileError(f"unknown field(s): {', '.join(unknown)}", source=source,
-                           hint="check the spelling; known fields are "
-                                + ", ".join(CONSTANT_KEYS + OPTIONAL_KEYS))
     fields = {k: data[k] for k in CONSTANT_KEYS}
     for key in ("uncertainty", "provenance", "looking_glass", "name", "view_direction", "physical"):
         fields[key] = data.get(key)
@@ -264,11 +260,12 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
 
 
 def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any:
-    """Parse a JSON file (data only: nothing in it is executed); non-finite numbers are refused.
+    """Parse a JSON file (data only: nothing in it is executed); unusable numbers are refused.
 
     The file must be UTF-8 text (a leading byte-order mark is accepted).  Raises ProfileError
     naming the file for a missing, unreadable, empty, binary or non-UTF-8 file and for invalid
-    JSON; ``what`` names the kind of file in messages (e.g. ``"profile"``), ``hint_missing`` says
+    JSON, and naming the field too for a number no float holds (``NaN``, ``Infinity``, ``1e400``,
+    a 400-digit integer: :mod:`lenticalib.fields`); ``what`` names the kind of file in messages (e.g. ``"profile"``), ``hint_missing`` says
     what to do when it does not exist.
     """
     src = str(path)
@@ -292,12 +289,18 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any
                            f"offset {exc.start})", source=src,
                            hint=f"save the {what} as UTF-8 JSON") from None
     try:
-        return json.loads(text, parse_constant=_reject_constant)
+        document = parse_json(text)
     except json.JSONDecodeError as exc:
         raise ProfileError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})",
                            source=src) from None
     except (ValueError, RecursionError) as exc:
-        raise ProfileError(f"not usable JSON: {exc}", source=src, hint="use finite numbers") from None
+        raise ProfileError(f"not usable JSON: {exc}", source=src) from None
+    bad = unusable_number(document)
+    if bad is not None:
+        field, number = bad
+        raise ProfileError(f"field '{field}': {number.text} {number.why}" if field else f"{number.text} {number.why}",
+                           source=src, hint="write a finite number")
+    return document
 
 
 _MAGIC = ((b"\x89PNG\r\n\x1a\n", "a PNG image"), (b"\xff\xd8\xff", "a JPEG image"),
@@ -326,10 +329,6 @@ def load_profile(path: str | os.PathLike, argument: str | None = None) -> PanelP
     return profile_from_dict(data, source=str(path))
 
 
-def _reject_constant(name: str):
-    raise ValueError(f"non-finite number {name} is not allowed")
-
-
 def save_profile(profile: PanelProfile, path: str | os.PathLike) -> Path:
     """Write ``profile`` as JSON atomically (an existing file is replaced only on success)."""
     return write_text_atomic(path, profile.to_json())
@@ -344,7 +343,7 @@ def format_constant(name: str, value) -> str:
     """``value`` of constant ``name`` for people: fixed decimals per constant (slant 7, period 6,
     offset and reference view 4), trailing zeros dropped (``19.47``, ``-0.2871235``, ``16.0``).
     Integers and strings are shown as they are.  The file keeps the full precision."""
-    if name not in _DISPLAY_DECIMALS or not _is_number(value):
+    if name not in _DISPLAY_DECIMALS or not is_finite_number(value):
         return str(value)
     text = f"{float(value):.{_DISPLAY_DECIMALS[name]}f}".rstrip("0")
     text = text + "0" if text.endswith(".") else text

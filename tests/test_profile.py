@@ -48,7 +48,7 @@ def test_round_trip_keeps_provenance_and_uncertainty(tmp_path):
     ({"subpixel_order": "GRB"}, "field 'subpixel_order'"),
     ({"format_version": 7}, "unknown version 7"),
     ({"format": "something"}, "field 'format'"),
-    ({"colour": 1}, "unknown field(s): colour"),
+    ({"colour": 1}, "unknown field 'colour'"),
     ({"uncertainty": {"slant": -1}}, "uncertainty.slant"),
     ({"view_direction": 0}, "field 'view_direction': must be 1 or -1"),
     ({"view_direction": "+1"}, "field 'view_direction': must be 1 or -1"),

@@ -109,7 +109,7 @@ def test_the_avatar_pipeline_retargets_per_frame():
 @pytest.mark.parametrize("block, words", [
     ({"gap_mm": 1.0}, "physical.pixel_pitch_mm': is missing"),
     ({"pixel_pitch_mm": -0.2}, "physical.pixel_pitch_mm': -0.2 is outside"),
-    ({"pixel_pitch_mm": 0.2, "gap": 1.0}, "physical.gap': is not a known field"),
+    ({"pixel_pitch_mm": 0.2, "gap": 1.0}, "unknown field 'physical.gap' (did you mean 'physical.gap_mm'?)"),
     ({"pixel_pitch_mm": 0.2, "eye_mm": [0, 0, -600]}, "the distance D must be > 0"),
     ({"pixel_pitch_mm": 0.2, "uncertainty": {"gap_mm": -1}}, "physical.uncertainty.gap_mm"),
     ("0.2 mm", "must be a JSON object"),

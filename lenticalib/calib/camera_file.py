@@ -14,7 +14,6 @@ coordinates are (x/z, y/z).
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from pathlib import Path
 
@@ -148,7 +147,12 @@ def load_camera_model(path: str | os.PathLike) -> CameraModel:
             return _from_mrcal(path)
         if path.suffix in (".yaml", ".yml", ".xml"):
             return _from_opencv_storage(path)
-        data = json.loads(path.read_text(errors="replace"))
+        from ..profile import read_json_file
+
+        try:
+            data = read_json_file(path, "camera model", HINT)
+        except InputError as exc:
+            raise InputError(f"cannot read the camera model ({exc.message})", source=str(path), hint=HINT) from None
         matrix = np.asarray(data["camera_matrix"], float).reshape(3, 3)
         dist = np.asarray(data.get("distortion", [0, 0, 0, 0]), float).ravel()
         return _opencv_model(matrix, dist, tuple(data["image_size"]) if "image_size" in data else None, path)

@@ -275,10 +275,17 @@ def read_pattern_folder(directory: str | os.PathLike):
         raise InputError(f"pattern format version {data.get('format_version')!r} is not supported "
                          f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
                          hint="write the patterns again with this lenticalib and photograph them")
+    from ..profile import MAX_SIDE, MAX_VIEWS
+
+    for key, low, high in (("width", 1, MAX_SIDE), ("height", 1, MAX_SIDE), ("views", 2, MAX_VIEWS)):
+        value = data.get(key)
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            raise InputError(f"field '{key}' is missing or not a whole number {low}..{high}", source=source,
+                             hint="write the patterns again with 'lenticalib patterns'")
     try:
-        expected = design_patterns(int(data["width"]), int(data["height"]), int(data["views"]))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"field {exc} is missing or wrong", source=source,
+        expected = design_patterns(data["width"], data["height"], data["views"])
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"describes no pattern set this lenticalib can draw ({exc})", source=source,
                          hint="write the patterns again with 'lenticalib patterns'") from None
     if data != {**expected.to_dict(), **{k: data[k] for k in _FREE_KEYS if k in data}}:
         raise InputError("describes patterns this lenticalib did not draw (edited, or from another version)",

@@ -63,17 +63,23 @@ def collect_photos(items: list[str]) -> list:
 
 def photo_size(path) -> tuple[int, int]:
     """(width, height) of a photo as read with its EXIF orientation, from its header; ImageError when
-    it is not a readable image."""
-    from PIL import Image, UnidentifiedImageError
-
+    it is not a readable image or has more pixels than :data:`lenticalib.imageio.MAX_IMAGE_PIXELS`."""
     from ..errors import ImageError
+    from ..imageio import check_image_pixels, open_image_header
 
     try:
-        with Image.open(path) as img:
+        img = open_image_header(path)
+        if img is None:
+            raise ImageError("not a readable photo (not an image format Pillow knows)", source=str(path),
+                             hint="remove it or give another photo")
+        with img:
             w, h = img.size
+            check_image_pixels(w, h, str(path))
             orientation = img.getexif().get(0x0112, 1) if img.format == "JPEG" else 1
             img.verify()
-    except (OSError, UnidentifiedImageError, SyntaxError, ValueError) as exc:
+    except (OSError, SyntaxError, ValueError) as exc:
+        if isinstance(exc, ImageError):
+            raise
         raise ImageError(f"not a readable photo ({exc.__class__.__name__})", source=str(path),
                          hint="remove it or give another photo") from None
     return (h, w) if orientation in (5, 6, 7, 8) else (w, h)

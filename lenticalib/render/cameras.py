@@ -128,14 +128,10 @@ class ViewCameras:
     @classmethod
     def from_json(cls, path: str | os.PathLike) -> "ViewCameras":
         """Read a cameras.json written by :meth:`write_json`; InputError naming ``path`` if it is not one."""
+        from ..profile import read_json_file
+
         source = str(path)
-        try:
-            with open(path, encoding="utf-8") as fh:
-                data = json.load(fh)
-        except OSError as exc:
-            raise InputError(f"cannot read: {exc.strerror}", source=source) from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"not JSON: {exc}", source=source) from None
+        data = read_json_file(path, "cameras file", "give the cameras.json written with the views")
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise InputError(f"not a cameras file (format is not {FORMAT!r})", source=source)
         if data.get("format_version") != FORMAT_VERSION:

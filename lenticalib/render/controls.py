@@ -39,7 +39,6 @@ from __future__ import annotations
 import csv
 import math
 import os
-import zipfile
 from pathlib import Path
 from typing import Iterator, Sequence
 
@@ -133,18 +132,11 @@ def load_controls(path: str | os.PathLike, layout: ControlLayout = DEFAULT_LAYOU
 
 def _load_npz(p: Path, layout: ControlLayout) -> ControlTrack:
     source = str(p)
-    try:
-        with np.load(p, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except ValueError as exc:
-        what = "holds a pickled object array" if "pickle" in str(exc).lower() else "is not a readable .npz file"
-        raise InputError(what, source=source) from None
-    except (OSError, EOFError, zipfile.BadZipFile):
-        raise InputError("is not a readable .npz file", source=source) from None
-    for name in ("t", "controls"):
-        if name not in arrays:
-            raise InputError(f"array {name!r} is missing", source=source,
-                             hint="a control .npz holds t (T,) and controls (T, D)")
+    from ..arrayfile import GIB, load_npz
+
+    # Headers first: names, shapes, and at most 1 GiB of arrays (an hour of 70 controls at 1 kHz).
+    arrays = load_npz(p, wanted=("t", "controls"), required=("t", "controls"), max_bytes=GIB,
+                      source=source, hint="a control .npz holds t (T,) and controls (T, D)")
     t, c = arrays["t"], arrays["controls"]
     if t.ndim != 1 or len(t) < 1 or t.dtype.kind not in "fiu":
         raise InputError(f"array 't' has shape {t.shape} dtype {t.dtype}, expected (T,) numbers with T >= 1",

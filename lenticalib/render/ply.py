@@ -24,7 +24,8 @@ properties (e.g. a mip-splatting ``filter_3D``) are ignored.  What is refused, e
 InputError naming the file and the property at fault: not a PLY / a truncated file, no ``vertex``
 element or no rows, a missing property, ``f_rest_*`` of a count other than 0, 9, 24 or 45 or not
 numbered 0..M-1, a list property where a scalar is expected, a non-finite value, a zero-length
-quaternion.  Compressed PLYs (SuperSplat's ``packed_position`` chunks) are not this layout.
+quaternion, a header whose element counts need more bytes than the file holds (checked before
+plyfile reads a byte of data, so a header claiming 10^13 vertices costs no memory).  Compressed PLYs (SuperSplat's ``packed_position`` chunks) are not this layout.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ from ..atomic import write_bytes_atomic
 from ..errors import BackendUnavailableError, InputError
 from .gaussians import Gaussians
 
+_TYPE_BYTES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+               "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+_MAX_HEADER = 1 << 16  # bytes searched for end_header
 _REST_COUNTS = {0: 1, 9: 4, 24: 9, 45: 16}  # number of f_rest_* -> K
 _LAYOUT_HINT = "expected the standard 3DGS layout: x y z f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3"
 
@@ -50,6 +54,44 @@ def _plyfile():
         raise BackendUnavailableError("reading and writing PLY avatars needs the plyfile package",
                                       source="plyfile", hint="pip install plyfile") from None
     return plyfile
+
+
+def _check_counts(fh, source: str) -> None:
+    """Refuse a PLY header whose element counts need more data than the file has after the header.
+
+    Each row needs at least its scalar properties' bytes plus each list's count (binary), or one
+    character and a separator per property (ASCII).  A header this cannot parse is left to
+    plyfile, which reports it.  Leaves ``fh`` at an unspecified position.
+    """
+    from ..arrayfile import size_text
+
+    head = fh.read(_MAX_HEADER)
+    end = head.find(b"end_header")
+    stop = head.find(b"\n", end) if end >= 0 else -1
+    if not head.startswith(b"ply") or stop < 0:
+        return
+    data_bytes = os.fstat(fh.fileno()).st_size - (stop + 1)
+    ascii_format, elements = False, []  # [name, count, bytes per row, properties per row]
+    for line in head[:end].decode("ascii", "replace").splitlines():
+        words = line.split()
+        if len(words) >= 2 and words[0] == "format":
+            ascii_format = words[1] == "ascii"
+        elif len(words) == 3 and words[0] == "element":
+            if not words[2].isdigit():
+                return
+            elements.append([words[1], int(words[2]), 0, 0])
+        elif len(words) >= 3 and words[0] == "property" and elements:
+            size = _TYPE_BYTES.get(words[2] if words[1] == "list" else words[1])
+            if size is None:
+                return
+            elements[-1][2] += size
+            elements[-1][3] += 1
+    need = [count * (2 * props if ascii_format else row) for _, count, row, props in elements]
+    if sum(need) > data_bytes:
+        name, count = elements[need.index(max(need))][:2]
+        raise InputError(f"not a readable PLY file: the header claims {count} '{name}' rows ({size_text(sum(need))} at least), but the "
+                         f"file holds {size_text(data_bytes)} after the header (truncated or corrupt)",
+                         source=source)
 
 
 def _column(vertex, name: str, source: str) -> np.ndarray:
@@ -110,7 +152,11 @@ def load_ply(path: str | os.PathLike) -> Gaussians:
             if not fh.read(4):
                 raise InputError("empty file, not a PLY", source=source)
             fh.seek(0)
+            _check_counts(fh, source)
+            fh.seek(0)
             ply = plyfile.PlyData.read(fh, mmap=False)
+    except InputError:
+        raise
     except FileNotFoundError:
         raise InputError("no such file", source=source) from None
     except IsADirectoryError:

@@ -34,7 +34,9 @@ G Gaussians, K SH coefficients, D controls, E blendshapes, N blendshape entries,
 
 Floats may be stored as float16/32/64 and are used as float32; a missing array (other than the
 two optional ones), a wrong shape or index, a non-finite value or another version is one
-InputError naming the file and the array.
+InputError naming the file and the array.  The names, shapes and dtypes are checked from the
+headers before any data is inflated (:mod:`lenticalib.arrayfile`): arrays claiming more than
+:data:`MAX_RIG_BYTES` (2 GiB) in all, or more than the file holds, are refused unread.
 """
 
 from __future__ import annotations
@@ -42,11 +44,11 @@ from __future__ import annotations
 import io
 import json
 import os
-import zipfile
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..arrayfile import GIB, load_npz
 from ..atomic import write_bytes_atomic
 from ..errors import InputError
 from .gaussians import Gaussians
@@ -62,6 +64,8 @@ _REQUIRED = ("format", "version", "means", "quats", "log_scales", "opacity_logit
              "blend_pos", "bone_names", "bone_parents", "bone_pivots", "bone_controls", "skin_weights",
              "pose_pivot", "pose_controls", "provenance")
 _OPTIONAL = ("blend_rot", "blend_color")
+# The most bytes a rig's arrays may claim: over 2 million Gaussians with SH degree 3 and 50 bones.
+MAX_RIG_BYTES = 2 * GIB
 
 
 # --------------------------------------------------------------------------------------------
@@ -266,21 +270,8 @@ def load_rig(path: str | os.PathLike, device: str = "cpu") -> Rig:
     if magic != b"PK\x03\x04":
         raise InputError("not a readable .npz file (not a zip archive)", source=source,
                          hint="a rig file is a numpy .npz, see lenticalib/render/rig_file.py")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {name: data[name] for name in data.files}
-    except FileNotFoundError:
-        raise InputError("no such rig file", source=source, hint="make one with tools/make_demo_avatar.py") from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a rig file", source=source) from None
-    except ValueError as exc:
-        if "pickle" in str(exc).lower():
-            raise InputError("holds a pickled object array, which rig files never do", source=source) from None
-        raise InputError(f"not a readable .npz file: {str(exc).splitlines()[0] if str(exc) else 'bad data'}",
-                         source=source) from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(f"not a readable .npz file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}",
-                         source=source) from None
+    arrays = load_npz(path, wanted=_REQUIRED + _OPTIONAL, required=_REQUIRED, max_bytes=MAX_RIG_BYTES,
+                      source=source, hint="a rig file holds: " + " ".join(_REQUIRED))
     return rig_from_arrays(arrays, source=source, device=device)
 
 

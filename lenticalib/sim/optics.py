@@ -264,9 +264,12 @@ def _fields_from(cls, data: Any, source: str, what: str, tuples: tuple[str, ...]
     names = {f.name for f in dataclasses.fields(cls)}
     required = {f.name for f in dataclasses.fields(cls)
                 if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
-    unknown = sorted(set(data) - names)
+    unknown = set(data) - names
     if unknown:
-        raise InputError(f"unknown {what} field(s): {', '.join(unknown)}", source=source)
+        from ..fields import unknown_key_message
+
+        raise InputError(unknown_key_message(unknown, names, f"{what} field"), source=source,
+                         hint="known: " + ", ".join(sorted(names)))
     missing = sorted(required - set(data))
     if missing:
         raise InputError(f"missing {what} field(s): {', '.join(missing)}", source=source)

@@ -24,7 +24,6 @@ again.  What else is in ``DIR/captures`` is the caller's business.
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 
@@ -125,11 +124,12 @@ class SimCamera(CaptureCamera):
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
         photos are still there (a resumed capture); empty otherwise."""
+        from ...profile import read_json_file
         from ...sim.capture import SIMULATION_NAME
         from ...sim.scene import Scene
 
         try:
-            record = json.loads((self.directory / SIMULATION_NAME).read_text())
+            record = read_json_file(self.directory / SIMULATION_NAME, "simulation record", "")
             same = (Scene.from_dict(record) == self.scene
                     and record["pattern_set"]["set_id"] == self.pattern_set.set_id)
             entries = [c for c in record["captures"] if isinstance(c, dict)]
