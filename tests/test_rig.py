@@ -497,7 +497,7 @@ def test_text_stream_reads_lines_in_the_background():
     assert _wait(lambda: src.stats["ended"])
     t, c = src.latest()
     assert t == 3 and c[LIDS] == 1.0
-    assert src.stats == {"received": 2, "bad": 1, "ended": True,
+    assert src.stats == {"received": 2, "bad": 1, "ended": True, "failed": None,
                          "last_error": "stdin line 2: not JSON: Expecting value at column 1"}
     src.close()
 
