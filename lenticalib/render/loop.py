@@ -157,7 +157,7 @@ class AvatarPipeline:
         self.avatar, self.profile = avatar, profile
         self.warning = direction_warning(profile)
         self.cameras = order_for_direction(cameras, profile.view_direction or 1)
-        self.render_fn = get_renderer(renderer)
+        self.render_fn = get_renderer(renderer, device=device)  # refused here if it cannot run on this machine
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"
         self.edge_desaturation = float(edge_desaturation)
@@ -172,8 +172,7 @@ class AvatarPipeline:
         if self.on_gpu and encoder != "torch":
             raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
                              source="--encoder", hint="--encoder torch")
-        if not self.on_gpu:
-            self.encode_fn = get_encoder(encoder)
+        self.encode_fn = get_encoder(encoder, device=device)  # (on the GPU the TorchEncoder below is used)
         # the per-session constants, once, where the renderer wants them
         self._mats = (self.cameras.viewmats.astype(np.float32), self.cameras.K.astype(np.float32))
         self._background = background

@@ -199,13 +199,27 @@ def build_tables(profile: PanelProfile, view_shape: tuple[int, int], device="cpu
         col_weight=put(fx), col_weight0=put(1.0 - fx), row_weight=put(fy), row_weight0=put(1.0 - fy),
         has_dark=bool((primary == NO_VIEW).any()))
 
-def resolve_device(device) -> torch.device:
-    device = torch.device(device)
+def device_unavailable(device) -> str | None:
+    """Why torch cannot compute on ``device`` here (one line), or None; cheap, initialises no GPU."""
+    try:
+        device = torch.device(device)
+    except (RuntimeError, TypeError):
+        return f"{device!r} is not a torch device (cpu, cuda, cuda:K)"
     if device.type == "cuda":
         if not torch.cuda.is_available():
-            raise ConfigurationError("device 'cuda' requested but torch sees no CUDA device", source="device",
-                                     hint="use device='cpu', or a CUDA build of torch on a machine with a GPU")
-        if device.index is None:
-            device = torch.device("cuda", torch.cuda.current_device())
+            return f"device {str(device)!r} requested but torch sees no CUDA device"
+        if device.index is not None and device.index >= torch.cuda.device_count():
+            return f"device {str(device)!r} requested but torch sees {torch.cuda.device_count()} CUDA device(s)"
+    return None
+
+
+def resolve_device(device) -> torch.device:
+    reason = device_unavailable(device)
+    if reason is not None:
+        raise ConfigurationError(reason, source="device",
+                                 hint="use device='cpu', or a CUDA build of torch on a machine with a GPU")
+    device = torch.device(device)
+    if device.type == "cuda" and device.index is None:
+        device = torch.device("cuda", torch.cuda.current_device())
     return device
 
