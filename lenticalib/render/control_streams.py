@@ -211,7 +211,7 @@ class StreamControls:
     def summary(self) -> str:
         """One line for the end of a session: lines received, bad (the last error), whether the reader failed."""
         s = self.stats
-        text = f"controls {self.name}: {s['received']} lines received, {s['bad']} bad"
+        text = f"controls {self.name}: {s['received']} valid line{'' if s['received'] == 1 else 's'}, {s['bad']} bad"
         if s["last_error"]:
             text += f" (last: {s['last_error']})"
         if s["failed"]:

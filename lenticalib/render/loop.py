@@ -52,12 +52,15 @@ class StageTimes:
         return len(self.totals)
 
     def table(self, title: str = "") -> str:
-        """Median, mean and 95th percentile per stage, the total and the frame rate, as text."""
+        """Median, mean and 95th percentile per stage ("-" for a stage that did not run), the total and
+        the frame rate, as text."""
         lines = [title] if title else []
         lines.append(f"{'stage':<10}{'median ms':>11}{'mean ms':>10}{'p95 ms':>9}")
         for name in STAGES + ("total",):
             values = self.totals if name == "total" else self.times[name]
             if not values:
+                if self.totals:  # a stage that did not run (play --headless presents nothing)
+                    lines.append(f"{name:<10}{'-':>11}{'-':>10}{'-':>9}")
                 continue
             p95 = float(np.percentile(values, 95))
             lines.append(f"{name:<10}{statistics.median(values):>11.2f}{statistics.fmean(values):>10.2f}{p95:>9.2f}")
