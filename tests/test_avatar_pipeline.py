@@ -217,6 +217,20 @@ def test_a_renderer_or_encoder_that_cannot_run_here_is_refused_before_anything_i
         assert result.returncode == 2 and len(lines) == 1 and words in lines[0], result.stderr
 
 
+def test_a_device_torch_cannot_use_is_refused_before_the_first_frame(demo, directed):
+    """The drive runs on --device too: the cpu renderer with the fast encoder still needs it to exist."""
+    import torch
+
+    cases = [("bogus", "--device: 'bogus' is not a torch device")]
+    if not torch.cuda.is_available():
+        cases.append(("cuda", "--device: device 'cuda' requested but torch sees no CUDA device (use --device cpu)"))
+    for device, words in cases:
+        result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS,
+                      "--device", device)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and result.stdout == "" and len(lines) == 1 and words in lines[0], result.stderr
+
+
 def test_bad_inputs_end_in_one_line(demo, directed, tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     (tmp_path / "bad.jsonl").write_text('{"t": 0, "controls": [1, 2, 3]}\n')

@@ -144,7 +144,8 @@ class AvatarPipeline:
 
     ``cameras`` come ordered for ``view_direction = +1`` (as the camera models make them) and
     are reordered for the profile; a profile that does not say its direction renders as +1
-    with ``warning`` set (the caller prints it).
+    with ``warning`` set (the caller prints it).  A renderer or encoder that cannot run here
+    (BackendUnavailableError) and a ``device`` torch cannot use (InputError) are refused here.
     """
 
     def __init__(self, avatar, profile: PanelProfile, cameras: ViewCameras, *, renderer: str = "cpu",
@@ -176,6 +177,12 @@ class AvatarPipeline:
             raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
                              source="--encoder", hint="--encoder torch")
         self.encode_fn = get_encoder(encoder, device=device)  # (on the GPU the TorchEncoder below is used)
+        if device != "cpu":  # the drive runs there too
+            from .torch_devices import device_unavailable
+
+            reason = device_unavailable(device)
+            if reason is not None:
+                raise InputError(reason, source="--device", hint="use --device cpu")
         # the per-session constants, once, where the renderer wants them
         self._mats = (self.cameras.viewmats.astype(np.float32), self.cameras.K.astype(np.float32))
         self._background = background

@@ -48,7 +48,8 @@ except ImportError as exc:  # the registry passes this on as is
     raise BackendUnavailableError(f"the 'torch' encoder needs PyTorch, which does not import ({exc})",
                                   source="encoder", hint="pip install torch") from None
 
-from .torch_tables import TorchTables, build_tables, device_unavailable, resolve_device  # noqa: E402  (after torch)
+from ..torch_devices import device_unavailable  # noqa: E402  (after the torch check)
+from .torch_tables import TorchTables, build_tables, resolve_device  # noqa: E402
 
 __all__ = ["CACHE_SIZE", "CPU_ROWS_PER_CHUNK", "TorchEncoder", "TorchTables", "build_tables", "cached_encoder",
            "clear_cache", "encode_torch"]

@@ -38,6 +38,7 @@ import numpy as np
 from ...errors import BackendUnavailableError, ConfigurationError, ImageError
 from ...profile import PanelProfile
 from ..sampling import NO_VIEW, sampling_tables
+from ..torch_devices import device_unavailable
 
 try:
     import torch
@@ -198,20 +199,6 @@ def build_tables(profile: PanelProfile, view_shape: tuple[int, int], device="cpu
         taps=(0, dx, dy, dx + dy),
         col_weight=put(fx), col_weight0=put(1.0 - fx), row_weight=put(fy), row_weight0=put(1.0 - fy),
         has_dark=bool((primary == NO_VIEW).any()))
-
-def device_unavailable(device) -> str | None:
-    """Why torch cannot compute on ``device`` here (one line), or None; cheap, initialises no GPU."""
-    try:
-        device = torch.device(device)
-    except (RuntimeError, TypeError):
-        return f"{device!r} is not a torch device (cpu, cuda, cuda:K)"
-    if device.type == "cuda":
-        if not torch.cuda.is_available():
-            return f"device {str(device)!r} requested but torch sees no CUDA device"
-        if device.index is not None and device.index >= torch.cuda.device_count():
-            return f"device {str(device)!r} requested but torch sees {torch.cuda.device_count()} CUDA device(s)"
-    return None
-
 
 def resolve_device(device) -> torch.device:
     reason = device_unavailable(device)

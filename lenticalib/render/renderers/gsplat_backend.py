@@ -15,6 +15,7 @@ import importlib.util
 
 from ...errors import BackendUnavailableError
 from ..gaussians import Gaussians
+from ..torch_devices import device_unavailable
 from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE, check_render_inputs
 
 
@@ -31,11 +32,10 @@ def gsplat_unavailable(device: str | None = None) -> str | None:
     if not torch.cuda.is_available():
         return "it needs a CUDA GPU and torch sees none"
     if device is not None:
-        try:
-            kind = torch.device(device).type
-        except (RuntimeError, TypeError):
-            return f"{device!r} is not a torch device"
-        if kind != "cuda":
+        reason = device_unavailable(device)
+        if reason is not None:
+            return reason
+        if torch.device(device).type != "cuda":
             return f"it renders on a CUDA device, not on {device!r}"
     if importlib.util.find_spec("gsplat") is None:
         return "it needs gsplat (pip install gsplat)"
