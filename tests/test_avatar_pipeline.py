@@ -145,10 +145,90 @@ def test_a_sequence_as_pngs_and_as_a_lossless_video_holds_the_same_rasters(demo,
     assert not list(tmp_path.glob(".render-*"))  # no temporary file left
 
 
+def _table(stdout: str) -> dict:
+    """The stage table's rows: {stage: [median, mean, p95] (floats, or "-" for a stage not run)}."""
+    rows = {}
+    for line in stdout.splitlines():
+        name, *values = line.split()
+        if name in ("drive", "render", "compose", "present", "total") and len(values) == 3:
+            rows[name] = [v if v == "-" else float(v) for v in values]
+    return rows
+
+
 def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed):
-    result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "2", "--view-size", SMALL_VIEWS)
+    result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS)
     assert result.returncode == 0, result.stderr
-    assert "(2 frames" in result.stdout and "present" in result.stdout
+    assert "(1 frames" in result.stdout
+    rows = _table(result.stdout)
+    assert rows["present"] == ["-", "-", "-"], result.stdout  # headless presents nothing
+    assert rows["total"][0] == pytest.approx(sum(rows[s][0] for s in ("drive", "render", "compose")), abs=0.02)
+
+
+def test_play_headless_keeps_running_through_hostile_stdin_and_reports_the_bad_lines(demo, directed, tmp_path):
+    import signal
+
+    hostile = [b"[" * 50000, b'{"jaw": [' + b"7" * 5000 + b", 0, 0]}", b'{"jaw": [1e39, 0, 0]}',
+               b'{"jaw": [1' + b"0" * 400 + b", 0, 0]}", b'{"jaw": [NaN, 0, 0]}', b"\xff\xfe",
+               b'{"jaw": [0.1, 0, 0]}' + b" " * 70000, b'{"jaw": "open"}', b'{"controls": [0, 0]}']
+    feed = tmp_path / "controls.jsonl"
+    feed.write_bytes(b"\n".join(hostile + [b'{"jaw": [0.1, 0, 0]}']) + b"\n")
+    with open(feed, "rb") as stdin:
+        proc = subprocess.Popen([sys.executable, "-m", "lenticalib", "play", str(demo), "--profile", str(directed[1]),
+                                 "--headless", "--stats", "--controls", "-", "--view-size", SMALL_VIEWS],
+                                stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            for line in proc.stdout:  # the per-second stage line: the loop has run for a second
+                if line.startswith("drive"):
+                    break
+            proc.send_signal(signal.SIGINT)
+            rest, stderr = proc.communicate(timeout=300)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    assert f"controls stdin: 1 valid line, {len(hostile)} bad (last: stdin line {len(hostile)}: " in rest, rest
+    assert "bad control line (1 so far): stdin line 1: not JSON: nested too deep" in stderr
+    assert "Traceback" not in stderr
+
+
+def test_a_control_file_the_avatar_cannot_use_is_refused_before_play_starts(demo, directed, tmp_path):
+    (tmp_path / "big.jsonl").write_text('{"t": 0, "jaw": [0, 0, 0]}\n{"t": 1, "jaw": [1e39, 0, 0]}\n')
+    result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS,
+                  "--controls", tmp_path / "big.jsonl")
+    assert result.returncode == 2 and result.stdout == "", result.stdout
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{tmp_path / 'big.jsonl'}:2: jaw[0] is 1e+39, out of range" in lines[0], lines
+
+
+def test_a_renderer_or_encoder_that_cannot_run_here_is_refused_before_anything_is_loaded(tmp_path):
+    """Neither the avatar nor the profile exists: refusing the backend first is the only way to name it."""
+    import importlib.util
+
+    import torch
+
+    cuda = torch.cuda.is_available()
+    gsplat = importlib.util.find_spec("gsplat") is not None
+    for options, words in ((["--renderer", "gsplat"], "renderer 'gsplat' cannot run here: it needs a CUDA GPU "
+                            "and torch sees none (renderers that can run here: cpu)" if not cuda else
+                            "none.json" if gsplat else "renderer 'gsplat' cannot run here: it needs gsplat"),
+                           (["--encoder", "torch", "--device", "cuda"], "encoder 'torch' cannot run here: device "
+                            "'cuda' requested but torch sees no CUDA device" if not cuda else "none.json")):
+        result = _cli("play", tmp_path / "none.npz", "--profile", tmp_path / "none.json", "--headless", *options)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1 and words in lines[0], result.stderr
+
+
+def test_a_device_torch_cannot_use_is_refused_before_the_first_frame(demo, directed):
+    """The drive runs on --device too: the cpu renderer with the fast encoder still needs it to exist."""
+    import torch
+
+    cases = [("bogus", "--device: 'bogus' is not a torch device")]
+    if not torch.cuda.is_available():
+        cases.append(("cuda", "--device: device 'cuda' requested but torch sees no CUDA device (use --device cpu)"))
+    for device, words in cases:
+        result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS,
+                      "--device", device)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and result.stdout == "" and len(lines) == 1 and words in lines[0], result.stderr
 
 
 def test_bad_inputs_end_in_one_line(demo, directed, tmp_path):

@@ -440,6 +440,17 @@ def test_a_track_interpolates_and_loops():
     ("bad.jsonl", '{"t": 0, "jaw": [0, 0, 0]\n', "bad.jsonl:1: not JSON"),
     ("bad.jsonl", '{"t": 0, "controls": [], "jaw": [0, 0, 0]}\n', "mixes 'controls' with other keys"),
     ("bad.txt", "whatever", "unknown control file type '.txt'"),
+    # values the avatar cannot use, refused when the file is read (not when play meets them)
+    ("bad.jsonl", '{"t": 0, "jaw": [0, 0, 0]}\n{"t": 1, "jaw": [1e39, 0, 0]}\n',
+     "bad.jsonl:2: jaw[0] is 1e+39, out of range: float32"),
+    ("bad.jsonl", '{"t": 0, "jaw": [1' + "0" * 400 + ', 0, 0]}\n', "bad.jsonl:1: jaw[0] is 1000"),
+    ("bad.jsonl", '{"t": 0, "jaw": [' + "7" * 5000 + ', 0, 0]}\n',
+     "bad.jsonl:1: not JSON: an integer of more than 4300 digits"),
+    ("bad.jsonl", '{"t": 0, "controls": ' + "[" * 50000 + "\n", "bad.jsonl:1: not JSON: nested too deep"),
+    ("bad.jsonl", '{"t": 0, "jaw": [0, NaN, 0]}\n', "bad.jsonl:1: jaw[1] is nan, expected a finite number"),
+    ("bad.jsonl", '{"t": 1' + "0" * 400 + ', "jaw": [0, 0, 0]}\n', "bad.jsonl:1: time 't' is 1000"),
+    ("bad.csv", "t,jaw.0\n0,0.1\n1,-1e39\n", "bad.csv:3: column 'jaw.0' is -1e+39, out of range: float32"),
+    ("bad.csv", "t,jaw.0\n1e400,0.1\n", "bad.csv:2: column 't' is inf, expected a finite number"),
 ])
 def test_bad_control_files_name_the_line(tmp_path, name, text, words):
     (tmp_path / name).write_text(text)
@@ -456,8 +467,12 @@ def test_bad_control_npz_is_one_line(tmp_path):
     c = np.zeros((3, D))
     c[2, 5] = np.inf
     np.savez(tmp_path / "c.npz", t=np.arange(3.0), controls=c)
+    c[2, 5] = 0.0
+    c[1, 3] = 1e39  # finite in float64, inf in float32: refused now, not when play meets it
+    np.savez(tmp_path / "d.npz", t=np.arange(3.0), controls=c)
     for name, words in (("a.npz", "'controls' has shape (3, 68), expected (3, 70)"), ("b.npz", "'t' is missing"),
-                        ("c.npz", "c.npz row 2: controls[5] is inf")):
+                        ("c.npz", "c.npz row 2: controls[5] is inf"),
+                        ("d.npz", "d.npz row 1: controls[3] is 1e+39, out of range: float32")):
         with pytest.raises(InputError) as exc:
             load_controls(tmp_path / name)
         assert words in one_line(exc), str(exc.value)
@@ -497,7 +512,7 @@ def test_text_stream_reads_lines_in_the_background():
     assert _wait(lambda: src.stats["ended"])
     t, c = src.latest()
     assert t == 3 and c[LIDS] == 1.0
-    assert src.stats == {"received": 2, "bad": 1, "ended": True,
+    assert src.stats == {"received": 2, "bad": 1, "ended": True, "failed": None,
                          "last_error": "stdin line 2: not JSON: Expecting value at column 1"}
     src.close()
 
@@ -506,6 +521,7 @@ def test_bad_udp_address_is_one_line():
     with pytest.raises(InputError) as exc:
         open_controls("udp://nohost")
     assert "bad UDP address" in one_line(exc)
+    assert "udp://127.0.0.1:9000" in str(exc.value) and "0.0.0.0" not in str(exc.value)  # this machine only
 
 
 # ------------------------------------------------------------------ demo motion

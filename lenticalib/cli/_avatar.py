@@ -1,8 +1,9 @@
 """Options and set-up shared by ``lenticalib play`` and ``lenticalib render``.
 
-Everything a user can get wrong is checked here, before the first frame: the avatar file,
-the driver, the profile, the controls (files are read in full), the camera options, the
-renderer and encoder names, the background.
+Everything a user can get wrong is checked here, before the first frame: the renderer and
+encoder (first: a name that is unknown or a backend that cannot run on this machine is refused
+before anything is loaded), the avatar file, the driver, the profile, the controls (files are
+read in full), the camera options, the background.
 """
 
 from __future__ import annotations
@@ -46,12 +47,16 @@ def build_pipeline(args: argparse.Namespace):
     from ..render.avatar import load_avatar
     from ..render.camera_models import make_cameras
     from ..render.controls import open_controls
+    from ..render.encoders import get_encoder
     from ..render.loop import AvatarPipeline, parse_background
+    from ..render.renderers import get_renderer
 
-    profile = load_profile(args.profile, "--profile")
     renderer = args.renderer or "cpu"
     encoder = args.encoder or ("torch" if renderer == "gsplat" else "fast")
     device = args.device or ("cuda" if renderer == "gsplat" else "cpu")
+    get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
+    get_encoder(encoder, device=device)
+    profile = load_profile(args.profile, "--profile")
     if not 0.0 <= args.edge_desaturation <= 1.0:
         raise InputError(f"{args.edge_desaturation} is out of range", source="--edge-desaturation", hint="use 0..1")
     from .encode import compensator_from_args

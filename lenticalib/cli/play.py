@@ -4,7 +4,9 @@ Output: the panel (full screen, pixel-exact, through the presenter; the monitor 
 the profile's size unless ``--display`` names one), ``--preview`` (a normal window showing the
 centre view, for a desk without a panel) or ``--headless`` (no output: timing only).  Esc, q
 or closing the window stops; ``--frames`` stops after that many.  On exit the stage table
-(drive, render, compose, present, total, fps) is printed; ``--stats`` prints a line a second.
+(drive, render, compose, present, total, fps; headless shows present as "-", not run, and its
+total leaves it out) is printed, and for live controls (stdin, UDP) the lines received and
+bad; ``--stats`` prints a line a second.
 """
 
 from __future__ import annotations
@@ -62,9 +64,10 @@ def run(args: argparse.Namespace) -> int:
                 if args.preview:
                     view = views[centre]
                     presenter.show(view if isinstance(view, np.ndarray) else view.cpu().numpy())
-                else:
+                elif not args.headless:  # headless presents nothing: no present stage
                     presenter.show(raster)
-                stages["present"] = 1e3 * (time.perf_counter() - t0)
+                if not args.headless:
+                    stages["present"] = 1e3 * (time.perf_counter() - t0)
                 times.add(**stages)
                 if any(k in ("escape", "q") for k in presenter.keys()):
                     break
@@ -80,4 +83,7 @@ def run(args: argparse.Namespace) -> int:
     print(times.table(f"lenticalib play: {avatar.source}, {profile.views} views {cameras.width}x{cameras.height}, "
                       f"renderer {pipeline.renderer}, encoder {pipeline.encoder}, panel {profile.width}x"
                       f"{profile.height}, output {presenter.kind}"))
+    summary = controls.summary() if controls is not None else None
+    if summary:
+        print(summary)
     return 0

@@ -5,15 +5,19 @@
                                                           size (a size-1 group may be a bare number),
                                                           groups not given are 0
 
-``t`` is in seconds; every value must be a finite number.  Files need ``t`` (:mod:`.controls`),
-live streams may leave it out (:mod:`.control_streams`).  A bad record is one InputError naming
-its source, with the expected dimension and layout.
+``t`` is in seconds, a finite float64; every control value must be finite in the dtype it is used
+in, float32 (``|v| <= FLOAT32_MAX``, about 3.4e38: 1e39 is refused, not turned into inf).  Files need
+``t`` (:mod:`.controls`), live streams may leave it out (:mod:`.control_streams`).  A bad record --
+not JSON, nested too deep, an integer of thousands of digits, a wrong type or size, a value out of
+range -- is one InputError naming its source, with the expected dimension and layout; quoted
+values are shortened to :data:`SHOW_CHARS` characters.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import sys
 from typing import Any
 
 import numpy as np
@@ -22,8 +26,33 @@ from ..errors import InputError
 from .rig import ControlLayout
 
 
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest control value (controls are float32)
+FLOAT64_MAX = sys.float_info.max                # the largest time (times are float64)
+SHOW_CHARS = 40                                  # a bad value or key is quoted up to this many characters
+
+
+def is_number(value: Any, limit: float = FLOAT32_MAX) -> bool:
+    """A JSON number (not a bool) with ``|value| <= limit``: finite once converted (no OverflowError for huge ints)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return (isinstance(value, int) or math.isfinite(value)) and abs(value) <= limit
+
+
+def show(value: Any) -> str:
+    """``repr(value)`` shortened to :data:`SHOW_CHARS` characters, for one-line messages about hostile input."""
+    try:
+        text = repr(value)
+    except (RecursionError, ValueError):  # nested too deep; an int beyond Python's digit limit
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= SHOW_CHARS else text[:SHOW_CHARS - 3] + "..."
+
+
+def number_problem(where: str, value: Any, limit: float = FLOAT32_MAX) -> str:
+    """The message for a value that fails ``is_number(value, limit)``: not finite, or out of range."""
+    if is_number(value, math.inf):
+        dtype = "float32" if limit == FLOAT32_MAX else "float64"
+        return f"{where} is {show(value)}, out of range: {dtype} holds |v| <= {limit:.4g}"
+    return f"{where} is {show(value)}, expected a finite number"
 
 
 def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, require_t: bool = True
@@ -37,12 +66,12 @@ def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, requir
     if t is None:
         if require_t:
             raise InputError("no time 't'", source=source, hint="give each line a time in seconds")
-    elif not _number(t):
-        raise InputError(f"time 't' is {t!r}, expected a finite number of seconds", source=source)
+    elif not is_number(t, FLOAT64_MAX):
+        raise InputError(number_problem("time 't'", t, FLOAT64_MAX), source=source)
     if "controls" in obj:
         extra = sorted(set(obj) - {"t", "controls"})
         if extra:
-            raise InputError(f"mixes 'controls' with other keys {extra}", source=source,
+            raise InputError(f"mixes 'controls' with other keys {show(extra)}", source=source,
                              hint="give either the whole vector as 'controls' or group keys")
         values = obj["controls"]
         if not isinstance(values, list):
@@ -51,9 +80,9 @@ def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, requir
         if len(values) != layout.dim:
             raise InputError(f"'controls' has {len(values)} values, expected {layout.dim}", source=source,
                              hint=f"layout: {layout.describe()}")
-        bad = [i for i, v in enumerate(values) if not _number(v)]
+        bad = [i for i, v in enumerate(values) if not is_number(v)]
         if bad:
-            raise InputError(f"'controls'[{bad[0]}] is {values[bad[0]]!r}, expected a finite number", source=source)
+            raise InputError(number_problem(f"'controls'[{bad[0]}]", values[bad[0]]), source=source)
         return (None if t is None else float(t)), np.asarray(values, dtype=np.float32)
     groups = [k for k in obj if k != "t"]
     if not groups:
@@ -61,27 +90,32 @@ def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, requir
     vec = np.zeros(layout.dim, dtype=np.float32)
     for name in groups:
         if name not in layout:
-            raise InputError(f"unknown control group {name!r}", source=source, hint=f"layout: {layout.describe()}")
+            raise InputError(f"unknown control group {show(name)}", source=source, hint=f"layout: {layout.describe()}")
         size = layout.size(name)
         values = obj[name]
-        if size == 1 and _number(values):
+        if size == 1 and is_number(values):
             values = [values]
         if not isinstance(values, list) or len(values) != size:
             got = f"{len(values)} values" if isinstance(values, list) else type(values).__name__
             raise InputError(f"group {name!r} has {got}, expected {size}", source=source,
                              hint=f"layout: {layout.describe()}")
-        bad = [i for i, v in enumerate(values) if not _number(v)]
+        bad = [i for i, v in enumerate(values) if not is_number(v)]
         if bad:
-            raise InputError(f"{name}[{bad[0]}] is {values[bad[0]]!r}, expected a finite number", source=source)
+            raise InputError(number_problem(f"{name}[{bad[0]}]", values[bad[0]]), source=source)
         vec[layout.slice(name)] = values
     return (None if t is None else float(t)), vec
 
 
 def parse_control_line(line: str, layout: ControlLayout, source: str, *, require_t: bool = True
                        ) -> tuple[float | None, np.ndarray]:
-    """One JSON line -> (t or None, (D,) float32); InputError naming ``source``."""
+    """One JSON line -> (t or None, (D,) float32); InputError naming ``source`` (never another exception)."""
     try:
         obj = json.loads(line)
     except json.JSONDecodeError as exc:
         raise InputError(f"not JSON: {exc.msg} at column {exc.colno}", source=source) from None
+    except RecursionError:
+        raise InputError("not JSON: nested too deep", source=source) from None
+    except ValueError:  # the only other ValueError json raises: an integer beyond Python's digit limit
+        raise InputError(f"not JSON: an integer of more than {sys.get_int_max_str_digits()} digits",
+                         source=source) from None
     return parse_control_record(obj, layout, source, require_t=require_t)

@@ -10,10 +10,12 @@ Every source answers ``latest(now)`` with ``(t, controls)`` like the file source
 
 Streams take the JSON objects of control files, one a line; ``t`` is optional there (the arrival time since the
 stream opened is used) and informative only: ``latest()`` returns the most recently *received*
-valid line.  Bad lines (not JSON, an unknown group, a wrong length, non-finite values) are
-counted, the first ones logged, and the last error kept (:attr:`StreamControls.stats`); they
-never stop the stream or the loop.  Before the first valid line ``latest()`` returns
-``(None, zeros)``, the neutral pose.
+valid line.  Bad lines (not JSON or not UTF-8, nested too deep, an unknown group, a wrong length,
+values that are not finite in float32, lines over :data:`MAX_LINE_BYTES`, read in bounded chunks
+and the rest discarded) are counted, the first ones logged, and the last error kept
+(:attr:`StreamControls.stats`); they never stop the stream or the loop.  Should the reader thread
+die of an unexpected error anyway, ``stats["failed"]`` says so and the next ``latest()`` logs a
+warning.  Before the first valid line ``latest()`` returns ``(None, zeros)``, the neutral pose.
 """
 
 from __future__ import annotations
@@ -104,8 +106,15 @@ class DemoControls:
     def close(self) -> None:
         pass
 
+    def summary(self) -> None:
+        """Nothing to report at the end of a session (streams report their line counts)."""
+        return None
+
 
 # ------------------------------------------------------------------ live streams
+
+MAX_LINE_BYTES = 64 * 1024  # a longer line is read in bounded chunks, discarded and counted bad
+
 
 class StreamControls:
     """JSON control lines arriving on a background thread; ``latest()`` never blocks (module docstring).
@@ -127,26 +136,47 @@ class StreamControls:
         self._last_error: str | None = None
         self._line_no = 0
         self._ended = False
+        self._failed: str | None = None
+        self._failure_told = False
         self._t0 = time.monotonic()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     # called by the reader thread (or a test)
-    def feed(self, line: str) -> None:
+    def feed(self, line: str | bytes) -> None:
+        """One line without its newline (text, or bytes decoded as UTF-8): the latest pose, or counted bad."""
         self._line_no += 1
+        where = f"{self.name} line {self._line_no}"
+        if len(line) > MAX_LINE_BYTES:
+            self._count_bad(f"{where}: {len(line)} bytes, longer than the limit of {MAX_LINE_BYTES}")
+            return
+        if isinstance(line, bytes):
+            try:
+                line = line.decode("utf-8")
+            except UnicodeDecodeError:
+                self._count_bad(f"{where}: not UTF-8 text")
+                return
         text = line.strip()
         if not text:
             return
         try:
-            t, vec = parse_control_line(text, self.layout, f"{self.name} line {self._line_no}", require_t=False)
+            t, vec = parse_control_line(text, self.layout, where, require_t=False)
         except InputError as exc:
             self._count_bad(str(exc))
+            return
+        except Exception as exc:  # noqa: BLE001  (a line must never stop the stream)
+            self._count_bad(f"{where}: cannot be read ({type(exc).__name__})")
             return
         if t is None:
             t = time.monotonic() - self._t0
         with self._lock:
             self._latest = (t, vec)
             self._received += 1
+
+    def _skip_overlong(self, size: int) -> None:
+        """Count a line of ``size`` (> MAX_LINE_BYTES) bytes that the reader discarded."""
+        self._line_no += 1
+        self._count_bad(f"{self.name} line {self._line_no}: {size} bytes, longer than the limit of {MAX_LINE_BYTES}")
 
     def _count_bad(self, message: str) -> None:
         with self._lock:
@@ -157,20 +187,47 @@ class StreamControls:
             log.warning("bad control line (%d so far): %s", bad, message)
 
     def latest(self, now: float | None = None) -> tuple[float | None, np.ndarray]:
-        """The most recently received valid (t, controls), or (None, zeros) before the first one."""
+        """The most recently received valid (t, controls), or (None, zeros) before the first one.
+
+        The first call after the reader thread died of an unexpected error logs a warning (the
+        pose then stays where it is); :attr:`stats` keeps the reason as ``failed``.
+        """
         with self._lock:
             t, vec = self._latest
+            tell = self._failed is not None and not self._failure_told
+            self._failure_told = self._failure_told or tell
+        if tell:
+            log.warning("%s; the pose stays at the last valid line", self._failed)
         return t, vec.copy()
 
     @property
     def stats(self) -> dict[str, Any]:
-        """``received`` valid lines, ``bad`` lines, ``last_error`` (one line or None), ``ended`` (EOF)."""
+        """``received`` valid lines, ``bad`` lines, ``last_error`` (one line or None), ``ended`` (EOF),
+        ``failed`` (None, or one line: the reader thread stopped on an unexpected error)."""
         with self._lock:
             return {"received": self._received, "bad": self._bad, "last_error": self._last_error,
-                    "ended": self._ended}
+                    "ended": self._ended, "failed": self._failed}
+
+    def summary(self) -> str:
+        """One line for the end of a session: lines received, bad (the last error), whether the reader failed."""
+        s = self.stats
+        text = f"controls {self.name}: {s['received']} valid line{'' if s['received'] == 1 else 's'}, {s['bad']} bad"
+        if s["last_error"]:
+            text += f" (last: {s['last_error']})"
+        if s["failed"]:
+            text += f"; {s['failed']}"
+        return text
 
     def _start(self, target) -> None:
-        self._thread = threading.Thread(target=target, name=f"controls {self.name}", daemon=True)
+        def guarded() -> None:
+            try:
+                target()
+            except BaseException as exc:  # noqa: BLE001  (never stop silently: stats and latest() tell)
+                reason = (str(exc).splitlines() or [""])[0][:200]
+                with self._lock:
+                    self._failed = f"{self.name}: the reader stopped on {type(exc).__name__}: {reason}"
+
+        self._thread = threading.Thread(target=guarded, name=f"controls {self.name}", daemon=True)
         self._thread.start()
 
     def close(self) -> None:
@@ -193,32 +250,25 @@ class _UdpControls(StreamControls):
             self._sock.bind((host, port))
         except OSError as exc:
             raise InputError(f"cannot listen: {exc.strerror or exc}", source=self.name,
-                             hint="choose a free port and a local address") from None
+                             hint="choose a free port and a local address, e.g. udp://127.0.0.1:9000") from None
         self._sock.settimeout(0.1)
         self.address = self._sock.getsockname()[:2]
         self.name = f"udp://{self.address[0]}:{self.address[1]}"
         self._start(self._run)
 
     def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                data, _ = self._sock.recvfrom(65536)
-            except (socket.timeout, TimeoutError):
-                continue
-            except OSError:
-                break
-            try:
-                text = data.decode("utf-8")
-            except UnicodeDecodeError:
-                self._line_no += 1
-                self._count_bad(f"{self.name} line {self._line_no}: not UTF-8 text")
-                continue
-            for line in text.splitlines():
-                self.feed(line)
-        self._sock.close()
-
-    def close(self) -> None:
-        super().close()
+        try:
+            while not self._stop.is_set():
+                try:
+                    data, _ = self._sock.recvfrom(65536)
+                except (socket.timeout, TimeoutError):
+                    continue
+                except OSError:
+                    break
+                for line in data.splitlines():
+                    self.feed(line)
+        finally:
+            self._sock.close()
 
 
 class _TextControls(StreamControls):
@@ -228,18 +278,24 @@ class _TextControls(StreamControls):
         self._start(self._run)
 
     def _run(self) -> None:
+        limit = MAX_LINE_BYTES
         try:
-            for line in self._file:
-                if self._stop.is_set():
+            while not self._stop.is_set():
+                line = self._file.readline(limit + 1)  # bounded: never more than limit + 1 at once
+                if not line:
                     break
-                if isinstance(line, bytes):
-                    try:
-                        line = line.decode("utf-8")
-                    except UnicodeDecodeError:
-                        self._line_no += 1
-                        self._count_bad(f"{self.name} line {self._line_no}: not UTF-8 text")
-                        continue
-                self.feed(line)
+                newline = "\n" if isinstance(line, str) else b"\n"
+                if line.endswith(newline):
+                    self.feed(line[:-1])
+                    continue
+                if len(line) <= limit:  # the last line, without a newline
+                    self.feed(line)
+                    continue
+                size = len(line)
+                while line and not line.endswith(newline):  # discard the rest of an overlong line
+                    line = self._file.readline(limit + 1)
+                    size += len(line)
+                self._skip_overlong(size - (1 if line else 0))
         except (OSError, ValueError) as exc:  # closed or broken pipe
             self._count_bad(f"{self.name}: read failed: {exc}")
         with self._lock:
@@ -253,10 +309,13 @@ def open_udp(address: str, layout: ControlLayout = DEFAULT_LAYOUT) -> StreamCont
     host = host.strip("[]")
     if not sep or not host or not port.isdigit() or int(port) > 65535:
         raise InputError(f"bad UDP address {address!r}", source="controls",
-                         hint="use udp://HOST:PORT, e.g. udp://0.0.0.0:9000")
+                         hint="use udp://HOST:PORT, e.g. udp://127.0.0.1:9000 (this machine only)")
     return _UdpControls(layout, host, int(port))
 
 
 def open_text_stream(fileobj=None, layout: ControlLayout = DEFAULT_LAYOUT, name: str = "stdin") -> StreamControls:
-    """Read JSON control lines from ``fileobj`` (default standard input) on a background thread."""
-    return _TextControls(layout, sys.stdin if fileobj is None else fileobj, name)
+    """Read JSON control lines from ``fileobj`` on a background thread: a binary or text file object
+    with ``readline(size)`` (default standard input, read as bytes and decoded line by line)."""
+    if fileobj is None:
+        fileobj = getattr(sys.stdin, "buffer", sys.stdin)
+    return _TextControls(layout, fileobj, name)

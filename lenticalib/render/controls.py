@@ -2,7 +2,8 @@
 
 Every source answers ``latest(now)`` with ``(t, controls)``: a timestamp in seconds and a (D,)
 float32 numpy vector laid out as the rig's :class:`~.rig.ControlLayout` says (see :mod:`.rig`).
-The render loop asks once per frame; nothing here blocks it.  This module reads control files
+The render loop asks once per frame; nothing here blocks it.  ``summary()`` gives one line for
+the end of a session (a stream's line counts) or None.  This module reads control files
 and picks the source for a spec (:func:`open_controls`); the live and built-in sources are in
 :mod:`.control_streams`.
 
@@ -18,7 +19,8 @@ and picks the source for a spec (:func:`open_controls`); the live and built-in s
                           lines per datagram allowed), read by a background thread; port 0 picks a free
                           port (``.address``)
 
-File formats (times in seconds, non-decreasing; every value finite):
+File formats (times in seconds, non-decreasing; every value finite, controls within float32's
+range, |v| <= 3.4e38, checked when the file is read):
 
     .npz    arrays ``t`` (T,) and ``controls`` (T, D), nothing pickled
     .csv    a header row; the first column is ``t``, the others name control components as
@@ -37,7 +39,6 @@ the CSV header being line 1) or the array, with the expected dimension and layou
 from __future__ import annotations
 
 import csv
-import math
 import os
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -45,7 +46,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from ..errors import InputError
-from .control_records import parse_control_line
+from .control_records import FLOAT32_MAX, FLOAT64_MAX, is_number, number_problem, parse_control_line
 from .control_streams import DemoControls, open_text_stream, open_udp
 from .control_streams import StreamControls  # noqa: F401  (public API: the sources open_controls gives)
 from .rig import DEFAULT_LAYOUT, ControlLayout
@@ -145,13 +146,14 @@ def _load_npz(p: Path, layout: ControlLayout) -> ControlTrack:
         raise InputError(f"array 'controls' has shape {c.shape}, expected ({len(t)}, {layout.dim})", source=source,
                          hint=f"layout: {layout.describe()}")
     t = t.astype(np.float64)
-    c = c.astype(np.float32)
     _check_times(t, lambda i: f"{source} row {i}")
-    bad = ~np.isfinite(c)
+    wide = c.astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(wide) <= FLOAT32_MAX)  # NaN, inf and what float32 cannot hold
     if bad.any():
         i, j = (int(v) for v in np.argwhere(bad)[0])
-        raise InputError(f"controls[{j}] is {c[i, j]}, expected a finite number", source=f"{source} row {i}")
-    return ControlTrack(t, c, layout, source)
+        raise InputError(number_problem(f"controls[{j}]", float(wide[i, j])), source=f"{source} row {i}")
+    return ControlTrack(t, c.astype(np.float32), layout, source)
 
 
 def _column_index(name: str, layout: ControlLayout, names: Sequence[str] | None) -> int | None:
@@ -197,9 +199,11 @@ def _load_csv(p: Path, layout: ControlLayout, names: Sequence[str] | None) -> Co
         except ValueError:
             col = next(i for i, f in enumerate(row) if not _is_float(f))
             raise InputError(f"column {header[col]!r} is {row[col]!r}, expected a number", source=where) from None
-        if not all(math.isfinite(v) for v in values):
-            col = next(i for i, v in enumerate(values) if not math.isfinite(v))
-            raise InputError(f"column {header[col]!r} is {row[col].strip()}, expected a finite number", source=where)
+        limits = [FLOAT64_MAX] + [FLOAT32_MAX] * len(columns)  # t is float64, the controls float32
+        out = [i for i, (v, limit) in enumerate(zip(values, limits)) if not is_number(v, limit)]
+        if out:
+            col = out[0]
+            raise InputError(number_problem(f"column {header[col]!r}", values[col], limits[col]), source=where)
         vec = np.zeros(layout.dim, dtype=np.float32)
         vec[columns] = values[1:]
         t.append(values[0])
@@ -257,6 +261,10 @@ class FileControls:
 
     def close(self) -> None:
         pass
+
+    def summary(self) -> None:
+        """Nothing to report at the end of a session (the file was validated when it was read)."""
+        return None
 
 
 # ------------------------------------------------------------------ by spec

@@ -52,12 +52,15 @@ class StageTimes:
         return len(self.totals)
 
     def table(self, title: str = "") -> str:
-        """Median, mean and 95th percentile per stage, the total and the frame rate, as text."""
+        """Median, mean and 95th percentile per stage ("-" for a stage that did not run), the total and
+        the frame rate, as text."""
         lines = [title] if title else []
         lines.append(f"{'stage':<10}{'median ms':>11}{'mean ms':>10}{'p95 ms':>9}")
         for name in STAGES + ("total",):
             values = self.totals if name == "total" else self.times[name]
             if not values:
+                if self.totals:  # a stage that did not run (play --headless presents nothing)
+                    lines.append(f"{name:<10}{'-':>11}{'-':>10}{'-':>9}")
                 continue
             p95 = float(np.percentile(values, 95))
             lines.append(f"{name:<10}{statistics.median(values):>11.2f}{statistics.fmean(values):>10.2f}{p95:>9.2f}")
@@ -141,7 +144,8 @@ class AvatarPipeline:
 
     ``cameras`` come ordered for ``view_direction = +1`` (as the camera models make them) and
     are reordered for the profile; a profile that does not say its direction renders as +1
-    with ``warning`` set (the caller prints it).
+    with ``warning`` set (the caller prints it).  A renderer or encoder that cannot run here
+    (BackendUnavailableError) and a ``device`` torch cannot use (InputError) are refused here.
     """
 
     def __init__(self, avatar, profile: PanelProfile, cameras: ViewCameras, *, renderer: str = "cpu",
@@ -157,7 +161,7 @@ class AvatarPipeline:
         self.avatar, self.profile = avatar, profile
         self.warning = direction_warning(profile)
         self.cameras = order_for_direction(cameras, profile.view_direction or 1)
-        self.render_fn = get_renderer(renderer)
+        self.render_fn = get_renderer(renderer, device=device)  # refused here if it cannot run on this machine
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"
         self.edge_desaturation = float(edge_desaturation)
@@ -172,8 +176,13 @@ class AvatarPipeline:
         if self.on_gpu and encoder != "torch":
             raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
                              source="--encoder", hint="--encoder torch")
-        if not self.on_gpu:
-            self.encode_fn = get_encoder(encoder)
+        self.encode_fn = get_encoder(encoder, device=device)  # (on the GPU the TorchEncoder below is used)
+        if device != "cpu":  # the drive runs there too
+            from .torch_devices import device_unavailable
+
+            reason = device_unavailable(device)
+            if reason is not None:
+                raise InputError(reason, source="--device", hint="use --device cpu")
         # the per-session constants, once, where the renderer wants them
         self._mats = (self.cameras.viewmats.astype(np.float32), self.cameras.K.astype(np.float32))
         self._background = background

@@ -45,12 +45,14 @@ def available_encoders() -> list[str]:
     return sorted(_registry())
 
 
-def get_encoder(name: str) -> Callable[..., np.ndarray]:
-    """The encode function registered as ``name``.
+def get_encoder(name: str, device: str | None = None) -> Callable[..., np.ndarray]:
+    """The encode function registered as ``name``, able to run here (on torch ``device``, if given).
 
-    Raises InputError for an unknown name, BackendUnavailableError when its module fails to import.
+    Raises InputError for an unknown name, BackendUnavailableError when its module fails to import
+    or it cannot run here (``torch`` on a CUDA device torch does not see): one line naming the
+    encoders that can.
     """
-    return load(_registry(), name, "encoder", "encoder")
+    return load(_registry(), name, "encoder", "encoder", device=device)
 
 
 def encode(views: np.ndarray, profile: PanelProfile, method: str = DEFAULT_ENCODER, *,

@@ -48,7 +48,8 @@ except ImportError as exc:  # the registry passes this on as is
     raise BackendUnavailableError(f"the 'torch' encoder needs PyTorch, which does not import ({exc})",
                                   source="encoder", hint="pip install torch") from None
 
-from .torch_tables import TorchTables, build_tables, resolve_device  # noqa: E402  (after the torch check)
+from ..torch_devices import device_unavailable  # noqa: E402  (after the torch check)
+from .torch_tables import TorchTables, build_tables, resolve_device  # noqa: E402
 
 __all__ = ["CACHE_SIZE", "CPU_ROWS_PER_CHUNK", "TorchEncoder", "TorchTables", "build_tables", "cached_encoder",
            "clear_cache", "encode_torch"]
@@ -276,3 +277,11 @@ def encode_torch(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
         warnings.filterwarnings("ignore", message="The given NumPy array is not writable")
         tensor = torch.from_numpy(views)
     return encoder.encode(tensor).numpy()
+
+
+def _unavailable(device=None) -> str | None:
+    """What the registry asks (:mod:`lenticalib.plugins`): None, or why torch cannot use ``device`` here."""
+    return None if device is None else device_unavailable(device)
+
+
+encode_torch.unavailable = _unavailable

@@ -38,6 +38,7 @@ import numpy as np
 from ...errors import BackendUnavailableError, ConfigurationError, ImageError
 from ...profile import PanelProfile
 from ..sampling import NO_VIEW, sampling_tables
+from ..torch_devices import device_unavailable
 
 try:
     import torch
@@ -200,12 +201,12 @@ def build_tables(profile: PanelProfile, view_shape: tuple[int, int], device="cpu
         has_dark=bool((primary == NO_VIEW).any()))
 
 def resolve_device(device) -> torch.device:
+    reason = device_unavailable(device)
+    if reason is not None:
+        raise ConfigurationError(reason, source="device",
+                                 hint="use device='cpu', or a CUDA build of torch on a machine with a GPU")
     device = torch.device(device)
-    if device.type == "cuda":
-        if not torch.cuda.is_available():
-            raise ConfigurationError("device 'cuda' requested but torch sees no CUDA device", source="device",
-                                     hint="use device='cpu', or a CUDA build of torch on a machine with a GPU")
-        if device.index is None:
-            device = torch.device("cuda", torch.cuda.current_device())
+    if device.type == "cuda" and device.index is None:
+        device = torch.device("cuda", torch.cuda.current_device())
     return device
 

@@ -9,7 +9,9 @@ composited over ``background`` (black when None, i.e. premultiplied) and alpha. 
 OpenCV's: ``viewmats`` world-to-camera with x right, y down, z forward; ``Ks`` in pixels with
 pixel centres at integer coordinates (the backends shift to gsplat's half-pixel frame themselves).
 
-Modules are imported only when a renderer is asked for.  Third-party renderers register through
+Modules are imported only when a renderer is asked for, and a renderer that cannot run on this
+machine is refused when it is asked for, before anything else is loaded (its function's
+``unavailable(device)``, see :mod:`lenticalib.plugins`).  Third-party renderers register through
 the ``lenticalib.renderers`` entry-point group with a value ``"module:function"``.
 """
 
@@ -36,13 +38,14 @@ def available_renderers() -> list[str]:
     return sorted(_registry())
 
 
-def get_renderer(name: str) -> Callable:
-    """The render function registered as ``name``.
+def get_renderer(name: str, device: str | None = None) -> Callable:
+    """The render function registered as ``name``, able to run here (on torch ``device``, if given).
 
     Raises InputError (naming ``--renderer``) for an unknown name, BackendUnavailableError when its
-    module fails to import.
+    module fails to import or it cannot run here (``gsplat`` without a CUDA GPU): one line naming
+    the renderers that can.
     """
-    return load(_registry(), name, "renderer", "--renderer")
+    return load(_registry(), name, "renderer", "--renderer", device=device)
 
 
 def render(gaussians, viewmats, Ks, width: int, height: int, *, renderer: str = DEFAULT_RENDERER,

@@ -2,7 +2,8 @@
 
 Minimal, and not run by the tests here (they have no GPU): the ``cpu`` renderer reproduces the same
 forward pass and is tested against gsplat's pure-torch reference.  torch and gsplat are imported
-inside the function, so this module imports without them.
+inside the functions, so this module imports without them; :func:`gsplat_unavailable` is what the
+renderer registry asks before it hands the renderer out (one line, before anything is loaded).
 
 The ``Ks`` given are OpenCV's (pixel centres at integer coordinates); gsplat samples pixel (i, j)
 at (j + 0.5, i + 0.5), so cx and cy are shifted by + 0.5 before the call.
@@ -10,9 +11,35 @@ at (j + 0.5, i + 0.5), so cx and cy are shifted by + 0.5 before the call.
 
 from __future__ import annotations
 
+import importlib.util
+
 from ...errors import BackendUnavailableError
 from ..gaussians import Gaussians
+from ..torch_devices import device_unavailable
 from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE, check_render_inputs
+
+
+def gsplat_unavailable(device: str | None = None) -> str | None:
+    """Why the gsplat renderer cannot run here on torch ``device`` (one line), or None.
+
+    Imports torch (asked only when this renderer is), finds gsplat without importing it, and
+    initialises no GPU.
+    """
+    if importlib.util.find_spec("torch") is None:
+        return "it needs torch (pip install torch)"
+    import torch
+
+    if not torch.cuda.is_available():
+        return "it needs a CUDA GPU and torch sees none"
+    if device is not None:
+        reason = device_unavailable(device)
+        if reason is not None:
+            return reason
+        if torch.device(device).type != "cuda":
+            return f"it renders on a CUDA device, not on {device!r}"
+    if importlib.util.find_spec("gsplat") is None:
+        return "it needs gsplat (pip install gsplat)"
+    return None
 
 
 def render_gsplat(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, background=None):
@@ -20,19 +47,12 @@ def render_gsplat(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *
     tensor on the GPU.  Raises BackendUnavailableError without torch, gsplat or a CUDA GPU.
     """
     viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
-    try:
-        import torch
-    except ImportError:
-        raise BackendUnavailableError("the gsplat renderer needs torch", source="--renderer",
-                                      hint="use --renderer cpu") from None
-    if not torch.cuda.is_available():
-        raise BackendUnavailableError("the gsplat renderer needs a CUDA GPU and torch sees none",
-                                      source="--renderer", hint="use --renderer cpu") from None
-    try:
-        import gsplat
-    except ImportError as exc:
-        raise BackendUnavailableError(f"the gsplat renderer needs gsplat: {exc}", source="--renderer",
-                                      hint="pip install gsplat, or use --renderer cpu") from None
+    reason = gsplat_unavailable()
+    if reason is not None:
+        raise BackendUnavailableError(f"renderer 'gsplat' cannot run here: {reason}", source="--renderer",
+                                      hint="use --renderer cpu")
+    import gsplat
+    import torch
 
     device = "cuda"
     g = gaussians.to_torch(device)
@@ -50,3 +70,6 @@ def render_gsplat(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *
         packed=False, tile_size=TILE_SIZE, backgrounds=backgrounds, render_mode="RGB",
         rasterize_mode="classic")
     return torch.cat([colours, alphas], dim=-1)
+
+
+render_gsplat.unavailable = gsplat_unavailable  # asked by the registry (lenticalib.plugins)
