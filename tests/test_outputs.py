@@ -58,18 +58,18 @@ def test_output_folder_checks(tmp_path, read_only):
 
 def test_staged_folder_replaces_only_when_complete(tmp_path):
     target = tmp_path / "report"
-    with staged_folder(target, "report") as stage:
+    with staged_folder(target, "report", ("a.txt", "b.txt")) as stage:
         assert stage.parent == tmp_path and stage.name.startswith(".report.") and not target.exists()
         (stage / "a.txt").write_text("first")
     assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}
 
     with pytest.raises(RuntimeError):
-        with staged_folder(target, "report") as stage:
+        with staged_folder(target, "report", ("a.txt", "b.txt")) as stage:
             (stage / "a.txt").write_text("half")
             raise RuntimeError("the work failed")
     assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}  # old intact, nothing hidden left
 
-    with staged_folder(target, "report") as stage:
+    with staged_folder(target, "report", ("a.txt", "b.txt")) as stage:
         (stage / "b.txt").write_text("second")
     assert _tree(tmp_path) == {"report": None, "report/b.txt": b"second"}
 
@@ -77,7 +77,7 @@ def test_staged_folder_replaces_only_when_complete(tmp_path):
 def test_staged_folder_refuses_before_the_work(tmp_path):
     ran = []
     with pytest.raises(InputError):
-        with staged_folder(tmp_path / "missing" / "report", "report"):
+        with staged_folder(tmp_path / "missing" / "report", "report", ()):
             ran.append(True)
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep")

@@ -117,9 +117,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"{args.jobs} jobs is out of range", source="--jobs", hint="use 1..64 (the number of cores)")
     if args.lensmodel is not None:
         check_lensmodel(args.lensmodel)
+    output = check_output_file(args.output, "camera model", example="camera.cameramodel")
     photos = collect_photos(args.photos)
     board, manifest = _board(args, photos)
-    output = check_output_file(args.output, "camera model", example="camera.cameramodel")
     if args.report is not None:
         check_output_folder(args.report, "calibration report", REPORT_FILES)
     if len(photos) < MIN_VIEWS:

@@ -138,10 +138,10 @@ def run_measure(args: argparse.Namespace) -> int:
     from ..render.compensation import Compensator, compensation_study, test_views
     from ._progress import progress_bar
 
+    output = check_output_file(args.output, "crosstalk file", example="crosstalk.json")
     profile = load_profile(args.profile, "--profile") if args.profile else None
     pattern_set, capture = open_crosstalk_set(args.directory, profile)
     eye, eye_note = _eye_separation(args, pattern_set.views)
-    output = check_output_file(args.output, "crosstalk file", example="crosstalk.json")
     if args.report:
         check_output_folder(args.report, "crosstalk report", contents=REPORT_FILES)
         if os.path.abspath(args.report) == os.path.abspath(output):

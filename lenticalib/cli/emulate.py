@@ -75,8 +75,9 @@ def run(args: argparse.Namespace) -> int:
                 raise InputError(str(exc), source=option) from None
     if args.flash:
         image = Path(args.flash)
-        if not image.exists():
-            check_output_file(image, "flash image")  # a missing folder is refused, never created
+        # a regular file (or a link to one) or a new name: a missing folder is refused, never created, and a
+        # folder, FIFO or device node is never written into
+        check_output_file(image, "flash image")
     else:
         image = default_image_dir() / "default.flash"
         image.parent.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder
