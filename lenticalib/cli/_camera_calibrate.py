@@ -118,10 +118,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if args.lensmodel is not None:
         check_lensmodel(args.lensmodel)
     output = check_output_file(args.output, "camera model", example="camera.cameramodel")
-    photos = collect_photos(args.photos)
-    board, manifest = _board(args, photos)
     if args.report is not None:
         check_output_folder(args.report, "calibration report", REPORT_FILES)
+    photos = collect_photos(args.photos)
+    board, manifest = _board(args, photos)
     if len(photos) < MIN_VIEWS:
         raise InputError(f"only {len(photos)} photos given; at least {MIN_VIEWS} views of the board are needed",
                          source="PHOTOS", hint=TOO_FEW_HINT)
