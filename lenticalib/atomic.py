@@ -81,15 +81,22 @@ def leftover_pattern(name: str) -> re.Pattern:
     return re.compile(rf"\.{re.escape(name)}\.[a-z0-9_]{{8}}\.(tmp(\.[A-Za-z0-9]+)?|partial)")
 
 
+_STAGING = re.compile(r"\..+\.[a-z0-9_]{8}\.partial")
+
+
 def remove_leftovers(path: str | os.PathLike) -> list[Path]:
     """Remove what killed earlier writes of ``path`` left in its folder; return what was removed.
 
     Only entries whose name fits :func:`leftover_pattern` for ``path``'s name, that are plain
     files or folders (never links, FIFOs or devices) and that no process holds locked (a write
-    in progress does) are removed; nothing else is ever touched.
+    in progress does) are removed; nothing else is ever touched.  Inside a staging folder
+    (``.NAME.XXXXXXXX.partial``, fresh, and removed whole if its run is killed) nothing is looked
+    for, so writing many files there does not read the folder again for each.
     """
     target = Path(path)
     folder = target.parent if str(target.parent) else Path(".")
+    if _STAGING.fullmatch(Path(os.path.abspath(folder)).name):
+        return []
     pattern = leftover_pattern(target.name)
     removed = []
     try:
