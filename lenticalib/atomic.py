@@ -201,8 +201,9 @@ class PendingFile:
                 pass
             else:
                 if not stat.S_ISREG(st.st_mode):  # changed since the check: never replaced
-                    raise InputError(f"is now {_kind(st.st_mode)}, not a regular file, so the {self.what} will not "
-                                     "replace it", source=str(self.target), hint=f"choose a file path for the {self.what}")
+                    raise InputError(f"is now {_kind(st.st_mode)}, not a regular file, so the {self.what} will "
+                                     "not replace it", source=str(self.target),
+                                     hint=f"choose a file path for the {self.what}")
             os.replace(self.path, self.target)
         except BaseException as exc:
             self.discard()

@@ -171,7 +171,12 @@ def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
             os.rmdir(old)
             os.replace(target, old)
-        os.replace(stage, target)
+        try:
+            os.replace(stage, target)
+        except OSError:
+            if old is not None:
+                os.replace(old, target)  # the earlier folder back in place
+            raise
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
         os.close(lock)

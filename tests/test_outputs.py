@@ -333,3 +333,24 @@ def test_what_a_killed_run_left_is_removed_by_the_next_run_of_the_same_output(tm
     write_bytes_atomic(video, b"a whole video")
     assert _tree(tmp_path) == {**decoys, ".frames.abcd1234.old": None, "frames": None,
                                "frames/frame-00000.png": b"whole", "out.mkv": b"a whole video"}
+
+
+def test_a_failed_swap_puts_the_earlier_folder_back(tmp_path, monkeypatch):
+    import errno
+    import os
+
+    target = tmp_path / "report"
+    with staged_folder(target, "report", ("a.txt",)) as stage:
+        (stage / "a.txt").write_text("first")
+    real_replace = os.replace
+
+    def replace(source, destination):
+        if str(source).endswith(".partial"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_replace(source, destination)
+
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(InputError, match="No space left"):
+        with staged_folder(target, "report", ("a.txt",)) as stage:
+            (stage / "a.txt").write_text("second")
+    assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}

@@ -18,7 +18,8 @@ from __future__ import annotations
 import argparse
 
 RASTER_CONTENTS = ("frame-[0-9][0-9][0-9][0-9][0-9]*.png",)
-VIEWS_CONTENTS = ("cameras.json", "frame-[0-9][0-9][0-9][0-9][0-9]*", "frame-[0-9][0-9][0-9][0-9][0-9]*/view-[0-9][0-9]*.png")
+VIEWS_CONTENTS = ("cameras.json", "frame-[0-9][0-9][0-9][0-9][0-9]*",
+                  "frame-[0-9][0-9][0-9][0-9][0-9]*/view-[0-9][0-9]*.png")
 VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv", ".gif")
 
 
