@@ -159,7 +159,7 @@ class PendingFile:
         self.target = output_target(path, what)
         folder = self.target.parent if str(self.target.parent) else Path(".")
         if not folder.is_dir():
-            raise InputError(f"the folder for the {what} does not exist", source=str(folder),
+            raise InputError("output folder does not exist", source=str(folder),
                              hint="create it or choose another output path")
         remove_leftovers(self.target)
         try:
