@@ -1,17 +1,27 @@
 """Where a command writes: checked before the work starts, folders staged so nothing is left partial.
 
-One rule for every command that writes:
+One rule for every command that writes: nothing the command did not write is ever deleted or
+replaced.
 
 - a command creates its own output file or folder, never a missing parent folder (a typo in a
-  path must not grow a tree of folders); the parent must exist and be writable;
-- an output *file* must not name an existing folder, an output *folder* must not name an
-  existing file;
-- an existing output folder is replaced only when it holds nothing but what the command itself
-  writes there (``contents``), so a mistyped ``--report ~/Documents`` cannot wipe a folder;
+  path must not grow a tree of folders); the parent must exist and be writable (tried, not
+  guessed from permission bits: a read-only mount or ``/proc`` is refused as not writable);
+- an output *file* must be a new name or an existing regular file.  A symbolic link to a
+  regular file is followed (the target file is replaced in its own folder, the link stays, as
+  editors do); a folder, a FIFO, a device node, a socket, a dangling link or a link to anything
+  but a regular file is refused, and :mod:`lenticalib.atomic` checks again when it writes;
+- an output file gets the umask's mode, or the mode of the file it replaces without its
+  set-user/group-id bits;
+- an output *folder* must not name an existing file; a link to a folder is followed;
+- an existing output folder is replaced (:func:`staged_folder`) only when everything in it, at
+  any depth, is something the command itself writes there (``contents``), so a mistyped
+  ``--report ~/Documents`` or ``render -o ~/Documents`` is refused, never wiped;
 - all checks run before the long work, so a wrong path costs seconds, not a whole fit;
 - files are written atomically (:mod:`lenticalib.atomic`); a folder of results is written into a
-  hidden sibling and moved into place when complete (:func:`staged_folder`), so a failed run
-  leaves an earlier folder intact and no half-written one;
+  hidden sibling ``.NAME.XXXXXXXX.partial`` and moved into place when complete
+  (:func:`staged_folder`), so a failed run leaves an earlier folder intact and no half-written
+  one.  What a killed run leaves (``.NAME.*.partial`` folders, ``.NAME.*.tmp`` files) is removed
+  by the next run writing the same NAME, unless a running process still holds it;
 - results that a library function writes in place (several files and folders at fixed names)
   are guarded by :func:`restored_on_failure`: the earlier ones are copied aside first and put
   back if the run fails, so a failed run leaves the earlier results and nothing of its own.
@@ -22,12 +32,14 @@ Every refusal is an :class:`~lenticalib.errors.InputError` naming the path and w
 from __future__ import annotations
 
 import contextlib
+import fnmatch
 import os
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from .atomic import current_umask, hold, output_target, remove_leftovers
 from .errors import InputError
 
 
@@ -42,23 +54,33 @@ def _check_parent(target: Path, what: str) -> None:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"folder is not writable, so the {what} cannot be written", source=str(parent),
                          hint=f"choose a writable folder for the {what}")
+    try:  # permission bits do not tell about read-only mounts, /proc, or root
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent)
+    except OSError as exc:
+        raise InputError(f"folder is not writable ({exc.strerror}), so the {what} cannot be written",
+                         source=str(parent), hint=f"choose a writable folder for the {what}") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def check_output_file(path: str | os.PathLike, what: str = "output file", example: str = "out") -> Path:
     """Refuse, before any work, an output file path that cannot be written; return it as a Path.
 
-    An existing file is fine (it is replaced atomically at the end); an existing folder, a
-    missing or read-only parent folder is not.  ``example``: a file name the hint suggests
-    inside a folder given by mistake.
+    A new name or an existing regular file is fine (it is replaced atomically at the end), as is
+    a symbolic link to a regular file (the target is replaced); a folder, a FIFO, a device node,
+    a socket, a dangling link, a read-only file or a missing or unwritable parent folder (the
+    link target's folder for a link) is not (module docstring).  ``example``: a file name the
+    hint suggests inside a folder given by mistake.
     """
     target = Path(path)
     if target.is_dir():
         raise InputError(f"is a folder, not a file name for the {what}", source=str(target),
                          hint=f"give a file name for the {what}, e.g. {target / example}")
-    if target.exists() and not os.access(target, os.W_OK):
+    real = output_target(target, what)
+    if real.exists() and not os.access(real, os.W_OK):
         raise InputError(f"exists and is read-only, so the {what} cannot replace it", source=str(target),
                          hint="choose another path or make the file writable")
-    _check_parent(target, what)
+    _check_parent(real, what)
     return target
 
 
@@ -67,11 +89,20 @@ def check_output_folder(path: str | os.PathLike, what: str = "output folder",
     """Refuse, before any work, an output folder that cannot be written; return it as a Path.
 
     The folder may exist (it must then be a writable folder) or not (its parent must exist and
-    be writable).  ``contents``: when given, the names an existing folder may hold for the
-    command to replace it (what the command writes there); a folder holding anything else is
+    be writable); a symbolic link to a folder is followed (the folder it names is returned), a
+    dangling one refused.  ``contents``: when given, what an existing folder may hold for the
+    command to replace it (what the command writes there), as patterns matched one path part
+    at a time (``fnmatch``: ``"frame-[0-9]*.png"``, ``"print/board.json"``; a subfolder's
+    entries need patterns of their own); a folder holding anything else, at any depth, is
     refused, naming the first such entry.
     """
     target = Path(path)
+    if target.is_symlink():
+        real = Path(os.path.realpath(target))
+        if not real.exists():
+            raise InputError(f"is a symbolic link to {real}, which does not exist", source=str(target),
+                             hint=f"remove the link or choose another folder for the {what}")
+        target = real
     if target.exists():
         if not target.is_dir():
             raise InputError(f"is a file, not a folder for the {what}", source=str(target),
@@ -80,51 +111,90 @@ def check_output_folder(path: str | os.PathLike, what: str = "output folder",
             raise InputError(f"is not writable, so the {what} cannot be written", source=str(target),
                              hint=f"choose a writable folder for the {what}")
         if contents is not None:
-            allowed = set(contents)
-            foreign = sorted(p.name for p in target.iterdir() if p.name not in allowed)
-            if foreign:
-                raise InputError(f"holds {foreign[0]!r}, which is not part of a {what}, so it will not be "
-                                 "replaced", source=str(target),
-                                 hint=f"choose a new or empty folder for the {what}")
+            _refuse_foreign(target, what, tuple(contents))
     _check_parent(target, what)
     return target
 
 
+def _owned(parts: tuple[str, ...], patterns: tuple[str, ...]) -> bool:
+    """Whether the relative path ``parts`` matches one of ``patterns``, part by part."""
+    for pattern in patterns:
+        pattern_parts = pattern.split("/")
+        if len(pattern_parts) == len(parts) and all(fnmatch.fnmatchcase(name, p)
+                                                    for name, p in zip(parts, pattern_parts)):
+            return True
+    return False
+
+
+def _refuse_foreign(folder: Path, what: str, contents: tuple[str, ...]) -> None:
+    """InputError naming the first entry under ``folder`` (any depth) not matched by ``contents``."""
+    for root, dirs, files in os.walk(folder):
+        base = Path(root).relative_to(folder).parts
+        for name in sorted(dirs + files):
+            if not _owned(base + (name,), contents):
+                entry = "/".join(base + (name,))
+                raise InputError(f"holds {entry!r}, which is not part of a {what}, so the folder will not be "
+                                 "replaced", source=str(folder),
+                                 hint=f"choose a new or empty folder for the {what}")
+
+
 @contextlib.contextmanager
-def staged_folder(path: str | os.PathLike, what: str = "output folder",
-                  contents: Iterable[str] | None = None) -> Iterator[Path]:
+def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -> Iterator[Path]:
     """Yield a fresh hidden sibling of ``path`` to write into; on success it replaces ``path``.
 
-    On an exception the staging folder is removed and ``path`` (if it existed) is untouched.  On
-    success an existing ``path`` is renamed aside, the staged folder renamed into place, and the
-    old one removed, so at every moment ``path`` is either the old folder or the complete new one
-    (a crash between the two renames leaves the old folder under ``.NAME.old-*``, never a partial
-    one at ``path``).
+    ``contents``: what the command writes into the folder (patterns, :func:`check_output_folder`);
+    an existing ``path`` holding anything else is refused before the body runs, and again
+    before it is replaced (a file put there meanwhile is never deleted).  The staging folder
+    ``.NAME.XXXXXXXX.partial`` is locked while written; those of killed earlier runs are removed
+    first (:func:`lenticalib.atomic.remove_leftovers`).  On an exception the staging folder is
+    removed and ``path`` (if it existed) is untouched.  On success an existing ``path`` is
+    renamed aside, the staged folder renamed into place, and the old one removed, so at every
+    moment ``path`` is either the old folder or the complete new one (a crash between the two
+    renames leaves the old folder under ``.NAME.*.old``, never a partial one at ``path``).
     """
+    contents = tuple(contents)
     target = check_output_folder(path, what, contents)
     parent = target.parent if str(target.parent) else Path(".")
+    remove_leftovers(target)
     try:
         stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=parent))
+        lock = hold(stage)
     except OSError as exc:
-        raise InputError(f"cannot write here: {exc.strerror}", source=str(parent),
-                         hint=f"choose a writable folder for the {what}") from None
+        raise InputError(f"folder is not writable ({exc.strerror}), so the {what} cannot be written",
+                         source=str(parent), hint=f"choose a writable folder for the {what}") from None
     try:
         yield stage
-        os.chmod(stage, 0o777 & ~_umask())
+        os.chmod(stage, 0o777 & ~current_umask())
         old = None
         if target.exists():
+            check_output_folder(target, what, contents)
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
             os.rmdir(old)
             os.replace(target, old)
-        os.replace(stage, target)
+        try:
+            os.replace(stage, target)
+        except OSError:
+            if old is not None:
+                os.replace(old, target)  # the earlier folder back in place
+            raise
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+        os.close(lock)
     except BaseException as exc:
         shutil.rmtree(stage, ignore_errors=True)
+        os.close(lock)
         if isinstance(exc, OSError):
             raise InputError(f"cannot write the {what}: {exc.strerror}", source=str(target),
                              hint="check free space and permissions") from None
         raise
+
+
+def _in_place_target(path: Path, what: str) -> Path:
+    """What writing in place at ``path`` changes: the path, or the folder or regular file a link
+    names; InputError for anything else (a FIFO or device is never copied, replaced or removed)."""
+    if path.is_dir():
+        return Path(os.path.realpath(path)) if path.is_symlink() else path
+    return output_target(path, what)
 
 
 def _remove(path: Path) -> None:
@@ -145,7 +215,7 @@ def restored_on_failure(paths: Iterable[str | os.PathLike], what: str = "results
     process killed outright leaves the earlier results in the ``.NAME.*.old`` copies.)  The
     paths' parent folders must exist; check them first (:func:`check_output_folder`).
     """
-    targets = [Path(p) for p in paths]
+    targets = [_in_place_target(Path(p), what) for p in paths]
     copies: dict[Path, Path] = {}
     try:
         for target in targets:
@@ -153,11 +223,10 @@ def restored_on_failure(paths: Iterable[str | os.PathLike], what: str = "results
                 parent = target.parent if str(target.parent) else Path(".")
                 copy = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
                 copies[target] = copy
-                if target.is_dir() and not target.is_symlink():
-                    os.rmdir(copy)
+                os.rmdir(copy)
+                if target.is_dir():
                     shutil.copytree(target, copy, symlinks=True)
                 else:
-                    os.rmdir(copy)
                     shutil.copy2(target, copy, follow_symlinks=False)
     except OSError as exc:
         for copy in copies.values():
@@ -175,9 +244,3 @@ def restored_on_failure(paths: Iterable[str | os.PathLike], what: str = "results
         raise
     for copy in copies.values():
         _remove(copy)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

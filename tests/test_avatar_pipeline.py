@@ -142,7 +142,7 @@ def test_a_sequence_as_pngs_and_as_a_lossless_video_holds_the_same_rasters(demo,
         ok, frame = capture.read()
         assert ok and np.array_equal(frame[:, :, ::-1], read_image(tmp_path / "frames" / f"frame-{k:05d}.png"))
     assert not capture.read()[0]
-    assert not list(tmp_path.glob(".render-*"))  # no temporary file left
+    assert not list(tmp_path.glob(".*"))  # no temporary file left
 
 
 def _table(stdout: str) -> dict:

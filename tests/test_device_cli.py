@@ -83,7 +83,7 @@ def test_cli_power_cut_then_recover(tmp_path):
     (["device", "flash", "emu://x", "missing.json"], "missing.json"),
     (["emulate", "--drop", "2"], "--drop"),
     (["emulate", "--torn"], "--power-cut-after"),
-    (["emulate", "--flash", "DIR"], "cannot open the flash image"),
+    (["emulate", "--flash", "DIR"], "is a folder, not a file name for the flash image"),
     (["emulate", "--flash", "DIR/new.flash", "--serial", "\u00c4\u00d6"], "--serial"),
     (["emulate", "--delay-s", "-1"], "--delay-s"),
 ])

@@ -123,11 +123,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"{args.jobs} jobs is out of range", source="--jobs", hint="use 1..64 (the number of cores)")
     if args.lensmodel is not None:
         check_lensmodel(args.lensmodel)
-    photos = collect_photos(args.photos)
-    board, manifest = _board(args, photos)
     output = check_output_file(args.output, "camera model", example="camera.cameramodel")
     if args.report is not None:
         check_output_folder(args.report, "calibration report", REPORT_FILES)
+    photos = collect_photos(args.photos)
+    board, manifest = _board(args, photos)
     if len(photos) < MIN_VIEWS:
         raise InputError(f"only {len(photos)} photos given; at least {MIN_VIEWS} views of the board are needed",
                          source="PHOTOS", hint=TOO_FEW_HINT)

@@ -131,7 +131,8 @@ def run_patterns(args: argparse.Namespace) -> int:
     squares = parse_squares(args.squares) if args.squares else None
     board = panel_board(width, height, pitch, squares, lens_pitch_px=lens_px)
     sheet = print_board(args.print_square, args.paper)
-    contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER)
+    contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER,
+                *(f"{PRINT_FOLDER}/{name}" for name in (PRINT_PDF, PRINT_PNG, MANIFEST_NAME)))
     check_output_folder(args.output, "camera board folder", contents)
     with staged_folder(args.output, "camera board folder", contents) as stage:
         write_image(stage / PANEL_IMAGE, panel_raster(board))
@@ -157,6 +158,7 @@ def run_simulate(args: argparse.Namespace) -> int:
 
     from ..errors import InputError
     from ..outputs import check_output_folder, staged_folder
+    from ..calib.intrinsics.report import REPORT_FILES
     from ..sim.board_set import CAPTURE_FOLDER, CONTENTS, TRUTH_NAME, simulate_board_set
     from ._progress import progress_bar
 
@@ -168,7 +170,8 @@ def run_simulate(args: argparse.Namespace) -> int:
         raise InputError(f"{args.subsamples} subsamples is out of range", source="--subsamples", hint="use 1..8")
     if args.seed is not None and not 0 <= args.seed < 2 ** 63:
         raise InputError(f"seed {args.seed} is out of range", source="--seed", hint="use 0..2^63-1")
-    contents = CONTENTS + SIM_CONTENTS_EXTRA
+    contents = (CONTENTS + SIM_CONTENTS_EXTRA + (f"{CAPTURE_FOLDER}/board-[0-9][0-9]*.jpg",)
+                + tuple(f"report/{name}" for name in REPORT_FILES))
     check_output_folder(args.directory, "camera simulation", contents)
     seed = args.seed if args.seed is not None else secrets.randbelow(2 ** 31)
     start = time.perf_counter()

@@ -138,14 +138,14 @@ def run_measure(args: argparse.Namespace) -> int:
     from ..render.compensation import Compensator, compensation_study, test_views
     from ._progress import progress_bar
 
-    profile = load_profile(args.profile, "--profile") if args.profile else None
-    pattern_set, capture = open_crosstalk_set(args.directory, profile)
-    eye, eye_note = _eye_separation(args, pattern_set.views)
     output = check_output_file(args.output, "crosstalk file", example="crosstalk.json")
     if args.report:
         check_output_folder(args.report, "crosstalk report", contents=REPORT_FILES)
         if os.path.abspath(args.report) == os.path.abspath(output):
             raise InputError("is also the crosstalk file path", source="--report", hint="give the report a folder")
+    profile = load_profile(args.profile, "--profile") if args.profile else None
+    pattern_set, capture = open_crosstalk_set(args.directory, profile)
+    eye, eye_note = _eye_separation(args, pattern_set.views)
     with progress_bar(len(pattern_set.patterns) + 2, "measuring") as bar:
         measurement = measure_crosstalk(args.directory, profile, photos=args.photos, progress=bar.update)
     for warning in measurement.warnings:

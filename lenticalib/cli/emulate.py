@@ -77,8 +77,9 @@ def run(args: argparse.Namespace) -> int:
     runtime_dir()  # where the running emulator announces itself: an unsafe folder is refused before anything
     if args.flash:
         image = Path(args.flash)
-        if not image.exists():
-            check_output_file(image, "flash image")  # a missing folder is refused, never created
+        # a regular file (or a link to one) or a new name: a missing folder is refused, never created, and a
+        # folder, FIFO or device node is never written into
+        check_output_file(image, "flash image")
     else:
         image = default_image_dir() / "default.flash"
         image.parent.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder

@@ -1,17 +1,26 @@
 """``lenticalib render``: the avatar pipeline offline, to PNG panel rasters or a lossless video (and the views).
 
-``-o OUT.png`` for one frame, ``-o DIR`` for ``--frames N`` (``DIR/frame-00000.png`` ...) or
-``-o OUT.mkv`` for a lossless video (FFV1 through OpenCV's bundled FFmpeg: every pixel as
-rendered, so the raster survives), at
-``--fps`` steps of the controls' time.  ``--views-out VDIR`` also writes the N views of every
-frame, 8-bit, in view order -- exactly what was encoded -- (``VDIR/frame-00000/view-00.png``
-...) and ``VDIR/cameras.json``.  Output paths are checked before the first frame; a folder is
-written complete or not at all.
+``-o OUT.png`` (or ``.tif``, ``.npy``) for one frame, ``-o DIR`` for ``--frames N``
+(``DIR/frame-00000.png`` ...) or ``-o OUT.mkv`` for a lossless video (FFV1 through OpenCV's
+bundled FFmpeg: every pixel as rendered, so the raster survives), at ``--fps`` steps of the
+controls' time.  A lossy image or another video suffix (``.jpg``, ``.mp4`` ...) is refused: it
+would blur the raster's subpixels (and is never taken for a folder name).  ``--views-out VDIR``
+also writes the N views of every frame, 8-bit, in view order -- exactly what was encoded --
+(``VDIR/frame-00000/view-00.png`` ...) and ``VDIR/cameras.json``.
+
+Output paths are checked before the avatar is loaded (:mod:`lenticalib.outputs`); a folder is
+written complete or not at all, and an existing folder is replaced only when it holds nothing
+but what render writes there (``RASTER_CONTENTS``, ``VIEWS_CONTENTS``).
 """
 
 from __future__ import annotations
 
 import argparse
+
+RASTER_CONTENTS = ("frame-[0-9][0-9][0-9][0-9][0-9]*.png",)
+VIEWS_CONTENTS = ("cameras.json", "frame-[0-9][0-9][0-9][0-9][0-9]*",
+                  "frame-[0-9][0-9][0-9][0-9][0-9]*/view-[0-9][0-9]*.png")
+VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".wmv", ".gif")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,7 +37,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import InputError
-    from ..outputs import check_output_file
     from ..render.loop import StageTimes
     from ._avatar import build_pipeline
 
@@ -36,23 +44,17 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.frames} frames", source="--frames", hint="give at least 1")
     if not 0 < args.fps <= 1000:
         raise InputError(f"{args.fps} frames per second", source="--fps", hint="use 0 < fps <= 1000")
-    single = args.output.lower().endswith(".png")
-    video = args.output.lower().endswith(".mkv")
-    if single and args.frames != 1:
-        raise InputError(f"{args.frames} frames cannot go into one PNG", source="--output",
-                         hint="give a folder for a sequence")
-    if single or video:
-        check_output_file(args.output, "video" if video else "raster", "out.mkv" if video else "out.png")
+    single, video = _check_outputs(args)
     pipeline, controls, avatar = build_pipeline(args)
     if pipeline.warning:
         import sys
 
         print(f"lenticalib: warning: {pipeline.warning}", file=sys.stderr)
     times = StageTimes()
-    targets = [("raster", args.output)] if not (single or video) else []
+    targets = [("raster", args.output, "frames folder", RASTER_CONTENTS)] if not (single or video) else []
     writer = _VideoFile(args.output, args.fps) if video else None
     if args.views_out:
-        targets.append(("views", args.views_out))
+        targets.append(("views", args.views_out, "views folder", VIEWS_CONTENTS))
     try:
         _render_frames(args, pipeline, controls, times, targets, writer, single)
     except BaseException:
@@ -69,6 +71,36 @@ def run(args: argparse.Namespace) -> int:
                       f"{pipeline.cameras.width}x{pipeline.cameras.height}, renderer {pipeline.renderer}, "
                       f"encoder {pipeline.encoder}"))
     return 0
+
+
+def _check_outputs(args: argparse.Namespace) -> tuple[bool, bool]:
+    """Refuse, before any work, outputs render cannot or must not write; return (one image, video)."""
+    import os
+
+    from ..errors import InputError
+    from ..imageio import IMAGE_SUFFIXES, WRITE_FORMATS
+    from ..outputs import check_output_file, check_output_folder
+
+    suffix = os.path.splitext(args.output)[1].lower()
+    single, video = suffix in WRITE_FORMATS, suffix == ".mkv"
+    if (suffix in IMAGE_SUFFIXES or suffix in VIDEO_SUFFIXES) and not (single or video):
+        raise InputError(f"render does not write {suffix} files: a lossy format blurs the raster's subpixels",
+                         source=args.output,
+                         hint="name it .png (one frame) or .mkv (a lossless video), or give a folder for PNG frames")
+    if single and args.frames != 1:
+        raise InputError(f"{args.frames} frames cannot go into one {suffix[1:].upper()}", source="--output",
+                         hint="give a folder for a sequence, or a .mkv video")
+    if single or video:
+        check_output_file(args.output, "video" if video else "raster", "out.mkv" if video else "out.png")
+    else:
+        check_output_folder(args.output, "frames folder", RASTER_CONTENTS)
+    if args.views_out:
+        check_output_folder(args.views_out, "views folder", VIEWS_CONTENTS)
+        out, views = (os.path.realpath(p) for p in (args.output, args.views_out))
+        if out == views or views.startswith(out + os.sep) or out.startswith(views + os.sep):
+            raise InputError("is, or is inside, the --output path", source=args.views_out,
+                             hint="give the views a folder of their own, beside the output")
+    return single, video
 
 
 def _render_frames(args, pipeline, controls, times, targets, writer, single) -> None:
@@ -115,7 +147,8 @@ class _staged:
         from pathlib import Path
 
         stack = self._stack.__enter__()
-        return {name: Path(stack.enter_context(self._staged_folder(path, name))) for name, path in self._targets}
+        return {name: Path(stack.enter_context(self._staged_folder(path, what, contents)))
+                for name, path, what, contents in self._targets}
 
     def __exit__(self, *exc):
         return self._stack.__exit__(*exc)
@@ -126,16 +159,13 @@ class _VideoFile:
     (an interrupted render leaves no partial video, and an earlier one stays)."""
 
     def __init__(self, path: str, fps: float):
-        import os
-        import tempfile
-
+        from ..atomic import PendingFile
         from ..imageio import cv2_quiet
 
         self._cv2 = cv2_quiet()
         self.path = path
-        folder = os.path.dirname(os.path.abspath(path))
-        handle, self.temp = tempfile.mkstemp(prefix=".render-", suffix=".mkv", dir=folder)
-        os.close(handle)
+        self._pending = PendingFile(path, "video", suffix=".mkv")  # the replaced file's mode, umask's for a new one
+        self.temp = str(self._pending.path)
         self.fps = fps
         self._writer = None
 
@@ -152,16 +182,13 @@ class _VideoFile:
         self._writer.write(raster[:, :, ::-1].copy())
 
     def finish(self) -> None:
-        import os
-
         if self._writer is not None:
             self._writer.release()
-        os.replace(self.temp, self.path)
+            self._writer = None
+        self._pending.commit()
 
     def discard(self) -> None:
-        import os
-
         if self._writer is not None:
             self._writer.release()
-        if os.path.exists(self.temp):
-            os.remove(self.temp)
+            self._writer = None
+        self._pending.discard()

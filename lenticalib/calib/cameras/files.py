@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ...atomic import write_bytes_atomic
+from ...atomic import output_target, write_bytes_atomic
 from ...errors import CameraError
 from ..captures import PHOTO_SUFFIXES
 
@@ -51,7 +51,7 @@ def place_photo(temporary: Path, destination: Path, suffix: str) -> Path:
     ``suffix`` with ``os.replace``; returns the final path."""
     final = photo_path(destination, suffix)
     try:
-        os.replace(temporary, final)
+        os.replace(temporary, output_target(final, "photo"))  # never over a FIFO, device or folder
     except OSError as exc:
         raise CameraError(f"cannot store the photo: {exc.strerror}", source=str(final),
                           hint="check free space and permissions of the capture folder") from None
