@@ -83,15 +83,40 @@ def check_image_pixels(width: int, height: int, source: str) -> None:
                          hint="scale the image down; lenticalib reads images of up to 16384 x 16384 pixels")
 
 
-def _check_header(p: Path) -> None:
-    """Refuse an image whose header states more than :data:`MAX_IMAGE_PIXELS`, before decoding."""
+def header_size(path: str | os.PathLike, *, camera_orientation: bool = False) -> tuple[int, int] | None:
+    """``(width, height)`` of an image as its header states it, no pixel decoded; None when no
+    Pillow plugin recognises the file or it cannot be read (:func:`read_image` then reports it).
+
+    ``camera_orientation``: the size after the turn its EXIF orientation asks for (JPEG photos).
+    ImageError when the header states more than :data:`MAX_IMAGE_PIXELS`.
+    """
     try:
-        img = open_image_header(p)
+        img = open_image_header(path)
     except OSError:
-        return  # read_image reports an unreadable file itself
-    if img is not None:
-        with img:
-            check_image_pixels(img.size[0], img.size[1], str(p))
+        return None
+    if img is None:
+        return None
+    with img:
+        width, height = img.size
+        check_image_pixels(width, height, str(path))
+        turned = camera_orientation and img.format == "JPEG" and img.getexif().get(0x0112, 1) in (5, 6, 7, 8)
+    return (height, width) if turned else (width, height)
+
+
+def _check_header(p: Path, camera_orientation: bool, expected_size: tuple[int, int] | None, what: str,
+                  hint: str | None) -> None:
+    """Refuse, before decoding, an image over :data:`MAX_IMAGE_PIXELS` or not of ``expected_size``."""
+    size = header_size(p, camera_orientation=camera_orientation)
+    if size is not None and expected_size is not None:
+        check_size(size, expected_size, str(p), what, hint)
+
+
+def check_size(size: tuple[int, int], expected_size: tuple[int, int], source: str, what: str,
+               hint: str | None = None) -> None:
+    """ImageError naming ``source`` when an image of ``size`` (W, H) is not ``expected_size``."""
+    if tuple(size) != tuple(expected_size):
+        raise ImageError(f"is {size[0]}x{size[1]} pixels, {what} is {expected_size[0]}x{expected_size[1]}",
+                         source=source, hint=hint or f"give a {expected_size[0]}x{expected_size[1]} image")
 
 
 def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image") -> Path:
@@ -117,10 +142,15 @@ def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output 
     return p
 
 
-def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> np.ndarray:
+def read_image(path: str | os.PathLike, *, camera_orientation: bool = False,
+               expected_size: tuple[int, int] | None = None, what: str = "the expected size",
+               hint: str | None = None) -> np.ndarray:
     """Read an image file as ``(H, W, 3)`` RGB (uint8, uint16 or float32).  ``.npy`` is loaded as is.
 
     ``camera_orientation``: turn the image as its EXIF orientation says (camera photos).
+    ``expected_size``: ``(W, H)`` the image must have, checked from the header before any pixel
+    is decoded (so a wrong, huge image costs no memory); ``what`` names that size in the
+    message (e.g. ``"the panel"``), ``hint`` what to do (default: give an image of that size).
     """
     cv2 = cv2_quiet()
     p = Path(path)
@@ -134,6 +164,8 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
         def pixels(header):
             if len(header.shape) in (2, 3):
                 check_image_pixels(header.shape[1], header.shape[0], str(p))
+                if expected_size is not None:
+                    check_size((header.shape[1], header.shape[0]), expected_size, str(p), what, hint)
 
         try:
             img = load_npy(p, check=pixels, source=str(p))
@@ -149,7 +181,7 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
         flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH if camera_orientation else cv2.IMREAD_UNCHANGED
         if not data.size:
             raise ImageError("is empty (0 bytes), not an image", source=str(p), hint="use PNG, TIFF or JPEG")
-        _check_header(p)
+        _check_header(p, camera_orientation, expected_size, what, hint)
         try:
             img = cv2.imdecode(data, flags)
         except cv2.error:  # e.g. a header promising more pixels than OpenCV accepts
@@ -171,6 +203,8 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False) -> 
     if img.dtype not in (np.uint8, np.uint16, np.float32):
         raise ImageError(f"unsupported pixel type {img.dtype}", source=str(p),
                          hint="use 8- or 16-bit integer or 32-bit float images")
+    if expected_size is not None:  # formats Pillow does not know, or a header that lied
+        check_size((img.shape[1], img.shape[0]), expected_size, str(p), what, hint)
     return np.ascontiguousarray(img)
 
 

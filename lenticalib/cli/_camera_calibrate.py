@@ -65,24 +65,13 @@ def photo_size(path) -> tuple[int, int]:
     """(width, height) of a photo as read with its EXIF orientation, from its header; ImageError when
     it is not a readable image or has more pixels than :data:`lenticalib.imageio.MAX_IMAGE_PIXELS`."""
     from ..errors import ImageError
-    from ..imageio import check_image_pixels, open_image_header
+    from ..imageio import header_size
 
-    try:
-        img = open_image_header(path)
-        if img is None:
-            raise ImageError("not a readable photo (not an image format Pillow knows)", source=str(path),
-                             hint="remove it or give another photo")
-        with img:
-            w, h = img.size
-            check_image_pixels(w, h, str(path))
-            orientation = img.getexif().get(0x0112, 1) if img.format == "JPEG" else 1
-            img.verify()
-    except (OSError, SyntaxError, ValueError) as exc:
-        if isinstance(exc, ImageError):
-            raise
-        raise ImageError(f"not a readable photo ({exc.__class__.__name__})", source=str(path),
-                         hint="remove it or give another photo") from None
-    return (h, w) if orientation in (5, 6, 7, 8) else (w, h)
+    size = header_size(path, camera_orientation=True)
+    if size is None:
+        raise ImageError("not a readable photo (not an image format Pillow knows)", source=str(path),
+                         hint="remove it or give another photo")
+    return size
 
 
 def _board(args: argparse.Namespace, photos: list):

@@ -51,7 +51,8 @@ def slides_from_path(path: str | Path) -> tuple[list[Slide], tuple[int, int]]:
         for pattern in pattern_set.patterns:
             png = p / pattern.file
             if png.exists():
-                slides.append(Slide(pattern.name, str(png), lambda png=png: read_image(png)))
+                slides.append(Slide(pattern.name, str(png), lambda png=png: read_image(
+                    png, expected_size=(pattern_set.width, pattern_set.height), what="the pattern set's panel")))
             else:
                 slides.append(Slide(pattern.name, f"{p / MANIFEST_NAME} ({pattern.name})",
                                     lambda pattern=pattern: pattern_set.render(pattern)))
@@ -62,7 +63,7 @@ def slides_from_path(path: str | Path) -> tuple[list[Slide], tuple[int, int]]:
                          hint=f"give a folder with {', '.join(IMAGE_SUFFIXES)} files, or a pattern folder")
     first = read_image(files[0])
     size = (first.shape[1], first.shape[0])
-    return [Slide(f.name, str(f), lambda f=f: read_image(f)) for f in files], size
+    return [Slide(f.name, str(f), lambda f=f: read_image(f, expected_size=size, what=files[0].name)) for f in files], size
 
 
 def run_slideshow(presenter, slides: list[Slide], interval: float | None = None, loop: bool = False,

@@ -118,10 +118,8 @@ def load_view_folder(folder: str | os.PathLike, views: int) -> np.ndarray:
     stack = np.empty((views,) + first.shape, dtype=first.dtype)
     stack[0] = first
     for i, f in enumerate(files[1:], start=1):
-        img = read_image(f)
-        if img.shape != first.shape:
-            raise ImageError(f"is {img.shape[1]}x{img.shape[0]}, {files[0].name} is "
-                             f"{first.shape[1]}x{first.shape[0]}", source=str(f), hint="all views must have one size")
+        img = read_image(f, expected_size=(first.shape[1], first.shape[0]), what=files[0].name,
+                         hint="all views must have one size")
         if img.dtype != first.dtype:
             raise ImageError(f"has {img.dtype} pixels, {files[0].name} has {first.dtype}", source=str(f),
                              hint="all views must have one bit depth")

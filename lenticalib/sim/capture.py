@@ -187,7 +187,7 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene, raw: bool
     items: Iterable = pattern_set.patterns if progress is None else progress(pattern_set.patterns)
     for pattern in items:
         source = directory / pattern.file
-        raster = read_image(source)
+        raster = read_image(source, expected_size=(optics.width, optics.height), what="the simulated panel")
         if raster.dtype != np.uint8 or raster.shape != (optics.height, optics.width, 3):
             raise ImageError(f"expected an 8-bit {optics.width}x{optics.height} pattern, got {raster.dtype} "
                              f"{raster.shape[1]}x{raster.shape[0]}", source=str(source),
