@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import write_bytes_atomic, write_text_atomic
-from . import model
 
 FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
@@ -165,9 +164,9 @@ def _photo_extent(result, shape):
 
 
 def _sample_residuals(result):
-    """(samples, residual, weights) of the fit: the samples it used (:class:`model.PlaneSamples`,
+    """(samples, residual, weights) of the fit: the samples it used (:class:`.model.PlaneSamples`,
     panel X in subpixels, Y in rows), measured minus fitted in views, wrapped to [-N/2, N/2)
-    (:meth:`model.PlaneFit.residual`, the residual the quality numbers are computed from), and the
+    (:meth:`.model.PlaneFit.residual`, the residual the quality numbers are computed from), and the
     fit's robust weights."""
     maps = result.maps
     samples = maps["samples"]
