@@ -482,6 +482,18 @@ def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fi
     assert np.median(diff) < n / profile.period, np.median(diff)
 
 
+def test_every_fit_report_figure_has_a_title_and_axes_with_units(demo_fit):
+    from lenticalib.calib.report import FIGURE_SIZES, read_figure_record
+
+    for name in FIGURE_SIZES:
+        record = read_figure_record(demo_fit.out / "profile-report" / name)
+        assert record["title"], name
+        for ax in record["axes"]:
+            labels = [label for label in (ax["xlabel"], ax["ylabel"]) if label]
+            assert labels, (name, ax)  # a plot or a colour bar
+            assert all("(" in label and label.rstrip().endswith(")") for label in labels), (name, labels)
+
+
 def _fit_returning(monkeypatch, result):
     """``lenticalib fit`` with the (slow) fit replaced by an earlier result."""
     monkeypatch.setattr(fit_module, "fit_capture_set", lambda *args, **kwargs: result)
