@@ -239,7 +239,15 @@ def _view_map_figure(fig, result) -> dict:
     im = ax.imshow(wfit, cmap="hsv", vmin=0, vmax=n, interpolation="nearest", extent=(x0, x0 + cw, y0 + ch, y0),
                    aspect="equal")
     groups = np.unique(samples.group)
-    sizes = {g: 64 / (1 + 1.2 * k) for k, g in enumerate(groups)}  # fine groups sample the same camera pixels
+    ax.set_xlim(x0, x0 + cw)
+    ax.set_ylim(y0 + ch, y0)
+    ax.apply_aspect()
+    # dots about 0.7 of their spacing across (points^2), smaller for each further fine group on the same pixels
+    box = ax.get_position()
+    area = box.width * box.height * fig.get_figwidth() * fig.get_figheight() * 72.0 ** 2
+    per_group = max(1, int(np.count_nonzero(inside & (samples.group == groups[0]))))
+    size = float(np.clip(0.5 * area / per_group, 6.0, 64.0))
+    sizes = {g: size / (1 + 1.2 * k) for k, g in enumerate(groups)}
     for g in groups:
         sel = inside & (samples.group == g)
         ax.scatter(px[sel], py[sel], c=measured[sel], cmap="hsv", vmin=0, vmax=n, s=sizes[g], edgecolors="black",
