@@ -115,7 +115,8 @@ def _r(value: float, digits: int = 6):
 def region_edges(width: int, height: int, shape: tuple[int, int]) -> dict[str, list[float]]:
     """The uniformity regions' edges in panel pixels: ``columns_panel_x`` (cols + 1), ``rows_panel_y``
     (rows + 1) for a (rows, cols) grid.  The regions divide the panel's outline in the photo evenly,
-    so the edges hold to the perspective of the photo (a few pixels for a camera facing the panel)."""
+    so these edges are approximate: the photo's perspective moves them (by a few pixels for a camera
+    facing the panel)."""
     rows, cols = shape
     return {"columns_panel_x": [round(width * i / cols, 1) for i in range(cols + 1)],
             "rows_panel_y": [round(height * j / rows, 1) for j in range(rows + 1)]}
