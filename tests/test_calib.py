@@ -428,6 +428,72 @@ def test_report_figures_are_readable_sizes(demo_fit):
         assert len(np.unique(image.reshape(-1, 3), axis=0)) > 500, name
 
 
+def _stated_rms(record) -> list[str]:
+    """Every "RMS <number>" a figure's titles, labels and legends state."""
+    import re
+
+    texts = [record["title"]] + [t for ax in record["axes"] for t in (ax["title"], ax["xlabel"], ax["ylabel"],
+                                                                     *ax["texts"], *ax["legend"])]
+    return re.findall(r"RMS (\d+\.\d+)", " ".join(texts))
+
+
+def test_report_figures_state_the_summary_residual(demo_fit):
+    """view-map.png and residual.png show the residual the summary reports (issue 19: the view map said
+    0.427 views RMS, a second definition, beside a headline of 0.037)."""
+    from lenticalib.calib.report import read_figure_record
+
+    report = demo_fit.out / "profile-report"
+    quality = json.loads((report / "summary.json").read_text())["quality"]
+    view_map = read_figure_record(report / "view-map.png")
+    for key in ("block_residual_rms_views", "block_residual_worst_views", "pixel_residual_rms_views"):
+        assert view_map["numbers"][key] == quality[key], key
+    assert read_figure_record(report / "residual.png")["numbers"]["block_residual_rms_views"] == \
+        quality["block_residual_rms_views"]
+    for name in ("view-map.png", "residual.png"):
+        stated = _stated_rms(read_figure_record(report / name))
+        assert f"{quality['block_residual_rms_views']:.3f}" in stated, name
+        # no RMS the summary does not hold
+        assert set(stated) <= {f"{quality[k]:.3f}" for k in ("block_residual_rms_views",
+                                                              "pixel_residual_rms_views")}, (name, stated)
+    # the bottom panel, the headline, is the summary's block map: its weighted RMS is the stated one
+    block = demo_fit.result.maps["block_residual_map"]
+    assert np.nanmax(np.abs(block)) == pytest.approx(quality["block_residual_worst_views"], rel=1e-9)
+
+
+def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fit):
+    """The crop is drawn at a zoom where one subpixel is several screen pixels wide, and the measured
+    samples in it agree with the fitted w of the subpixel they lie on (no aliased checkerboard)."""
+    from lenticalib.calib.model import wrap
+    from lenticalib.calib.report import read_figure_record
+    from lenticalib.render.routing import view_coordinate
+
+    numbers = read_figure_record(demo_fit.out / "profile-report" / "view-map.png")["numbers"]
+    assert numbers["subpixel_width_figure_pixels"] >= 5.0
+    x0, y0, cw, ch = numbers["crop_pixels"]
+    samples, profile = demo_fit.result.maps["samples"], demo_fit.result.profile
+    n = profile.views
+    inside = (samples.x >= 3 * x0) & (samples.x < 3 * (x0 + cw)) & (samples.y >= y0) & (samples.y < y0 + ch)
+    assert numbers["crop_samples"] == int(inside.sum()) >= 20
+    xs, ys = np.floor(samples.x[inside]).astype(int), np.floor(samples.y[inside]).astype(int)
+    w = view_coordinate(profile, ys)[np.arange(ys.size), xs]  # the profile's w of each sample's subpixel
+    # the subpixel's w is at its left edge, the sample anywhere in it: a subpixel spans N / period views
+    measured = samples.psi[inside] * n + n / 2
+    diff = np.abs(wrap((measured - w) / n)) * n
+    assert np.median(diff) < n / profile.period, np.median(diff)
+
+
+def test_every_fit_report_figure_has_a_title_and_axes_with_units(demo_fit):
+    from lenticalib.calib.report import FIGURE_SIZES, read_figure_record
+
+    for name in FIGURE_SIZES:
+        record = read_figure_record(demo_fit.out / "profile-report" / name)
+        assert record["title"], name
+        for ax in record["axes"]:
+            labels = [label for label in (ax["xlabel"], ax["ylabel"]) if label]
+            assert labels, (name, ax)  # a plot or a colour bar
+            assert all("(" in label and label.rstrip().endswith(")") for label in labels), (name, labels)
+
+
 def _fit_returning(monkeypatch, result):
     """``lenticalib fit`` with the (slow) fit replaced by an earlier result."""
     monkeypatch.setattr(fit_module, "fit_capture_set", lambda *args, **kwargs: result)

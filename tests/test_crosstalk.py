@@ -129,11 +129,24 @@ def test_jpeg_photos_carry_their_unknown_tone_curve_in_the_uncertainty(tmp_path,
     assert abs(err[0, 0]) < 0.05
 
 
-def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured_set, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def measured_cli(measured_set, tmp_path_factory):
+    """``crosstalk measure --report`` of the measured set, run once: (crosstalk.json, report folder, stdout)."""
+    import contextlib
+    import io
+
     folder, _ = measured_set
-    out, report = tmp_path / "crosstalk.json", tmp_path / "report"
-    assert main(["crosstalk", "measure", str(folder), "-o", str(out), "--report", str(report), "--photos", "linear",
-                 "--eye-separation-mm", "64", "--distance", "620", "--cone-angle", "40"]) == 0
+    root = tmp_path_factory.mktemp("xt-cli")
+    out, report = root / "crosstalk.json", root / "report"
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout):
+        assert main(["crosstalk", "measure", str(folder), "-o", str(out), "--report", str(report), "--photos",
+                     "linear", "--eye-separation-mm", "64", "--distance", "620", "--cone-angle", "40"]) == 0
+    return out, report, stdout.getvalue()
+
+
+def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured_cli, capsys):
+    out, report, _ = measured_cli
     data = json.loads(out.read_text())
     assert len(data["matrix"]) == VIEWS and all(len(r) == VIEWS for r in data["matrix"])
     assert {"own_view_share", "adjacent_crosstalk", "non_adjacent_crosstalk", "eye_pair_crosstalk"} <= set(data["figures"])
@@ -150,6 +163,143 @@ def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured
                  "--max-eye-pair", "0"]) == 1
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == 2 and all(line.startswith("FAIL") for line in lines)
+
+
+def _soft_sheet_file(tmp_path, own=0.3685, neighbour=0.2306):
+    """A crosstalk.json of a soft multi-view sheet (the bundled demo panel's shares): circulant, 32 views."""
+    from lenticalib.calib.crosstalk.result import derived_figures
+
+    row = np.full(VIEWS, (1.0 - own - 2 * neighbour) / (VIEWS - 3))
+    row[0], row[1], row[-1] = own, neighbour, neighbour
+    figures = {k: {"value": v, "sigma": 0.0} for k, v in derived_figures(row, 5.0).items()}
+    path = tmp_path / "soft.json"
+    matrix = row[(np.arange(VIEWS)[None, :] - np.arange(VIEWS)[:, None]) % VIEWS]
+    path.write_text(json.dumps({"format": "lenticalib.crosstalk", "format_version": 1, "views": VIEWS,
+                                "matrix": matrix.tolist(), "figures": figures, "eye_separation_views": 5.0}))
+    return path, figures
+
+
+def test_check_names_each_figure_with_its_definition_and_explains_over_100_percent(tmp_path, capsys):
+    """Issue 19: 'adjacent crosstalk 125.19% exceeds the limit 90.00%' said neither what was divided by
+    what nor why a crosstalk can exceed 100 %."""
+    path, figures = _soft_sheet_file(tmp_path)
+    adjacent, system = figures["adjacent_crosstalk"]["value"], figures["total_crosstalk"]["value"]
+    assert adjacent > 1.0 and system > adjacent
+    assert main(["crosstalk", "check", str(path), "--max-adjacent", "0.9", "--max-system", "150%",
+                 "--max-eye-pair", "1e-6"]) == 1
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 3
+    assert lines[0] == (f"FAIL {path}: adjacent crosstalk (light from the two neighbouring views over the view's own "
+                        f"light) {100 * adjacent:.2f}% exceeds the limit 90.00%; a crosstalk above 100 % means the "
+                        "leaking views together send more light than the view itself: normal for the adjacent and "
+                        "system crosstalk of a multi-view lens sheet whose neighbouring views overlap (smooth motion "
+                        "parallax); ghosting between the eyes is the eye-pair crosstalk")
+    assert lines[1].startswith(f"FAIL {path}: system crosstalk (light from all other views over the view's own light, "
+                               f"IEC 62629's system crosstalk) {100 * system:.2f}% exceeds the limit 150.00%")
+    assert lines[2].startswith(f"FAIL {path}: eye-pair crosstalk (light of the other eye's view over the eye's own "
+                               "view's light) ") and "above 100 %" not in lines[2]
+    assert main(["crosstalk", "check", str(path), "--max-adjacent", "150%", "--max-system", "2"]) == 0
+    assert capsys.readouterr().out.strip() == (f"PASS {path}: adjacent crosstalk {100 * adjacent:.2f}% <= 150.00%; "
+                                               f"system crosstalk {100 * system:.2f}% <= 200.00%")
+
+
+def test_readme_check_example_passes_the_bundled_demo_panel():
+    """The README's production-line example must make sense for the panel the project ships: pass its true
+    crosstalk (adjacent 125 % on that soft 4K sheet), with limits not far above its figures."""
+    import re
+    from pathlib import Path
+
+    from lenticalib.calib.crosstalk.result import check_crosstalk, derived_figures, eye_separation_views
+    from lenticalib.profile import load_profile
+    from lenticalib.sim.crosstalk_truth import true_mixing_matrix
+    from lenticalib.sim.scene import Scene
+
+    root = Path(__file__).resolve().parents[1]
+    readme = " ".join((root / "README.md").read_text().split())
+    example = re.search(r"crosstalk check crosstalk\.json --max-adjacent (\d[\d.]*%?) --max-eye-pair (\d[\d.]*%?)`", readme)
+    measure = re.search(r"--eye-separation-mm (\d+) --distance (\d+) --cone-angle (\d+)", readme)
+    assert example and measure, "the README's crosstalk example moved"
+    limits = [float(v[:-1]) / 100 if v.endswith("%") else float(v) for v in example.groups()]
+    demo = root / "fixtures" / "capture-demo"
+    scene = Scene.from_dict(json.loads((demo / "simulation.json").read_text()))
+    matrix = true_mixing_matrix(scene.optics, scene.eye, load_profile(demo / "truth.json"))
+    eye = eye_separation_views(*(float(v) for v in measure.groups()), VIEWS)
+    figures = derived_figures(matrix[0], eye)
+    assert figures["adjacent_crosstalk"] > 1.0  # the soft sheet of the issue
+    data = {"figures": {k: {"value": v} for k, v in figures.items()}, "eye_separation_views": eye}
+    assert check_crosstalk(data, *limits) == []
+    assert limits[0] < 2 * figures["adjacent_crosstalk"] and limits[1] < 4 * figures["eye_pair_crosstalk"]
+
+
+def test_measure_cli_prints_each_figure_with_its_definition(measured_cli):
+    out, _, stdout = measured_cli
+    data = json.loads(out.read_text())
+    f = data["figures"]
+    assert (f"adjacent crosstalk (light from the two neighbouring views over the view's own light) "
+            f"{100 * f['adjacent_crosstalk']['value']:.2f}% +- ") in stdout
+    assert f"system crosstalk (light from all other views over the view's own light, IEC 62629's system " \
+           f"crosstalk) {100 * f['total_crosstalk']['value']:.2f}%" in stdout
+    assert data["figure_definitions"]["total_crosstalk"]["name"] == "system crosstalk"
+    assert data["figure_definitions"]["own_view_share"]["unit"] == "share 0..1"
+    c = data["compensation_prediction"]
+    assert f"from {100 * c['residual_crosstalk_without']:.1f}% to {100 * c['residual_crosstalk_with']:.1f}%" in stdout
+
+
+def _texts(record) -> list[str]:
+    return [record["title"]] + [t for ax in record["axes"] for t in (ax["title"], ax["xlabel"], ax["ylabel"],
+                                                                     *ax["texts"], *ax["legend"])]
+
+
+def test_report_figures_state_the_numbers_of_crosstalk_json(measured_cli):
+    from lenticalib.calib.crosstalk.result import FIGURES
+    from lenticalib.calib.report import read_figure_record
+
+    out, report, _ = measured_cli
+    data = json.loads(out.read_text())
+    cone = read_figure_record(report / "view-cone.png")
+    for key in ("own_view_share", "adjacent_crosstalk", "total_crosstalk", "eye_pair_crosstalk"):
+        assert cone["numbers"][key] == data["figures"][key]["value"], key
+        name, what, _ = FIGURES[key]
+        assert any(f"{name} ({what})" in t for t in _texts(cone)), key  # each figure with its definition
+    # compensation.png: the study's numbers as crosstalk.json holds them, crosstalk in %, and no bars per
+    # zone (identical by construction on a circulant matrix) but the leak per view offset
+    comp = read_figure_record(report / "compensation.png")
+    c = data["compensation_prediction"]
+    for key, value in comp["numbers"].items():
+        assert value == pytest.approx(c[key], abs=1e-5), key
+    text = " ".join(_texts(comp))
+    assert (f"{100 * c['residual_crosstalk_without']:.1f}% → {100 * c['residual_crosstalk_with']:.1f}%" in text
+            and "->" not in text)
+    assert comp["axes"][0]["xlabel"] == "offset of the leaking view (views)"
+    # uniformity.png: regions on panel coordinates, ± not +-
+    uni = read_figure_record(report / "uniformity.png")
+    u = data["uniformity"]
+    assert uni["numbers"]["columns_panel_x"] == u["columns_panel_x"] and uni["numbers"]["rows_panel_y"] == u["rows_panel_y"]
+    assert u["columns_panel_x"][-1] == data["width"] and u["rows_panel_y"][-1] == data["height"]
+    assert np.allclose(uni["numbers"]["own_view_share"], np.array(u["own_view_share"], float), equal_nan=True)
+    assert uni["axes"][0]["xlabel"].startswith("panel x (pixels") and uni["axes"][0]["ylabel"] == "panel y (pixels)"
+    cells = uni["axes"][0]["texts"]
+    assert len(cells) == np.isfinite(np.array(u["own_view_share"], float)).sum()
+    assert all("±" in t and "+-" not in t for t in cells)
+    # photos.png: a caption saying what the right panel shows, what good and bad look like; no jargon title
+    photos = read_figure_record(report / "photos.png")
+    caption = " ".join(t for ax in photos["axes"] for t in ax["texts"])
+    assert "Good:" in caption and "Bad:" in caption
+    assert not any("delta" in t.lower() for t in _texts(photos))
+
+
+def test_every_report_figure_has_a_title_and_axes_with_units(measured_cli):
+    from lenticalib.calib.crosstalk.report import FIGURE_SIZES
+    from lenticalib.calib.report import read_figure_record
+
+    _, report, _ = measured_cli
+    for name in FIGURE_SIZES:
+        record = read_figure_record(report / name)
+        assert record["title"], name
+        for ax in record["axes"]:
+            labels = [label for label in (ax["xlabel"], ax["ylabel"]) if label]
+            assert labels or ax["texts"], (name, ax)  # a plot, a colour bar, or a caption
+            assert all("(" in label and label.rstrip().endswith(")") for label in labels), (name, labels)
 
 
 def _copy_set(folder, tmp_path):

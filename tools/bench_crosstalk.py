@@ -114,8 +114,8 @@ def compensation_summary(rows) -> list[str]:
         for lift in (0.0, 0.05):
             s = compensation_study(Compensator.from_matrix(measured, black_lift=lift), truth, views)
             lines.append(f"case {r['case']}: black lift {lift:.2f}: RMS seen-intended {s['mean_rms_without']:.4f} -> "
-                         f"{s['mean_rms_with']:.4f}; residual crosstalk {s['residual_crosstalk_without']:.3f} -> "
-                         f"{s['residual_crosstalk_with']:.3f}")
+                         f"{s['mean_rms_with']:.4f} (linear light); residual system crosstalk "
+                         f"{100 * s['residual_crosstalk_without']:.1f}% -> {100 * s['residual_crosstalk_with']:.1f}%")
     views8 = rng.integers(0, 256, (32, 540, 960, 3), dtype=np.uint8)
     c = Compensator.from_matrix(np.asarray(rows[0]["row"])[(np.arange(32)[None, :] - np.arange(32)[:, None]) % 32])
     c.apply(views8[:, :4])

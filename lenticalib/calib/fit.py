@@ -272,8 +272,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
                            width=ps.width, height=ps.height, subpixel_order=order.order,
                            uncertainty=sigmas, provenance=provenance)
     maps = {"block_residual_map": block_map, "mask": mask, "x": x_sm, "y": y_sm, "valid": valid, "fit": fit,
-            "dc": groups["y1"].dc, "samples": samples, "weights": final_weights,
-            "fine_z": {f"f{p:g}": groups[f"f{p:g}"].z for p in FINE_PERIODS}}
+            "dc": groups["y1"].dc, "samples": samples, "weights": final_weights, "sample_pixels": take}
     return FitResult(profile, not problems, problems, quality, maps, seconds, warnings, pose=pose)
 
 

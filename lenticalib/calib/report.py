@@ -5,16 +5,21 @@ Written into one folder (each file atomically; ``lenticalib fit`` stages the who
 
     panel.png       the panel as found in the photos (axes in photo pixels): mean brightness,
                     the panel outline and measured panel columns/rows at eighths of the panel
-    view-map.png    a 120 x 70 panel-pixel crop at the panel centre, in panel coordinates: the
-                    measured view coordinate w* of every camera pixel drawn where that pixel
-                    sees the panel, and the fitted profile's w at every subpixel; below, the
-                    wrapped difference measured - fitted (views) over the whole panel
-    residual.png    measured - fitted, smoothed, per camera pixel (photo coordinates) and per
-                    panel block (panel coordinates), in views
+    view-map.png    a 24 x 14 panel-pixel crop at the panel centre, each subpixel drawn: the
+                    fitted profile's w per subpixel with the measured w* of the samples the fit
+                    used as dots at their measured panel position, and those samples' residual;
+                    the distribution of the residual (single samples, panel-block means); the
+                    residual per panel block over the whole panel -- the summary's
+                    ``block_residual_*``, the fit's headline residual
+    residual.png    measured - fitted (the samples' residual), smoothed per camera pixel (photo
+                    coordinates), and per panel block (panel coordinates), in views
     summary.json    :func:`fit_summary`: the document ``lenticalib fit --json`` prints
 
-Every figure has a title, axes labelled with units and a colour bar with units; sizes are
-:data:`FIGURE_SIZES` (pixels), fonts at least 10 pt.
+Every residual a figure shows is ``PlaneFit.residual`` of the fit's samples (measured minus
+fitted, wrapped, in views), the one the quality numbers come from; the numbers a figure states
+are those of the summary, recorded in the PNG (:func:`read_figure_record`).  Every figure has a
+title, axes labelled with units and a colour bar with units; sizes are :data:`FIGURE_SIZES`
+(pixels), fonts at least 10 pt.
 """
 
 from __future__ import annotations
@@ -28,11 +33,10 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import write_bytes_atomic, write_text_atomic
-from . import model
 
-FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1560), "residual.png": (1800, 700)}
+FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
-CROP = (120, 70)  # panel pixels (width, height) of the zoomed view-map crop
+CROP = (24, 14)  # panel pixels (width, height) of the view-map crop: 72 x 14 subpixels, each resolved
 _DPI = 100
 _STYLE = {"font.size": 12, "axes.titlesize": 13, "axes.labelsize": 12, "xtick.labelsize": 11,
           "ytick.labelsize": 11, "legend.fontsize": 11}
@@ -86,25 +90,61 @@ def write_report(result, directory: str | os.PathLike, capture_dir: str | os.Pat
     return directory
 
 
-def write_figures(directory: Path, drawings, sizes: dict, subject) -> None:
+def write_figures(directory: Path, drawings, sizes: dict, subject) -> dict[str, dict]:
     """Draw each ``(name, draw)`` of ``drawings`` as ``draw(fig, subject)`` on a figure of ``sizes[name]``
-    pixels (the report style: fonts of at least 10 pt) and write it as ``directory/name``, atomically."""
+    pixels (the report style: fonts of at least 10 pt) and write it as ``directory/name``, atomically.
+
+    ``draw`` may return a dict of the numbers its titles and labels state.  Each PNG records its
+    texts and those numbers (:func:`figure_record`) in a text chunk, read back by
+    :func:`read_figure_record`, so what a figure says can be checked against the summary it
+    illustrates.  Returns {name: record}.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    records = {}
     with plt.rc_context(_STYLE):
         for name, draw in drawings:
             w, h = sizes[name]
             fig = plt.figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
             try:
-                draw(fig, subject)
+                record = figure_record(fig, draw(fig, subject) or {})
                 buf = io.BytesIO()
-                fig.savefig(buf, format="png", dpi=_DPI)
+                fig.savefig(buf, format="png", dpi=_DPI,
+                            metadata={RECORD_KEY: json.dumps(record, default=_jsonable, ensure_ascii=True)})
             finally:
                 plt.close(fig)
             write_bytes_atomic(directory / name, buf.getvalue())
+            records[name] = record
+    return records
+
+
+RECORD_KEY = "lenticalib-figure"  # the PNG text chunk holding a figure's record
+
+
+def figure_record(fig, numbers: dict) -> dict:
+    """What a drawn figure says: ``title`` (the figure's title), ``axes`` (per axes, colour bars
+    included: ``title``, ``xlabel``, ``ylabel``, ``texts`` written on it, ``legend``), and
+    ``numbers`` (the values its texts state, as the drawing returned them)."""
+    axes = []
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        axes.append({"title": " ".join(t for t in (ax.get_title("left"), ax.get_title(), ax.get_title("right")) if t),
+                     "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(),
+                     "texts": [t.get_text() for t in ax.texts],
+                     "legend": [t.get_text() for t in legend.get_texts()] if legend else []})
+    suptitle = fig._suptitle.get_text() if getattr(fig, "_suptitle", None) is not None else ""
+    return {"title": suptitle or (axes[0]["title"] if axes else ""), "axes": axes, "numbers": numbers}
+
+
+def read_figure_record(path: str | os.PathLike) -> dict:
+    """The record :func:`write_figures` wrote into the PNG at ``path`` (see :func:`figure_record`)."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return json.loads(image.text[RECORD_KEY])
 
 
 def _colorbar(fig, ax, mappable, label: str, extend: str = "neither"):
@@ -123,18 +163,14 @@ def _photo_extent(result, shape):
     return sx, sy, (0, w * sx, h * sy, 0)
 
 
-def _measured_and_fitted(result):
-    """(measured w*, fitted w) per camera pixel, views in [0, N) (NaN off the valid panel)."""
-    maps, n = result.maps, result.profile.views
-    valid, x, y = maps["valid"], maps["x"], maps["y"]
-    name, z = next(iter(maps["fine_z"].items()))
-    period = float(name[1:])
-    measured = np.full(valid.shape, np.nan)
-    cycles = np.angle(z[valid]) / (2 * math.pi)
-    measured[valid] = (model.wrap(cycles - x[valid] / period) * n + n / 2) % n
-    fitted = np.full(valid.shape, np.nan)
-    fitted[valid] = (maps["fit"].psi(x[valid], y[valid]) * n + n / 2) % n
-    return measured, fitted, name
+def _sample_residuals(result):
+    """(samples, residual, weights) of the fit: the samples it used (:class:`.model.PlaneSamples`,
+    panel X in subpixels, Y in rows), measured minus fitted in views, wrapped to [-N/2, N/2)
+    (:meth:`.model.PlaneFit.residual`, the residual the quality numbers are computed from), and the
+    fit's robust weights."""
+    maps = result.maps
+    samples = maps["samples"]
+    return samples, maps["fit"].residual(samples) * result.profile.views, maps["weights"]
 
 
 def _panel_figure(fig, result) -> None:
@@ -178,94 +214,125 @@ def _crop_box(profile):
     return x0, y0, min(cw, profile.width), min(ch, profile.height)
 
 
-def _view_map_figure(fig, result) -> None:
+def _view_map_figure(fig, result) -> dict:
+    """The fitted w at every subpixel of a crop with the measured samples on it, the samples'
+    residuals, and the fit's residual per panel block (the summary's ``block_residual_*``)."""
     from matplotlib.patches import Rectangle
 
-    maps, profile = result.maps, result.profile
-    n = profile.views
-    valid, x, y = maps["valid"], maps["x"], maps["y"]
-    measured, fitted, group = _measured_and_fitted(result)
-    x0, y0, cw, ch = _crop_box(profile)
-    grid = fig.add_gridspec(2, 2, height_ratios=(0.8, 1.25), left=0.05, right=0.95, top=0.91, bottom=0.05,
-                            wspace=0.22, hspace=0.22)
-    cmap = "hsv"
+    from ..render.routing import view_coordinate
 
-    # measured: every camera pixel drawn where it sees the panel (its measured x/3, y)
+    maps, profile, quality = result.maps, result.profile, result.quality
+    n = profile.views
+    samples, resid, weights = _sample_residuals(result)
+    x0, y0, cw, ch = _crop_box(profile)
+    grid = fig.add_gridspec(2, 3, height_ratios=(1.0, 2.0), width_ratios=(1.0, 1.0, 0.8), left=0.05, right=0.95,
+                            top=0.9, bottom=0.05, wspace=0.32, hspace=0.3)
+    px, py = samples.x / 3.0, samples.y
+    inside = (px >= x0) & (px < x0 + cw) & (py >= y0) & (py < y0 + ch)
+    measured = (samples.psi * n + n / 2) % n
+    spread = float(np.percentile(np.abs(resid[weights > 0]), 99.5)) if np.any(weights > 0) else 1.0
+    limit = min(n / 2, max(1.0, math.ceil(2 * spread) / 2))  # views; a fit a view off stands out
+
+    # the profile's w at every subpixel of the crop (the routing the encoder uses), measured w* on it
     ax = fig.add_subplot(grid[0, 0])
-    px, py = x / 3.0, y
-    margin = 4.0
-    inside = valid & (px >= x0 - margin) & (px <= x0 + cw + margin) & (py >= y0 - margin) & (py <= y0 + ch + margin)
-    rows, cols = np.nonzero(inside)
-    im = None
-    if rows.size:
-        r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-        bx, by, bm = px[r0:r1, c0:c1], py[r0:r1, c0:c1], measured[r0:r1, c0:c1]
-        if np.all(np.isfinite(bx)) and np.all(np.isfinite(by)) and min(bx.shape) >= 2:
-            im = ax.pcolormesh(bx, by, np.ma.masked_invalid(bm), cmap=cmap, vmin=0, vmax=n, shading="nearest")
-        else:
-            im = ax.scatter(px[inside], py[inside], c=measured[inside], cmap=cmap, vmin=0, vmax=n, s=30, marker="s")
-    ax.set_title(f"measured w*, each camera pixel where it sees the panel ({rows.size} pixels)")
-    # fitted: the profile's w at every subpixel of the crop (3 columns per panel pixel)
+    wfit = view_coordinate(profile, np.arange(y0, y0 + ch))[:, 3 * x0:3 * (x0 + cw)] % n
+    im = ax.imshow(wfit, cmap="hsv", vmin=0, vmax=n, interpolation="nearest", extent=(x0, x0 + cw, y0 + ch, y0),
+                   aspect="equal")
+    groups = np.unique(samples.group)
+    ax.set_xlim(x0, x0 + cw)
+    ax.set_ylim(y0 + ch, y0)
+    ax.apply_aspect()
+    # dots about 0.7 of their spacing across (points^2), smaller for each further fine group on the same pixels
+    box = ax.get_position()
+    area = box.width * box.height * fig.get_figwidth() * fig.get_figheight() * 72.0 ** 2
+    per_group = max(1, int(np.count_nonzero(inside & (samples.group == groups[0]))))
+    size = float(np.clip(0.5 * area / per_group, 6.0, 64.0))
+    sizes = {g: size / (1 + 1.2 * k) for k, g in enumerate(groups)}
+    for g in groups:
+        sel = inside & (samples.group == g)
+        ax.scatter(px[sel], py[sel], c=measured[sel], cmap="hsv", vmin=0, vmax=n, s=sizes[g], edgecolors="black",
+                   linewidths=0.7)
+    ax.set_title(f"fitted w of each subpixel ({3 * cw}x{ch}); dots:\nmeasured w* of the {int(inside.sum())} "
+                 f"samples here ({groups.size} fine groups)")
+    _colorbar(fig, ax, im, f"view (cyclic, 0..{n})")
+    # the same samples' residuals, on the subpixel grid
     ax2 = fig.add_subplot(grid[0, 1])
-    xs = np.arange(3 * x0, 3 * (x0 + cw)) + 0.5
-    ys = np.arange(y0, y0 + ch) + 0.5
-    wfit = (maps["fit"].psi(xs[None, :], ys[:, None]) * n + n / 2) % n
-    im2 = ax2.imshow(wfit, cmap=cmap, vmin=0, vmax=n, interpolation="nearest", extent=(x0, x0 + cw, y0 + ch, y0),
-                     aspect="auto")
-    if rows.size:  # the measured camera pixels as dots: on a good fit they vanish into the stripes
-        ax2.scatter(px[inside], py[inside], c=measured[inside], cmap=cmap, vmin=0, vmax=n, s=22,
-                    edgecolors="black", linewidths=0.5)
-    ax2.set_title(f"fitted w at every subpixel ({3 * cw}x{ch}); dots: measured w*")
-    for a, mappable in ((ax, im if im is not None else im2), (ax2, im2)):
+    for xs in np.arange(3 * x0, 3 * (x0 + cw) + 1) / 3.0:
+        ax2.axvline(xs, color="0.85" if xs % 1 else "0.6", lw=0.5, zorder=0)
+    for ys in range(y0, y0 + ch + 1):
+        ax2.axhline(ys, color="0.6", lw=0.5, zorder=0)
+    for g in groups:
+        sel = inside & (samples.group == g)
+        im2 = ax2.scatter(px[sel], py[sel], c=resid[sel], cmap="coolwarm", vmin=-limit, vmax=limit, s=sizes[g],
+                          edgecolors="black", linewidths=0.7)
+    ax2.set_title("measured w* - fitted w of those samples;\ngrid: subpixels (light) and pixels")
+    _colorbar(fig, ax2, im2, f"measured - fitted (views; ±{limit:g})", "both")
+    for a in (ax, ax2):
         a.set_xlim(x0, x0 + cw)
         a.set_ylim(y0 + ch, y0)
         a.set_aspect("equal")
         a.set_xlabel("panel x (pixels)")
         a.set_ylabel("panel y (pixels)")
-        _colorbar(fig, a, mappable, f"view (cyclic, 0..{n})")
 
-    # wrapped difference over the whole panel, circular mean in bins of b x b panel pixels
-    diff = model.wrap((measured[valid] - fitted[valid]) / n)
-    b = max(1, int(round(profile.width / 480)))
-    nx, ny = -(-profile.width // b), -(-profile.height // b)
-    bx = np.clip((px[valid] / b).astype(int), 0, nx - 1)
-    by = np.clip((py[valid] / b).astype(int), 0, ny - 1)
-    phasor = np.bincount(by * nx + bx, weights=np.cos(2 * math.pi * diff), minlength=nx * ny) + 1j * np.bincount(
-        by * nx + bx, weights=np.sin(2 * math.pi * diff), minlength=nx * ny)
-    count = np.bincount(by * nx + bx, minlength=nx * ny)
-    binned = np.where(count > 0, np.angle(phasor) / (2 * math.pi) * n, np.nan).reshape(ny, nx)
-    finite = binned[np.isfinite(binned)]
-    lim = min(n / 2, max(0.25, float(np.percentile(np.abs(finite), 99)) if finite.size else 0.25))
-    ax3 = fig.add_subplot(grid[1, 0:2])
-    im3 = ax3.imshow(binned, cmap="coolwarm", vmin=-lim, vmax=lim, extent=(0, profile.width, profile.height, 0),
+    # one sample's noise against the block means: the first averages out, the second is the misfit
+    block = maps["block_residual_map"]
+    finite = block[np.isfinite(block)]
+    pixel_rms, block_rms = quality["pixel_residual_rms_views"], quality["block_residual_rms_views"]
+    worst = quality["block_residual_worst_views"]
+    ax3 = fig.add_subplot(grid[0, 2])
+    bins = np.linspace(-limit, limit, 81)
+    ax3.hist(np.clip(resid, -limit, limit), bins=bins, weights=weights, density=True, color="tab:gray",
+             alpha=0.7, label=f"single samples: RMS {pixel_rms:.3f}")
+    ax3.hist(np.clip(finite, -limit, limit), bins=np.linspace(-limit, limit, 60 * int(2 * limit) + 1), density=True,
+             histtype="step", color="tab:red", lw=2, label=f"panel-block means: RMS {block_rms:.3f}")
+    ax3.set_yscale("log")
+    ax3.set_ylim(1e-4, 10 ** (math.ceil(math.log10(max(ax3.get_ylim()[1], 1e-3))) + 2))  # room for the legend
+    ax3.set_xlim(-limit, limit)
+    ax3.set_xlabel("measured - fitted (views)")
+    ax3.set_ylabel("density (1/view, log scale)")
+    ax3.set_title("residual: single samples (noise)\nand panel-block means (misfit)")
+    ax3.legend(loc="upper left", fontsize=10, title="RMS in views", title_fontsize=10)
+
+    lim = max(0.15, float(np.max(np.abs(finite))) if finite.size else 0.15)
+    ax4 = fig.add_subplot(grid[1, :])
+    im4 = ax4.imshow(block, cmap="coolwarm", vmin=-lim, vmax=lim, extent=(0, profile.width, profile.height, 0),
                      interpolation="nearest")
-    ax3.add_patch(Rectangle((x0, y0), cw, ch, fill=False, edgecolor="black", linewidth=1.5))
-    ax3.annotate("crop above", (x0 + cw, y0), xytext=(8, -4), textcoords="offset points", fontsize=11)
-    ax3.set_title(f"measured - fitted over the whole panel (views, wrapped to [-{n / 2:g}, {n / 2:g}); circular "
-                  f"mean in {b}x{b} pixel bins; RMS {math.sqrt(float(np.mean(diff ** 2))) * n:.3f} views)")
-    ax3.set_xlabel("panel x (pixels)")
-    ax3.set_ylabel("panel y (pixels)")
-    _colorbar(fig, ax3, im3, f"measured - fitted (views; colours end at ±{lim:.2f})",
-              "both" if lim < n / 2 else "neither")
-    fig.suptitle(f"View map: measured and fitted view coordinate on a {cw}x{ch} pixel crop at the panel centre "
-                 f"(x {x0}..{x0 + cw}, y {y0}..{y0 + ch}),\n{n} views, measured from fine group {group}; "
-                 "below: their difference over the whole panel", fontsize=14)
+    ax4.add_patch(Rectangle((x0, y0), cw, ch, fill=False, edgecolor="black", linewidth=1.5))
+    ax4.annotate("crop above", (x0 + cw, y0), xytext=(8, -4), textcoords="offset points", fontsize=11)
+    ax4.set_title(f"Residual of the fit per panel block ({block.shape[1]}x{block.shape[0]} blocks; weighted mean of "
+                  f"measured - fitted, less the mean):\nRMS {block_rms:.3f} views, worst {worst:.3f} views "
+                  f"(summary: block_residual_rms_views, block_residual_worst_views)")
+    ax4.set_xlabel("panel x (pixels)")
+    ax4.set_ylabel("panel y (pixels)")
+    _colorbar(fig, ax4, im4, f"mean measured - fitted (views; colours end at ±{lim:.2f})")
+    fig.suptitle(f"View map: the fitted view coordinate w against the measured w* ({n} views, "
+                 f"{samples.x.size} samples from the fine groups)\ntop: a {cw}x{ch} pixel crop at the panel centre "
+                 f"(x {x0}..{x0 + cw}, y {y0}..{y0 + ch}), each subpixel drawn; right: how the residual is "
+                 "distributed", fontsize=14)
+    ax.apply_aspect()
+    subpixel = ax.get_position().width * fig.get_figwidth() * fig.dpi / (3 * cw)  # figure pixels per subpixel
+    return {"pixel_residual_rms_views": pixel_rms, "block_residual_rms_views": block_rms,
+            "block_residual_worst_views": worst, "crop_pixels": [x0, y0, cw, ch], "crop_samples": int(inside.sum()),
+            "colour_limit_views": limit, "subpixel_width_figure_pixels": subpixel}
 
 
-def _residual_figure(fig, result) -> None:
+def _residual_figure(fig, result) -> dict:
     import cv2
 
     maps, profile = result.maps, result.profile
-    n = profile.views
-    valid = maps["valid"]
-    measured, fitted, _ = _measured_and_fitted(result)
-    resid = np.zeros(valid.shape)
-    resid[valid] = model.wrap((measured[valid] - fitted[valid]) / n) * n
-    wgt = valid.astype(np.float32)
+    valid, take = maps["valid"], maps["sample_pixels"]
+    samples, resid, weights = _sample_residuals(result)
+    # each used fine group sampled the camera pixels of ``take`` (row-major): their weighted mean
+    rows, cols = np.nonzero(take)
+    num, den = np.zeros(take.shape, np.float32), np.zeros(take.shape, np.float32)
+    for group in np.unique(samples.group):
+        sel = samples.group == group
+        num[rows, cols] += weights[sel] * resid[sel]
+        den[rows, cols] += weights[sel]
     sigma = max(3.0, valid.shape[1] / 120)
-    smooth = cv2.GaussianBlur(resid.astype(np.float32) * wgt, (0, 0), sigma) / np.maximum(
-        cv2.GaussianBlur(wgt, (0, 0), sigma), 1e-6)
-    smooth = np.where(valid, smooth, np.nan)
+    den_s = cv2.GaussianBlur(den, (0, 0), sigma)
+    smooth = cv2.GaussianBlur(num, (0, 0), sigma) / np.maximum(den_s, 1e-12)
+    smooth = np.where(valid & (den_s > 1e-3 * max(float(den_s.max()), 1e-12)), smooth, np.nan)
     block = maps["block_residual_map"]
     values = np.concatenate([smooth[np.isfinite(smooth)], block[np.isfinite(block)]])
     lim = max(0.15, float(np.percentile(np.abs(values), 99))) if values.size else 0.15
@@ -279,10 +346,11 @@ def _residual_figure(fig, result) -> None:
     ax.set_ylabel("camera y (photo pixels)")
     _colorbar(fig, ax, im, "measured - fitted (views)", "both")
     ax = axes[1]
+    block_rms = result.quality["block_residual_rms_views"]
     im = ax.imshow(block, cmap="coolwarm", vmin=-lim, vmax=lim, extent=(0, profile.width, profile.height, 0))
-    ax.set_title(f"per panel block ({block.shape[1]}x{block.shape[0]}), RMS "
-                 f"{result.quality['block_residual_rms_views']:.3f} views")
+    ax.set_title(f"per panel block ({block.shape[1]}x{block.shape[0]}), RMS {block_rms:.3f} views")
     ax.set_xlabel("panel x (pixels)")
     ax.set_ylabel("panel y (pixels)")
     _colorbar(fig, ax, im, "mean measured - fitted (views)", "both")
     fig.suptitle("Residual of the fit: measured minus fitted view coordinate, wrapped, in views", fontsize=14)
+    return {"block_residual_rms_views": block_rms}

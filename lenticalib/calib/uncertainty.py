@@ -49,6 +49,13 @@ def quality_and_covariance(fit, samples, weights, cov, ps, n_views, registration
     noise, which the jackknife already counts and which averages out in the plane; taking their
     raw RMS as a systematic floor made noisy (far, blurry) panels report several times their true
     error.  ``registration_var`` (cycles^2) is the variance the group registration leaves in c0.
+
+    The residuals, in views, all from ``fit.residual(samples)`` (measured minus fitted, wrapped)
+    with the fit's robust ``weights``: ``pixel_residual_rms_views`` their weighted RMS over the
+    samples (one camera pixel's noise, mostly); ``block_residual_map`` (14, 24) their weighted
+    mean in 24 x 14 panel blocks, less the mean over the blocks (NaN where a block has too few
+    samples); ``block_residual_rms_views`` and ``_worst_views`` the weighted RMS and the largest
+    magnitude of that map: the misfit of the plane, the fit's headline residual.
     """
     r = fit.residual(samples)
     # misfit: weighted mean residual in panel blocks of ~1/24 x 1/14 of the panel
@@ -59,8 +66,8 @@ def quality_and_covariance(fit, samples, weights, cov, ps, n_views, registration
     rsum = np.bincount(block, weights=weights * r, minlength=24 * 14)
     ok = wsum > np.percentile(wsum[wsum > 0], 10) * 0.5 if np.any(wsum > 0) else wsum > 0
     block_mean = np.where(ok, rsum / np.maximum(wsum, 1e-12), np.nan)
+    block_mean -= np.average(block_mean[ok], weights=wsum[ok])  # the mean is the centring, reported apart
     bm = block_mean[ok]
-    bm = bm - np.average(bm, weights=wsum[ok])
     block_rms = float(np.sqrt(np.average(bm ** 2, weights=wsum[ok])) * n_views)
     smooth_rms = smooth_misfit(bm, (np.arange(24 * 14) % 24)[ok], (np.arange(24 * 14) // 24)[ok], wsum[ok]) * n_views
     cov = cov + model.systematic_floor(n_views, ps.width, ps.height, max(model.SYSTEMATIC_FLOOR_VIEWS, smooth_rms))
@@ -82,7 +89,7 @@ def quality_and_covariance(fit, samples, weights, cov, ps, n_views, registration
         "predicted_error_centre_views": float(sig[-1]),
         "predicted_error_worst_views": float(np.max(sig[:-1])),
         "samples": int(samples.x.size),
-        "block_residual_map": block_mean.reshape(14, 24) * n_views,
+        "block_residual_map": block_mean.reshape(14, 24) * n_views,  # views, NaN where too few samples
     }, cov
 
 

@@ -4,7 +4,7 @@
                                      like calibration patterns, from the fit's camera position)
     measure DIR -o crosstalk.json    the mixing matrix, the view cone, the derived figures with
                                      uncertainties, provenance; ``--report DIR`` the figures
-    check crosstalk.json --max-adjacent A --max-eye-pair E
+    check crosstalk.json --max-adjacent A --max-system S --max-eye-pair E
                                      pass (exit 0) or fail (exit 1, one line per failure)
 
 Every option and output path is checked before the long work; outputs are written atomically
@@ -49,9 +49,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     c = sub.add_parser("check", help="pass/fail a crosstalk measurement against limits",
                        description="pass (exit 0) or fail (exit 1) a crosstalk.json against limits")
     c.add_argument("file", metavar="FILE", help="crosstalk.json from 'crosstalk measure'")
-    c.add_argument("--max-adjacent", type=_fraction, metavar="A", help="limit of the adjacent crosstalk "
-                   "(fraction 0.08 or percent 8%%)")
-    c.add_argument("--max-eye-pair", type=_fraction, metavar="E", help="limit of the eye-pair crosstalk")
+    c.add_argument("--max-adjacent", type=_fraction, metavar="A", help="limit of the adjacent crosstalk: light "
+                   "from the two neighbouring views over the view's own light (fraction 0.9 or percent 90%%; above "
+                   "100%% on a sheet whose views overlap)")
+    c.add_argument("--max-system", type=_fraction, metavar="S", help="limit of the system crosstalk (IEC 62629): "
+                   "light from all other views over the view's own light")
+    c.add_argument("--max-eye-pair", type=_fraction, metavar="E", help="limit of the eye-pair crosstalk: light of the "
+                   "other eye's view over the eye's own view's light")
     c.set_defaults(run=run_check)
 
 
@@ -131,7 +135,8 @@ def run_measure(args: argparse.Namespace) -> int:
 
     from ..calib.crosstalk.measure import measure_crosstalk, open_crosstalk_set
     from ..calib.crosstalk.report import REPORT_FILES, write_crosstalk_report
-    from ..calib.crosstalk.result import crosstalk_document, write_crosstalk
+    from ..calib.crosstalk.result import (FIGURES, HEADLINE, OVER_100, crosstalk_document, describe_figure,
+                                          write_crosstalk)
     from ..errors import InputError
     from ..outputs import check_output_file, check_output_folder, staged_folder
     from ..profile import load_profile, make_provenance
@@ -161,7 +166,7 @@ def run_measure(args: argparse.Namespace) -> int:
                                            if not isinstance(v, list)}
     if args.report:
         with staged_folder(args.report, "crosstalk report", contents=REPORT_FILES) as stage:
-            write_crosstalk_report(measurement, stage, compensation=study)
+            write_crosstalk_report(measurement, stage, document, compensation=study)
             write_crosstalk(output, document)
     else:
         write_crosstalk(output, document)
@@ -169,39 +174,39 @@ def run_measure(args: argparse.Namespace) -> int:
         print(json.dumps(document, indent=2))
         return 0
     f = document["figures"]
-
-    def pct(key):
-        return f"{100 * f[key]['value']:.2f}% +- {100 * f[key]['sigma']:.2f}%"
-
-    print(f"own-view share {f['own_view_share']['value']:.4f} +- {f['own_view_share']['sigma']:.4f}; adjacent "
-          f"crosstalk {pct('adjacent_crosstalk')}; non-adjacent {pct('non_adjacent_crosstalk')}"
-          + (f"; eye pair ({eye:.2f} views) {pct('eye_pair_crosstalk')}" if eye is not None else ""))
+    for key in HEADLINE:  # one line each: the figure, what it is, its value with 1-sigma
+        if key not in f:
+            continue
+        line = describe_figure(key, f[key]["value"], f[key]["sigma"])
+        print(line + (f", eyes {eye:.2f} views apart" if key == "eye_pair_crosstalk" else ""))
+    if any(FIGURES[k][2] == "%" and v["value"] > 1.0 for k, v in f.items()):
+        print(f"note: {OVER_100}")
     c = document["compensation_prediction"]
     print(f"pre-compensation (--compensate {output} --black-lift 0.02) would bring the views seen at the zone centres "
-          f"from {c['mean_rms_without']:.4f} to {c['mean_rms_with']:.4f} RMS of the intended, residual crosstalk "
-          f"{c['residual_crosstalk_without']:.3f} -> {c['residual_crosstalk_with']:.3f}")
+          f"from {c['mean_rms_without']:.4f} to {c['mean_rms_with']:.4f} RMS of the intended (linear light 0..1), "
+          f"the system crosstalk of the resulting mixing from {100 * c['residual_crosstalk_without']:.1f}% to "
+          f"{100 * c['residual_crosstalk_with']:.1f}%")
     print(f"wrote {output}" + (f" and the report {args.report}" if args.report else "")
           + f" ({measurement.seconds:.1f} s)")
     return 0
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from ..calib.crosstalk.result import check_crosstalk, read_crosstalk
+    from ..calib.crosstalk.result import check_crosstalk, describe_figure, read_crosstalk
     from ..errors import InputError
 
-    if args.max_adjacent is None and args.max_eye_pair is None:
-        raise InputError("no limit given", source="--max-adjacent", hint="give --max-adjacent A and/or --max-eye-pair E")
+    if args.max_adjacent is None and args.max_eye_pair is None and args.max_system is None:
+        raise InputError("no limit given", source="--max-adjacent",
+                         hint="give --max-adjacent A, --max-system S and/or --max-eye-pair E")
     data = read_crosstalk(args.file)
-    failures = check_crosstalk(data, args.max_adjacent, args.max_eye_pair)
+    failures = check_crosstalk(data, args.max_adjacent, args.max_eye_pair, args.max_system)
     for line in failures:
         print(f"FAIL {args.file}: {line}")
     if failures:
         return 1
     f = data["figures"]
-    parts = []
-    if args.max_adjacent is not None:
-        parts.append(f"adjacent {100 * f['adjacent_crosstalk']['value']:.2f}% <= {100 * args.max_adjacent:.2f}%")
-    if args.max_eye_pair is not None:
-        parts.append(f"eye pair {100 * f['eye_pair_crosstalk']['value']:.2f}% <= {100 * args.max_eye_pair:.2f}%")
+    parts = [f"{describe_figure(key, f[key]['value'], definition=False)} <= {100 * limit:.2f}%"
+             for key, limit in (("adjacent_crosstalk", args.max_adjacent), ("total_crosstalk", args.max_system),
+                                ("eye_pair_crosstalk", args.max_eye_pair)) if limit is not None]
     print(f"PASS {args.file}: " + "; ".join(parts))
     return 0

@@ -292,9 +292,14 @@ def compensation_study(compensator: Compensator, true_matrix: np.ndarray, linear
 
     RETURNED VALUE
     dict: per zone RMS of (seen - intended) without and with compensation (``rms_without``,
-    ``rms_with``, lists of N), their means, and the residual crosstalk (off-diagonal light over
-    own light of the effective mixing, ``true M`` without and ``true M @ C`` with, where ``C`` is
-    the unconstrained solution).
+    ``rms_with``, lists of N; linear light), their means, and the residual crosstalk: the system
+    crosstalk (light from all other views over the view's own light, a ratio) of the effective
+    mixing, ``true M`` without and ``true M @ C`` with, where ``C`` is the unconstrained solution;
+    ``leak_offsets`` (view offsets -N/2..N/2-1) with ``leak_without`` / ``leak_with``: the light
+    from the view that far away over the own view's light, signed, mean over the views (the
+    residual crosstalk is the sum of their magnitudes off 0); ``example_intended``,
+    ``example_target`` (lifted by the black lift), ``example_seen_without``, ``example_seen_with``:
+    one test pixel across the N zones (linear light).
     """
     n = compensator.views
     target = compensator.target(linear_views)
@@ -313,7 +318,17 @@ def compensation_study(compensator: Compensator, true_matrix: np.ndarray, linear
         own = np.diag(m)
         return float(np.mean((np.abs(m).sum(axis=1) - np.abs(own)) / own))
 
+    offsets = np.arange(-(n // 2), n - n // 2)
+    rows = np.arange(n)
+
+    def leak(m):
+        return [float(np.mean(m[rows, (rows + k) % n] / np.diag(m))) for k in offsets]
+
     return {"rms_without": rms_without.tolist(), "rms_with": rms_with.tolist(),
+            "leak_offsets": offsets.tolist(), "leak_without": leak(np.asarray(true_matrix)),
+            "leak_with": leak(effective), "example_intended": np.asarray(linear_views)[:, 0].tolist(),
+            "example_target": np.asarray(target)[:, 0].tolist(), "example_seen_without": seen_without[:, 0].tolist(),
+            "example_seen_with": seen_with[:, 0].tolist(),
             "mean_rms_without": float(rms_without.mean()), "mean_rms_with": float(rms_with.mean()),
             "residual_crosstalk_without": residual(np.asarray(true_matrix)),
             "residual_crosstalk_with": residual(effective), "black_lift": compensator.black_lift,

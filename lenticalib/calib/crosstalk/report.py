@@ -4,14 +4,19 @@ Written into one folder (``lenticalib crosstalk measure --report DIR``, staged a
 
     view-cone.png     the angular profile of a view: share of the light at the eye from one view vs.
                       the eye's offset from that view's zone centre (views), linear and logarithmic,
-                      with the 1-sigma band and the matrix entries (integer offsets) marked
+                      with the 1-sigma band and the matrix entries (integer offsets) marked; the
+                      derived figures of ``crosstalk.json`` with their definitions
     matrix.png        the mixing matrix M (log colour scale, shares)
-    uniformity.png    own-view share per region of the panel (as photographed), with 1-sigma
+    uniformity.png    own-view share per region of the panel, on panel coordinates, with 1-sigma
     photos.png        the white photo (working pixels) with the panel, the centre region and the
-                      regions outlined, and the fitted sweep offset delta (views) across the panel
-    compensation.png  per zone: RMS error of the view seen vs. the intended one, with and without
-                      pre-compensation by the measured matrix (synthetic test views; the prediction
-                      if the matrix is right)
+                      regions outlined, and where the band sweep lies across the photo, with a
+                      caption saying what to look for
+    compensation.png  what pre-compensation by the measured matrix would do (synthetic test views; the
+                      prediction if the matrix is right): the light each other view leaks into a
+                      view, without and with, and one test pixel across the zones
+
+The numbers a figure states are those of ``crosstalk.json`` (the document), recorded in the PNG
+(:func:`lenticalib.calib.report.read_figure_record`).
 """
 
 from __future__ import annotations
@@ -20,32 +25,40 @@ from pathlib import Path
 
 import numpy as np
 
-FIGURE_SIZES = {"view-cone.png": (1600, 1200), "matrix.png": (1200, 1050), "uniformity.png": (1400, 900),
-                "photos.png": (1800, 800), "compensation.png": (1400, 800)}
+from .result import HEADLINE, describe_figure
+
+FIGURE_SIZES = {"view-cone.png": (1600, 1300), "matrix.png": (1200, 1050), "uniformity.png": (1400, 900),
+                "photos.png": (1800, 900), "compensation.png": (1800, 800)}
 REPORT_FILES = tuple(FIGURE_SIZES)
 
 
-def write_crosstalk_report(measurement, directory: str | Path, compensation: dict | None = None) -> Path:
-    """Write the figures of ``measurement`` (:class:`.measure.Measurement`) into ``directory``."""
+def write_crosstalk_report(measurement, directory: str | Path, document: dict,
+                           compensation: dict | None = None) -> Path:
+    """Write the figures of ``measurement`` (:class:`.measure.Measurement`) into ``directory``; the
+    numbers they state come from ``document`` (:func:`.result.crosstalk_document`) and the
+    ``compensation`` study (:func:`lenticalib.render.compensation.compensation_study`)."""
     from ..report import write_figures
 
     directory = Path(directory)
     directory.mkdir(exist_ok=True)
-    drawings = [("view-cone.png", _cone), ("matrix.png", _matrix), ("uniformity.png", _uniformity),
-                ("photos.png", _photos)]
+    drawings = [("view-cone.png", lambda fig, m: _cone(fig, m, document)), ("matrix.png", _matrix),
+                ("uniformity.png", lambda fig, m: _uniformity(fig, m, document)), ("photos.png", _photos)]
     if compensation is not None:
         drawings.append(("compensation.png", lambda fig, m: _compensation(fig, compensation)))
     write_figures(directory, drawings, FIGURE_SIZES, measurement)
     return directory
 
 
-def _cone(fig, m) -> None:
+def _cone(fig, m, document: dict) -> dict:
     n = m.views
     grid, cone, sigma = m.cone_grid, m.cone, m.cone_sigma
     offsets = np.arange(n) - n * (np.arange(n) >= n / 2)
     order = np.argsort(offsets)
+    figures = document["figures"]
+    gs = fig.add_gridspec(3, 1, height_ratios=(1.0, 1.0, 0.42), left=0.08, right=0.97, top=0.93, bottom=0.02,
+                          hspace=0.38)
     for k, log in enumerate((False, True)):
-        ax = fig.add_subplot(2, 1, k + 1)
+        ax = fig.add_subplot(gs[k])
         ax.fill_between(grid, np.maximum(cone - sigma, 1e-5), cone + sigma, color="tab:blue", alpha=0.25,
                         label="1-sigma")
         ax.plot(grid, np.maximum(cone, 1e-5), color="tab:blue", lw=1.5, label="measured view cone")
@@ -53,7 +66,7 @@ def _cone(fig, m) -> None:
                     color="tab:red", capsize=3, label="matrix entries M[i][i+m]")
         ax.set_xlim(-min(n / 2, 8), min(n / 2, 8))
         ax.set_xlabel("eye offset from the view's zone centre (views)")
-        ax.set_ylabel("share of the light at the eye")
+        ax.set_ylabel("share of the light at the eye (0..1)")
         ax.grid(alpha=0.3)
         if log:
             ax.set_yscale("log")
@@ -62,7 +75,14 @@ def _cone(fig, m) -> None:
         else:
             ax.set_title(f"View cone of one view ({n} views; centre region of the panel)")
             ax.legend(loc="upper right")
-    fig.tight_layout()
+    # the derived figures of crosstalk.json, each with what it is
+    ax = fig.add_subplot(gs[2])
+    ax.axis("off")
+    lines = [describe_figure(k, figures[k]["value"], figures[k]["sigma"], plus_minus="±") for k in HEADLINE
+             if k in figures]
+    ax.text(0.0, 1.0, "Derived figures (crosstalk.json; every crosstalk is leakage over signal, black-corrected):\n"
+            + "\n".join(lines), va="top", ha="left", fontsize=12, transform=ax.transAxes)
+    return {k: figures[k]["value"] for k in HEADLINE if k in figures}
 
 
 def _matrix(fig, m) -> None:
@@ -79,34 +99,50 @@ def _matrix(fig, m) -> None:
     fig.tight_layout()
 
 
-def _uniformity(fig, m) -> None:
+def _uniformity(fig, m, document: dict) -> dict:
+    uniformity = document["uniformity"]
+    values = np.array(uniformity["own_view_share"], dtype=float)  # None (not measured) -> NaN
+    sigma = np.array(uniformity["sigma"], dtype=float)
+    xe, ye = uniformity["columns_panel_x"], uniformity["rows_panel_y"]
     ax = fig.add_subplot(1, 1, 1)
-    values = m.regions
     finite = values[np.isfinite(values)]
     vmin = float(finite.min()) if finite.size else 0.0
     vmax = float(finite.max()) if finite.size else 1.0
-    image = ax.imshow(values, cmap="viridis", vmin=vmin - 0.01, vmax=vmax + 0.01, interpolation="nearest")
+    image = ax.pcolormesh(xe, ye, values, cmap="viridis", vmin=vmin - 0.01, vmax=vmax + 0.01)
+    ax.set_xlim(xe[0], xe[-1])
+    ax.set_ylim(ye[-1], ye[0])
+    ax.set_aspect("equal")
     for (j, i), v in np.ndenumerate(values):
         if np.isfinite(v):
-            ax.text(i, j, f"{v:.3f}\n+-{m.regions_sigma[j, i]:.3f}", ha="center", va="center", color="white",
-                    fontsize=11, bbox={"facecolor": "black", "alpha": 0.35, "pad": 1, "edgecolor": "none"})
-    ax.set_xticks(range(values.shape[1]))
-    ax.set_yticks(range(values.shape[0]))
-    ax.set_title("Own-view share per region of the panel (as photographed)")
-    ax.set_xlabel("region column (left to right)")
-    ax.set_ylabel("region row (top to bottom)")
+            ax.text((xe[i] + xe[i + 1]) / 2, (ye[j] + ye[j + 1]) / 2, f"{v:.3f}\n±{sigma[j, i]:.3f}", ha="center",
+                    va="center", color="white", fontsize=11,
+                    bbox={"facecolor": "black", "alpha": 0.35, "pad": 1, "edgecolor": "none"})
+    ax.set_xticks(xe)
+    ax.set_yticks(ye)
+    ax.set_xticklabels([f"{v:g}" for v in xe])
+    ax.set_yticklabels([f"{v:g}" for v in ye])
+    own = document["figures"]["own_view_share"]["value"]
+    ax.set_title(f"Own-view share per region of the panel ({values.shape[1]}x{values.shape[0]} regions, ± 1-sigma);"
+                 f"\nthe matrix is measured in the centre region: {own:.3f}")
+    ax.set_xlabel("panel x (pixels; regions divide the panel as photographed evenly)")
+    ax.set_ylabel("panel y (pixels)")
     bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.04)
-    bar.set_label("own-view share (fraction of the light)")
+    bar.set_label("own-view share (share of the light, 0..1)")
     fig.tight_layout()
+    return {"own_view_share": values.tolist(), "sigma": sigma.tolist(), "columns_panel_x": list(xe),
+            "rows_panel_y": list(ye), "centre_own_view_share": own}
 
 
-def _photos(fig, m) -> None:
+def _photos(fig, m) -> dict:
     import matplotlib.patches as patches
 
     white = m.images["white"]
+    n = m.views
     r0, r1, c0, c1 = m.images["region_box"]
     cr0, cr1, cc0, cc1 = m.images["centre_box"]
-    ax = fig.add_subplot(1, 2, 1)
+    gs = fig.add_gridspec(2, 2, height_ratios=(1.0, 0.2), left=0.05, right=0.95, top=0.92, bottom=0.03,
+                          wspace=0.25, hspace=0.25)
+    ax = fig.add_subplot(gs[0, 0])
     ax.imshow(white, cmap="gray", vmin=0, vmax=float(np.percentile(white, 99.5)))
     ax.add_patch(patches.Rectangle((c0, r0), c1 - c0, r1 - r0, fill=False, color="tab:orange", lw=1.5,
                                    label="panel (lit area)"))
@@ -116,26 +152,60 @@ def _photos(fig, m) -> None:
     ax.set_title("White photo, glare removed (linear light)")
     ax.set_xlabel("x (working pixels)")
     ax.set_ylabel("y (working pixels)")
-    ax = fig.add_subplot(1, 2, 2)
-    image = ax.imshow(m.images["delta"], cmap="twilight", interpolation="nearest")
-    ax.set_title("Fitted band offset delta across the photo")
+    ax = fig.add_subplot(gs[0, 1])
+    image = ax.imshow(m.images["delta"] % n, cmap="twilight", vmin=0, vmax=n, interpolation="nearest")
+    ax.set_title("How far the first band photo's band is from the camera's view\n(fitted from all band photos)")
     ax.set_xlabel("x (working pixels)")
     ax.set_ylabel("y (working pixels)")
     bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.04)
-    bar.set_label("offset of band-00 from the camera (views)")
-    fig.tight_layout()
+    bar.set_label(f"band-00's view minus the camera's view (views, cyclic 0..{n})")
+    caption = fig.add_subplot(gs[1, :])
+    caption.axis("off")
+    caption.text(0.0, 1.0, "Right: each band photo lights a one-view band that moves steadily across the panel from "
+                 "left to right; the measurement finds where it is at every camera pixel.\n"
+                 "Good: the colour changes smoothly and evenly from left to right and hardly at all from top to "
+                 "bottom (upright stripes, leaning at most as the panel does in the photo).\n"
+                 "Bad: stripes that tilt against the panel's edges, bend, or bunch up: the profile (slant, period) "
+                 "is not this panel's, or the camera moved between photos; the matrix then comes out too broad.",
+                 va="top", ha="left", fontsize=12, transform=caption.transAxes)
+    return {}
 
 
-def _compensation(fig, study: dict) -> None:
-    ax = fig.add_subplot(1, 1, 1)
-    zones = np.arange(len(study["rms_without"]))
-    ax.bar(zones - 0.2, study["rms_without"], width=0.4, label="without compensation", color="tab:gray")
-    ax.bar(zones + 0.2, study["rms_with"], width=0.4, label="with pre-compensation", color="tab:green")
-    ax.set_title(f"Seen vs. intended view at each zone centre, test views (black lift {study['black_lift']:g}): "
-                 f"residual crosstalk {study['residual_crosstalk_without']:.2f} -> {study['residual_crosstalk_with']:.2f}",
-                 fontsize=11)
-    ax.set_xlabel("zone (view index)")
-    ax.set_ylabel("RMS error (linear light, 0..1)")
-    ax.legend(loc="center right")
+def _compensation(fig, study: dict) -> dict:
+    n = len(study["rms_without"])
+    offsets = np.asarray(study["leak_offsets"])
+    without, with_ = 100 * np.asarray(study["leak_without"]), 100 * np.asarray(study["leak_with"])
+    other = offsets != 0
+    sys_without, sys_with = study["residual_crosstalk_without"], study["residual_crosstalk_with"]
+    rms_without, rms_with = study["mean_rms_without"], study["mean_rms_with"]
+    ax = fig.add_subplot(1, 2, 1)
+    ax.bar(offsets[other] - 0.2, without[other], width=0.4, color="tab:gray", label="without compensation")
+    ax.bar(offsets[other] + 0.2, with_[other], width=0.4, color="tab:green", label="with pre-compensation")
+    ax.axhline(0, color="black", lw=0.8)
+    ax.set_xlim(-min(n / 2, 8) - 0.5, min(n / 2, 8) + 0.5)
+    ax.set_title(f"Light each other view leaks into a view (signed; own view = 100 %):\nsystem crosstalk, the sum "
+                 f"of the magnitudes, {100 * sys_without:.1f}% → {100 * sys_with:.1f}%", fontsize=12)
+    ax.set_xlabel("offset of the leaking view (views)")
+    ax.set_ylabel("light over the view's own light (%)")
+    ax.legend(loc="upper right")
     ax.grid(alpha=0.3, axis="y")
-    fig.tight_layout()
+    ax = fig.add_subplot(1, 2, 2)
+    zones = np.arange(n)
+    ax.plot(zones, study["example_intended"], color="black", lw=2, label="intended")
+    ax.plot(zones, study["example_target"], color="black", lw=1, ls="--",
+            label=f"intended, black lifted by {study['black_lift']:g}")
+    ax.plot(zones, study["example_seen_without"], color="tab:gray", lw=2, marker="o", ms=4,
+            label="seen without compensation")
+    ax.plot(zones, study["example_seen_with"], color="tab:green", lw=2, marker="o", ms=4,
+            label="seen with pre-compensation")
+    ax.set_title(f"One test pixel as the eye at each zone centre sees it; over all test pixels\nRMS seen - intended "
+                 f"{rms_without:.4f} → {rms_with:.4f} (linear light, 0..1)", fontsize=12)
+    ax.set_xlabel("zone (view index)")
+    ax.set_ylabel("light (linear, 0..1)")
+    ax.legend(loc="best", fontsize=10)
+    ax.grid(alpha=0.3)
+    fig.suptitle("Pre-compensation with the measured matrix, as predicted if the matrix is right (synthetic test "
+                 f"views, black lift {study['black_lift']:g})", fontsize=14)
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
+    return {"residual_crosstalk_without": sys_without, "residual_crosstalk_with": sys_with,
+            "mean_rms_without": rms_without, "mean_rms_with": rms_with}

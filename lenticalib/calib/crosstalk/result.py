@@ -1,12 +1,17 @@
 """``crosstalk.json``: the measured mixing matrix, the figures derived from it, reading and checking.
 
-Definitions (``docs/crosstalk.md``), for a circulant ``M`` with row ``h = M[i]`` (``h[m]`` the
-share of the light an eye at the centre of a view's zone receives from the view ``m`` further
-on, ``m`` modulo N):
+Definitions (``docs/crosstalk.md``; :data:`FIGURES` holds them for the document, the check's
+messages and the report), for a circulant ``M`` with row ``h = M[i]`` (``h[m]`` the share of the
+light an eye at the centre of a view's zone receives from the view ``m`` further on, ``m``
+modulo N).  Every crosstalk is leakage over signal (Woods 2012), black-corrected, a ratio (x 100
+= %) that exceeds 100 % when the leaking views together are brighter than the view itself:
 
-    own-view share          h[0]
-    adjacent crosstalk      (h[1] + h[-1]) / h[0]           (Woods: leakage over signal, black-corrected)
+    own-view share          h[0], a share 0..1
+    adjacent crosstalk      (h[1] + h[-1]) / h[0]
     non-adjacent crosstalk  sum_{2 <= |m| <= N/2} h[m] / h[0]
+    system crosstalk        (1 - h[0]) / h[0]: all other views over the view's own light, the
+                            system crosstalk of IEC 62629 for autostereoscopic displays (key
+                            ``total_crosstalk``)
     eye-pair crosstalk      h[e] / h[0], e = the eye separation rounded to whole views (the mean
                             of +e and -e: what each eye of a centred viewer gets of the other's view)
 """
@@ -25,6 +30,39 @@ from ...errors import InputError
 
 FORMAT_NAME = "lenticalib.crosstalk"
 FORMAT_VERSION = 1
+
+
+# key in crosstalk.json "figures": (name, what it is, in a few words), and the unit it is quoted in
+FIGURES = {
+    "own_view_share": ("own-view share", "the share of the light at a view's zone centre that comes from that view",
+                       "share"),
+    "adjacent_left_share": ("left neighbour's share", "the share of the light from the view one lower", "share"),
+    "adjacent_right_share": ("right neighbour's share", "the share of the light from the view one higher", "share"),
+    "adjacent_crosstalk": ("adjacent crosstalk", "light from the two neighbouring views over the view's own light",
+                           "%"),
+    "non_adjacent_crosstalk": ("non-adjacent crosstalk", "light from the views two or more away over the view's own "
+                               "light", "%"),
+    "total_crosstalk": ("system crosstalk", "light from all other views over the view's own light, IEC 62629's "
+                        "system crosstalk", "%"),
+    "eye_pair_crosstalk": ("eye-pair crosstalk", "light of the other eye's view over the eye's own view's light",
+                           "%"),
+}
+HEADLINE = ("own_view_share", "adjacent_crosstalk", "non_adjacent_crosstalk", "total_crosstalk", "eye_pair_crosstalk")
+OVER_100 = ("a crosstalk above 100 % means the leaking views together send more light than the view itself: normal "
+            "for the adjacent and system crosstalk of a multi-view lens sheet whose neighbouring views overlap (smooth "
+            "motion parallax); ghosting between the eyes is the eye-pair crosstalk")
+
+
+def describe_figure(key: str, value: float, sigma: float | None = None, definition: bool = True,
+                    plus_minus: str = "+-") -> str:
+    """``name (what it is) value [+- sigma]``, in the figure's unit (a share to 4 digits, a crosstalk
+    in % to 2); ``definition=False`` leaves out what it is."""
+    name, what, unit = FIGURES[key]
+    if unit == "%":
+        text = f"{100 * value:.2f}%" + (f" {plus_minus} {100 * sigma:.2f}%" if sigma is not None else "")
+    else:
+        text = f"{value:.4f}" + (f" {plus_minus} {sigma:.4f}" if sigma is not None else "")
+    return f"{name} ({what}) {text}" if definition else f"{name} {text}"
 
 
 def derived_figures(row: np.ndarray, eye_separation: float | None) -> dict[str, float]:
@@ -74,6 +112,16 @@ def _r(value: float, digits: int = 6):
     return None if value is None or not math.isfinite(value) else round(float(value), digits)
 
 
+def region_edges(width: int, height: int, shape: tuple[int, int]) -> dict[str, list[float]]:
+    """The uniformity regions' edges in panel pixels: ``columns_panel_x`` (cols + 1), ``rows_panel_y``
+    (rows + 1) for a (rows, cols) grid.  The regions divide the panel's outline in the photo evenly,
+    so these edges are approximate: the photo's perspective moves them (by a few pixels for a camera
+    facing the panel)."""
+    rows, cols = shape
+    return {"columns_panel_x": [round(width * i / cols, 1) for i in range(cols + 1)],
+            "rows_panel_y": [round(height * j / rows, 1) for j in range(rows + 1)]}
+
+
 def crosstalk_document(measurement, eye_separation: float | None, eye_note: str | None,
                        provenance: Mapping[str, Any]) -> dict[str, Any]:
     """The JSON document of a measurement (see ``docs/crosstalk.md`` for every key)."""
@@ -93,13 +141,17 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
         "matrix_sigma": [[_r(v) for v in r] for r in sigma],
         "circulant_row": [_r(v) for v in m.row], "circulant_row_sigma": [_r(v) for v in m.row_sigma],
         "figures": {k: {"value": _r(v["value"]), "sigma": _r(v["sigma"])} for k, v in figures.items()},
+        "figure_definitions": {k: {"name": FIGURES[k][0], "definition": FIGURES[k][1],
+                                   "unit": "share 0..1" if FIGURES[k][2] == "share" else
+                                   "ratio, leakage over signal (x 100 = %)"} for k in figures},
         "per_view": per_view,
         "eye_separation_views": _r(eye_separation, 4), "eye_separation_note": eye_note,
         "view_cone": {"offsets_views": [_r(v, 5) for v in m.cone_grid], "share": [_r(v) for v in m.cone],
                       "sigma": [_r(v) for v in m.cone_sigma]},
         "uniformity": {"grid": list(m.regions.shape[::-1]), "own_view_share": [[_r(v) for v in r] for r in m.regions],
                        "sigma": [[_r(v) for v in r] for r in m.regions_sigma],
-                       "layout": "rows top to bottom, columns left to right, over the panel as photographed"},
+                       "layout": "rows top to bottom, columns left to right, over the panel as photographed",
+                       **region_edges(m.profile.width, m.profile.height, m.regions.shape)},
         "photometry": m.photometry, "diagnostics": diag, "warnings": list(m.warnings),
         "profile": {k: v for k, v in m.profile.to_dict().items() if k != "provenance"},
         "provenance": dict(provenance),
@@ -141,21 +193,25 @@ def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: st
     return data
 
 
-def check_crosstalk(data: Mapping[str, Any], max_adjacent: float | None, max_eye_pair: float | None) -> list[str]:
-    """One line per failed limit (empty: pass).  Limits are fractions (0.08 = 8 %)."""
+def check_crosstalk(data: Mapping[str, Any], max_adjacent: float | None, max_eye_pair: float | None,
+                    max_system: float | None = None) -> list[str]:
+    """One line per failed limit (empty: pass).  Limits are fractions (0.08 = 8 %).  Each line names
+    the figure with its definition (:data:`FIGURES`), and says what a crosstalk above 100 % means."""
     failures = []
     figures = data.get("figures", {})
-    if max_adjacent is not None:
-        value = (figures.get("adjacent_crosstalk") or {}).get("value")
+    for key, limit in (("adjacent_crosstalk", max_adjacent), ("total_crosstalk", max_system),
+                       ("eye_pair_crosstalk", max_eye_pair)):
+        if limit is None:
+            continue
+        value = (figures.get(key) or {}).get("value")
         if value is None:
-            failures.append("adjacent crosstalk is missing from the file")
-        elif value > max_adjacent:
-            failures.append(f"adjacent crosstalk {100 * value:.2f}% exceeds the limit {100 * max_adjacent:.2f}%")
-    if max_eye_pair is not None:
-        value = (figures.get("eye_pair_crosstalk") or {}).get("value")
-        if value is None:
-            failures.append("eye-pair crosstalk was not measured (measure with --eye-separation VIEWS)")
-        elif value > max_eye_pair:
-            failures.append(f"eye-pair crosstalk {100 * value:.2f}% exceeds the limit {100 * max_eye_pair:.2f}% "
-                            f"(eye separation {data.get('eye_separation_views')} views)")
+            failures.append(f"{FIGURES[key][0]} was not measured (measure with --eye-separation VIEWS)"
+                            if key == "eye_pair_crosstalk" else f"{FIGURES[key][0]} is missing from the file")
+        elif value > limit:
+            line = f"{describe_figure(key, value)} exceeds the limit {100 * limit:.2f}%"
+            if key == "eye_pair_crosstalk":
+                line += f" (eye separation {data.get('eye_separation_views')} views)"
+            if value > 1.0:
+                line += f"; {OVER_100}"
+            failures.append(line)
     return failures
