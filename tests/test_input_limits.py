@@ -387,3 +387,36 @@ def test_huge_images_are_one_line_through_the_cli_and_the_photo_size_check(huge_
         fh.write(_npy_header((20000, 20000), "|u1"))
         fh.truncate(fh.tell() + 20000 * 20000)
     assert "is 20000x20000 pixels" in _raises_one_line(lambda: read_image(npy), ImageError)
+
+
+def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_header(tmp_path, capsys):
+    """The issue's 186 KB 8000x8000 PNG (64 megapixels: under the general limit, so decoded today at
+    1.3 GB) as one view of a folder, as a slide of a pattern set and as a photo the simulator takes:
+    refused from its header, naming the size that was due, with no pixel decoded."""
+    from lenticalib.render.slides import slides_from_path
+
+    big = _grey_png(8000, 8000)
+    assert len(big) < 200_000
+    views = tmp_path / "views"
+    views.mkdir()
+    small = np.zeros((SMALL["height"] // 2, SMALL["width"] // 4, 3), np.uint8)
+    from lenticalib.imageio import write_image
+
+    for i in range(SMALL["views"]):
+        write_image(views / f"v{i}.png", small)
+    (views / f"v{SMALL['views'] - 1}.png").write_bytes(big)
+    profile = save_profile(PanelProfile(**SMALL), tmp_path / "p.json")
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    line = _refused(["encode", "--profile", profile, "--views", views, "-o", tmp_path / "out.png"], capsys,
+                    views / f"v{SMALL['views'] - 1}.png")
+    assert f"is 8000x8000 pixels, v0.png is {small.shape[1]}x{small.shape[0]}" in line
+    assert "all views must have one size" in line
+    grown = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) * 1024
+    assert grown < 64 * 2 ** 20, f"peak RSS grew by {grown / 2 ** 20:.0f} MiB"
+    slides = tmp_path / "slides"
+    slides.mkdir()
+    write_image(slides / "a.png", small)
+    (slides / "b.png").write_bytes(big)
+    shown, size = slides_from_path(slides)
+    with pytest.raises(ImageError, match=r"b.png: is 8000x8000 pixels, a.png is"):
+        shown[1].load()
