@@ -19,22 +19,14 @@ from pathlib import Path
 import pytest
 
 from lenticalib.calib.patterns import design_patterns, write_patterns
-from lenticalib.cli import main
+
+from .test_cli_outputs import _run
 
 REPO = Path(__file__).resolve().parent.parent
 FIXTURE = REPO / "fixtures" / "capture-demo"
 PROFILE = REPO / "fixtures" / "panel-4k-32.json"
 SMALL_PROFILE = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4, "width": 640,
                  "height": 360, "subpixel_order": "RGB"}
-
-
-def _run(argv, capsys):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 def _refused(argv, capsys) -> str:
