@@ -23,28 +23,23 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..fields import is_finite_number, short_repr
 from .rig import ControlLayout
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)  # the largest control value (controls are float32)
 FLOAT64_MAX = sys.float_info.max                # the largest time (times are float64)
-SHOW_CHARS = 40                                  # a bad value or key is quoted up to this many characters
+SHOW_CHARS = 40                                  # a bad value or key is quoted up to about this many characters
 
 
 def is_number(value: Any, limit: float = FLOAT32_MAX) -> bool:
     """A JSON number (not a bool) with ``|value| <= limit``: finite once converted (no OverflowError for huge ints)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    return (isinstance(value, int) or math.isfinite(value)) and abs(value) <= limit
+    return is_finite_number(value) and abs(value) <= limit
 
 
 def show(value: Any) -> str:
-    """``repr(value)`` shortened to :data:`SHOW_CHARS` characters, for one-line messages about hostile input."""
-    try:
-        text = repr(value)
-    except (RecursionError, ValueError):  # nested too deep; an int beyond Python's digit limit
-        text = f"<{type(value).__name__}>"
-    return text if len(text) <= SHOW_CHARS else text[:SHOW_CHARS - 3] + "..."
+    """``repr(value)`` shortened for one-line messages about hostile input (never raises)."""
+    return short_repr(value, SHOW_CHARS)
 
 
 def number_problem(where: str, value: Any, limit: float = FLOAT32_MAX) -> str:
