@@ -308,9 +308,21 @@ def _copy_set(folder, tmp_path):
     return target
 
 
-def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile):
+def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile, monkeypatch):
+    """A duplicate and a photo of another pattern are named, before the cone fit of the whole panel
+    (only the check's own fits of a few thousand working pixels run)."""
+    from lenticalib.calib.crosstalk import cone
+    from lenticalib.calib.crosstalk.checks import CHECK_SAMPLES
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
 
+    fitted = []
+    real_fit_cone = cone.fit_cone
+
+    def recording_fit_cone(ratios, *args, **kwargs):
+        fitted.append(len(ratios))
+        return real_fit_cone(ratios, *args, **kwargs)
+
+    monkeypatch.setattr(cone, "fit_cone", recording_fit_cone)
     folder = _copy_set(measured_set[0], tmp_path)
     captures = folder / "captures"
     shutil.copy(captures / "band-05.png", captures / "band-02.png")
@@ -322,6 +334,7 @@ def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile):
     with pytest.raises(CaptureError, match="does not show pattern band-07") as err:
         measure_crosstalk(folder, profile, photos="linear")
     assert "band-07.png" in str(err.value)
+    assert fitted and max(fitted) <= CHECK_SAMPLES, fitted  # no fit of the whole panel before the refusal
 
 
 def test_bad_inputs_end_in_one_line(measured_set, tmp_path, capsys, profile):

@@ -194,8 +194,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     bands = pattern_set.bands
     check_distinct(ratios, bands, capture)
     band_shifts = np.array([p.shift for p in bands])
+    check_band_photos(ratios, rows, cols, band_shifts, bands, capture, n, mask.shape)
     panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
-    check_band_photos(panel_fit, ratios, rows, cols, band_shifts, bands, capture, mask.shape)
     if progress:
         progress("view cone")
     r0, r1, c0, c1 = _bounding_box(mask)
