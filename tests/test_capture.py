@@ -15,6 +15,7 @@ import pytest
 
 from lenticalib.calib import acquire
 from lenticalib.calib.cameras import open_camera
+from lenticalib.calib.captures import load_photo
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.fit import fit_capture_set
 from lenticalib.calib.patterns import design_patterns, write_patterns
@@ -194,3 +195,95 @@ def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp
     data = json.loads((tmp_path / "crosstalk.json").read_text())
     assert len(data["matrix"]) == VIEWS
     assert abs(data["matrix"][0][0] - truth[0, 0]) <= 3 * data["matrix_sigma"][0][0] + 0.005
+
+
+# ---------------------------------------------------------------------------------------------
+# the "unchanged photo" rule at the panel's own size: 3840x2160, 32 views, a small virtual camera
+# ---------------------------------------------------------------------------------------------
+
+W4K, H4K, VIEWS_4K = 3840, 2160, 32
+SENSOR_4K = (1250, 800)  # the fit's 1 megapixel: the fine fringes are barely resolved
+
+
+@pytest.fixture(scope="module")
+def captured_4k(tmp_path_factory):
+    """A 4K pattern set captured by the virtual camera through ``capture_set``."""
+    folder = tmp_path_factory.mktemp("capture-4k") / "cal"
+    write_patterns(folder, design_patterns(W4K, H4K, VIEWS_4K))
+    notes = []
+    with open_camera("sim:2", resolution=SENSOR_4K) as camera, open_presenter("none", (W4K, H4K)) as presenter:
+        report = acquire.capture_set(folder, presenter, camera, settle=0.0, notify=notes.append)
+    return folder, report, notes
+
+
+def _check_image(path):
+    return acquire.check_image(load_photo(path.stem, path, max_width=acquire.CHECK_WIDTH))
+
+
+def _photograph(pattern_folder, raster_name, name, path):
+    """What the virtual camera of ``captured_4k`` takes of pattern ``raster_name`` of
+    ``pattern_folder`` as photo ``name`` (that name's noise), written to ``path``."""
+    from lenticalib.render.slides import slides_from_path
+    from lenticalib.sim.capture import photograph_pattern
+    from lenticalib.sim.scene import random_scene
+
+    scene = random_scene(2, width=W4K, height=H4K, resolution=SENSOR_4K)
+    slide = {s.name: s for s in slides_from_path(pattern_folder)[0]}[raster_name]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(photograph_pattern(scene, name, slide.load()))
+    return path
+
+
+def test_a_4k_set_is_captured_with_no_photo_taken_for_unchanged(captured_4k):
+    """Fine fringes (f16, f22) barely resolved by a 1-megapixel camera still pass: their step is
+    judged against two photos of one pattern, not against a fixed share of the light."""
+    folder, report, notes = captured_4k
+    assert len(report.taken) == 23 and report.retakes == {}, notes
+    assert not (folder / "rejected").exists()
+    assert (folder / "repeat" / "x0-0.jpg").is_file()  # the first photo, taken again: the noise yardstick
+    record = json.loads((folder / "simulation.json").read_text())
+    assert record["status"] == "complete" and len(record["captures"]) == 23  # the repeat is not a pattern's photo
+
+
+def test_unchanged_photos_are_rejected_and_fine_steps_pass(captured_4k, tmp_path):
+    folder, _, _ = captured_4k
+    captures = folder / "captures"
+    noise = acquire.repeat_noise(captures / "x0-0.jpg", folder / "repeat" / "x0-0.jpg", "x0-0")
+    assert noise > 0
+    for previous, step in (("f16-0", "f16-1"), ("f22-1", "f22-2"), ("x0-0", "x0-1")):
+        others = [_check_image(captures / f"{previous}.jpg")]
+        size = SENSOR_4K
+        # the real next step passes
+        assert acquire.photo_problem(step, captures / f"{step}.jpg", size, others, noise, "sim") is None, step
+        # an exact repeat of the previous photo, filed as the next step, is rejected
+        exact = tmp_path / "exact" / f"{step}.jpg"
+        exact.parent.mkdir(exist_ok=True)
+        shutil.copyfile(captures / f"{previous}.jpg", exact)
+        problem = acquire.photo_problem(step, exact, size, others, noise, "sim")
+        assert problem is not None and "same image" in problem.message, step
+        # the camera fired before the panel changed: the previous pattern, photographed with new noise
+        stale = _photograph(folder, previous, step, tmp_path / "stale" / f"{step}.jpg")
+        problem = acquire.photo_problem(step, stale, size, others, noise, "sim")
+        assert problem is not None and "no more than two photos of one pattern" in problem.message, step
+        assert "focus" not in problem.hint and "virtual camera" in problem.hint  # advice for this camera
+
+
+def test_a_dark_band_step_passes_and_an_unchanged_band_does_not(captured_4k, tmp_path):
+    """The crosstalk bands of the capture's own true profile: a band moved by a tenth of the view
+    cone moves little light, yet clearly more than noise; the band photographed again does not."""
+    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
+
+    folder, _, _ = captured_4k
+    xt = tmp_path / "xt"
+    write_patterns(xt, design_crosstalk_patterns(load_profile(folder / "truth.json")))
+    # the yardstick as the capture measures it: its first pattern (black) photographed twice
+    black = _photograph(xt, "black", "black", xt / "captures" / "black.jpg")
+    noise = acquire.repeat_noise(black, _photograph(xt, "black", "black.repeat", xt / "repeat" / "black.jpg"), "black")
+    first = _photograph(xt, "band-00", "band-00", xt / "captures" / "band-00.jpg")
+    others = [_check_image(first)]
+    size = SENSOR_4K
+    moved = _photograph(xt, "band-01", "band-01", xt / "captures" / "band-01.jpg")
+    assert acquire.photo_problem("band-01", moved, size, others, noise, "sim") is None
+    stale = _photograph(xt, "band-00", "band-01", xt / "stale" / "band-01.jpg")
+    problem = acquire.photo_problem("band-01", stale, size, others, noise, "sim")
+    assert problem is not None and "same image" in problem.message
