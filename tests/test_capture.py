@@ -248,7 +248,7 @@ def test_a_4k_set_is_captured_with_no_photo_taken_for_unchanged(captured_4k):
 def test_unchanged_photos_are_rejected_and_fine_steps_pass(captured_4k, tmp_path):
     folder, _, _ = captured_4k
     captures = folder / "captures"
-    noise = acquire.repeat_noise(captures / "x0-0.jpg", folder / "repeat" / "x0-0.jpg", "x0-0")
+    noise = acquire.change_energy(_check_image(captures / "x0-0.jpg"), _check_image(folder / "repeat" / "x0-0.jpg"))
     assert noise > 0
     for previous, step in (("f16-0", "f16-1"), ("f22-1", "f22-2"), ("x0-0", "x0-1")):
         others = [_check_image(captures / f"{previous}.jpg")]
@@ -278,7 +278,8 @@ def test_a_dark_band_step_passes_and_an_unchanged_band_does_not(captured_4k, tmp
     write_patterns(xt, design_crosstalk_patterns(load_profile(folder / "truth.json")))
     # the yardstick as the capture measures it: its first pattern (black) photographed twice
     black = _photograph(xt, "black", "black", xt / "captures" / "black.jpg")
-    noise = acquire.repeat_noise(black, _photograph(xt, "black", "black.repeat", xt / "repeat" / "black.jpg"), "black")
+    repeat = _photograph(xt, "black", "black.repeat", xt / "repeat" / "black.jpg")
+    noise = acquire.change_energy(_check_image(black), _check_image(repeat))
     first = _photograph(xt, "band-00", "band-00", xt / "captures" / "band-00.jpg")
     others = [_check_image(first)]
     size = SENSOR_4K

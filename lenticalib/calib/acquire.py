@@ -86,28 +86,34 @@ def photo_problem(name: str, path: Path, size: tuple[int, int] | None, others: l
 
     ``size``: (width, height) the set's photos have (None for the first); ``others``: check
     images (:func:`check_image`) of the photos already taken in the same group; ``noise``: the
-    change energy between two photos of one unchanged panel (:func:`repeat_noise`; 0: only an
+    change energy between two photos of one unchanged panel (:func:`change_energy`; 0: only an
     identical photo counts as unchanged); ``camera_kind``: the camera's kind, for the hints.
     """
+    return _examine(name, path, size, others, noise, camera_kind)[0]
+
+
+def _examine(name, path, size, others, noise, camera_kind) -> tuple[Problem | None, tuple[int, int], np.ndarray | None]:
+    """:func:`photo_problem`, and the photo's (width, height) and check image (None if unreadable)."""
     camera_hint = (VIRTUAL_HINT if camera_kind == "sim" else
                    "fix the camera (exposure, focus, position) and run the capture again: it resumes here")
     try:
         photo = load_photo(name, path, max_width=CHECK_WIDTH)
         check_exposure(photo)
     except LenticalibError as exc:
-        return Problem(exc.message, camera_hint)
-    if size is not None and (photo.shape[1], photo.shape[0]) != tuple(size):
-        return Problem(f"is {photo.shape[1]}x{photo.shape[0]} pixels, the other photos are {size[0]}x{size[1]} "
-                       "(zoom or resolution changed)", camera_hint)
+        return Problem(exc.message, camera_hint), (0, 0), None
+    taken = (photo.shape[1], photo.shape[0])
+    if size is not None and taken != tuple(size):
+        return Problem(f"is {taken[0]}x{taken[1]} pixels, the other photos are {size[0]}x{size[1]} "
+                       "(zoom or resolution changed)", camera_hint), taken, None
     bright = photo.luma > 0.5 * float(np.percentile(photo.luma, 99))
     if bright.any() and float(photo.clipped[bright].mean()) > MAX_CLIPPED:
         return Problem(f"is overexposed ({100 * float(photo.clipped[bright].mean()):.0f}% of the bright part "
-                       "clipped)", camera_hint)
+                       "clipped)", camera_hint), taken, None
     image = check_image(photo)
     for other in others:
         if other.shape == image.shape and change_energy(other, image) <= max(UNCHANGED_FACTOR * noise, EXACT):
-            return Problem(_unchanged_message(noise), _unchanged_hint(camera_kind))
-    return None
+            return Problem(_unchanged_message(noise), _unchanged_hint(camera_kind)), taken, image
+    return None, taken, image
 
 
 EXACT = 1e-12  # change energy of two identical photos (rounding only)
@@ -156,20 +162,6 @@ def change_energy(before: np.ndarray, after: np.ndarray) -> float:
     return float(np.mean((b - gain * a) ** 2))
 
 
-def repeat_noise(first: Path, repeat: Path, name: str) -> float:
-    """The change energy between two photos of pattern ``name`` shown once: the camera's noise.
-
-    CaptureError naming ``repeat`` when it cannot be read or is of another size.
-    """
-    a = load_photo(name, first, max_width=CHECK_WIDTH)
-    b = load_photo(name, repeat, max_width=CHECK_WIDTH)
-    if a.shape != b.shape:
-        raise CaptureError(f"is {b.shape[1]}x{b.shape[0]} pixels, {first.name} is {a.shape[1]}x{a.shape[0]}",
-                           source=str(repeat), hint="the camera changed between the two photos; run the capture "
-                                                    "again with --restart")
-    return change_energy(check_image(a), check_image(b))
-
-
 def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: float = 0.5, retakes: int = 2,
                 restart: bool = False, progress: Callable[[str], None] | None = None,
                 notify: Callable[[str], None] | None = None,
@@ -205,7 +197,9 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
             _reject(directory, old, pattern.name)
             old = None
         shown = None
-        if old is not None and photo_problem(pattern.name, old, size, others, noise or 0.0, camera.kind) is None:
+        problem, taken, image = (_examine(pattern.name, old, size, others, noise or 0.0, camera.kind)
+                                 if old is not None else (None, None, None))
+        if old is not None and problem is None:
             report.kept.append(pattern.name)
             path = old
             if progress:
@@ -214,11 +208,10 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
             if old is not None:
                 _reject(directory, old, pattern.name)
             shown = _show(presenter, camera, slides[pattern.name])
-            problem = None
             for attempt in range(retakes + 1):
                 sleep(settle * (1 + attempt))  # a repeated step: give the panel longer
                 path = camera.capture(pattern.name, shown, captures / pattern.name)
-                problem = photo_problem(pattern.name, path, size, others, noise or 0.0, camera.kind)
+                problem, taken, image = _examine(pattern.name, path, size, others, noise or 0.0, camera.kind)
                 if problem is None:
                     break
                 report.retakes[pattern.name] = report.retakes.get(pattern.name, 0) + 1
@@ -232,12 +225,11 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
             report.taken.append(pattern.name)
             if progress:
                 progress(f"{pattern.name}: {path.name}")
-        photo = load_photo(pattern.name, path, max_width=CHECK_WIDTH)
-        size = (photo.shape[1], photo.shape[0])
-        others.append(check_image(photo))
+        size = taken
+        others.append(image)
         if noise is None:
-            noise = _measure_noise(directory, pattern.name, path, slides[pattern.name], presenter, camera, shown,
-                                   settle, sleep, fresh=restart or shown is not None)
+            noise = _measure_noise(directory, pattern.name, path, image, taken, slides[pattern.name], presenter,
+                                   camera, shown, settle, sleep, fresh=restart or shown is not None)
     report.seconds = time.perf_counter() - start
     return report
 
@@ -249,13 +241,14 @@ def _show(presenter, camera, slide) -> np.ndarray:
     return presenter.read_back() if camera.kind == "sim" else raster
 
 
-def _measure_noise(directory: Path, name: str, photo: Path, slide, presenter, camera, shown, settle: float,
-                   sleep: Callable[[float], None], fresh: bool) -> float:
-    """:func:`repeat_noise` of the photo of pattern ``name`` and its repeat ``DIR/repeat/NAME.jpg``.
+def _measure_noise(directory: Path, name: str, photo: Path, image: np.ndarray, taken: tuple[int, int], slide,
+                   presenter, camera, shown, settle: float, sleep: Callable[[float], None], fresh: bool) -> float:
+    """The change energy between the photo of pattern ``name`` (its check image ``image``, its
+    size ``taken``) and its repeat ``DIR/repeat/NAME.jpg``: the camera's noise.
 
     An earlier repeat is used when the photo was kept (``fresh`` False); otherwise it goes to
     ``rejected/`` and a new one is taken of the pattern, shown again if it no longer is
-    (``shown`` None).
+    (``shown`` None).  CaptureError naming the repeat when it fails the checks of a photo.
     """
     folder = directory / REPEAT_FOLDER
     repeat_name = name + REPEAT_SUFFIX
@@ -268,12 +261,11 @@ def _measure_noise(directory: Path, name: str, photo: Path, slide, presenter, ca
             shown = _show(presenter, camera, slide)
         sleep(settle)
         repeat = camera.capture(repeat_name, shown, folder / name)
-    size = load_photo(name, photo, max_width=CHECK_WIDTH).shape
-    problem = photo_problem(name, repeat, (size[1], size[0]), [], 0.0, camera.kind)
+    problem, _, second = _examine(name, repeat, taken, [], 0.0, camera.kind)
     if problem is not None:
         raise CaptureError(f"{problem.message} (the second photo of {name}, which measures the camera's noise)",
                            source=str(repeat), hint=problem.hint)
-    return repeat_noise(photo, repeat, name)
+    return change_energy(image, second)
 
 
 def _prepared_folder(directory: Path, names: list[str]) -> Path:

@@ -86,7 +86,10 @@ def run(args: argparse.Namespace) -> int:
     retaken = sum(report.retakes.values())
     print(f"captured {len(report.taken)} photo(s), kept {len(report.kept)} from before, {retaken} retaken, "
           f"in {report.seconds:.1f} s: {directory / 'captures'}")
-    print(f"next: lenticalib fit {directory} -o profile.json")
+    if hasattr(pattern_set, "bands"):  # crosstalk patterns
+        print(f"next: lenticalib crosstalk measure {directory} -o crosstalk.json --report crosstalk-report")
+    else:
+        print(f"next: lenticalib fit {directory} -o profile.json")
     return 0
 
 
