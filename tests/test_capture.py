@@ -268,23 +268,43 @@ def test_unchanged_photos_are_rejected_and_fine_steps_pass(captured_4k, tmp_path
         assert "focus" not in problem.hint and "virtual camera" in problem.hint  # advice for this camera
 
 
-def test_a_dark_band_step_passes_and_an_unchanged_band_does_not(captured_4k, tmp_path):
-    """The crosstalk bands of the capture's own true profile: a band moved by a tenth of the view
-    cone moves little light, yet clearly more than noise; the band photographed again does not."""
-    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
+@pytest.fixture(scope="module")
+def captured_4k_crosstalk(captured_4k):
+    """Crosstalk patterns of the 4K capture's true profile, with the longest sweep (1.6 panel widths:
+    some bands pass the camera's view nowhere), captured by the same virtual camera."""
+    from lenticalib.calib.crosstalk.patterns import MAX_SWEEP_FRACTION, design_crosstalk_patterns
 
     folder, _, _ = captured_4k
-    xt = tmp_path / "xt"
-    write_patterns(xt, design_crosstalk_patterns(load_profile(folder / "truth.json")))
-    # the yardstick as the capture measures it: its first pattern (black) photographed twice
-    black = _photograph(xt, "black", "black", xt / "captures" / "black.jpg")
-    repeat = _photograph(xt, "black", "black.repeat", xt / "repeat" / "black.jpg")
-    noise = acquire.change_energy(_check_image(black), _check_image(repeat))
-    first = _photograph(xt, "band-00", "band-00", xt / "captures" / "band-00.jpg")
-    others = [_check_image(first)]
-    size = SENSOR_4K
-    moved = _photograph(xt, "band-01", "band-01", xt / "captures" / "band-01.jpg")
-    assert acquire.photo_problem("band-01", moved, size, others, noise, "sim") is None
-    stale = _photograph(xt, "band-00", "band-01", xt / "stale" / "band-01.jpg")
-    problem = acquire.photo_problem("band-01", stale, size, others, noise, "sim")
-    assert problem is not None and "same image" in problem.message
+    xt = folder.parent / "xt"
+    pattern_set = design_crosstalk_patterns(load_profile(folder / "truth.json"), MAX_SWEEP_FRACTION * W4K)
+    write_patterns(xt, pattern_set)
+    notes = []
+    with open_camera("sim:2", resolution=SENSOR_4K) as camera, open_presenter("none", (W4K, H4K)) as presenter:
+        report = acquire.capture_set(xt, presenter, camera, settle=0.0, notify=notes.append)
+    return xt, pattern_set, report, notes
+
+
+def test_every_crosstalk_band_is_captured_and_a_stale_band_is_not(captured_4k_crosstalk, tmp_path):
+    """A band moved by a tenth of the view cone moves little light, yet clearly more than noise; two
+    bands the camera sees nowhere give the same dark photo, rightly (the patterns say so); a band
+    photographed while the panel still showed the previous one is rejected."""
+    from lenticalib.calib.crosstalk.patterns import seen_columns
+
+    xt, pattern_set, report, notes = captured_4k_crosstalk
+    assert len(report.taken) == 14 and report.retakes == {}, notes
+    bands = pattern_set.bands
+    unseen = [b.name for b in bands if not seen_columns(pattern_set, b).any()]
+    assert len(unseen) >= 2  # the case the capture must not mistake for an unchanged panel
+    captures = xt / "captures"
+    noise = acquire.change_energy(_check_image(captures / "black.jpg"), _check_image(xt / "repeat" / "black.jpg"))
+    for previous, step in zip(bands, bands[1:]):
+        if seen_columns(pattern_set, previous).any() or seen_columns(pattern_set, step).any():
+            others = [_check_image(captures / f"{previous.name}.jpg")]
+            assert acquire.photo_problem(step.name, captures / f"{step.name}.jpg", SENSOR_4K, others, noise,
+                                         "sim") is None
+            stale = _photograph(xt, previous.name, step.name, tmp_path / f"{step.name}.jpg")
+            problem = acquire.photo_problem(step.name, stale, SENSOR_4K, others, noise, "sim")
+            assert problem is not None and "same image" in problem.message, step.name
+            break
+    else:
+        pytest.fail("no band is seen by the camera")

@@ -18,7 +18,9 @@ changed).  Every step of a group changes the panel a lot -- a fine fringe moved 
 its period, a band of views moved across the panel -- but may change the photo's light little
 (a fine fringe is averaged away in a small copy of the photo, a dark band moves little light),
 so the comparison is made at the check width, on the square root of the light (shot noise
-then has one size at every level).  The manual camera (the user presses the shutter, and may
+then has one size at every level).  Of a crosstalk set only steps the patterns say the camera
+sees differently are compared: a band is seen only where it passes the fitted camera's view
+(:func:`~.crosstalk.patterns.seen_columns`), and two bands seen nowhere give the same dark photo.  The manual camera (the user presses the shutter, and may
 take a while) takes no repeat: for it only an identical photo counts as unchanged.
 
 Resuming: photos already in ``captures/`` that pass the checks are kept, so an interrupted
@@ -46,6 +48,10 @@ REPEAT_FOLDER = "repeat"
 REPEAT_SUFFIX = ".repeat"  # the repeat photo's pattern name: NAME.repeat (the virtual camera draws fresh noise)
 UNCHANGED_FACTOR = 4.0  # a photo changed less than this many times two photos of one pattern differ: unchanged
 LEVEL_FLOOR = 0.01  # linear light added before the square root (read noise dominates below it)
+EXACT = 1e-12  # change energy of two identical photos (rounding only)
+MIN_SEEN_CHANGE = 0.01  # share of the panel's columns two crosstalk patterns must be seen differently in
+VIRTUAL_HINT = ("the virtual camera photographs what the presenter shows: run the capture again with "
+                "--display none (it resumes here), and report the rejected photos if it happens again")
 MAX_CLIPPED = 0.02  # of the bright part of the photo (the fit refuses more than 2 % of the panel)
 CHECK_WIDTH = 800  # photos are checked at this width (fast; the fit works at up to 2560)
 
@@ -116,11 +122,6 @@ def _examine(name, path, size, others, noise, camera_kind) -> tuple[Problem | No
     return None, taken, image
 
 
-EXACT = 1e-12  # change energy of two identical photos (rounding only)
-VIRTUAL_HINT = ("the virtual camera photographs what the presenter shows: run the capture again with "
-                "--display none (it resumes here), and report the rejected photos if it happens again")
-
-
 def _unchanged_message(noise: float) -> str:
     if noise > 0:
         return ("shows the same image as an earlier step of its group (it differs from it no more than two photos "
@@ -189,9 +190,11 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
     report = CaptureReport(settings=list(camera.settings()))
     size: tuple[int, int] | None = None
     noise: float | None = 0.0 if camera.kind == "manual" else None  # None: not measured yet
-    group_images: dict[str, list[np.ndarray]] = {}
+    group_images: dict[str, list[tuple[np.ndarray | None, np.ndarray]]] = {}
     for pattern in pattern_set.patterns:
-        others = group_images.setdefault(pattern.group, [])
+        seen = _seen(pattern_set, pattern)
+        others = [image for other_seen, image in group_images.setdefault(pattern.group, [])
+                  if seen is None or float(np.mean(seen != other_seen)) >= MIN_SEEN_CHANGE]
         old = existing_photo(captures, pattern.name)
         if old is not None and restart:
             _reject(directory, old, pattern.name)
@@ -226,12 +229,22 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
             if progress:
                 progress(f"{pattern.name}: {path.name}")
         size = taken
-        others.append(image)
+        group_images[pattern.group].append((seen, image))
         if noise is None:
             noise = _measure_noise(directory, pattern.name, path, image, taken, slides[pattern.name], presenter,
                                    camera, shown, settle, sleep, fresh=restart or shown is not None)
     report.seconds = time.perf_counter() - start
     return report
+
+
+def _seen(pattern_set, pattern) -> np.ndarray | None:
+    """Where the camera sees ``pattern`` lit: :func:`~.crosstalk.patterns.seen_columns` for a crosstalk
+    set; None for calibration fringes (every step of a group changes the whole panel)."""
+    if not hasattr(pattern_set, "bands"):
+        return None
+    from .crosstalk.patterns import seen_columns
+
+    return seen_columns(pattern_set, pattern)
 
 
 def _show(presenter, camera, slide) -> np.ndarray:
