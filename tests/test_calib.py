@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import lenticalib.calib.fit as fit_module
+import lenticalib.cli._progress as progress_module
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.patterns import design_patterns, read_manifest, write_patterns
 from lenticalib.cli import main
@@ -159,8 +160,26 @@ def _read_bgr(path: Path) -> np.ndarray:
     return image
 
 
+class _RecordingBar:
+    """Stands in for the CLI's progress bar: the total it was opened with and every update."""
+
+    bars: list = []
+
+    def __init__(self, total, desc):
+        self.total, self.desc, self.updates = total, desc, []
+        _RecordingBar.bars.append(self)
+
+    def update(self, message=None):
+        self.updates.append(message)
+
+
+@contextlib.contextmanager
+def _recording_progress_bar(total, desc):
+    yield _RecordingBar(total, desc)
+
+
 def _fit_cli_recording(argv):
-    """Run ``lenticalib fit ...`` in-process, returning (code, stdout, stderr, FitResult)."""
+    """Run ``lenticalib fit ...`` in-process, returning (code, stdout, stderr, FitResult, progress bar)."""
     results = []
     real = fit_module.fit_capture_set
 
@@ -170,11 +189,14 @@ def _fit_cli_recording(argv):
         return result
 
     out, err = io.StringIO(), io.StringIO()
+    _RecordingBar.bars = []
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         mp.setattr(fit_module, "fit_capture_set", recording)
+        mp.setattr(progress_module, "progress_bar", _recording_progress_bar)
         code = main([str(a) for a in argv])
     assert len(results) == 1, (code, err.getvalue())
-    return code, out.getvalue(), err.getvalue(), results[0]
+    assert len(_RecordingBar.bars) == 1
+    return code, out.getvalue(), err.getvalue(), results[0], _RecordingBar.bars[0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -189,9 +211,9 @@ def demo_fit(tmp_path_factory):
     out = root / "out"
     out.mkdir()
     profile_path = out / "profile.json"
-    code, stdout, stderr, result = _fit_cli_recording(["fit", directory, "-o", profile_path])
+    code, stdout, stderr, result, bar = _fit_cli_recording(["fit", directory, "-o", profile_path])
     return types.SimpleNamespace(directory=directory, out=out, profile_path=profile_path, code=code,
-                                 stdout=stdout, stderr=stderr, result=result,
+                                 stdout=stdout, stderr=stderr, result=result, progress=bar,
                                  truth=load_profile(directory / "truth.json"))
 
 
@@ -355,6 +377,17 @@ def test_demo_fit_matches_the_truth(demo_fit):
     assert q["predicted_error_worst_views"] <= fit_module.MAX_PREDICTED_ERROR
     assert q["coherence"] >= fit_module.MIN_COHERENCE
     assert q["subpixel_order"]["margin"] >= fit_module.MIN_ORDER_MARGIN
+
+
+def test_fit_progress_counts_to_its_total(demo_fit):
+    """The fit's progress bar is opened with the number of updates the fit then makes: one per
+    photo read, one per stage (it once stood at 100 % with a third of the fit to go)."""
+    bar = demo_fit.progress
+    patterns = read_manifest(demo_fit.directory)
+    assert bar.total == len(bar.updates) == fit_module.progress_steps(patterns)
+    reads = [u for u in bar.updates if u.startswith("reading ")]
+    assert sorted(reads) == sorted(f"reading {n}.jpg" for n in patterns.names)  # every photo once
+    assert [u for u in bar.updates if not u.startswith("reading ")] == list(fit_module.STAGES)
 
 
 def test_demo_fit_constants_within_three_sigma(demo_fit):

@@ -30,6 +30,7 @@ import pytest
 from lenticalib.calib.cameras import CAMERA_KINDS, make_camera, open_camera
 from lenticalib.calib.cameras.base import CaptureCamera
 from lenticalib.errors import CameraError, InputError
+from lenticalib.sim.scene import DEFAULT_RESOLUTION
 
 
 def _jpeg(seed: int, size=(48, 64)) -> bytes:
@@ -88,7 +89,7 @@ def test_every_kind_takes_timeout_and_none_means_default(tmp_path):
         if camera.kind != "sim":  # the virtual camera never waits
             assert camera.timeout == 600.0
     assert make_camera("manual", timeout=None).timeout == 600.0
-    assert make_camera("sim", resolution=None, conditions=None).resolution == (1800, 1200)
+    assert make_camera("sim", resolution=None, conditions=None).resolution == DEFAULT_RESOLUTION == (4000, 3000)
 
 
 def test_capture_needs_an_open_camera(tmp_path):

@@ -15,6 +15,7 @@ import pytest
 
 from lenticalib.calib import acquire
 from lenticalib.calib.cameras import open_camera
+from lenticalib.calib.captures import load_photo
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.fit import fit_capture_set
 from lenticalib.calib.patterns import design_patterns, write_patterns
@@ -194,3 +195,116 @@ def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp
     data = json.loads((tmp_path / "crosstalk.json").read_text())
     assert len(data["matrix"]) == VIEWS
     assert abs(data["matrix"][0][0] - truth[0, 0]) <= 3 * data["matrix_sigma"][0][0] + 0.005
+
+
+# ---------------------------------------------------------------------------------------------
+# the "unchanged photo" rule at the panel's own size: 3840x2160, 32 views, a small virtual camera
+# ---------------------------------------------------------------------------------------------
+
+W4K, H4K, VIEWS_4K = 3840, 2160, 32
+SENSOR_4K = (1250, 800)  # the fit's 1 megapixel: the fine fringes are barely resolved
+
+
+@pytest.fixture(scope="module")
+def captured_4k(tmp_path_factory):
+    """A 4K pattern set captured by the virtual camera through ``capture_set``."""
+    folder = tmp_path_factory.mktemp("capture-4k") / "cal"
+    write_patterns(folder, design_patterns(W4K, H4K, VIEWS_4K))
+    notes = []
+    with open_camera("sim:2", resolution=SENSOR_4K) as camera, open_presenter("none", (W4K, H4K)) as presenter:
+        report = acquire.capture_set(folder, presenter, camera, settle=0.0, notify=notes.append)
+    return folder, report, notes
+
+
+def _check_image(path):
+    return acquire.check_image(load_photo(path.stem, path, max_width=acquire.CHECK_WIDTH))
+
+
+def _photograph(pattern_folder, raster_name, name, path):
+    """What the virtual camera of ``captured_4k`` takes of pattern ``raster_name`` of
+    ``pattern_folder`` as photo ``name`` (that name's noise), written to ``path``."""
+    from lenticalib.render.slides import slides_from_path
+    from lenticalib.sim.capture import photograph_pattern
+    from lenticalib.sim.scene import random_scene
+
+    scene = random_scene(2, width=W4K, height=H4K, resolution=SENSOR_4K)
+    slide = {s.name: s for s in slides_from_path(pattern_folder)[0]}[raster_name]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(photograph_pattern(scene, name, slide.load()))
+    return path
+
+
+def test_a_4k_set_is_captured_with_no_photo_taken_for_unchanged(captured_4k):
+    """Fine fringes (f16, f22) barely resolved by a 1-megapixel camera still pass: their step is
+    judged against two photos of one pattern, not against a fixed share of the light."""
+    folder, report, notes = captured_4k
+    assert len(report.taken) == 23 and report.retakes == {}, notes
+    assert not (folder / "rejected").exists()
+    assert (folder / "repeat" / "x0-0.jpg").is_file()  # the first photo, taken again: the noise yardstick
+    record = json.loads((folder / "simulation.json").read_text())
+    assert record["status"] == "complete" and len(record["captures"]) == 23  # the repeat is not a pattern's photo
+
+
+def test_unchanged_photos_are_rejected_and_fine_steps_pass(captured_4k, tmp_path):
+    folder, _, _ = captured_4k
+    captures = folder / "captures"
+    noise = acquire.change_energy(_check_image(captures / "x0-0.jpg"), _check_image(folder / "repeat" / "x0-0.jpg"))
+    assert noise > 0
+    for previous, step in (("f16-0", "f16-1"), ("f22-1", "f22-2"), ("x0-0", "x0-1")):
+        others = [_check_image(captures / f"{previous}.jpg")]
+        size = SENSOR_4K
+        # the real next step passes
+        assert acquire.photo_problem(step, captures / f"{step}.jpg", size, others, noise, "sim") is None, step
+        # an exact repeat of the previous photo, filed as the next step, is rejected
+        exact = tmp_path / "exact" / f"{step}.jpg"
+        exact.parent.mkdir(exist_ok=True)
+        shutil.copyfile(captures / f"{previous}.jpg", exact)
+        problem = acquire.photo_problem(step, exact, size, others, noise, "sim")
+        assert problem is not None and "same image" in problem.message, step
+        # the camera fired before the panel changed: the previous pattern, photographed with new noise
+        stale = _photograph(folder, previous, step, tmp_path / "stale" / f"{step}.jpg")
+        problem = acquire.photo_problem(step, stale, size, others, noise, "sim")
+        assert problem is not None and "no more than two photos of one pattern" in problem.message, step
+        assert "focus" not in problem.hint and "virtual camera" in problem.hint  # advice for this camera
+
+
+@pytest.fixture(scope="module")
+def captured_4k_crosstalk(captured_4k):
+    """Crosstalk patterns of the 4K capture's true profile, with the longest sweep (1.6 panel widths:
+    some bands pass the camera's view nowhere), captured by the same virtual camera."""
+    from lenticalib.calib.crosstalk.patterns import MAX_SWEEP_FRACTION, design_crosstalk_patterns
+
+    folder, _, _ = captured_4k
+    xt = folder.parent / "xt"
+    pattern_set = design_crosstalk_patterns(load_profile(folder / "truth.json"), MAX_SWEEP_FRACTION * W4K)
+    write_patterns(xt, pattern_set)
+    notes = []
+    with open_camera("sim:2", resolution=SENSOR_4K) as camera, open_presenter("none", (W4K, H4K)) as presenter:
+        report = acquire.capture_set(xt, presenter, camera, settle=0.0, notify=notes.append)
+    return xt, pattern_set, report, notes
+
+
+def test_every_crosstalk_band_is_captured_and_a_stale_band_is_not(captured_4k_crosstalk, tmp_path):
+    """A band moved by a tenth of the view cone moves little light, yet clearly more than noise; two
+    bands the camera sees nowhere give the same dark photo, rightly (the patterns say so); a band
+    photographed while the panel still showed the previous one is rejected."""
+    from lenticalib.calib.crosstalk.patterns import seen_columns
+
+    xt, pattern_set, report, notes = captured_4k_crosstalk
+    assert len(report.taken) == 14 and report.retakes == {}, notes
+    bands = pattern_set.bands
+    unseen = [b.name for b in bands if not seen_columns(pattern_set, b).any()]
+    assert len(unseen) >= 2  # the case the capture must not mistake for an unchanged panel
+    captures = xt / "captures"
+    noise = acquire.change_energy(_check_image(captures / "black.jpg"), _check_image(xt / "repeat" / "black.jpg"))
+    for previous, step in zip(bands, bands[1:]):
+        if seen_columns(pattern_set, previous).any() or seen_columns(pattern_set, step).any():
+            others = [_check_image(captures / f"{previous.name}.jpg")]
+            assert acquire.photo_problem(step.name, captures / f"{step.name}.jpg", SENSOR_4K, others, noise,
+                                         "sim") is None
+            stale = _photograph(xt, previous.name, step.name, tmp_path / f"{step.name}.jpg")
+            problem = acquire.photo_problem(step.name, stale, SENSOR_4K, others, noise, "sim")
+            assert problem is not None and "same image" in problem.message, step.name
+            break
+    else:
+        pytest.fail("no band is seen by the camera")

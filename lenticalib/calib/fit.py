@@ -38,6 +38,20 @@ from .uncertainty import constants_with_uncertainty, quality_and_covariance, reg
 
 ProgressFn = Callable[[str], None]
 
+# What fit_capture_set does, in order: every photo of these groups is read (one progress call
+# each), and each stage is one progress call; progress_steps counts from the same lists.
+DEMODULATED_GROUPS = ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in FINE_PERIODS)
+ORDER_CHANNELS = {"order-r": 0, "order-b": 2}  # the order photos, and the channel each lights
+STAGE_PANEL, STAGE_COORDINATES, STAGE_PLANE, STAGE_ORDER = STAGES = (
+    "finding the panel", "measuring seen panel coordinates", "fitting the view-coordinate plane", "subpixel order")
+
+
+def progress_steps(pattern_set) -> int:
+    """How many times :func:`fit_capture_set` calls ``progress`` for a capture set of ``pattern_set``
+    (a :class:`~.patterns.PatternSet`): once per photo it reads, once per stage."""
+    photos = sum(len(pattern_set.group(name)) for name in DEMODULATED_GROUPS + tuple(ORDER_CHANNELS))
+    return photos + len(STAGES)
+
 # Quality gates (views unless stated).  A fit failing one is reported as untrustworthy.
 MAX_BLOCK_RESIDUAL_RMS = 0.12  # systematic misfit of the plane, RMS over panel blocks
 MAX_PREDICTED_ERROR = 0.15  # 1-sigma of w at the worst panel corner relative to the centre (non-uniformity)
@@ -153,11 +167,11 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     groups: dict[str, Group] = {}
     shape = None
     registration = Registration()
-    for name in ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in FINE_PERIODS):
+    for name in DEMODULATED_GROUPS:
         groups[name] = demodulate_group(capture, name, shape, progress, registration)
         shape = groups[name].photos[0].shape
     if progress:
-        progress("finding the panel")
+        progress(STAGE_PANEL)
     mask = phase.panel_mask([np.abs(groups["x1"].z), np.abs(groups["y1"].z)])
     mask_checks(mask, capture)
     warnings = registration.warnings
@@ -165,7 +179,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     photometry = _correct_photometry(groups, mask)
 
     if progress:
-        progress("measuring seen panel coordinates")
+        progress(STAGE_COORDINATES)
     coords = _coordinate_maps(capture, groups, mask)
     h, w = mask.shape
     sigma = max(3.0, w / 300.0)
@@ -185,7 +199,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     valid &= (x_sm >= 0) & (x_sm < 3 * ps.width) & (y_sm >= 0) & (y_sm < ps.height)
 
     if progress:
-        progress("fitting the view-coordinate plane")
+        progress(STAGE_PLANE)
     stride = max(1, int(round(math.sqrt(valid.sum() / 800_000))))
     sub = np.zeros_like(valid)
     sub[::stride, ::stride] = True
@@ -226,7 +240,7 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         cov = cov + np.diag(np.mean(diffs ** 2, axis=0))
 
     if progress:
-        progress("subpixel order")
+        progress(STAGE_ORDER)
     order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration)
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
 
@@ -319,7 +333,7 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
     # and would dominate a mean of the ratio
     ref_amp = float(np.median(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
     offsets, amps = {}, {}
-    for name, channel in (("order-r", 0), ("order-b", 2)):
+    for name, channel in ORDER_CHANNELS.items():
         photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
         registration.undo_shake([photo], capture)
         rgb_mean = photo.rgb[valid].mean(axis=0)

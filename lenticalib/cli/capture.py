@@ -27,7 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--restart", action="store_true", help="take every photo again (the old ones go to rejected/)")
     parser.add_argument("--timeout", type=float, default=600.0, metavar="S",
                         help="manual camera with a folder: how long to wait for each photo (default 600)")
-    parser.add_argument("--resolution", default="1800x1200", metavar="WxH", help="sim camera resolution")
+    parser.add_argument("--resolution", metavar="WxH",
+                        help="sim camera resolution (default the same as 'lenticalib simulate': 4000x3000)")
     parser.add_argument("--conditions", choices=("standard", "hard"), default="standard",
                         help="sim camera behaviour (hard: phone-like tone curve, exposure drift, shake, noise)")
     parser.set_defaults(run=run)
@@ -56,8 +57,8 @@ def run(args: argparse.Namespace) -> int:
     settle = args.settle if args.settle is not None else (0.0 if kind == "sim" else 0.5)
     options = {"timeout": args.timeout}
     if kind == "sim":
-        w, h = _resolution(args.resolution)
-        options.update(resolution=(w, h), conditions=args.conditions)
+        options.update(resolution=None if args.resolution is None else _resolution(args.resolution),
+                       conditions=args.conditions)
     if kind == "manual" and ":" not in args.camera:
         options["wait_for_user"] = lambda name: wait_for_key(presenter, name)
     camera = make_camera(args.camera, **options)  # the spec and options checked; no hardware touched yet
@@ -85,7 +86,10 @@ def run(args: argparse.Namespace) -> int:
     retaken = sum(report.retakes.values())
     print(f"captured {len(report.taken)} photo(s), kept {len(report.kept)} from before, {retaken} retaken, "
           f"in {report.seconds:.1f} s: {directory / 'captures'}")
-    print(f"next: lenticalib fit {directory} -o profile.json")
+    if hasattr(pattern_set, "bands"):  # crosstalk patterns
+        print(f"next: lenticalib crosstalk measure {directory} -o crosstalk.json --report crosstalk-report")
+    else:
+        print(f"next: lenticalib fit {directory} -o profile.json")
     return 0
 
 
@@ -95,7 +99,7 @@ def _resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise InputError(f"{text!r} is not WxH", source="--resolution", hint="e.g. 1800x1200") from None
+        raise InputError(f"{text!r} is not WxH", source="--resolution", hint="e.g. 4000x3000") from None
     if not (320 <= w <= 12000 and 240 <= h <= 9000):
         raise InputError(f"{w}x{h} is out of range", source="--resolution", hint="use 320x240 .. 12000x9000")
     return w, h

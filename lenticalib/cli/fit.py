@@ -158,7 +158,8 @@ def describe_physical(result) -> str:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..calib.fit import fit_capture_set
+    from ..calib.captures import open_capture_set
+    from ..calib.fit import fit_capture_set, progress_steps
     from ..calib.report import REPORT_FILES, fit_summary, write_report
     from ..outputs import staged_folder
     from ..profile import save_profile
@@ -166,9 +167,10 @@ def run(args: argparse.Namespace) -> int:
     from ._progress import progress_bar
 
     output, report_dir = check_arguments(args)
-    sets = 1 + bool(args.moved_right) + bool(args.second_distance)
+    directories = [args.directory] + [d for d in (args.moved_right, args.second_distance if args.camera else None) if d]
+    total = sum(progress_steps(open_capture_set(d).patterns) for d in directories)  # the fit's first step
     options = dict(views=args.views, camera_model=args.camera_model, pixel_pitch_mm=args.pixel_pitch)
-    with progress_bar(24 * sets, "fitting") as bar:
+    with progress_bar(total, "fitting") as bar:
         result = fit_capture_set(args.directory, progress=bar.update, **options)
         if args.moved_right:
             from ..calib.direction import add_moved_right

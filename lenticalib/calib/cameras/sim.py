@@ -1,7 +1,8 @@
 """The virtual panel as the camera: a full show -> photograph -> fit run without hardware.
 
 Spec: ``sim`` or ``sim:SEED``.  Options: ``seed`` (default the spec's, else 1), ``resolution``
-camera (w, h) in pixels or ``"WxH"`` (default 1800x1200; the fit needs at least 1 megapixel),
+camera (w, h) in pixels or ``"WxH"`` (default :data:`lenticalib.sim.scene.DEFAULT_RESOLUTION`, as for
+``lenticalib simulate``; the fit needs at least 1 megapixel),
 ``conditions`` ("standard" or "hard", see :data:`lenticalib.sim.scene.CONDITIONS`),
 ``subsamples`` (rays per pixel side, default 3).  ``timeout`` is accepted like every kind's and
 has nothing to bound: the virtual camera never waits.
@@ -12,8 +13,10 @@ writes for that scene, pattern name and raster).  The scene, panel and camera, i
 :func:`lenticalib.sim.scene.random_scene` from the seed for the panel size of the first shown
 raster, which must match the pattern set's ``patterns.json`` in the capture set folder
 ``DIR = destination.parent.parent``.  After every photo (and on :meth:`close`) the camera writes
-``DIR/truth.json`` and ``DIR/simulation.json`` as ``simulate`` does, listing the photos taken so far;
-the status is "complete" once every pattern of the set has been photographed, "in progress" before.
+``DIR/truth.json`` and ``DIR/simulation.json`` as ``simulate`` does, listing the photos of the set's
+patterns taken so far (a photo under another name, such as the capture's repeat of its first
+pattern ``NAME.repeat``, is taken with that name's own noise and not listed); the status is
+"complete" once every pattern of the set has been photographed, "in progress" before.
 
 Resuming: when ``DIR/simulation.json`` already describes the *same* scene (same seed, resolution,
 conditions and subsamples, same pattern set), its entries whose photos are still in place are
@@ -30,11 +33,11 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import CameraError, InputError
+from ...sim.scene import DEFAULT_RESOLUTION
 from .base import CaptureCamera
 from .files import write_photo
 
 DEFAULT_SEED = 1
-DEFAULT_RESOLUTION = (1800, 1200)
 DEFAULT_SUBSAMPLES = 3
 MAX_SIDE = 20000  # camera pixels per side
 _RESOLUTION = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
@@ -52,7 +55,7 @@ def parse_resolution(value) -> tuple[int, int]:
             pair = None
     if pair is None or len(pair) != 2 or not all(16 <= v <= MAX_SIDE for v in pair):
         raise InputError(f"bad virtual camera resolution {value!r}", source="--camera sim",
-                         hint=f"give WIDTHxHEIGHT in pixels, 16..{MAX_SIDE} per side, e.g. 1800x1200")
+                         hint=f"give WIDTHxHEIGHT in pixels, 16..{MAX_SIDE} per side, e.g. 4000x3000")
     return pair
 
 
@@ -159,7 +162,8 @@ class SimCamera(CaptureCamera):
                              f"{optics.width}x{optics.height}", source="shown",
                              hint="show every pattern at the panel size")
         path = write_photo(photograph_pattern(self.scene, name, np.ascontiguousarray(shown)), destination, ".jpg")
-        self._records[name] = photo_record(self.scene, name, path.relative_to(directory).as_posix())
+        if name in self.pattern_set.names:
+            self._records[name] = photo_record(self.scene, name, path.relative_to(directory).as_posix())
         if self._truth is None:
             from ...sim.capture import TRUTH_NAME
 

@@ -164,13 +164,31 @@ def lit_subpixels(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, r
         return np.zeros((len(rows), nsub), dtype=bool)
     if pattern.kind == "white":
         return np.ones((len(rows), nsub), dtype=bool)
-    n = profile.views
     w = view_coordinate(profile, rows)
-    relative = w - band_centre(pattern_set, np.arange(nsub), pattern.shift)[None, :]
+    return _lit(pattern_set, pattern, w - band_centre(pattern_set, np.arange(nsub), pattern.shift)[None, :])
+
+
+def _lit(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, relative: np.ndarray) -> np.ndarray:
+    """Whether a band or half pattern lights a subpixel of view coordinate ``w`` with ``relative = w - b``."""
+    n = pattern_set.views
     if pattern.kind == "band":
         return np.mod(relative + 0.5, n) < 1.0
     lit = np.mod(relative + n / 4.0, n) < n / 2.0
     return ~lit if pattern.complement else lit
+
+
+def seen_columns(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern) -> np.ndarray:
+    """bool ``(W,)``: the panel columns where the camera the profile was fitted for sees a lit subpixel.
+
+    That camera sees view ``w = N/2`` everywhere, so a band is seen only where its centre passes
+    within half a view of N/2; with a sweep longer than the panel some bands are seen nowhere, and
+    their photos show only the other views' crosstalk.  Taken at each pixel's middle subpixel.
+    """
+    width = pattern_set.width
+    if pattern.kind in ("black", "white"):
+        return np.full(width, pattern.kind == "white")
+    centre = band_centre(pattern_set, 3 * np.arange(width) + 1, pattern.shift)
+    return _lit(pattern_set, pattern, pattern_set.views / 2.0 - centre)
 
 
 def render_crosstalk_pattern(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern) -> np.ndarray:
