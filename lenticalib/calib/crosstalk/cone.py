@@ -90,6 +90,52 @@ def centre_of(grid: np.ndarray, profile: np.ndarray, views: int) -> float:
     return float(np.angle(z) * views / (2 * math.pi))
 
 
+def column_angle(mask: np.ndarray) -> float:
+    """The panel's columns in the photo (radians from the working image's vertical, + towards +x
+    going down), from the sides of the smallest rectangle around the panel mask (bool (h, w))."""
+    import cv2
+
+    points = np.argwhere(mask)[:, ::-1].astype(np.float32)  # (x, y)
+    corners = cv2.boxPoints(cv2.minAreaRect(points))
+    sides = np.diff(np.vstack([corners, corners[:1]]), axis=0)
+    dx, dy = sides[int(np.argmax(np.abs(sides[:, 1]) - np.abs(sides[:, 0])))]
+    if dy < 0:
+        dx, dy = -dx, -dy
+    return float(math.atan2(dx, dy))
+
+
+def average_along_columns(image: np.ndarray, inside: np.ndarray, sigma: float, angle: float = 0.0) -> np.ndarray:
+    """``image`` (h, w) averaged along the panel's columns with a Gaussian of ``sigma`` working
+    pixels, over the pixels where ``inside`` (bool (h, w)) only; ``angle`` from :func:`column_angle`.
+
+    Why: a one-view band lights whole subpixels, about ``Delta_r / N`` of a subpixel per lens, and
+    which one lights depends on where the subpixel grid falls under each lens.  That phase beats
+    between the lens pitch and the subpixel pitch (a moire tens of lenses long, which a close
+    camera resolves), so one photo's ratio at one pixel is the band seen at one phase, 0 or full,
+    while ``h`` is its average over all phases, which is what an eye sees over a region.  Along a
+    panel column the sweep ``delta`` stays put (``b`` depends on the column only) while the phase
+    runs through the moire, so averaging there makes the ratios the model's without blurring the
+    sweep."""
+    import cv2
+
+    radius = int(math.ceil(3 * sigma))
+    size = 2 * radius + 1
+    kernel = np.zeros((size, size), np.float32)
+    for s in np.arange(-3 * sigma, 3 * sigma + 0.25, 0.25):
+        x, y = radius + s * math.sin(angle), radius + s * math.cos(angle)
+        x0, y0 = int(math.floor(x)), int(math.floor(y))
+        fx, fy = x - x0, y - y0
+        w = math.exp(-0.5 * (s / sigma) ** 2)
+        for xi, yi, wi in ((x0, y0, (1 - fx) * (1 - fy)), (x0 + 1, y0, fx * (1 - fy)),
+                           (x0, y0 + 1, (1 - fx) * fy), (x0 + 1, y0 + 1, fx * fy)):
+            if 0 <= xi < size and 0 <= yi < size:
+                kernel[yi, xi] += w * wi
+    weight = inside.astype(np.float32)
+    summed = cv2.filter2D(np.where(inside, image, 0.0).astype(np.float32), -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    norm = cv2.filter2D(weight, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    return summed / np.maximum(norm, 1e-6)
+
+
 def _initial_delta(ratios: np.ndarray, shifts: np.ndarray, views: int) -> np.ndarray:
     """Per-sample first-harmonic estimate of delta (views, wrapped to [-N/2, N/2))."""
     phasors = np.exp(-2j * math.pi * shifts / views)

@@ -39,6 +39,7 @@ from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 CENTRE_DEGREE = 3  # of the centre region's own sweep model
+COLUMN_AVERAGE = 1 / 16  # sigma of the average along the panel's columns, of the panel's height in the photo
 SWEEP_BLUR_PIXELS = 1.5  # working pixels: the camera's blur of the sweep (defocus, demosaicing, averaging)
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCKS = 16  # the centre region is split into this many strips of rows for the statistical spread
@@ -177,8 +178,13 @@ def _ratios(luma, mask, pattern_set, glare, power=1.0):
     inner = cv2.erode(mask.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
     inner &= white > 0.2 * np.percentile(white[mask], 50)
     rows, cols = np.nonzero(inner)
+    # the band photos' moire (one phase of the lit subpixels per place) averaged out along the
+    # panel's columns, where the sweep stays put (cone.average_along_columns)
+    r0, r1, _, _ = _bounding_box(mask)
+    sigma, angle = COLUMN_AVERAGE * (r1 - r0), cone.column_angle(mask)
     bands = pattern_set.bands
-    ratios = np.stack([(corrected(p.name) / np.maximum(white, 1e-6))[rows, cols] for p in bands], axis=1)
+    ratios = np.stack([cone.average_along_columns(corrected(p.name) / np.maximum(white, 1e-6), inner, sigma,
+                                                  angle)[rows, cols] for p in bands], axis=1)
     return ratios.astype(np.float64), rows, cols, white
 
 
