@@ -231,8 +231,12 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
         block_cones.append(b_cone)
     block_rows = np.array(block_rows)
     k = max(1, len(block_rows))
-    stat_sigma = _robust_spread(block_rows) / math.sqrt(k) if k > 1 else np.zeros(n)
-    cone_stat = _robust_spread(np.array(block_cones)) / math.sqrt(k) if k > 1 else np.zeros_like(cone_values)
+    # the average along the columns (_ratios) ties strips within about 2 sqrt(pi) sigma of each
+    # other: the region holds only that many independent strips
+    independent = max(1.0, min(k, CENTRE_FRACTION / (2 * math.sqrt(math.pi) * COLUMN_AVERAGE)))
+    stat_sigma = _robust_spread(block_rows) / math.sqrt(independent) if k > 1 else np.zeros(n)
+    cone_stat = (_robust_spread(np.array(block_cones)) / math.sqrt(independent) if k > 1
+                 else np.zeros_like(cone_values))
     # systematic: glare size and tone curve
     perturbed = {}
     for label, g_scale, p in (("glare-", 1 - GLARE_RELATIVE_SIGMA, 1.0), ("glare+", 1 + GLARE_RELATIVE_SIGMA, 1.0)):
