@@ -21,6 +21,7 @@ import dataclasses
 import math
 import os
 import zipfile
+import zlib
 from typing import IO, Callable, Iterable
 
 import numpy as np
@@ -69,7 +70,7 @@ def _read_header(fp: IO[bytes], name: str, data_bytes: int, source: str) -> Arra
             shape, _, dtype = npformat.read_array_header_2_0(fp)
         else:
             raise ValueError(f"unsupported .npy format version {version[0]}.{version[1]}")
-    except (ValueError, EOFError, OSError, zipfile.BadZipFile) as exc:
+    except (ValueError, EOFError, OSError, zipfile.BadZipFile, zlib.error) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"{_what(name)} has no readable .npy header ({reason})", source=source) from None
     if dtype.hasobject:
@@ -144,7 +145,7 @@ def load_npz(path: str | os.PathLike, *, wanted: Iterable[str] | None = None, re
                     arrays[name] = npformat.read_array(fp, allow_pickle=False)
         except InputError:
             raise
-        except (ValueError, OSError, EOFError, zipfile.BadZipFile, NotImplementedError, RuntimeError) as exc:
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError) as exc:
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise InputError(f"not a readable .npz file ({reason})", source=source, hint=hint) from None
     return arrays

@@ -208,6 +208,25 @@ def test_crosstalk_check_refuses_a_matrix_entry_of_1e400_in_one_line(tmp_path, c
     assert "field 'matrix[1][0]': 1e400 is too large for a number" in line
 
 
+@pytest.mark.parametrize("figures", ['{"adjacent_crosstalk": {"value": "0.1"}}', '{"adjacent_crosstalk": 0.1}', '[]',
+                                     '{"adjacent_crosstalk": {"value": 0.0001, "sigma": 0.0}}'])
+def test_crosstalk_check_judges_the_matrix_whatever_the_figures_block_says(tmp_path, capsys, figures):
+    """A hand-edited 'figures' block (wrong types, or a value that disagrees with the matrix) neither
+    ends in a traceback nor bends the verdict: the figures are derived from the checked matrix."""
+    from .test_cli_outputs import _run
+
+    path = tmp_path / "crosstalk.json"
+    rows = [[0.6, 0.15, 0.1, 0.15], [0.15, 0.6, 0.15, 0.1], [0.1, 0.15, 0.6, 0.15], [0.15, 0.1, 0.15, 0.6]]
+    path.write_text('{"format": "lenticalib.crosstalk", "format_version": 1, "views": 4, "matrix": %s, '
+                    '"eye_separation_views": 2, "figures": %s}' % (json.dumps(rows), figures))
+    code, out, err = _run(["crosstalk", "check", path, "--max-adjacent", "40%", "--max-eye-pair", "20%"], capsys)
+    assert (code, err) == (1, ""), (code, err)
+    assert out.splitlines() == [f"FAIL {path}: adjacent crosstalk (light from the two neighbouring views over the "
+                                "view's own light) 50.00% exceeds the limit 40.00%"], out
+    code, out, err = _run(["crosstalk", "check", path, "--max-adjacent", "60%", "--max-eye-pair", "20%"], capsys)
+    assert code == 0 and out.startswith(f"PASS {path}: adjacent crosstalk 50.00% <= 60.00%"), (code, out, err)
+
+
 # ------------------------------------------------------------------ misspelt keys
 
 def test_a_misspelt_profile_key_is_named_with_its_close_match(tmp_path, capsys):
@@ -420,3 +439,16 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
     shown, size = slides_from_path(slides)
     with pytest.raises(ImageError, match=r"b.png: is 8000x8000 pixels, a.png is"):
         shown[1].load()
+
+
+def test_a_damaged_deflate_stream_in_an_npz_is_one_line(tmp_path):
+    """A bit flipped inside a compressed member makes zlib fail (not a CRC error): one InputError."""
+    from lenticalib.arrayfile import load_npz
+
+    buf = io.BytesIO()
+    np.savez_compressed(buf, a=np.arange(100000) % 7)
+    data = bytearray(buf.getvalue())
+    data[30 + len("a.npy") + 20] ^= 0xFF  # 20 bytes into member a's deflate stream
+    path = tmp_path / "bad.npz"
+    path.write_bytes(bytes(data))
+    assert "Error -3 while decompressing" in _raises_one_line(lambda: load_npz(path), InputError)

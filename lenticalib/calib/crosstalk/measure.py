@@ -293,6 +293,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
+                   "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2)}

@@ -27,6 +27,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ...errors import InputError
+from ...fields import is_finite_number
 
 FORMAT_NAME = "lenticalib.crosstalk"
 FORMAT_VERSION = 1
@@ -80,9 +81,13 @@ def derived_figures(row: np.ndarray, eye_separation: float | None) -> dict[str, 
 
 
 def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
-                       eye_separation: float | None) -> dict[str, dict[str, float]]:
+                       eye_separation: float | None, independent: float | None = None) -> dict[str, dict[str, float]]:
     """Each derived figure with its 1-sigma: the block spread and the photometric perturbations
-    propagated (the block rows' spread / sqrt(k), the perturbed rows' half differences)."""
+    propagated (the block rows' spread / sqrt(independent), the perturbed rows' half differences).
+
+    ``independent``: how many of the blocks are independent of each other (the measurement's
+    ``diagnostics['independent_strips']``: its column average ties neighbouring strips); None:
+    every block."""
     base = derived_figures(row, eye_separation)
     out = {k: {"value": v, "sigma": 0.0} for k, v in base.items()}
     blocks = samples.get("blocks")
@@ -90,7 +95,8 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
     if blocks is not None and len(blocks) > 1:
         values = [derived_figures(b, eye_separation) for b in blocks if np.all(np.isfinite(b))]
         for k in base:
-            variance[k] += float(np.var([v[k] for v in values], ddof=1)) / len(values)
+            variance[k] += float(np.var([v[k] for v in values], ddof=1)) / min(independent or len(values),
+                                                                                len(values))
     for low, high in (("glare-", "glare+"), ("tone-", "tone+")):
         if low in samples and high in samples:
             a, b = derived_figures(samples[low], eye_separation), derived_figures(samples[high], eye_separation)
@@ -129,7 +135,7 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
     n = m.views
     matrix = m.matrix
     sigma = m.row_sigma[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
-    figures = figures_with_sigma(m.row, m.samples, eye_separation)
+    figures = figures_with_sigma(m.row, m.samples, eye_separation, m.diagnostics.get("independent_strips"))
     per_view = [{"view": i, **{k: _r(v["value"]) for k, v in figures.items()}} for i in range(n)]
     diag = {k: (v.round(6).tolist() if isinstance(v, np.ndarray) else v) for k, v in m.diagnostics.items()}
     return {
@@ -182,7 +188,7 @@ def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: st
         raise InputError("field 'views' is missing or not a whole number 2..254", source=source)
     if (not isinstance(matrix, list) or len(matrix) != n
             or any(not isinstance(r, list) or len(r) != n for r in matrix)
-            or any(not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) for r in matrix for v in r)):
+            or any(not is_finite_number(v) for r in matrix for v in r)):
         raise InputError(f"field 'matrix' must be {n} rows of {n} numbers", source=source)
     array = np.asarray(matrix, np.float64)
     if np.any(array < -0.05) or np.any(np.abs(array.sum(axis=1) - 1.0) > 0.02):
@@ -190,7 +196,21 @@ def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: st
     if views is not None and n != views:
         raise InputError(f"is for {n} views, the profile has {views}", source=source,
                          hint="measure the crosstalk of this panel with this profile's view count")
+    eye = data.get("eye_separation_views")
+    if eye is not None and not (is_finite_number(eye) and eye >= 0):
+        raise InputError("field 'eye_separation_views' must be a number of views >= 0 or null", source=source)
+    # the figures are derived again from the checked matrix (its first row: the light from each view
+    # offset), so a hand-edited or older 'figures' block can neither break nor bend a check
+    stored = data.get("figures") if isinstance(data.get("figures"), dict) else {}
+    data["figures"] = {key: {"value": value, "sigma": _stored_sigma(stored.get(key))}
+                       for key, value in derived_figures(array[0], eye).items()}
     return data
+
+
+def _stored_sigma(entry: Any) -> float | None:
+    """The 1-sigma a file's figure entry holds, or None when it holds no usable one."""
+    sigma = entry.get("sigma") if isinstance(entry, dict) else None
+    return float(sigma) if is_finite_number(sigma) and sigma >= 0 else None
 
 
 def check_crosstalk(data: Mapping[str, Any], max_adjacent: float | None, max_eye_pair: float | None,
