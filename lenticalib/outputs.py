@@ -55,12 +55,13 @@ def _check_parent(target: Path, what: str) -> None:
         raise InputError(f"folder is not writable, so the {what} cannot be written", source=str(parent),
                          hint=f"choose a writable folder for the {what}")
     try:  # permission bits do not tell about read-only mounts, /proc, or root
-        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent)
+        fd, probe = tempfile.mkstemp(prefix=".lenticalib-probe.", dir=parent)  # no output's leftover name
     except OSError as exc:
         raise InputError(f"folder is not writable ({exc.strerror}), so the {what} cannot be written",
                          source=str(parent), hint=f"choose a writable folder for the {what}") from None
     os.close(fd)
-    os.unlink(probe)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
 
 
 def check_output_file(path: str | os.PathLike, what: str = "output file", example: str = "out") -> Path:
@@ -156,10 +157,13 @@ def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -
     target = check_output_folder(path, what, contents)
     parent = target.parent if str(target.parent) else Path(".")
     remove_leftovers(target)
+    stage = None
     try:
         stage = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=parent))
         lock = hold(stage)
     except OSError as exc:
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)
         raise InputError(f"folder is not writable ({exc.strerror}), so the {what} cannot be written",
                          source=str(parent), hint=f"choose a writable folder for the {what}") from None
     try:

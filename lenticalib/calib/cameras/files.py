@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from ...atomic import output_target, write_bytes_atomic
-from ...errors import CameraError
+from ...errors import CameraError, InputError
 from ..captures import PHOTO_SUFFIXES
 
 __all__ = ["PHOTO_SUFFIXES", "copy_photo", "existing_photos", "photo_path", "place_photo", "write_photo"]
@@ -52,6 +52,9 @@ def place_photo(temporary: Path, destination: Path, suffix: str) -> Path:
     final = photo_path(destination, suffix)
     try:
         os.replace(temporary, output_target(final, "photo"))  # never over a FIFO, device or folder
+    except InputError:
+        temporary.unlink(missing_ok=True)
+        raise
     except OSError as exc:
         raise CameraError(f"cannot store the photo: {exc.strerror}", source=str(final),
                           hint="check free space and permissions of the capture folder") from None

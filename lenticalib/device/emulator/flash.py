@@ -26,6 +26,7 @@ import tempfile
 import zlib
 from pathlib import Path
 
+from ...atomic import current_umask
 from ...errors import DeviceError, InputError
 
 FACTORY_MAGIC = b"LTFI"
@@ -68,14 +69,16 @@ def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_v
         raise InputError("the folder for the flash image does not exist", source=str(folder),
                          hint="create it first, or choose another --flash path")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)  # a new file: never a link's target
-    with os.fdopen(fd, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
     try:
-        os.link(tmp, path)  # atomic and never clobbers: two emulators creating one image agree
-    except FileExistsError:
-        pass
+        os.fchmod(fd, 0o666 & ~current_umask())  # the umask's mode, as every output (mkstemp makes 0600)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        try:
+            os.link(tmp, path)  # atomic and never clobbers: two emulators creating one image agree
+        except FileExistsError:
+            pass
     finally:
         os.unlink(tmp)
 

@@ -11,6 +11,7 @@ While it runs, a small JSON file in the runtime directory announces it, so
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import select
@@ -23,7 +24,6 @@ import time
 import tty
 from pathlib import Path
 
-from ...atomic import write_text_atomic
 from ...errors import InputError
 from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 
@@ -103,10 +103,24 @@ class _Announcement:
     def __init__(self, url: str, controller: EmulatedController, transport: str):
         self.path = runtime_dir() / f"{os.getpid()}.json"
         identity = controller.identity
-        # a new file renamed over the name: a link planted there is replaced, its target never written
-        write_text_atomic(self.path, json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
-                                                 "flash": str(controller.flash.path), "serial": identity.serial,
-                                                 "model": identity.model}))
+        text = json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
+                           "flash": str(controller.flash.path), "serial": identity.serial, "model": identity.model})
+        # a new file renamed over the name (not write_text_atomic, which follows a link to its target):
+        # whatever was planted at the name is replaced, nothing it points to is ever written
+        tmp = None
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+            os.replace(tmp, self.path)
+        except BaseException as exc:
+            if tmp is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+            if isinstance(exc, OSError):
+                raise InputError(f"cannot announce the running emulator: {exc.strerror}", source=str(self.path),
+                                 hint="check free space in that folder") from None
+            raise
 
     def remove(self):
         try:
