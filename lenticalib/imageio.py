@@ -69,7 +69,7 @@ def open_image_header(path: str | os.PathLike):
             continue
         try:
             return factory(os.fspath(path))
-        except (SyntaxError, IndexError, TypeError, ValueError, EOFError, struct.error):
+        except (SyntaxError, IndexError, TypeError, ValueError, EOFError, OSError, struct.error):
             continue
     return None
 

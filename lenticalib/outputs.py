@@ -21,7 +21,8 @@ replaced.
   hidden sibling ``.NAME.XXXXXXXX.partial`` and moved into place when complete
   (:func:`staged_folder`), so a failed run leaves an earlier folder intact and no half-written
   one.  What a killed run leaves (``.NAME.*.partial`` folders, ``.NAME.*.tmp`` files) is removed
-  by the next run writing the same NAME, unless a running process still holds it;
+  by the next run writing the same NAME, unless a running process still holds it.  ``.NAME.*.old``
+  copies are kept on purpose: after a crash they may hold the only earlier results;
 - results that a library function writes in place (several files and folders at fixed names)
   are guarded by :func:`restored_on_failure`: the earlier ones are copied aside first and put
   back if the run fails, so a failed run leaves the earlier results and nothing of its own.

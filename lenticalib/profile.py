@@ -208,7 +208,7 @@ def _validate_constants(data: Mapping[str, Any], source: str) -> None:
             fail("uncertainty", "must be an object mapping constant names to 1-sigma values")
         for key, value in unc.items():
             if not is_finite_number(value) or value < 0:
-                fail(f"uncertainty.{key}", f"must be a finite number >= 0, got {value!r}")
+                fail(f"uncertainty.{key}", f"must be a finite number >= 0, got {short_repr(value)}")
     for key in ("provenance", "looking_glass"):
         if data.get(key) is not None and not isinstance(data[key], Mapping):
             fail(key, "must be a JSON object")

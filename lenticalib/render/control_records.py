@@ -32,7 +32,7 @@ FLOAT64_MAX = sys.float_info.max                # the largest time (times are fl
 SHOW_CHARS = 40                                  # a bad value or key is quoted up to about this many characters
 
 
-def is_number(value: Any, limit: float = FLOAT32_MAX) -> bool:
+def within_range(value: Any, limit: float = FLOAT32_MAX) -> bool:
     """A JSON number (not a bool) with ``|value| <= limit``: finite once converted (no OverflowError for huge ints)."""
     return is_finite_number(value) and abs(value) <= limit
 
@@ -43,8 +43,8 @@ def show(value: Any) -> str:
 
 
 def number_problem(where: str, value: Any, limit: float = FLOAT32_MAX) -> str:
-    """The message for a value that fails ``is_number(value, limit)``: not finite, or out of range."""
-    if is_number(value, math.inf):
+    """The message for a value that fails ``within_range(value, limit)``: not finite, or out of range."""
+    if within_range(value, math.inf):
         dtype = "float32" if limit == FLOAT32_MAX else "float64"
         return f"{where} is {show(value)}, out of range: {dtype} holds |v| <= {limit:.4g}"
     return f"{where} is {show(value)}, expected a finite number"
@@ -61,7 +61,7 @@ def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, requir
     if t is None:
         if require_t:
             raise InputError("no time 't'", source=source, hint="give each line a time in seconds")
-    elif not is_number(t, FLOAT64_MAX):
+    elif not within_range(t, FLOAT64_MAX):
         raise InputError(number_problem("time 't'", t, FLOAT64_MAX), source=source)
     if "controls" in obj:
         extra = sorted(set(obj) - {"t", "controls"})
@@ -75,7 +75,7 @@ def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, requir
         if len(values) != layout.dim:
             raise InputError(f"'controls' has {len(values)} values, expected {layout.dim}", source=source,
                              hint=f"layout: {layout.describe()}")
-        bad = [i for i, v in enumerate(values) if not is_number(v)]
+        bad = [i for i, v in enumerate(values) if not within_range(v)]
         if bad:
             raise InputError(number_problem(f"'controls'[{bad[0]}]", values[bad[0]]), source=source)
         return (None if t is None else float(t)), np.asarray(values, dtype=np.float32)
@@ -88,13 +88,13 @@ def parse_control_record(obj: Any, layout: ControlLayout, source: str, *, requir
             raise InputError(f"unknown control group {show(name)}", source=source, hint=f"layout: {layout.describe()}")
         size = layout.size(name)
         values = obj[name]
-        if size == 1 and is_number(values):
+        if size == 1 and within_range(values):
             values = [values]
         if not isinstance(values, list) or len(values) != size:
             got = f"{len(values)} values" if isinstance(values, list) else type(values).__name__
             raise InputError(f"group {name!r} has {got}, expected {size}", source=source,
                              hint=f"layout: {layout.describe()}")
-        bad = [i for i, v in enumerate(values) if not is_number(v)]
+        bad = [i for i, v in enumerate(values) if not within_range(v)]
         if bad:
             raise InputError(number_problem(f"{name}[{bad[0]}]", values[bad[0]]), source=source)
         vec[layout.slice(name)] = values

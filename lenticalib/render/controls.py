@@ -46,7 +46,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from ..errors import InputError
-from .control_records import FLOAT32_MAX, FLOAT64_MAX, is_number, number_problem, parse_control_line
+from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
 from .control_streams import DemoControls, open_text_stream, open_udp
 from .control_streams import StreamControls  # noqa: F401  (public API: the sources open_controls gives)
 from .rig import DEFAULT_LAYOUT, ControlLayout
@@ -187,6 +187,7 @@ def _load_csv(p: Path, layout: ControlLayout, names: Sequence[str] | None) -> Co
             raise InputError(f"column {name!r} repeats control {k}", source=f"{source}:1")
         columns.append(k)
     t, c, lines = [], [], []
+    limits = [FLOAT64_MAX] + [FLOAT32_MAX] * len(columns)  # t is float64, the controls float32
     for line_no, row in enumerate(rows[1:], start=2):
         if not row or all(not f.strip() for f in row):
             continue
@@ -199,8 +200,7 @@ def _load_csv(p: Path, layout: ControlLayout, names: Sequence[str] | None) -> Co
         except ValueError:
             col = next(i for i, f in enumerate(row) if not _is_float(f))
             raise InputError(f"column {header[col]!r} is {row[col]!r}, expected a number", source=where) from None
-        limits = [FLOAT64_MAX] + [FLOAT32_MAX] * len(columns)  # t is float64, the controls float32
-        out = [i for i, (v, limit) in enumerate(zip(values, limits)) if not is_number(v, limit)]
+        out = [i for i, (v, limit) in enumerate(zip(values, limits)) if not within_range(v, limit)]
         if out:
             col = out[0]
             raise InputError(number_problem(f"column {header[col]!r}", values[col], limits[col]), source=where)

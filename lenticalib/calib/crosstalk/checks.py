@@ -45,7 +45,8 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) 
     Runs before the cone fit of the measurement, on its own quick fit of :data:`CHECK_SAMPLES`
     working pixels drawn with a fixed seed (``ratios`` float (n, K), ``rows``/``cols`` int (n,),
     ``shifts`` float (K,) views, ``shape`` (h, w) of the working image), so a wrong photo is
-    named in seconds."""
+    named in seconds.  Only this fit is judged: the measurement's fit of the whole panel is not
+    checked again (its residual is reported in the diagnostics, ``cone_residual_rms``)."""
     pick = np.random.default_rng(1).choice(len(rows), size=min(CHECK_SAMPLES, len(rows)), replace=False)
     ratios, rows, cols = ratios[pick], rows[pick], cols[pick]
     fit = cone.fit_cone(ratios, rows, cols, shifts, views, shape)
