@@ -166,8 +166,11 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
                     power, tone_residual, photos, factor, start, progress)
 
 
-def _ratios(luma, mask, pattern_set, glare, power=1.0):
-    """(float32 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask."""
+def _ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE):
+    """(float32 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask.
+
+    ``column_average``: sigma of the average along the panel's columns, as a share of the panel's
+    height in the photo (0: none)."""
     import cv2
 
     def corrected(name):
@@ -180,11 +183,14 @@ def _ratios(luma, mask, pattern_set, glare, power=1.0):
     rows, cols = np.nonzero(inner)
     # the band photos' moire (one phase of the lit subpixels per place) averaged out along the
     # panel's columns, where the sweep stays put (cone.average_along_columns)
-    r0, r1, _, _ = _bounding_box(mask)
-    sigma, angle = COLUMN_AVERAGE * (r1 - r0), cone.column_angle(mask)
     bands = pattern_set.bands
-    ratios = np.stack([cone.average_along_columns(corrected(p.name) / np.maximum(white, 1e-6), inner, sigma,
-                                                  angle)[rows, cols] for p in bands], axis=1)
+    if column_average:
+        r0, r1, _, _ = _bounding_box(mask)
+        sigma, angle = column_average * (r1 - r0), cone.column_angle(mask)
+        ratios = np.stack([cone.average_along_columns(corrected(p.name) / np.maximum(white, 1e-6), inner, sigma,
+                                                      angle)[rows, cols] for p in bands], axis=1)
+    else:
+        ratios = np.stack([(corrected(p.name) / np.maximum(white, 1e-6))[rows, cols] for p in bands], axis=1)
     return ratios.astype(np.float64), rows, cols, white
 
 
@@ -196,11 +202,26 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     lit = luma["white"] - luma["black"]
     outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
-    ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare)
+    ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare, column_average=0.0)
     bands = pattern_set.bands
     check_distinct(ratios, bands, capture)
     band_shifts = np.array([p.shift for p in bands])
-    check_band_photos(ratios, rows, cols, band_shifts, bands, capture, n, mask.shape)
+    column_average = 0.0
+    try:
+        check_band_photos(ratios, rows, cols, band_shifts, bands, capture, n, mask.shape)
+    except CaptureError as refusal:
+        # a close camera may resolve the moire of a one-view band (which subpixel each lens shows):
+        # the same photos averaged along the panel's columns, where the sweep stays put, must then
+        # agree; if they do not either, the first refusal stands
+        averaged = _ratios(luma, mask, pattern_set, glare, column_average=COLUMN_AVERAGE)
+        try:
+            check_band_photos(*averaged[:3], band_shifts, bands, capture, n, mask.shape)
+        except CaptureError:
+            raise refusal from None
+        ratios, rows, cols, white = averaged
+        column_average = COLUMN_AVERAGE
+        warnings.append("the band photos show a moire of the lit subpixels (a close camera): they were averaged "
+                        f"along the panel's columns (sigma {COLUMN_AVERAGE:.3f} of the panel's height)")
     panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
     if progress:
         progress("view cone")
@@ -233,7 +254,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     k = max(1, len(block_rows))
     # the average along the columns (_ratios) ties strips within about 2 sqrt(pi) sigma of each
     # other: the region holds only that many independent strips
-    independent = max(1.0, min(k, CENTRE_FRACTION / (2 * math.sqrt(math.pi) * COLUMN_AVERAGE)))
+    independent = (max(1.0, min(k, CENTRE_FRACTION / (2 * math.sqrt(math.pi) * column_average))) if column_average
+                   else float(k))
     stat_sigma = _robust_spread(block_rows) / math.sqrt(independent) if k > 1 else np.zeros(n)
     cone_stat = (_robust_spread(np.array(block_cones)) / math.sqrt(independent) if k > 1
                  else np.zeros_like(cone_values))
@@ -241,12 +263,12 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
     perturbed = {}
     for label, g_scale, p in (("glare-", 1 - GLARE_RELATIVE_SIGMA, 1.0), ("glare+", 1 + GLARE_RELATIVE_SIGMA, 1.0)):
         g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
-        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, g, p)
+        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, g, p, column_average)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
     tone_sigma = max(TONE_FLOOR, abs(power - 1.0) / 2.0) if photos == "srgb" else LINEAR_TONE_SIGMA
     for label, p in (("tone-", 1.0 - tone_sigma), ("tone+", 1.0 + tone_sigma)):
-        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p)
+        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p, column_average)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
     glare_sigma = np.abs(perturbed["glare+"][0] - perturbed["glare-"][0]) / 2
