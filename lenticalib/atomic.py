@@ -38,9 +38,10 @@ def _kind(mode: int) -> str:
     return _KINDS.get(stat.S_IFMT(mode), "not a regular file")
 
 
-def output_target(path: str | os.PathLike, what: str = "output file") -> Path:
+def output_target(path: str | os.PathLike, what: str = "output file", follow_links: bool = True) -> Path:
     """The regular file that writing ``path`` creates or replaces: ``path`` itself, or the regular
-    file a symbolic link ``path`` points to.
+    file a symbolic link ``path`` points to (with ``follow_links=False``: the link itself, which
+    the write then replaces, whatever it points to -- for files in the program's own folders).
 
     Raises InputError when ``path`` is (or links to) anything but a regular file, or is a dangling
     link.  A path whose folder is missing is returned as is (the write or the folder check says so).
@@ -49,6 +50,8 @@ def output_target(path: str | os.PathLike, what: str = "output file") -> Path:
     try:
         st = os.lstat(target)
     except OSError:
+        return target
+    if stat.S_ISLNK(st.st_mode) and not follow_links:
         return target
     if stat.S_ISLNK(st.st_mode):
         real = Path(os.path.realpath(target))
@@ -154,9 +157,11 @@ class PendingFile:
     manager: commit on success, discard on an exception.
     """
 
-    def __init__(self, path: str | os.PathLike, what: str = "output file", suffix: str = ""):
+    def __init__(self, path: str | os.PathLike, what: str = "output file", suffix: str = "",
+                 follow_links: bool = True):
         self.what = what
-        self.target = output_target(path, what)
+        self.follow_links = follow_links
+        self.target = output_target(path, what, follow_links)
         folder = self.target.parent if str(self.target.parent) else Path(".")
         if not folder.is_dir():
             raise InputError("output folder does not exist", source=str(folder),
@@ -172,6 +177,8 @@ class PendingFile:
             fcntl.flock(self._fd, fcntl.LOCK_EX)
             try:
                 st = os.stat(self.target)
+                if os.path.islink(self.target):  # a link replaced, not followed: nothing to keep of it
+                    raise FileNotFoundError
             except FileNotFoundError:
                 os.fchmod(self._fd, 0o666 & ~current_umask())
             else:
@@ -200,7 +207,8 @@ class PendingFile:
             except FileNotFoundError:
                 pass
             else:
-                if not stat.S_ISREG(st.st_mode):  # changed since the check: never replaced
+                replaceable = stat.S_ISREG(st.st_mode) or (stat.S_ISLNK(st.st_mode) and not self.follow_links)
+                if not replaceable:  # changed since the check: never replaced
                     raise InputError(f"is now {_kind(st.st_mode)}, not a regular file, so the {self.what} will "
                                      "not replace it", source=str(self.target),
                                      hint=f"choose a file path for the {self.what}")
@@ -235,14 +243,15 @@ class PendingFile:
             self.discard()
 
 
-def write_bytes_atomic(path: str | os.PathLike, data: bytes, what: str = "output file") -> Path:
+def write_bytes_atomic(path: str | os.PathLike, data: bytes, what: str = "output file",
+                       follow_links: bool = True) -> Path:
     """Write ``data`` to ``path`` atomically (:class:`PendingFile`); return the file written.
 
     On any failure the temporary file is removed and an existing ``path`` is left as it was.
     Raises InputError when the folder does not exist or is not writable, or ``path`` is not a
     regular file (module docstring).  Returns ``path`` as given (a link's target is written).
     """
-    with PendingFile(path, what) as pending:
+    with PendingFile(path, what, follow_links=follow_links) as pending:
         try:
             pending.write(data)
         except OSError as exc:
@@ -251,6 +260,7 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes, what: str = "output
     return Path(path)
 
 
-def write_text_atomic(path: str | os.PathLike, text: str, what: str = "output file") -> Path:
+def write_text_atomic(path: str | os.PathLike, text: str, what: str = "output file",
+                      follow_links: bool = True) -> Path:
     """UTF-8 text flavour of :func:`write_bytes_atomic`."""
-    return write_bytes_atomic(path, text.encode("utf-8"), what)
+    return write_bytes_atomic(path, text.encode("utf-8"), what, follow_links)

@@ -354,3 +354,17 @@ def test_a_failed_swap_puts_the_earlier_folder_back(tmp_path, monkeypatch):
         with staged_folder(target, "report", ("a.txt",)) as stage:
             (stage / "a.txt").write_text("second")
     assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}
+
+
+def test_a_file_of_our_own_folder_replaces_a_planted_link_instead_of_writing_through_it(tmp_path):
+    """write_text_atomic(..., follow_links=False) (the emulator's announcements): the link at the name
+    is replaced by the new file and what it pointed to is never written."""
+    from lenticalib.atomic import write_text_atomic
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    link = tmp_path / "1.json"
+    link.symlink_to(victim)
+    write_text_atomic(link, '{"url": "emu://x"}', follow_links=False)
+    assert not link.is_symlink() and link.read_text() == '{"url": "emu://x"}'
+    assert victim.read_text() == "keep me"

@@ -20,8 +20,9 @@ its period, a band of views moved across the panel -- but may change the photo's
 so the comparison is made at the check width, on the square root of the light (shot noise
 then has one size at every level).  Of a crosstalk set only steps the patterns say the camera
 sees differently are compared: a band is seen only where it passes the fitted camera's view
-(:func:`~.crosstalk.patterns.seen_columns`), and two bands seen nowhere give the same dark photo.  The manual camera (the user presses the shutter, and may
-take a while) takes no repeat: for it only an identical photo counts as unchanged.
+(:func:`~.crosstalk.patterns.seen_columns`), and two bands seen nowhere give the same dark photo.
+The manual camera (the user presses the shutter, and may take a while) takes no repeat: for it
+only an identical photo counts as unchanged.
 
 Resuming: photos already in ``captures/`` that pass the checks are kept, so an interrupted
 capture goes on where it stopped.  Photos are written atomically by the cameras, so an

@@ -11,7 +11,6 @@ While it runs, a small JSON file in the runtime directory announces it, so
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import select
@@ -24,6 +23,7 @@ import time
 import tty
 from pathlib import Path
 
+from ...atomic import write_text_atomic
 from ...errors import InputError
 from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 
@@ -105,22 +105,8 @@ class _Announcement:
         identity = controller.identity
         text = json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
                            "flash": str(controller.flash.path), "serial": identity.serial, "model": identity.model})
-        # a new file renamed over the name (not write_text_atomic, which follows a link to its target):
-        # whatever was planted at the name is replaced, nothing it points to is ever written
-        tmp = None
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-            os.replace(tmp, self.path)
-        except BaseException as exc:
-            if tmp is not None:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
-            if isinstance(exc, OSError):
-                raise InputError(f"cannot announce the running emulator: {exc.strerror}", source=str(self.path),
-                                 hint="check free space in that folder") from None
-            raise
+        # a link planted at the name is replaced, never written through
+        write_text_atomic(self.path, text, "emulator announcement", follow_links=False)
 
     def remove(self):
         try:
