@@ -10,7 +10,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-from lenticalib.profile import PanelProfile
+from lenticalib.core.profile import PanelProfile
 
 REPO = Path(__file__).resolve().parents[1]
 VIAS = ("serial", "hid", "usb")

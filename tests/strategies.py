@@ -4,7 +4,7 @@ import math
 
 from hypothesis import strategies as st
 
-from lenticalib.profile import PanelProfile
+from lenticalib.core.profile import PanelProfile
 
 VIEW_COUNTS = (2, 8, 32, 48, 64)
 

@@ -13,8 +13,8 @@ import sys
 import numpy as np
 import pytest
 
-from lenticalib.imageio import read_image
-from lenticalib.profile import load_profile, save_profile
+from lenticalib.core.imageio import read_image
+from lenticalib.core.profile import load_profile, save_profile
 from lenticalib.render.encoders import encode
 from lenticalib.render.gaussians import SH_C0, Gaussians
 from lenticalib.render.ply import save_ply
@@ -115,7 +115,7 @@ def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, dir
 
 
 def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_path):
-    from lenticalib.imageio import write_image
+    from lenticalib.core.imageio import write_image
 
     backdrop = np.zeros((108, 192, 3), np.uint8)
     backdrop[:, :96] = (200, 30, 40)

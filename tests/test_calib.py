@@ -24,8 +24,8 @@ import lenticalib.cli._progress as progress_module
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.patterns import design_patterns, read_manifest, write_patterns
 from lenticalib.cli import main
-from lenticalib.errors import InputError
-from lenticalib.profile import load_profile
+from lenticalib.core.errors import InputError
+from lenticalib.core.profile import load_profile
 
 FIXTURE = Path(__file__).resolve().parent.parent / "fixtures" / "capture-demo"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -498,7 +498,7 @@ def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fi
     samples in it agree with the fitted w of the subpixel they lie on (no aliased checkerboard)."""
     from lenticalib.calib.model import wrap
     from lenticalib.calib.report import read_figure_record
-    from lenticalib.render.routing import view_coordinate
+    from lenticalib.core.routing import view_coordinate
 
     numbers = read_figure_record(demo_fit.out / "profile-report" / "view-map.png")["numbers"]
     assert numbers["subpixel_width_figure_pixels"] >= 5.0

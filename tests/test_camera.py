@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from lenticalib.calib.camera import estimate_camera, load_camera_model
-from lenticalib.errors import InputError
+from lenticalib.core.errors import InputError
 
 MATRIX = np.array([[3100.0, 0, 2010.0], [0, 3100.0, 1490.0], [0, 0, 1]])
 DIST = np.array([-0.08, 0.02, 0.0005, -0.0003, 0.0])
@@ -152,7 +152,7 @@ def test_a_cut_real_model_is_one_line(tmp_path, capsys):
 def test_without_mrcal_a_cameramodel_is_refused_saying_how_to_install(tmp_path, monkeypatch):
     import sys
 
-    from lenticalib.errors import BackendUnavailableError
+    from lenticalib.core.errors import BackendUnavailableError
 
     path = tmp_path / "cam.cameramodel"
     path.write_text("{'lensmodel': 'LENSMODEL_PINHOLE', 'intrinsics': [1, 1, 1, 1], 'imagersize': [2, 2]}")

@@ -131,7 +131,7 @@ def test_corner_labels_do_not_depend_on_the_detector_order(printed):
     """Any labelling of the grid (from either end, mirrored) is turned back into the drawn one."""
     folder = printed[0]
     board = boards.read_board(folder / "board.json")
-    from lenticalib.imageio import read_image
+    from lenticalib.core.imageio import read_image
 
     grey = grey8(read_image(folder / "captures" / "board-01.jpg"))
     rt = read_truth_poses(folder)["board-01.jpg"]
@@ -187,7 +187,7 @@ def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, cap
     assert manifest["kind"] == "panel" and (manifest["cols"], manifest["rows"]) == (15, 8)
     assert manifest["panel"] == {"width": 1920, "height": 1080, "pixel_pitch_mm": 0.36}
     assert manifest["square_mm"] == pytest.approx(manifest["square_px"] * 0.36, abs=1e-9)
-    from lenticalib.imageio import read_image
+    from lenticalib.core.imageio import read_image
 
     raster = read_image(out / "board.png")
     assert raster.shape == (1080, 1920, 3) and raster.dtype == np.uint8

@@ -29,7 +29,7 @@ import pytest
 
 from lenticalib.calib.cameras import CAMERA_KINDS, make_camera, open_camera
 from lenticalib.calib.cameras.base import CaptureCamera
-from lenticalib.errors import CameraError, InputError
+from lenticalib.core.errors import CameraError, InputError
 from lenticalib.sim.scene import DEFAULT_RESOLUTION
 
 
@@ -368,7 +368,7 @@ def test_manual_key_mode_takes_the_file_the_user_put_in_place(tmp_path):
 
 def test_sim_photographs_the_shown_patterns_and_records_the_truth(tmp_path):
     from lenticalib.calib.patterns import design_patterns, render_pattern, write_patterns
-    from lenticalib.profile import load_profile
+    from lenticalib.core.profile import load_profile
     from lenticalib.sim.capture import photograph_pattern
     from lenticalib.sim.scene import Scene, random_scene
 

@@ -19,8 +19,8 @@ from lenticalib.calib.captures import load_photo
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.fit import fit_capture_set
 from lenticalib.calib.patterns import design_patterns, write_patterns
-from lenticalib.errors import CaptureError
-from lenticalib.profile import load_profile
+from lenticalib.core.errors import CaptureError
+from lenticalib.core.profile import load_profile
 from lenticalib.render.present import open_presenter
 
 from .display_support import VirtualDisplay
@@ -116,7 +116,7 @@ class _FirstPhotoBlack:
     def capture(self, name, shown, destination):
         if name in self.black:
             self.black.discard(name)
-            from lenticalib.imageio import write_image
+            from lenticalib.core.imageio import write_image
 
             return write_image(destination.with_suffix(".png"), np.zeros((900, 1200, 3), np.uint8))
         return self.inner.capture(name, shown, destination)

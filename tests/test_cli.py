@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lenticalib.cli import main
-from lenticalib.imageio import read_image, write_image
+from lenticalib.core.imageio import read_image, write_image
 from lenticalib.render.views import QuiltGrid, load_view_folder, make_quilt, parse_quilt_name, split_quilt
 
 PROFILE = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,

@@ -71,8 +71,8 @@ def _make_node(kind: str, path: Path) -> None:
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
     """Small real inputs: a demo avatar, a visual.json, a small profile."""
-    from lenticalib.lkg import export_visual_json
-    from lenticalib.profile import load_profile
+    from lenticalib.core.lkg import export_visual_json
+    from lenticalib.core.profile import load_profile
     from lenticalib.render.demo_avatar import make_demo_avatar
     from lenticalib.render.rig_file import save_rig
 

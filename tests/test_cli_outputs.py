@@ -13,11 +13,11 @@ import pytest
 
 import lenticalib.calib.fit as fit_module
 import lenticalib.calib.patterns as patterns_module
-import lenticalib.imageio as imageio_module
+import lenticalib.core.imageio as imageio_module
 import lenticalib.sim.capture as capture_module
 from lenticalib.calib.patterns import design_patterns, write_patterns
 from lenticalib.cli import main
-from lenticalib.errors import InputError
+from lenticalib.core.errors import InputError
 from lenticalib.sim.scene import random_scene
 
 from .outputs_support import read_only  # noqa: F401 -- pytest fixture

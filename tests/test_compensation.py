@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lenticalib.cli import main
-from lenticalib.errors import InputError
-from lenticalib.imageio import read_image, write_image
+from lenticalib.core.errors import InputError
+from lenticalib.core.imageio import read_image, write_image
 from lenticalib.render.compensation import Compensator, circulant_row, compensation_study
 
 N = 16

@@ -11,8 +11,8 @@ import pytest
 from lenticalib.calib.crosstalk.patterns import BAND_PATTERNS, design_crosstalk_patterns, lit_subpixels
 from lenticalib.calib.patterns import design_patterns, read_manifest, read_pattern_folder, write_patterns
 from lenticalib.cli import main
-from lenticalib.errors import CaptureError, InputError
-from lenticalib.render.routing import view_coordinate
+from lenticalib.core.errors import CaptureError, InputError
+from lenticalib.core.routing import view_coordinate
 from lenticalib.sim.scene import random_scene
 
 VIEWS = 32
@@ -210,7 +210,7 @@ def test_readme_check_example_passes_the_bundled_demo_panel():
     from pathlib import Path
 
     from lenticalib.calib.crosstalk.result import check_crosstalk, derived_figures, eye_separation_views
-    from lenticalib.profile import load_profile
+    from lenticalib.core.profile import load_profile
     from lenticalib.sim.crosstalk_truth import true_mixing_matrix
     from lenticalib.sim.scene import Scene
 
@@ -338,7 +338,7 @@ def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile, monk
 
 
 def test_bad_inputs_end_in_one_line(measured_set, tmp_path, capsys, profile):
-    from lenticalib.profile import save_profile
+    from lenticalib.core.profile import save_profile
 
     folder = _copy_set(measured_set[0], tmp_path)
     (folder / "captures" / "white.png").unlink()

@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from lenticalib.profile import load_profile, save_profile
+from lenticalib.core.profile import load_profile, save_profile
 
 from .device_support import REPO, emulator_process, profile_a, profile_b, same_constants
 

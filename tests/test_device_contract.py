@@ -14,7 +14,7 @@ import pytest
 from lenticalib.device import PanelController
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, Command, Status
 from lenticalib.device.record import RECORD_SIZE, encode_record, record_crc, record_from_profile
-from lenticalib.errors import DeviceProtocolError, ProfileError
+from lenticalib.core.errors import DeviceProtocolError, ProfileError
 
 from .device_support import emulator_process, profile_a, profile_b, same_constants
 

@@ -8,7 +8,7 @@ import time
 import pytest
 
 from lenticalib.device import PanelController
-from lenticalib.errors import DeviceDisconnectedError, DeviceError, DeviceTimeoutError
+from lenticalib.core.errors import DeviceDisconnectedError, DeviceError, DeviceTimeoutError
 
 from .device_support import VIAS, emulator_process, no_hang, profile_a, profile_b, same_constants
 

@@ -13,7 +13,7 @@ from lenticalib.device.record import LEGACY_CRC_RESIDUE, RECORD_SIZE
 from lenticalib.device.drivers import family_for
 from lenticalib.device.transports.base import Transport
 from lenticalib.device.url import parse_device_url
-from lenticalib.errors import DeviceProtocolError, ProfileError
+from lenticalib.core.errors import DeviceProtocolError, ProfileError
 
 from .device_support import VIAS, profile_a, profile_b, same_constants
 

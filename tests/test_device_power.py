@@ -8,7 +8,7 @@ import pytest
 
 from lenticalib.device import PanelController
 from lenticalib.device.emulator.flash import IMAGE_SIZE, SLOT_SIZE, FACTORY_SIZE
-from lenticalib.errors import DeviceError
+from lenticalib.core.errors import DeviceError
 
 from .device_support import VIAS, emulator_process, profile_a, profile_b, same_constants, wait_exit
 

@@ -13,8 +13,8 @@ from lenticalib.device.drivers import families, family_for, load_family
 from lenticalib.device.framing import FrameParser, crc16, encode_frame
 from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record,
                                       record_from_profile)
-from lenticalib.errors import InputError, ProfileError
-from lenticalib.profile import PanelProfile
+from lenticalib.core.errors import InputError, ProfileError
+from lenticalib.core.profile import PanelProfile
 
 from .device_support import REPO, profile_b
 

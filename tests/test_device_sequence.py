@@ -11,7 +11,7 @@ from lenticalib.device import PanelController
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, Command
 from lenticalib.device.record import (LAYOUT_VERSION, RECORD_SIZE, encode_record, next_sequence, record_from_profile,
                                       sequence_newer, wire_crc)
-from lenticalib.errors import DeviceError, DeviceProtocolError
+from lenticalib.core.errors import DeviceError, DeviceProtocolError
 
 from .device_support import VIAS, profile_a, profile_b, same_constants
 

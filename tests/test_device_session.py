@@ -11,7 +11,7 @@ from lenticalib.device.emulator.flash import FlashImage, create_image
 from lenticalib.device.framing import FrameParser
 from lenticalib.device.protocol import SLOT_SEQUENCE, VERIFY_REPLY, Identity, PanelGeometry
 from lenticalib.device.record import LEGACY_CRC_RESIDUE, decode_record, record_crc
-from lenticalib.profile import load_profile
+from lenticalib.core.profile import load_profile
 
 from .device_support import REPO
 

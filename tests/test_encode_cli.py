@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import lenticalib.outputs
+import lenticalib.core.outputs
 import lenticalib.render.encoders
 from lenticalib.cli import main
-from lenticalib.imageio import read_image, write_image
+from lenticalib.core.imageio import read_image, write_image
 from lenticalib.render.views import QuiltGrid, make_quilt
 
 REPO = Path(__file__).resolve().parent.parent
@@ -146,7 +146,7 @@ def test_encode_output_path_is_refused_before_encoding(files, capsys, monkeypatc
     locked.mkdir()
     locked.chmod(0o555)
     real_access = os.access  # root passes any mode bits: report the folder as a user would see it
-    monkeypatch.setattr(lenticalib.outputs.os, "access",
+    monkeypatch.setattr(lenticalib.core.outputs.os, "access",
                         lambda p, mode: False if Path(p) == locked and mode & os.W_OK else real_access(p, mode))
     line = _error_line(capsys, encode + [locked / "o.png"])
     assert f"{locked}: folder is not writable" in line

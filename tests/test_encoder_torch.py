@@ -16,12 +16,12 @@ from hypothesis import strategies as st
 import torch  # noqa: E402  (a test dependency: pip install -e .[test])
 
 from lenticalib.cli import main  # noqa: E402
-from lenticalib.errors import ConfigurationError, ImageError  # noqa: E402
-from lenticalib.imageio import read_image, write_image  # noqa: E402
-from lenticalib.profile import PanelProfile, load_profile  # noqa: E402
+from lenticalib.core.errors import ConfigurationError, ImageError  # noqa: E402
+from lenticalib.core.imageio import read_image, write_image  # noqa: E402
+from lenticalib.core.profile import PanelProfile, load_profile  # noqa: E402
 from lenticalib.render.encoders import encode, get_encoder  # noqa: E402
 from lenticalib.render.encoders import torch_encoder as te  # noqa: E402
-from lenticalib.render.routing import tie_mask, view_map  # noqa: E402
+from lenticalib.core.routing import tie_mask, view_map  # noqa: E402
 from lenticalib.render.sampling import NO_VIEW, column_sampling, row_sampling  # noqa: E402
 from lenticalib.render.views import QuiltGrid, load_quilt, make_quilt  # noqa: E402
 

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from lenticalib.errors import BackendUnavailableError
+from lenticalib.core.errors import BackendUnavailableError
 from lenticalib.render.encoders import available_encoders, get_encoder
 
 

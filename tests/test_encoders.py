@@ -5,10 +5,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lenticalib.errors import ImageError, InputError
-from lenticalib.profile import PanelProfile
+from lenticalib.core.errors import ImageError, InputError
+from lenticalib.core.profile import PanelProfile
 from lenticalib.render.encoders import available_encoders, encode, get_encoder
-from lenticalib.render.routing import tie_mask, view_map
+from lenticalib.core.routing import tie_mask, view_map
 
 from .strategies import VIEW_COUNTS, profiles, tie_profiles
 
@@ -58,7 +58,7 @@ def test_every_encoder_chooses_the_canonical_view_everywhere(name, dtype, profil
 def test_encoders_agree_on_the_bundled_profile_everywhere():
     # no tie exclusion: the demo profile has ~2,500 subpixels whose w sits on a view boundary
     # (to float64 precision), where the float64 evaluation of the routing rule used to light two views or the other one
-    from lenticalib.profile import load_profile
+    from lenticalib.core.profile import load_profile
     from lenticalib.render.views import load_quilt
 
     profile = load_profile(FIXTURES / "panel-4k-32.json")
@@ -122,7 +122,7 @@ def test_constant_views_encode_to_their_view_number():
                            width=200, height=30, subpixel_order="BGR")
     views = np.broadcast_to(np.arange(48, dtype=np.uint8)[:, None, None, None], (48, 15, 100, 3)).copy()
     out = encode(views, profile)
-    from lenticalib.render.routing import view_map
+    from lenticalib.core.routing import view_map
     vm = view_map(profile)
     xs = 3 * np.arange(200)[:, None] + np.asarray(profile.rho)[None, :]
     np.testing.assert_array_equal(out, vm[:, xs.reshape(-1)].reshape(30, 200, 3))

@@ -24,14 +24,14 @@ import zlib
 import numpy as np
 import pytest
 
-from lenticalib import lkg
+from lenticalib.core import lkg
 from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
 from lenticalib.calib.crosstalk.result import read_crosstalk
 from lenticalib.calib.intrinsics.board import panel_board, read_board, write_manifest
 from lenticalib.calib.patterns import design_patterns, read_pattern_folder, write_patterns
-from lenticalib.errors import ImageError, InputError, ProfileError
-from lenticalib.imageio import MAX_IMAGE_PIXELS, check_image_pixels, read_image
-from lenticalib.profile import PanelProfile, load_profile, read_json_file, save_profile
+from lenticalib.core.errors import ImageError, InputError, ProfileError
+from lenticalib.core.imageio import MAX_IMAGE_PIXELS, check_image_pixels, read_image
+from lenticalib.core.profile import PanelProfile, load_profile, read_json_file, save_profile
 from lenticalib.render.cameras import ViewCameras
 from lenticalib.render.camera_models import arc_cameras
 from lenticalib.sim.scene import Scene, random_scene
@@ -419,7 +419,7 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
     views = tmp_path / "views"
     views.mkdir()
     small = np.zeros((SMALL["height"] // 2, SMALL["width"] // 4, 3), np.uint8)
-    from lenticalib.imageio import write_image
+    from lenticalib.core.imageio import write_image
 
     for i in range(SMALL["views"]):
         write_image(views / f"v{i}.png", small)
@@ -443,7 +443,7 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
 
 def test_a_damaged_deflate_stream_in_an_npz_is_one_line(tmp_path):
     """A bit flipped inside a compressed member makes zlib fail (not a CRC error): one InputError."""
-    from lenticalib.arrayfile import load_npz
+    from lenticalib.core.arrayfile import load_npz
 
     buf = io.BytesIO()
     np.savez_compressed(buf, a=np.arange(100000) % 7)

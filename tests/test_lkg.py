@@ -1,6 +1,6 @@
-"""Looking Glass visual.json import/export (lenticalib.lkg).
+"""Looking Glass visual.json import/export (lenticalib.core.lkg).
 
-The golden model is :func:`lenticalib.lkg.lkg_view_map`, a literal float64 transcription of the
+The golden model is :func:`lenticalib.core.lkg.lkg_view_map`, a literal float64 transcription of the
 Looking Glass shader's rule; lenticalib's canonical :func:`routing.view_map` of the imported
 profile must agree with it on every subpixel except exact ties (their ``phase * N`` within 1e-6
 of an integer, where float evaluations may legitimately differ).
@@ -16,10 +16,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lenticalib import lkg
-from lenticalib.errors import ProfileError
-from lenticalib.profile import PanelProfile
-from lenticalib.render import routing
+from lenticalib.core import lkg
+from lenticalib.core.errors import ProfileError
+from lenticalib.core.profile import PanelProfile
+from lenticalib.core import routing
 
 SETTINGS = settings(max_examples=30, derandomize=True, deadline=None, database=None,
                     suppress_health_check=[HealthCheck.too_slow])

@@ -17,8 +17,8 @@ import pytest
 
 from lenticalib.calib.patterns import design_patterns, write_patterns
 from lenticalib.cli import main
-from lenticalib.profile import load_profile
-from lenticalib.retarget import retarget_profile
+from lenticalib.core.profile import load_profile
+from lenticalib.core.retarget import retarget_profile
 from lenticalib.sim.capture import simulate_capture_set
 from lenticalib.sim.optics import routing_error
 from lenticalib.sim.scene import random_scene

@@ -1,4 +1,4 @@
-"""The backend registry (lenticalib.plugins): a backend that cannot run here is refused when it is
+"""The backend registry (lenticalib.core.plugins): a backend that cannot run here is refused when it is
 asked for, in one line naming the ones that can; backends are imported and asked only when named."""
 
 import subprocess
@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from lenticalib.errors import BackendUnavailableError, InputError
-from lenticalib.plugins import load, runnable
+from lenticalib.core.errors import BackendUnavailableError, InputError
+from lenticalib.core.plugins import load, runnable
 
 from . import backend_plugins
 

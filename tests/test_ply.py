@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lenticalib.errors import InputError
+from lenticalib.core.errors import InputError
 from lenticalib.render.gaussians import Gaussians
 from lenticalib.render.ply import load_ply, save_ply
 

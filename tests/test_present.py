@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from lenticalib.errors import DisplayError, ImageError
+from lenticalib.core.errors import DisplayError, ImageError
 from lenticalib.render.monitors import Monitor, choose_monitor, list_monitors
 from lenticalib.render.present import WindowPresenter
 from lenticalib.render.present_offscreen import OffscreenPresenter

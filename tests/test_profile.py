@@ -3,8 +3,8 @@ import json
 
 import pytest
 
-from lenticalib.errors import ProfileError
-from lenticalib.profile import PanelProfile, load_profile, make_provenance, save_profile
+from lenticalib.core.errors import ProfileError
+from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
 
 EIGHT = {"views": 32, "slant": -0.138, "period": 18.668, "offset": 5.25, "reference_view": 16,
          "width": 3840, "height": 2160, "subpixel_order": "RGB"}
@@ -81,7 +81,7 @@ def test_failed_save_leaves_the_old_file(tmp_path):
     before = path.read_text()
     with pytest.raises(ProfileError):
         save_profile(PanelProfile(**{**EIGHT, "period": -1.0}), path)  # invalid: never reaches disk
-    from lenticalib.errors import InputError
+    from lenticalib.core.errors import InputError
     with pytest.raises(InputError, match="output folder does not exist"):
         save_profile(PanelProfile(**EIGHT), tmp_path / "missing" / "p.json")
     assert path.read_text() == before

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from lenticalib.cli import main
-from lenticalib.errors import InputError, ProfileError
-from lenticalib.physical import gap_from_view_cone, validate_physical, view_cone_deg
-from lenticalib.profile import load_profile, profile_from_dict, save_profile
-from lenticalib.retarget import Eye, Retargeter, retarget_profile, routing_difference
+from lenticalib.core.errors import InputError, ProfileError
+from lenticalib.core.physical import gap_from_view_cone, validate_physical, view_cone_deg
+from lenticalib.core.profile import load_profile, profile_from_dict, save_profile
+from lenticalib.core.retarget import Eye, Retargeter, retarget_profile, routing_difference
 from lenticalib.sim.optics import routing_error, truth_profile
 from lenticalib.sim.scene import random_scene
 

@@ -16,7 +16,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from lenticalib.errors import BackendUnavailableError, InputError  # noqa: E402
+from lenticalib.core.errors import BackendUnavailableError, InputError  # noqa: E402
 from lenticalib.render.control_streams import (DEMO_JAW_RAD, DEMO_YAW_DEG, demo_controls,  # noqa: E402
                                                open_text_stream, open_udp)
 from lenticalib.render.controls import ControlTrack, load_controls, open_controls  # noqa: E402

@@ -3,8 +3,8 @@ from fractions import Fraction
 import numpy as np
 from hypothesis import given, settings
 
-from lenticalib.profile import PanelProfile
-from lenticalib.render.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
+from lenticalib.core.profile import PanelProfile
+from lenticalib.core.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
 
 from lenticalib.render.sampling import NO_VIEW, sampling_tables
 

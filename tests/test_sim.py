@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from lenticalib.errors import InputError
-from lenticalib.profile import load_profile
-from lenticalib.render.routing import view_coordinate
+from lenticalib.core.errors import InputError
+from lenticalib.core.profile import load_profile
+from lenticalib.core.routing import view_coordinate
 from lenticalib.sim import Scene, random_scene, view_coordinate_truth
 from lenticalib.sim.render import photograph, photograph_jpeg
 
@@ -210,7 +210,7 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, c
     record = json.loads((tmp_path / "simulation.json").read_text())
     assert record["status"] == "complete" and record["seed"] == 3 and record["lenticalib_version"]
     assert Scene.from_dict(record) == random_scene(3, resolution=(1250, 800), subsamples=1)
-    from lenticalib.imageio import read_image
+    from lenticalib.core.imageio import read_image
 
     assert read_image(tmp_path / "captures" / "f16-0.jpg").shape == (800, 1250, 3)
 

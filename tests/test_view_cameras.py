@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from lenticalib.errors import InputError
+from lenticalib.core.errors import InputError
 from lenticalib.render.camera_models import CAMERA_MODELS, arc_cameras, make_cameras, shear_cameras
 from lenticalib.render.cameras import ViewCameras, camera_side, order_for_direction
 from lenticalib.render.gaussians import Gaussians

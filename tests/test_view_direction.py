@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lenticalib import lkg
+from lenticalib.core import lkg
 from lenticalib.calib.direction import (DIRECTION_PATTERN_NAME, add_moved_right, direction_from_moved_right,
                                         direction_raster, direction_view, direction_views)
 from lenticalib.cli import main
-from lenticalib.errors import InputError, ProfileError
-from lenticalib.profile import PanelProfile, load_profile, make_provenance, save_profile
-from lenticalib.view_direction import direction_warning, with_direction
+from lenticalib.core.errors import InputError, ProfileError
+from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
+from lenticalib.core.view_direction import direction_warning, with_direction
 
 REPO = Path(__file__).resolve().parents[1]
 EIGHT = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
@@ -525,7 +525,7 @@ def test_views_below_half_say_left_the_others_right():
 
 def test_the_raster_routes_left_to_low_views_and_right_to_high_views():
     from lenticalib.render.encoders import encode
-    from lenticalib.render.routing import view_map
+    from lenticalib.core.routing import view_map
 
     profile = PanelProfile(**EIGHT)
     raster = direction_raster(profile)
@@ -552,7 +552,7 @@ def test_patterns_direction_writes_the_raster_and_the_instruction(tmp_path, caps
     out = tmp_path / "check"
     code, stdout, err = _run(["patterns", "--direction", "--profile", profile_path, "-o", out], capsys)
     assert code == 0 and err == "", err
-    from lenticalib.imageio import read_image
+    from lenticalib.core.imageio import read_image
 
     raster = read_image(out / DIRECTION_PATTERN_NAME)
     assert raster.shape == (54, 96, 3) and raster.dtype == np.uint8

@@ -54,11 +54,11 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     t0 = time.perf_counter()
     fitted = folder / "fitted-profile.json"
     if reuse and fitted.exists():
-        from lenticalib.profile import load_profile
+        from lenticalib.core.profile import load_profile
 
         profile = load_profile(fitted)
     else:
-        from lenticalib.profile import save_profile
+        from lenticalib.core.profile import save_profile
 
         write_patterns(cal, design_patterns(3840, 2160, 32))
         simulate_capture_set(cal, scene)

@@ -30,7 +30,7 @@ def main() -> None:
 
     import numba
 
-    from lenticalib.profile import PanelProfile
+    from lenticalib.core.profile import PanelProfile
     from lenticalib.render.encoders import encode
 
     profile = PanelProfile(views=args.views, slant=0.1835, period=19.47, offset=7.3, reference_view=args.views / 2,

@@ -38,7 +38,7 @@ def main() -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    from lenticalib.profile import PanelProfile
+    from lenticalib.core.profile import PanelProfile
     from lenticalib.render.encoders.torch_encoder import TorchEncoder
 
     profile = PanelProfile(views=args.views, slant=0.1835, period=19.47, offset=7.3, reference_view=args.views / 2,

@@ -53,7 +53,7 @@ def run_one(seed: int, root: Path, resolution, reuse: bool = False, conditions: 
     from lenticalib.calib.compare import compare_profiles
     from lenticalib.calib.fit import fit_capture_set
     from lenticalib.calib.patterns import design_patterns, write_patterns
-    from lenticalib.profile import load_profile
+    from lenticalib.core.profile import load_profile
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 

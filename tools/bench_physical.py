@@ -60,8 +60,8 @@ def _camera_model(kind: str, scene, root: Path, seed: int) -> Path:
 def one_seed(seed: int, model_kind: str) -> dict:
     from lenticalib.calib.patterns import design_patterns, write_patterns
     from lenticalib.cli import main
-    from lenticalib.profile import load_profile
-    from lenticalib.retarget import retarget_profile
+    from lenticalib.core.profile import load_profile
+    from lenticalib.core.retarget import retarget_profile
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.optics import routing_error
     from lenticalib.sim.scene import random_scene

@@ -32,7 +32,7 @@ def main() -> int:
 
     import numpy as np
 
-    from lenticalib.errors import LenticalibError
+    from lenticalib.core.errors import LenticalibError
     from lenticalib.render.present import open_presenter
 
     width, height = (int(v) for v in args.size.split("x"))

@@ -27,8 +27,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def bench_device(device: str, rig_path: Path, frames: int, warmup: int) -> str:
-    from lenticalib.errors import LenticalibError
-    from lenticalib.profile import load_profile
+    from lenticalib.core.errors import LenticalibError
+    from lenticalib.core.profile import load_profile
     from lenticalib.render.avatar import load_avatar
     from lenticalib.render.camera_models import make_cameras
     from lenticalib.render.control_streams import DemoControls

@@ -24,7 +24,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
-    from lenticalib.errors import LenticalibError
+    from lenticalib.core.errors import LenticalibError
     from lenticalib.render.demo_avatar import make_demo_avatar
     from lenticalib.render.rig_file import save_rig
 

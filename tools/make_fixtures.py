@@ -16,8 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lenticalib.imageio import write_image
-from lenticalib.profile import PanelProfile, make_provenance, save_profile
+from lenticalib.core.imageio import write_image
+from lenticalib.core.profile import PanelProfile, make_provenance, save_profile
 from lenticalib.render.views import QuiltGrid, make_quilt
 
 N, TILE_W, TILE_H = 32, 480, 270

@@ -20,14 +20,14 @@ import json
 import tempfile
 from pathlib import Path
 
-from lenticalib.atomic import write_text_atomic
+from lenticalib.core.atomic import write_text_atomic
 from lenticalib.device.emulator.controller import DEFAULT_FIRMWARE, DEFAULT_MODEL, default_panel
 from lenticalib.device.emulator.firmware import Firmware
 from lenticalib.device.emulator.flash import FlashImage, create_image
 from lenticalib.device.framing import encode_frame
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, PROTOCOL_MINOR, PROTOCOL_VERSION, Command
 from lenticalib.device.record import RECORD_SIZE, encode_record, record_crc, record_from_profile
-from lenticalib.profile import load_profile
+from lenticalib.core.profile import load_profile
 
 REPO = Path(__file__).resolve().parents[1]
 SERIAL = "LC32-GOLDEN"

@@ -40,7 +40,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import CameraError, CaptureError, InputError, LenticalibError
+from ..core.errors import CameraError, CaptureError, InputError, LenticalibError
 from .captures import PHOTO_SUFFIXES, check_exposure, load_photo
 
 CAPTURE_FOLDER = "captures"

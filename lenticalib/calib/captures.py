@@ -2,7 +2,7 @@
 
 This module finds the photos, checks that they are exactly the ones the manifest asks for,
 and loads them as *linear-light luminance* at a bounded working resolution.  Every problem
-ends in an :class:`~lenticalib.errors.CaptureError` naming the photo and what to do.
+ends in an :class:`~lenticalib.core.errors.CaptureError` naming the photo and what to do.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CaptureError
-from ..imageio import read_image
+from ..core.errors import CaptureError
+from ..core.imageio import read_image
 from .patterns import PatternSet, read_manifest, srgb_decode
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")

@@ -1,7 +1,7 @@
 """Per-photo and per-set checks of a capture set: each names the photo and what to do.
 
 Frames: working-image pixels (see :mod:`.phase`).  Every check raises
-:class:`~lenticalib.errors.CaptureError` with the photo (or the captures folder) as source.
+:class:`~lenticalib.core.errors.CaptureError` with the photo (or the captures folder) as source.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import math
 import cv2
 import numpy as np
 
-from ..errors import CaptureError
+from ..core.errors import CaptureError
 from . import model
 from .captures import CaptureSet
 

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from ..errors import InputError
-from ..profile import PanelProfile
+from ..core.errors import InputError
+from ..core.profile import PanelProfile
 
 
 @dataclasses.dataclass(frozen=True)

@@ -25,8 +25,8 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from ..errors import CalibrationError, CaptureError, InputError
-from ..profile import PanelProfile, make_provenance
+from ..core.errors import CalibrationError, CaptureError, InputError
+from ..core.profile import PanelProfile, make_provenance
 from . import model, phase, photometric
 from .camera import CameraModel, describe_pose, estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, open_capture_set

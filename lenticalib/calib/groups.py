@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..errors import CaptureError
+from ..core.errors import CaptureError
 from . import phase, register
 from .captures import CaptureSet, Photo, check_exposure, load_photo
 from .checks import check_distinct

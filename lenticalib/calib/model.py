@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from ..errors import CalibrationError
+from ..core.errors import CalibrationError
 
 
 @dataclasses.dataclass

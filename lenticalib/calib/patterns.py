@@ -50,7 +50,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 FORMAT_NAME = "lenticalib.patterns"
 FORMAT_VERSION = 2  # 2: registration frame
@@ -213,8 +213,8 @@ def write_patterns(directory: str | os.PathLike, pattern_set,
     Refuses to overwrite a manifest of a *different* pattern set when ``DIR/captures`` holds
     photos (they would no longer match).  Returns the manifest path.
     """
-    from ..atomic import write_text_atomic
-    from ..imageio import write_image
+    from ..core.atomic import write_text_atomic
+    from ..core.imageio import write_image
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -257,7 +257,7 @@ def read_pattern_folder(directory: str | os.PathLike):
     ``group``), ``names``, ``set_id`` and ``render(pattern)``.  InputError naming the manifest
     when it is missing, foreign or edited.
     """
-    from ..profile import read_json_file
+    from ..core.profile import read_json_file
 
     path = Path(directory) / MANIFEST_NAME
     data = read_json_file(path, "pattern manifest",
@@ -275,7 +275,7 @@ def read_pattern_folder(directory: str | os.PathLike):
         raise InputError(f"pattern format version {data.get('format_version')!r} is not supported "
                          f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
                          hint="write the patterns again with this lenticalib and photograph them")
-    from ..profile import MAX_SIDE, MAX_VIEWS
+    from ..core.profile import MAX_SIDE, MAX_VIEWS
 
     for key, low, high in (("width", 1, MAX_SIDE), ("height", 1, MAX_SIDE), ("views", 2, MAX_VIEWS)):
         value = data.get(key)

@@ -19,7 +19,7 @@ Then ``D = Q - g``, ``m = 1 + g / D``, ``P_h = Delta_r p / (3 m)``, the slant an
 position ``x0`` (boundaries ``x = x0 + k P_h + y tan(phi)``, panel-centred mm, reduced into
 [0, P_h)) from the profile's phase, and the view cone ``2 atan(P_u / 2g)``.
 
-Units: mm, degrees, subpixels; frames as in :mod:`lenticalib.physical`.
+Units: mm, degrees, subpixels; frames as in :mod:`lenticalib.core.physical`.
 """
 
 from __future__ import annotations
@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..physical import view_cone_deg
-from ..profile import PanelProfile, describe_input
+from ..core.errors import InputError
+from ..core.physical import view_cone_deg
+from ..core.profile import PanelProfile, describe_input
 from .pose import SYSTEMATIC_FRACTION, PanelPose
 
 MIN_DISTANCE_RATIO = 1.15  # two capture sets closer than this in distance do not determine the gap

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import CalibrationError
+from ..core.errors import CalibrationError
 from .camera_file import CameraModel
 
 INTRINSICS_DRAWS = 40

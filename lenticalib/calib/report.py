@@ -1,7 +1,7 @@
 """The fit report: figures a person reads to see why a fit is good or bad, plus a summary.
 
 Written into one folder (each file atomically; ``lenticalib fit`` stages the whole folder, see
-:func:`lenticalib.outputs.staged_folder`):
+:func:`lenticalib.core.outputs.staged_folder`):
 
     panel.png       the panel as found in the photos (axes in photo pixels): mean brightness,
                     the panel outline and measured panel columns/rows at eighths of the panel
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import write_bytes_atomic, write_text_atomic
+from ..core.atomic import write_bytes_atomic, write_text_atomic
 
 FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
@@ -219,7 +219,7 @@ def _view_map_figure(fig, result) -> dict:
     residuals, and the fit's residual per panel block (the summary's ``block_residual_*``)."""
     from matplotlib.patches import Rectangle
 
-    from ..render.routing import view_coordinate
+    from ..core.routing import view_coordinate
 
     maps, profile, quality = result.maps, result.profile, result.quality
     n = profile.views

@@ -1,7 +1,7 @@
 """The ``lenticalib`` console script: one parser, one small module per subcommand.
 
 Subcommand modules are imported only once their command is chosen, and they import numpy,
-OpenCV and numba lazily, so ``--help`` is instant.  Every :class:`~lenticalib.errors.LenticalibError`
+OpenCV and numba lazily, so ``--help`` is instant.  Every :class:`~lenticalib.core.errors.LenticalibError`
 ends as one line on stderr and exit status 2.
 """
 
@@ -12,7 +12,7 @@ import importlib
 import sys
 
 from .. import __version__
-from ..errors import LenticalibError
+from ..core.errors import LenticalibError
 
 _COMMANDS = {
     "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),

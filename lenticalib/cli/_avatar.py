@@ -42,8 +42,8 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_pipeline(args: argparse.Namespace):
     """(pipeline, controls source, avatar) from the parsed options; one-line errors before any frame."""
-    from ..errors import InputError
-    from ..profile import load_profile
+    from ..core.errors import InputError
+    from ..core.profile import load_profile
     from ..render.avatar import load_avatar
     from ..render.camera_models import make_cameras
     from ..render.controls import open_controls
@@ -82,7 +82,7 @@ def build_pipeline(args: argparse.Namespace):
 
 
 def _size(text: str) -> tuple[int, int]:
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     try:
         w, h = (int(v) for v in text.lower().split("x"))

@@ -35,7 +35,7 @@ def collect_photos(items: list[str]) -> list:
     dotfiles), in order, without repeats; InputError for anything missing or not a photo."""
     from pathlib import Path
 
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     photos, seen = [], set()
     for item in items:
@@ -63,9 +63,9 @@ def collect_photos(items: list[str]) -> list:
 
 def photo_size(path) -> tuple[int, int]:
     """(width, height) of a photo as read with its EXIF orientation, from its header; ImageError when
-    it is not a readable image or has more pixels than :data:`lenticalib.imageio.MAX_IMAGE_PIXELS`."""
-    from ..errors import ImageError
-    from ..imageio import header_size
+    it is not a readable image or has more pixels than :data:`lenticalib.core.imageio.MAX_IMAGE_PIXELS`."""
+    from ..core.errors import ImageError
+    from ..core.imageio import header_size
 
     size = header_size(path, camera_orientation=True)
     if size is None:
@@ -78,7 +78,7 @@ def _board(args: argparse.Namespace, photos: list):
     import math
 
     from ..calib.intrinsics.board import Board, find_board_manifest, parse_squares, read_board
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     if (args.board is None) != (args.square is None):
         raise InputError("needs both --board COLSxROWS and --square MM", source="--board" if args.board else "--square",
@@ -103,8 +103,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     from ..calib.intrinsics.report import REPORT_FILES, calibration_summary, summary_lines, write_report
     from ..calib.intrinsics.solve import check_lensmodel, import_mrcal
-    from ..errors import InputError
-    from ..outputs import check_output_file, check_output_folder, staged_folder
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file, check_output_folder, staged_folder
     from ._progress import progress_bar
 
     start = time.perf_counter()

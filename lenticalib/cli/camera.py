@@ -67,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_size(text: str, source: str, lo: int, hi: int, example: str) -> tuple[int, int]:
     """``"WxH"`` -> (W, H) within [lo, hi] per side; InputError naming ``source`` otherwise."""
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     match = _SIZE.match(text or "")
     if not match:
@@ -83,7 +83,7 @@ def _panel_geometry(args: argparse.Namespace):
     """(width, height, pixel pitch mm, lens pitch in pixels or None) from --profile or --panel/--pixel-pitch."""
     import math
 
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     if (args.profile is None) == (args.panel is None):
         raise InputError("give the panel once: --profile P, or --panel WxH with --pixel-pitch MM",
@@ -91,7 +91,7 @@ def _panel_geometry(args: argparse.Namespace):
                          hint="e.g. lenticalib camera patterns -o board --panel 3840x2160 --pixel-pitch 0.1796")
     pitch, lens_px = args.pixel_pitch, None
     if args.profile is not None:
-        from ..profile import load_profile
+        from ..core.profile import load_profile
 
         profile = load_profile(args.profile, "--profile")
         width, height = profile.width, profile.height
@@ -124,8 +124,8 @@ def run_patterns(args: argparse.Namespace) -> int:
     from ..calib.intrinsics.board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG,
                                           panel_board, parse_squares, print_board, write_manifest)
     from ..calib.intrinsics.draw import panel_raster, write_print_sheet
-    from ..imageio import write_image
-    from ..outputs import check_output_folder, staged_folder
+    from ..core.imageio import write_image
+    from ..core.outputs import check_output_folder, staged_folder
 
     width, height, pitch, lens_px = _panel_geometry(args)
     squares = parse_squares(args.squares) if args.squares else None
@@ -156,8 +156,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     import secrets
     import time
 
-    from ..errors import InputError
-    from ..outputs import check_output_folder, staged_folder
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_folder, staged_folder
     from ..calib.intrinsics.report import REPORT_FILES
     from ..sim.board_set import CAPTURE_FOLDER, CONTENTS, TRUTH_NAME, simulate_board_set
     from ._progress import progress_bar

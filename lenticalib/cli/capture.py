@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from ..calib.acquire import capture_set, wait_for_key
     from ..calib.cameras import make_camera
     from ..calib.patterns import read_pattern_folder
-    from ..errors import DisplayError, InputError
+    from ..core.errors import DisplayError, InputError
     from ..render.present import open_presenter
     from ._progress import progress_bar
 
@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _resolution(text: str) -> tuple[int, int]:
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     try:
         w, h = (int(v) for v in text.lower().split("x"))

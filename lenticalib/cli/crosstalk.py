@@ -73,9 +73,9 @@ def _fraction(text: str) -> float:
 def run_patterns(args: argparse.Namespace) -> int:
     from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns
     from ..calib.patterns import MANIFEST_NAME, write_patterns
-    from ..errors import InputError
-    from ..outputs import check_output_folder, restored_on_failure
-    from ..profile import load_profile
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_folder, restored_on_failure
+    from ..core.profile import load_profile
     from ._progress import progress_bar
 
     profile = load_profile(args.profile, "--profile")
@@ -98,7 +98,7 @@ def run_patterns(args: argparse.Namespace) -> int:
 
 def _eye_separation(args, views: int):
     from ..calib.crosstalk.result import eye_separation_views
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     if args.eye_separation is not None and args.eye_separation_mm is not None:
         raise InputError("give the eye separation once", source="--eye-separation-mm",
@@ -137,9 +137,9 @@ def run_measure(args: argparse.Namespace) -> int:
     from ..calib.crosstalk.report import REPORT_FILES, write_crosstalk_report
     from ..calib.crosstalk.result import (FIGURES, HEADLINE, OVER_100, crosstalk_document, describe_figure,
                                           write_crosstalk)
-    from ..errors import InputError
-    from ..outputs import check_output_file, check_output_folder, staged_folder
-    from ..profile import load_profile, make_provenance
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file, check_output_folder, staged_folder
+    from ..core.profile import load_profile, make_provenance
     from ..render.compensation import Compensator, compensation_study, test_views
     from ._progress import progress_bar
 
@@ -193,7 +193,7 @@ def run_measure(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     from ..calib.crosstalk.result import check_crosstalk, describe_figure, read_crosstalk
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     if args.max_adjacent is None and args.max_eye_pair is None and args.max_system is None:
         raise InputError("no limit given", source="--max-adjacent",

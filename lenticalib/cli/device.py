@@ -57,7 +57,7 @@ def run_list(args) -> int:
 
 def run_info(args) -> int:
     from ..device import PanelController
-    from ..profile import format_constant
+    from ..core.profile import format_constant
 
     with PanelController.open(args.url) as panel:
         identity = panel.identify()
@@ -101,8 +101,8 @@ def run_info(args) -> int:
 
 def run_read(args) -> int:
     from ..device import PanelController
-    from ..outputs import check_output_file
-    from ..profile import save_profile
+    from ..core.outputs import check_output_file
+    from ..core.profile import save_profile
 
     check_output_file(args.output, "profile")  # before talking to the device
     with PanelController.open(args.url) as panel:
@@ -123,7 +123,7 @@ def _warn(line: str) -> None:
 
 def run_flash(args) -> int:
     from ..device import PanelController
-    from ..profile import load_profile
+    from ..core.profile import load_profile
     from ._progress import progress_bar
 
     profile = load_profile(args.profile)  # validated before anything is sent
@@ -143,7 +143,7 @@ def run_flash(args) -> int:
 
 def run_verify(args) -> int:
     from ..device import PanelController
-    from ..profile import load_profile
+    from ..core.profile import load_profile
 
     profile = load_profile(args.profile)
     with PanelController.open(args.url) as panel:

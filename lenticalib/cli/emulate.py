@@ -51,8 +51,8 @@ def run(args: argparse.Namespace) -> int:
     from ..device.emulator.controller import EmulatedController, default_image_dir, default_panel, ensure_image
     from ..device.emulator.faults import FaultPlan
     from ..device.emulator.serve import runtime_dir, serve_pty, serve_tcp
-    from ..errors import InputError
-    from ..outputs import check_output_file
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file
 
     if args.torn and args.power_cut_after is None:
         raise InputError("--torn needs --power-cut-after K", source="--torn")

@@ -36,7 +36,7 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
 def compensator_from_args(args: argparse.Namespace, views: int):
     """The :class:`~lenticalib.render.compensation.Compensator` the options ask for, or None; InputError
     for knobs without ``--compensate`` or out of range."""
-    from ..errors import InputError
+    from ..core.errors import InputError
     from ..render.compensation import DEFAULT_ITERATIONS, DEFAULT_REGULARISATION, compensator_from_file
 
     if args.compensate is None:
@@ -56,9 +56,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..render.encoders import encode, get_encoder
-    from ..errors import ImageError
-    from ..imageio import check_image_output, write_image
-    from ..profile import load_profile
+    from ..core.errors import ImageError
+    from ..core.imageio import check_image_output, write_image
+    from ..core.profile import load_profile
     from ..render.views import load_quilt, load_view_folder, parse_grid
 
     profile = load_profile(args.profile, "--profile")

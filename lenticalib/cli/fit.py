@@ -1,7 +1,7 @@
 """``lenticalib fit DIR -o profile.json``: fit a panel profile from photos of the test patterns.
 
 Before the fit starts, the options are range-checked and the profile path and the report
-folder are checked (:mod:`lenticalib.outputs`: no missing folder is created, a folder is not a
+folder are checked (:mod:`lenticalib.core.outputs`: no missing folder is created, a folder is not a
 profile path, a folder holding anything but a report is not replaced).  The report is written
 into a hidden sibling and moved into place complete.  Outcomes:
 
@@ -62,9 +62,9 @@ def check_arguments(args: argparse.Namespace):
     import os
 
     from ..calib.report import REPORT_FILES
-    from ..errors import InputError
-    from ..outputs import check_output_file, check_output_folder
-    from ..profile import MAX_VIEWS
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file, check_output_folder
+    from ..core.profile import MAX_VIEWS
 
     if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"{args.views} views is out of range", source="--views",
@@ -90,8 +90,8 @@ def check_physical_options(args: argparse.Namespace) -> None:
     """InputError for a missing or out-of-range --pixel-pitch/--gap or a bad --second-distance,
     and load the camera model now (a broken file is one line before the fit starts)."""
     from ..calib.camera_file import load_camera_model
-    from ..errors import InputError
-    from ..physical import LIMITS
+    from ..core.errors import InputError
+    from ..core.physical import LIMITS
 
     for option, key, value in (("--pixel-pitch", "pixel_pitch_mm", args.pixel_pitch), ("--gap", "gap_mm", args.gap)):
         low, high = LIMITS[key]
@@ -125,7 +125,7 @@ def check_second_set(directory, other, option: str, how: str) -> None:
     import os
 
     from ..calib.captures import open_capture_set
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     if os.path.realpath(other) == os.path.realpath(directory):
         raise InputError("is the same capture set as DIR", source=option, hint=how)
@@ -161,9 +161,9 @@ def run(args: argparse.Namespace) -> int:
     from ..calib.captures import open_capture_set
     from ..calib.fit import fit_capture_set, progress_steps
     from ..calib.report import REPORT_FILES, fit_summary, write_report
-    from ..outputs import staged_folder
-    from ..profile import save_profile
-    from ..view_direction import describe_direction
+    from ..core.outputs import staged_folder
+    from ..core.profile import save_profile
+    from ..core.view_direction import describe_direction
     from ._progress import progress_bar
 
     output, report_dir = check_arguments(args)

@@ -36,8 +36,8 @@ DEFAULTS = {"width": 3840, "height": 2160, "views": 32}
 def check_options(args: argparse.Namespace) -> None:
     """InputError naming the option when the panel size or the view count is out of range, or an
     option does not belong to the chosen mode (calibration patterns, or ``--direction``)."""
-    from ..errors import InputError
-    from ..profile import MAX_VIEWS
+    from ..core.errors import InputError
+    from ..core.profile import MAX_VIEWS
 
     if args.direction:
         if args.profile is None:
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..calib.patterns import MANIFEST_NAME, design_patterns, write_patterns
-    from ..outputs import check_output_folder, restored_on_failure
+    from ..core.outputs import check_output_folder, restored_on_failure
     from ._progress import progress_bar
 
     check_options(args)
@@ -90,10 +90,10 @@ def run(args: argparse.Namespace) -> int:
 def run_direction(args: argparse.Namespace) -> int:
     """``--direction``: write DIR/direction.png and say how to read it."""
     from ..calib.direction import DIRECTION_PATTERN_NAME, direction_raster
-    from ..imageio import check_image_output, write_image
-    from ..outputs import check_output_folder
-    from ..profile import load_profile
-    from ..view_direction import describe_direction
+    from ..core.imageio import check_image_output, write_image
+    from ..core.outputs import check_output_folder
+    from ..core.profile import load_profile
+    from ..core.view_direction import describe_direction
 
     profile = load_profile(args.profile, "--profile")
     folder = check_output_folder(args.output, "direction pattern")

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ..errors import InputError
+    from ..core.errors import InputError
     from ..render.loop import StageTimes
     from ..render.present import WindowPresenter, open_presenter
     from ..render.present_offscreen import MemoryPresenter

@@ -72,8 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _print_profile(profile) -> None:
     """The constants of ``profile``, one per line with units and 1-sigma (``profile show``)."""
-    from ..profile import describe_provenance, format_constant
-    from ..view_direction import describe_direction
+    from ..core.profile import describe_provenance, format_constant
+    from ..core.view_direction import describe_direction
 
     unc = profile.uncertainty or {}
     rows = [("views", profile.views, ""), ("slant", profile.slant, "pixels/row"),
@@ -99,7 +99,7 @@ def _print_profile(profile) -> None:
 
 
 def run_show(args) -> int:
-    from ..profile import load_profile
+    from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
     if args.json:
@@ -110,7 +110,7 @@ def run_show(args) -> int:
 
 
 def run_validate(args) -> int:
-    from ..profile import load_profile
+    from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
     print(f"{args.profile}: valid ({profile.views} views, {profile.width}x{profile.height})")
@@ -118,10 +118,10 @@ def run_validate(args) -> int:
 
 
 def run_import(args) -> int:
-    from ..errors import InputError
-    from ..lkg import import_visual_json
-    from ..outputs import check_output_file
-    from ..profile import MAX_VIEWS, save_profile
+    from ..core.errors import InputError
+    from ..core.lkg import import_visual_json
+    from ..core.outputs import check_output_file
+    from ..core.profile import MAX_VIEWS, save_profile
 
     if not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be between 2 and {MAX_VIEWS}, got {args.views}", source="--views")
@@ -138,9 +138,9 @@ def run_import(args) -> int:
 
 
 def run_export(args) -> int:
-    from ..lkg import export_visual_json
-    from ..outputs import check_output_file
-    from ..profile import load_profile
+    from ..core.lkg import export_visual_json
+    from ..core.outputs import check_output_file
+    from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
     check_output_file(args.output, "visual.json")
@@ -156,7 +156,7 @@ def run_export(args) -> int:
 
 def run_compare(args) -> int:
     from ..calib.compare import compare_profiles
-    from ..profile import load_profile
+    from ..core.profile import load_profile
 
     a, b = load_profile(args.profile, "A"), load_profile(args.reference, "B")
     diff = compare_profiles(a, b)
@@ -188,8 +188,8 @@ def _direction_text(direction) -> str:
 
 
 def run_set_direction(args) -> int:
-    from ..profile import load_profile, save_profile
-    from ..view_direction import describe_direction, parse_direction, with_direction
+    from ..core.profile import load_profile, save_profile
+    from ..core.view_direction import describe_direction, parse_direction, with_direction
 
     direction = parse_direction(args.direction, "DIRECTION")  # before the file is read
     profile = load_profile(args.profile, "PROFILE")
@@ -203,9 +203,9 @@ def run_set_direction(args) -> int:
 
 
 def run_set_physical(args) -> int:
-    from ..errors import InputError
-    from ..physical import gap_from_view_cone, validate_physical
-    from ..profile import load_profile, save_profile
+    from ..core.errors import InputError
+    from ..core.physical import gap_from_view_cone, validate_physical
+    from ..core.profile import load_profile, save_profile
 
     given = {"pixel_pitch_mm": args.pixel_pitch, "gap_mm": args.gap, "lens_pitch_mm": args.lens_pitch,
              "view_cone_deg": args.view_cone, "design_distance_mm": args.design_distance}
@@ -229,9 +229,9 @@ def run_set_physical(args) -> int:
 
 
 def run_retarget(args) -> int:
-    from ..outputs import check_output_file
-    from ..profile import format_constant, load_profile, save_profile
-    from ..retarget import Eye, calibration_eye, retarget_profile, routing_difference
+    from ..core.outputs import check_output_file
+    from ..core.profile import format_constant, load_profile, save_profile
+    from ..core.retarget import Eye, calibration_eye, retarget_profile, routing_difference
 
     eye = Eye.parse((args.lateral, args.vertical, args.distance), "--distance")
     output = check_output_file(args.output, "profile", example="profile-900mm.json")

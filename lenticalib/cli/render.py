@@ -8,7 +8,7 @@ would blur the raster's subpixels (and is never taken for a folder name).  ``--v
 also writes the N views of every frame, 8-bit, in view order -- exactly what was encoded --
 (``VDIR/frame-00000/view-00.png`` ...) and ``VDIR/cameras.json``.
 
-Output paths are checked before the avatar is loaded (:mod:`lenticalib.outputs`); a folder is
+Output paths are checked before the avatar is loaded (:mod:`lenticalib.core.outputs`); a folder is
 written complete or not at all, and an existing folder is replaced only when it holds nothing
 but what render writes there (``RASTER_CONTENTS``, ``VIEWS_CONTENTS``).
 """
@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import InputError
+    from ..core.errors import InputError
     from ..render.loop import StageTimes
     from ._avatar import build_pipeline
 
@@ -77,9 +77,9 @@ def _check_outputs(args: argparse.Namespace) -> tuple[bool, bool]:
     """Refuse, before any work, outputs render cannot or must not write; return (one image, video)."""
     import os
 
-    from ..errors import InputError
-    from ..imageio import IMAGE_SUFFIXES, WRITE_FORMATS
-    from ..outputs import check_output_file, check_output_folder
+    from ..core.errors import InputError
+    from ..core.imageio import IMAGE_SUFFIXES, WRITE_FORMATS
+    from ..core.outputs import check_output_file, check_output_folder
 
     suffix = os.path.splitext(args.output)[1].lower()
     single, video = suffix in WRITE_FORMATS, suffix == ".mkv"
@@ -106,8 +106,8 @@ def _check_outputs(args: argparse.Namespace) -> tuple[bool, bool]:
 def _render_frames(args, pipeline, controls, times, targets, writer, single) -> None:
     import numpy as np
 
-    from ..imageio import write_image
-    from ..outputs import staged_folder
+    from ..core.imageio import write_image
+    from ..core.outputs import staged_folder
 
     with _staged(targets, staged_folder) as folders:
         for k in range(args.frames):
@@ -159,8 +159,8 @@ class _VideoFile:
     (an interrupted render leaves no partial video, and an earlier one stays)."""
 
     def __init__(self, path: str, fps: float):
-        from ..atomic import PendingFile
-        from ..imageio import cv2_quiet
+        from ..core.atomic import PendingFile
+        from ..core.imageio import cv2_quiet
 
         self._cv2 = cv2_quiet()
         self.path = path
@@ -170,7 +170,7 @@ class _VideoFile:
         self._writer = None
 
     def write(self, raster) -> None:
-        from ..errors import InputError
+        from ..core.errors import InputError
 
         if self._writer is None:
             fourcc = self._cv2.VideoWriter_fourcc(*"FFV1")

@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import statistics
 
-    from ..errors import InputError
+    from ..core.errors import InputError
     from ..render.present import list_monitors, open_presenter
     from ..render.slides import run_slideshow, slides_from_path
 

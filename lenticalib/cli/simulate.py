@@ -15,7 +15,7 @@ panel of its size and pixel pitch, by a known camera (``DIR/captures/board-NN.jp
 
 Every option is checked, and the folder found writable, before the first photo is taken.  The
 three results are all or nothing: a run that fails (or is interrupted) removes what it wrote and
-puts an earlier simulation of the folder back as it was (:func:`lenticalib.outputs.restored_on_failure`),
+puts an earlier simulation of the folder back as it was (:func:`lenticalib.core.outputs.restored_on_failure`),
 so the fit never meets a half set, or photos of two scenes under one truth.json.
 """
 
@@ -63,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_resolution(text: str) -> tuple[int, int]:
     """``"4000x3000"`` -> (4000, 3000) camera pixels; InputError naming ``--resolution`` otherwise."""
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     match = _RESOLUTION.match(text or "")
     if not match:
@@ -81,7 +81,7 @@ def check_resolution(width: int, height: int, source: str) -> None:
     simulated set is never refused by the fit for its size; the upper limits bound memory.
     """
     from ..calib.captures import MIN_PHOTO_PIXELS
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     pixels = width * height
     if pixels < MIN_PHOTO_PIXELS:
@@ -97,7 +97,7 @@ def check_resolution(width: int, height: int, source: str) -> None:
 def _check_options(args: argparse.Namespace) -> None:
     import math
 
-    from ..errors import InputError
+    from ..core.errors import InputError
 
     if args.slant is not None and not (math.isfinite(args.slant) and abs(args.slant) < 1.5):
         raise InputError(f"slant {args.slant} is out of range", source="--slant",
@@ -123,8 +123,8 @@ def build_scene(args: argparse.Namespace, pattern_set):
     """The scene the options ask for: loaded with --scene, else drawn by random_scene."""
     import secrets
 
-    from ..errors import InputError
-    from ..profile import read_json_file
+    from ..core.errors import InputError
+    from ..core.profile import read_json_file
     from ..sim.scene import Scene, random_scene
 
     if args.scene:
@@ -159,8 +159,8 @@ def _check_outputs(directory: str):
     """The paths simulate writes, refused before any work when they cannot be (or must not be) written."""
     from pathlib import Path
 
-    from ..errors import InputError
-    from ..outputs import check_output_file, check_output_folder
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file, check_output_folder
     from ..sim.capture import CAPTURE_FOLDER, CROSSTALK_TRUTH_NAME, SIMULATION_NAME, TRUTH_NAME
 
     folder = Path(directory)
@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from ..calib.patterns import read_pattern_folder
-    from ..outputs import restored_on_failure
+    from ..core.outputs import restored_on_failure
     from ..sim.capture import simulate_capture_set
     from ._progress import progress_bar
 
@@ -223,8 +223,8 @@ def run_board(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..calib.intrinsics.board import read_board
-    from ..errors import InputError
-    from ..outputs import check_output_file, check_output_folder, restored_on_failure
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file, check_output_folder, restored_on_failure
     from ..sim.board_set import CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME, simulate_board_set
     from ._progress import progress_bar
 

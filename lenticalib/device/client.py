@@ -24,8 +24,8 @@ import random
 import time
 from typing import Callable
 
-from ..errors import DeviceProtocolError, DeviceTimeoutError, ProfileError
-from ..profile import PanelProfile
+from ..core.errors import DeviceProtocolError, DeviceTimeoutError, ProfileError
+from ..core.profile import PanelProfile
 from .framing import MAX_FRAME, REPLY_BIT, FrameParser, encode_frame
 from .protocol import (BEGIN_WRITE, CHUNK_HEADER, STATUS_HELP, VERIFY_REPLY, Command,
                        Identity, PanelGeometry, Status, panel_mismatches, status_name)

@@ -91,7 +91,7 @@ def _emulators(found, notes):
     from .emulator.controller import default_image_dir
     from .emulator.serve import running_emulators
 
-    from ..errors import LenticalibError
+    from ..core.errors import LenticalibError
 
     try:
         running = running_emulators()

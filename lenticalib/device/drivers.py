@@ -14,7 +14,7 @@ import sys
 import tomllib
 from pathlib import Path
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .protocol import PanelGeometry
 
 FORMAT_NAME = "lenticalib.driver"

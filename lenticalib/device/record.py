@@ -32,7 +32,7 @@ zero, which every layout-1 firmware checks (COMMIT answers OUT_OF_RANGE; at boot
 invalid) and every released host checks when it reads a record (it refuses the record).  A
 profile read from a panel therefore has ``view_direction`` None (unknown).  The constants' ranges
 (views, width, height, slant, period, offset, reference view) are those of every profile,
-:func:`lenticalib.profile.constants_problem`; this module adds only what the encoding itself
+:func:`lenticalib.core.profile.constants_problem`; this module adds only what the encoding itself
 needs (16-bit sizes, f32 sigmas, the serial's 16 ASCII bytes, 32/64-bit counters).
 """
 
@@ -46,8 +46,8 @@ import struct
 import time
 import zlib
 
-from ..errors import DeviceProtocolError, ProfileError
-from ..profile import (MAX_VIEWS, OFFSET_LIMIT, PERIOD_LIMIT, REFERENCE_VIEW_LIMIT,  # noqa: F401 (re-exported)
+from ..core.errors import DeviceProtocolError, ProfileError
+from ..core.profile import (MAX_VIEWS, OFFSET_LIMIT, PERIOD_LIMIT, REFERENCE_VIEW_LIMIT,  # noqa: F401 (re-exported)
                        SLANT_LIMIT, PanelProfile, constants_problem, make_provenance)
 
 MAGIC = b"LTCR"

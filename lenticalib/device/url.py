@@ -20,7 +20,7 @@ import dataclasses
 import re
 from urllib.parse import parse_qsl
 
-from ..errors import DeviceNotFoundError
+from ..core.errors import DeviceNotFoundError
 
 _HINT = "write it like serial:///dev/ttyACM0, socket://HOST:PORT, hid://VID:PID, usb://VID:PID or emu://NAME"
 _VIDPID = re.compile(r"^([0-9a-fA-F]{4}):([0-9a-fA-F]{4})(?:/(.+))?$")

@@ -35,8 +35,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import InputError
-from ..profile import MAX_VIEWS
+from ..core.errors import InputError
+from ..core.profile import MAX_VIEWS
 from .cameras import ViewCameras
 from .gaussians import Gaussians
 

@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import write_text_atomic
-from ..errors import InputError
+from ..core.atomic import write_text_atomic
+from ..core.errors import InputError
 
 FORMAT = "lenticalib.cameras"
 FORMAT_VERSION = 1
@@ -128,7 +128,7 @@ class ViewCameras:
     @classmethod
     def from_json(cls, path: str | os.PathLike) -> "ViewCameras":
         """Read a cameras.json written by :meth:`write_json`; InputError naming ``path`` if it is not one."""
-        from ..profile import read_json_file
+        from ..core.profile import read_json_file
 
         source = str(path)
         data = read_json_file(path, "cameras file", "give the cameras.json written with the views")

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import overload
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 TAP_FLOOR = 2e-3
 DEFAULT_REGULARISATION = 0.02

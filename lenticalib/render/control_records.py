@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..fields import is_finite_number, short_repr
+from ..core.errors import InputError
+from ..core.fields import is_finite_number, short_repr
 from .rig import ControlLayout
 
 

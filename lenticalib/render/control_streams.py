@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .control_records import parse_control_line
 from .rig import DEFAULT_LAYOUT, ControlLayout
 

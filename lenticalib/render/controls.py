@@ -45,7 +45,7 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
 from .control_streams import DemoControls, open_text_stream, open_udp
 from .control_streams import StreamControls  # noqa: F401  (public API: the sources open_controls gives)
@@ -133,7 +133,7 @@ def load_controls(path: str | os.PathLike, layout: ControlLayout = DEFAULT_LAYOU
 
 def _load_npz(p: Path, layout: ControlLayout) -> ControlTrack:
     source = str(p)
-    from ..arrayfile import GIB, load_npz
+    from ..core.arrayfile import GIB, load_npz
 
     # Headers first: names, shapes, and at most 1 GiB of arrays (an hour of 70 controls at 1 kHz).
     arrays = load_npz(p, wanted=("t", "controls"), required=("t", "controls"), max_bytes=GIB,

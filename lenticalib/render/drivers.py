@@ -37,7 +37,7 @@ import importlib
 from importlib import metadata
 from typing import Any, Callable
 
-from ..errors import BackendUnavailableError, InputError
+from ..core.errors import BackendUnavailableError, InputError
 from .gaussians import Gaussians
 from .rig import ControlLayout, Rig
 

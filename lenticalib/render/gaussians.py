@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 SH_C0 = 0.28209479177387814  # Y_0^0
 

@@ -27,9 +27,9 @@ import time
 
 import numpy as np
 
-from ..errors import InputError
-from ..profile import PanelProfile
-from ..view_direction import direction_warning
+from ..core.errors import InputError
+from ..core.profile import PanelProfile
+from ..core.view_direction import direction_warning
 from .cameras import ViewCameras, order_for_direction
 
 STAGES = ("drive", "render", "compose", "present")
@@ -81,7 +81,7 @@ def parse_background(text: str | None, view_size: tuple[int, int] | None = None)
     if "," not in text and Path(text).suffix:
         import cv2
 
-        from ..imageio import read_image
+        from ..core.imageio import read_image
 
         image = read_image(text)
         scale = 65535.0 if image.dtype == np.uint16 else (255.0 if image.dtype == np.uint8 else 1.0)
@@ -231,11 +231,11 @@ class AvatarPipeline:
     def set_eye(self, eye) -> bool:
         """Route the next frames for a tracked viewer's eye ``(x, y, D)`` mm (panel-centred: x right,
         y down, D in front of the panel surface): the session profile retargeted
-        (:class:`lenticalib.retarget.Retargeter`; needs its physical block).  Returns True when the
+        (:class:`lenticalib.core.retarget.Retargeter`; needs its physical block).  Returns True when the
         routing changed by more than the retargeter's tolerance (0.01 view), when the encoder's
         per-profile tables are rebuilt on the next frame; False when the current routing stands.
         """
-        from ..retarget import Retargeter
+        from ..core.retarget import Retargeter
 
         if self._retargeter is None:
             self._retargeter = Retargeter(self.profile)

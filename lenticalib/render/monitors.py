@@ -9,7 +9,7 @@ import dataclasses
 import os
 import sys
 
-from ..errors import DisplayError
+from ..core.errors import DisplayError
 
 
 @dataclasses.dataclass(frozen=True)

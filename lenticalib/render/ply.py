@@ -36,8 +36,8 @@ import re
 
 import numpy as np
 
-from ..atomic import write_bytes_atomic
-from ..errors import BackendUnavailableError, InputError
+from ..core.atomic import write_bytes_atomic
+from ..core.errors import BackendUnavailableError, InputError
 from .gaussians import Gaussians
 
 _TYPE_BYTES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
@@ -63,7 +63,7 @@ def _check_counts(fh, source: str) -> None:
     character and a separator per property (ASCII).  A header this cannot parse is left to
     plyfile, which reports it.  Leaves ``fh`` at an unspecified position.
     """
-    from ..arrayfile import size_text
+    from ..core.arrayfile import size_text
 
     head = fh.read(_MAX_HEADER)
     end = head.find(b"end_header")

@@ -27,7 +27,7 @@ from collections import deque
 
 import numpy as np
 
-from ..errors import DisplayError, ImageError
+from ..core.errors import DisplayError, ImageError
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..errors import DisplayError
+from ..core.errors import DisplayError
 from .monitors import is_macos
 from .present import FrameTiming, Presenter, check_raster
 

@@ -58,7 +58,7 @@ import dataclasses
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .gaussians import Gaussians
 from .rig_file import load_rig, save_rig  # noqa: F401  (public API: rigs are loaded and saved from here too)
 from .rig_file import rig_to_arrays

@@ -35,7 +35,7 @@ G Gaussians, K SH coefficients, D controls, E blendshapes, N blendshape entries,
 Floats may be stored as float16/32/64 and are used as float32; a missing array (other than the
 two optional ones), a wrong shape or index, a non-finite value or another version is one
 InputError naming the file and the array.  The names, shapes and dtypes are checked from the
-headers before any data is inflated (:mod:`lenticalib.arrayfile`): arrays claiming more than
+headers before any data is inflated (:mod:`lenticalib.core.arrayfile`): arrays claiming more than
 :data:`MAX_RIG_BYTES` (2 GiB) in all, or more than the file holds, are refused unread.
 """
 
@@ -48,9 +48,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..arrayfile import GIB, load_npz
-from ..atomic import write_bytes_atomic
-from ..errors import InputError
+from ..core.arrayfile import GIB, load_npz
+from ..core.atomic import write_bytes_atomic
+from ..core.errors import InputError
 from .gaussians import Gaussians
 
 if TYPE_CHECKING:

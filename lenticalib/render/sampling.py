@@ -12,7 +12,7 @@ clamped to the view (edge pixels are repeated).  The view is sampled between pix
 ``W_v - 2`` so that ``x0 + 1`` is always a valid pixel.
 
 Tables.  :class:`SamplingTables` holds, per subpixel, the view the canonical routing of
-:mod:`lenticalib.render.routing` gives it (255 = none) and the bilinear geometry; built once per
+:mod:`lenticalib.core.routing` gives it (255 = none) and the bilinear geometry; built once per
 (profile, view size) and cached.  The canonical routing lights at most one view per subpixel, so
 one view table replaces the LentiAvatar system's primary/secondary pair (its second view only ever
 came from float64 ties).
@@ -25,8 +25,8 @@ import functools
 
 import numpy as np
 
-from ..profile import PanelProfile
-from .routing import view_map
+from ..core.profile import PanelProfile
+from ..core.routing import view_map
 
 NO_VIEW = 255
 
@@ -74,7 +74,7 @@ class SamplingTables:
     """Precomputed view table and sample points for one profile and one view size.
 
     ``view``: uint8 ``(height, 3 * width)`` indexed ``[y, x_s]`` (panel subpixel order), the view
-    :func:`lenticalib.render.routing.view_map` gives the subpixel, ``NO_VIEW`` (255) where none.
+    :func:`lenticalib.core.routing.view_map` gives the subpixel, ``NO_VIEW`` (255) where none.
     ``columns`` has ``3 * width`` entries (per ``x_s``), ``rows`` has ``height`` entries.
     """
 

@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import ImageError
+from ..core.errors import ImageError
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy", ".jpg", ".jpeg", ".bmp")
 NEXT_KEYS = {"space", "right", "down", "page_down", "enter"}
@@ -35,7 +35,7 @@ class Slide:
 def slides_from_path(path: str | Path) -> tuple[list[Slide], tuple[int, int]]:
     """(slides, (width, height) they all have) for an image file, a pattern folder or an image
     folder; ImageError / InputError naming the path for anything else."""
-    from ..imageio import read_image
+    from ..core.imageio import read_image
 
     p = Path(path)
     if not p.exists():

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ImageError
-from ..imageio import IMAGE_SUFFIXES, read_image
+from ..core.errors import ImageError
+from ..core.imageio import IMAGE_SUFFIXES, read_image
 
 _QUILT_SUFFIX = re.compile(r"_qs(\d+)x(\d+)a(\d+(?:\.\d+)?)", re.IGNORECASE)
 _GRID = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")

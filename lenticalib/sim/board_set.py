@@ -29,8 +29,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..atomic import write_bytes_atomic, write_text_atomic
-from ..errors import InputError
+from ..core.atomic import write_bytes_atomic, write_text_atomic
+from ..core.errors import InputError
 from .boards import (BoardPose, board_poses, calibration_camera, camera_for_pose, photograph_print_board)
 
 CAPTURE_FOLDER = "captures"
@@ -102,7 +102,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     from ..calib.intrinsics.board import PANEL_IMAGE, panel_board, print_board, write_manifest
     from ..calib.intrinsics.draw import panel_raster
     from ..calib.intrinsics.solve import write_cameramodel
-    from ..imageio import write_image
+    from ..core.imageio import write_image
 
     if kind not in ("panel", "print"):
         raise InputError(f"unknown board kind {kind!r}", source="--kind", hint="use panel or print")
@@ -164,7 +164,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
 
 def read_truth_poses(directory: str | os.PathLike) -> dict[str, np.ndarray]:
     """``{photo file name: rt_cam_board (6,)}`` from a simulation's ``simulation.json``."""
-    from ..profile import read_json_file
+    from ..core.profile import read_json_file
 
     data = read_json_file(Path(directory) / SIMULATION_NAME, "simulation record", "simulate the set first")
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:

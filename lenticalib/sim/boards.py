@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .camera import Camera
 
 GRID_STEP = 4  # pixels between exactly undistorted grid points (as in .render)

@@ -26,7 +26,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from .optics import _fields_from
 
 UNDISTORT_CRITERIA = (3, 100, 1e-13)  # cv2.TERM_CRITERIA_COUNT | EPS, iterations, epsilon

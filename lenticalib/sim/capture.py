@@ -32,8 +32,8 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..atomic import write_bytes_atomic, write_text_atomic
-from ..errors import ImageError, InputError
+from ..core.atomic import write_bytes_atomic, write_text_atomic
+from ..core.errors import ImageError, InputError
 from .scene import Scene
 
 SIMULATION_NAME = "simulation.json"
@@ -83,7 +83,7 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
     reference_view, width, height, subpixel_order, view_direction).
     """
     from ..calib.patterns import MANIFEST_NAME
-    from ..profile import make_provenance, save_profile
+    from ..core.profile import make_provenance, save_profile
 
     directory = Path(directory)
     provenance = make_provenance("simulation", inputs=[directory / MANIFEST_NAME], seed=scene.seed,
@@ -158,7 +158,7 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene, raw: bool
     size, a captures folder with foreign files, or an unreadable pattern image.
     """
     from ..calib.patterns import MANIFEST_NAME, read_pattern_folder
-    from ..imageio import read_image
+    from ..core.imageio import read_image
 
     directory = Path(pattern_dir)
     pattern_set = read_pattern_folder(directory)

@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..errors import ImageError
+from ..core.errors import ImageError
 from .camera import Camera
 from .scene import Scene
 

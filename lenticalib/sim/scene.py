@@ -68,8 +68,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import InputError
-from ..profile import PanelProfile
+from ..core.errors import InputError
+from ..core.profile import PanelProfile
 from .camera import Camera
 from .optics import PanelOptics, truth_profile
 

@@ -19,7 +19,7 @@ check the argument before the work starts); :func:`open_camera` also opens it.
 
 from __future__ import annotations
 
-from ...errors import InputError
+from ...core.errors import InputError
 from .base import CaptureCamera
 from .gphoto2 import Gphoto2Camera
 from .manual import ManualCamera

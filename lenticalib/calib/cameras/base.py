@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ...errors import CameraError, InputError
+from ...core.errors import CameraError, InputError
 from .files import PHOTO_SUFFIXES
 
 
@@ -31,7 +31,7 @@ class CaptureCamera(abc.ABC):
 
     Use it as a context manager (``__enter__`` opens, ``__exit__`` closes) or call :meth:`open`
     and :meth:`close` yourself.  Nothing is printed: results are return values, failures
-    :class:`~lenticalib.errors.CameraError` (the camera) or InputError (the arguments).
+    :class:`~lenticalib.core.errors.CameraError` (the camera) or InputError (the arguments).
     """
 
     kind: ClassVar[str] = ""

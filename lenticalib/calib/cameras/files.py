@@ -13,8 +13,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ...atomic import output_target, write_bytes_atomic
-from ...errors import CameraError, InputError
+from ...core.atomic import output_target, write_bytes_atomic
+from ...core.errors import CameraError, InputError
 from ..captures import PHOTO_SUFFIXES
 
 __all__ = ["PHOTO_SUFFIXES", "copy_photo", "existing_photos", "photo_path", "place_photo", "write_photo"]

@@ -25,7 +25,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from ...errors import CameraError, InputError
+from ...core.errors import CameraError, InputError
 from .base import CaptureCamera, positive_seconds
 from .files import PHOTO_SUFFIXES, place_photo
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ...errors import CameraError, InputError
+from ...core.errors import CameraError, InputError
 from .base import CaptureCamera, positive_seconds
 from .files import PHOTO_SUFFIXES, copy_photo, existing_photos
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...errors import CameraError, InputError
+from ...core.errors import CameraError, InputError
 from .base import CaptureCamera, positive_seconds
 from .files import write_photo
 
@@ -69,7 +69,7 @@ class OpenCVCamera(CaptureCamera):
         self._capture_device = None
 
     def _open(self) -> list[str]:
-        from ...imageio import cv2_quiet
+        from ...core.imageio import cv2_quiet
 
         cv2 = cv2_quiet()
         device = cv2.VideoCapture(self.device)
@@ -126,7 +126,7 @@ class OpenCVCamera(CaptureCamera):
                 f"reads {back:g}); OpenCV's own limit applies")
 
     def _capture(self, name, shown, destination: Path) -> Path:
-        from ...imageio import cv2_quiet
+        from ...core.imageio import cv2_quiet
 
         cv2 = cv2_quiet()
         for _ in range(self.discard):

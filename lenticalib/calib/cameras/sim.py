@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import CameraError, InputError
+from ...core.errors import CameraError, InputError
 from ...sim.scene import DEFAULT_RESOLUTION
 from .base import CaptureCamera
 from .files import write_photo
@@ -127,7 +127,7 @@ class SimCamera(CaptureCamera):
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
         photos are still there (a resumed capture); empty otherwise."""
-        from ...profile import read_json_file
+        from ...core.profile import read_json_file
         from ...sim.capture import SIMULATION_NAME
         from ...sim.scene import Scene
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import CaptureError
+from ...core.errors import CaptureError
 from . import cone
 
 MAX_MISFIT = 0.15  # of the profile's contrast

@@ -30,8 +30,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ...errors import CaptureError, InputError
-from ...profile import PanelProfile
+from ...core.errors import CaptureError, InputError
+from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct
 from .photos import MAX_CLIPPED, load_all, panel_mask, register_photos, tone_spread

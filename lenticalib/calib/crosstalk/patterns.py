@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import InputError
-from ...profile import PanelProfile, profile_from_dict
+from ...core.errors import InputError
+from ...core.profile import PanelProfile, profile_from_dict
 from ..patterns import FRAME_LEVEL, frame_width, srgb_encode
 
 FORMAT_NAME = "lenticalib.crosstalk-patterns"
@@ -156,7 +156,7 @@ def band_centre(pattern_set: CrosstalkPatternSet, xs: np.ndarray, shift: float) 
 
 def lit_subpixels(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, rows: np.ndarray) -> np.ndarray:
     """bool ``(len(rows), 3 W)`` indexed ``[y, x_s]``: which subpixels the pattern lights (frame excluded)."""
-    from ...render.routing import view_coordinate
+    from ...core.routing import view_coordinate
 
     profile = pattern_set.profile
     nsub = profile.subpixels_per_row

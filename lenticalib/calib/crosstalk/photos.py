@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import CaptureError
+from ...core.errors import CaptureError
 from . import photometry
 
 WORKING_WIDTH = 1000  # working pixels across (about)
@@ -47,7 +47,7 @@ def working(image: np.ndarray, factor: int) -> np.ndarray:
 
 def load_all(capture, pattern_set, mode, progress):
     """Working-resolution linear luma of every photo, the white photo's clipped map, and factor."""
-    from ...imageio import read_image
+    from ...core.imageio import read_image
     from ..captures import check_photo_size
 
     luma: dict[str, np.ndarray] = {}

@@ -26,8 +26,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ...errors import InputError
-from ...fields import is_finite_number
+from ...core.errors import InputError
+from ...core.fields import is_finite_number
 
 FORMAT_NAME = "lenticalib.crosstalk"
 FORMAT_VERSION = 1
@@ -165,7 +165,7 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
 
 
 def write_crosstalk(path: str | os.PathLike, document: Mapping[str, Any]) -> Path:
-    from ...atomic import write_text_atomic
+    from ...core.atomic import write_text_atomic
 
     return write_text_atomic(path, json.dumps(document, indent=2) + "\n")
 
@@ -173,7 +173,7 @@ def write_crosstalk(path: str | os.PathLike, document: Mapping[str, Any]) -> Pat
 def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: str | None = None) -> dict[str, Any]:
     """A ``crosstalk.json`` document, checked: format, a square N x N ``matrix`` of numbers whose rows sum
     to 1, ``views`` equal to ``views`` when given.  InputError naming the file otherwise."""
-    from ...profile import read_json_file
+    from ...core.profile import read_json_file
 
     source = source or str(path)
     data = read_json_file(path, "crosstalk file", "measure it with 'lenticalib crosstalk measure'")

@@ -43,7 +43,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ...errors import InputError
+from ...core.errors import InputError
 
 FORMAT_NAME = "lenticalib.camera-board"
 FORMAT_VERSION = 1
@@ -261,14 +261,14 @@ def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, 
 
 def write_manifest(board: Board, folder: str | os.PathLike) -> Path:
     """Write ``folder/board.json`` (atomically)."""
-    from ...atomic import write_text_atomic
+    from ...core.atomic import write_text_atomic
 
     return write_text_atomic(Path(folder) / MANIFEST_NAME, json.dumps(board.to_dict(), indent=2) + "\n")
 
 
 def read_board(path: str | os.PathLike) -> Board:
     """Load a ``board.json``; InputError naming the file when it is not one."""
-    from ...profile import read_json_file
+    from ...core.profile import read_json_file
 
     data = read_json_file(path, "board manifest", "check the path of board.json")
     return Board.from_dict(data, source=str(path))

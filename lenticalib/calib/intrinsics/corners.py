@@ -131,7 +131,7 @@ def find_corners(grey: np.ndarray, cols: int, rows: int, symmetric: bool = False
 
 def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False) -> PhotoCorners:
     """Read one photo (EXIF orientation applied) and find the board in it (a worker's task)."""
-    from ...imageio import read_image
+    from ...core.imageio import read_image
 
     image = read_image(path, camera_orientation=True)
     size = (int(image.shape[1]), int(image.shape[0]))
@@ -146,7 +146,7 @@ def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
     """Find ``board`` in every photo of ``paths`` (in that order) with ``jobs`` worker threads.
 
     ``progress`` is called once per finished photo.  An unreadable photo raises the
-    :class:`~lenticalib.errors.ImageError` of :func:`lenticalib.imageio.read_image`.  Threads, not
+    :class:`~lenticalib.core.errors.ImageError` of :func:`lenticalib.core.imageio.read_image`.  Threads, not
     processes: OpenCV releases the GIL in decoding, the corner search and the refinement, and
     threads need no ``__main__`` guard in a caller's script.
     """

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import InputError
+from ...core.errors import InputError
 from .board import PAGE_MARGIN, PRINT_DPI, PRINT_PDF, PRINT_PNG, Board
 
 
@@ -59,7 +59,7 @@ def write_print_sheet(board: Board, folder: str | os.PathLike) -> list[Path]:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from ...atomic import write_bytes_atomic
+    from ...core.atomic import write_bytes_atomic
 
     pw, ph = float(board.paper["width_mm"]), float(board.paper["height_mm"])
     s = board.square_mm

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...atomic import write_text_atomic
+from ...core.atomic import write_text_atomic
 from ..report import write_figures
 from .crossval import note_line
 
@@ -74,7 +74,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
     working_distance_mm, uncertainty, provenance (inputs with SHA-256), seconds, note (the
     text written at the top of the .cameramodel).
     """
-    from ...profile import make_provenance
+    from ...core.profile import make_provenance
 
     model = cal.cameramodel()
     lens, values = model.intrinsics()

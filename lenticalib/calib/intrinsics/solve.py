@@ -38,8 +38,8 @@ from typing import Callable
 
 import numpy as np
 
-from ...atomic import write_text_atomic
-from ...errors import BackendUnavailableError, CalibrationError, InputError
+from ...core.atomic import write_text_atomic
+from ...core.errors import BackendUnavailableError, CalibrationError, InputError
 
 OPENCV8 = "LENSMODEL_OPENCV8"
 SPLINE_KNOTS_X = 12
@@ -311,7 +311,7 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
 
 def write_cameramodel(model, path: str | os.PathLike, note: str | None = None) -> Path:
     """Write ``model`` with mrcal's writer (``note`` goes into the file's header comment) and put it
-    in place atomically (:func:`lenticalib.atomic.write_text_atomic`: an earlier file survives any
+    in place atomically (:func:`lenticalib.core.atomic.write_text_atomic`: an earlier file survives any
     failure)."""
     import io
 

@@ -63,7 +63,7 @@ def default_panel() -> PanelGeometry:
 
     family = family_for()
     if family.panel is None:
-        from ...errors import InputError
+        from ...core.errors import InputError
 
         raise InputError("the controller description has no [panel] table", source=family.source,
                          hint="add one as in drivers/lc32.toml, or give the emulator --panel")
@@ -217,7 +217,7 @@ def controller_for_url(url) -> EmulatedController:
     ``power-cut-after=3``, ``torn=1``, ``babble=1``, ``seed=7``, ...) map onto :class:`FaultPlan` fields.
     Raises InputError naming the URL and the bad parameter.
     """
-    from ...errors import InputError
+    from ...core.errors import InputError
     from . import config
 
     def bad(key: str, message: str):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import random
 
-from ...errors import InputError
+from ...core.errors import InputError
 
 
 @dataclasses.dataclass

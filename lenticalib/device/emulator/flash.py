@@ -26,8 +26,8 @@ import tempfile
 import zlib
 from pathlib import Path
 
-from ...atomic import current_umask
-from ...errors import DeviceError, InputError
+from ...core.atomic import current_umask
+from ...core.errors import DeviceError, InputError
 
 FACTORY_MAGIC = b"LTFI"
 FACTORY_VERSION = 1

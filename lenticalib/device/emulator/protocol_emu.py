@@ -12,7 +12,7 @@ import time
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from ...errors import LenticalibError
+from ...core.errors import LenticalibError
 from ..url import parse_device_url
 from .controller import TRANSMIT_BUFFER, LinkDown, controller_for_url
 

@@ -23,8 +23,8 @@ import time
 import tty
 from pathlib import Path
 
-from ...atomic import write_text_atomic
-from ...errors import InputError
+from ...core.atomic import write_text_atomic
+from ...core.errors import InputError
 from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 
 EXIT_POWER_CUT = 75

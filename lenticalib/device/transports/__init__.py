@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 from importlib.metadata import entry_points
 
-from ...errors import BackendUnavailableError, DeviceNotFoundError
+from ...core.errors import BackendUnavailableError, DeviceNotFoundError
 from ..drivers import family_for
 from ..url import DeviceURL, parse_device_url
 from .base import Transport

@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 import time
 
-from ...errors import DeviceDisconnectedError, DeviceNotFoundError, DeviceTimeoutError, LenticalibError
+from ...core.errors import DeviceDisconnectedError, DeviceNotFoundError, DeviceTimeoutError, LenticalibError
 from ..drivers import ControllerFamily, TransportDescription
 from ..url import DeviceURL
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import serial
 
-from ...errors import DeviceNotFoundError
+from ...core.errors import DeviceNotFoundError
 
 _PACKAGE = "lenticalib.device.emulator"
 

@@ -9,7 +9,7 @@ dropped (the frame CRC above catches what is left).
 
 from __future__ import annotations
 
-from ...errors import DeviceNotFoundError
+from ...core.errors import DeviceNotFoundError
 from .base import Transport
 
 

@@ -16,7 +16,7 @@ except ImportError:  # not POSIX
     class _TermiosError(Exception):
         pass
 
-from ...errors import DeviceDisconnectedError
+from ...core.errors import DeviceDisconnectedError
 from .base import Transport
 
 

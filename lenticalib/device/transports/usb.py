@@ -15,7 +15,7 @@ import time
 import usb.core
 import usb.util
 
-from ...errors import DeviceDisconnectedError, DeviceNotFoundError
+from ...core.errors import DeviceDisconnectedError, DeviceNotFoundError
 from .base import Transport
 
 _POLL_S = 0.002

@@ -6,7 +6,7 @@
     torch       sparse tables on a torch device (CPU or CUDA); numpy in, numpy out through the registry,
                 tensors in and out with ``torch_encoder.TorchEncoder`` (needs PyTorch)
 
-All of them route by :func:`lenticalib.render.routing.view_map` (same view for every subpixel, ties
+All of them route by :func:`lenticalib.core.routing.view_map` (same view for every subpixel, ties
 included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
 views and is within 1 LSB for uint8 (fixed-point weights).
 
@@ -22,8 +22,8 @@ from typing import Callable
 
 import numpy as np
 
-from ...plugins import load, registry
-from ...profile import PanelProfile
+from ...core.plugins import load, registry
+from ...core.profile import PanelProfile
 from .common import check_views, output_like
 
 DEFAULT_ENCODER = "fast"

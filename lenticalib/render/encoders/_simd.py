@@ -6,7 +6,7 @@ of one panel row at once:
 
 1. subpixel positions ``x_s = o0 + lane_offset[lane]`` (the offsets fold in the subpixel order);
 2. phase ``Z = Z0[y] - x_s * K`` (uint64, wrapping) and view ``floor(Z * N / 2**64)``, exactly as
-   :mod:`lenticalib.render.routing` defines it (a shift when N is a power of two, else a 64x32 split
+   :mod:`lenticalib.core.routing` defines it (a shift when N is a power of two, else a 64x32 split
    multiply); optional dark test ``(Z * N mod 2**64) >= threshold``;
 3. two ``llvm.masked.gather`` of 32-bit words, one per source row: the word at the left
    neighbour's byte holds that byte and, 3 bytes on, the right neighbour of the same channel

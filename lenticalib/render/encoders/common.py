@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import ImageError
-from ...profile import PanelProfile
+from ...core.errors import ImageError
+from ...core.profile import PanelProfile
 
 SUPPORTED_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
 ASPECT_TOLERANCE = 0.01

@@ -10,7 +10,7 @@ row taps; per output column one packed int32 (byte offset of the left tap | x we
   stack of 2 GiB or more), go through a scalar numba kernel with float64 weights and the
   reference's operations in the same order, so its values equal the reference's (tested).
 
-Routing (which view) is identical to :func:`lenticalib.render.routing.view_map` in every case.
+Routing (which view) is identical to :func:`lenticalib.core.routing.view_map` in every case.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ import numba as nb
 import numpy as np
 from numba import prange
 
-from ...profile import PanelProfile
-from ..routing import phase_constants
+from ...core.profile import PanelProfile
+from ...core.routing import phase_constants
 from ..sampling import column_sampling, row_sampling
 from . import _simd
 

@@ -3,7 +3,7 @@
     E(p) = V_{v(p)}(u_p)        (0 where no view lights p)
 
 ``v(p)`` is the view of subpixel ``p`` by the canonical routing,
-:func:`lenticalib.render.routing.view_map` (the LentiAvatar routing rule in exact-tie-safe fixed point; the tests check
+:func:`lenticalib.core.routing.view_map` (the LentiAvatar routing rule in exact-tie-safe fixed point; the tests check
 it against exact rational arithmetic); ``V_v(u_p)`` is view ``v`` bilinearly sampled in float64 at
 the subpixel's sample point (see :mod:`lenticalib.render.sampling`), in the subpixel's colour channel,
 then rounded half up (integer views).  Slow (a few seconds for a 4K panel).
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...profile import PanelProfile
-from ..routing import view_map
+from ...core.profile import PanelProfile
+from ...core.routing import view_map
 from ..sampling import column_sampling, row_sampling
 from .common import finish
 

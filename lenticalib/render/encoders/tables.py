@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...profile import PanelProfile
+from ...core.profile import PanelProfile
 from ..sampling import NO_VIEW, sampling_tables
 from .common import finish
 
@@ -15,7 +15,7 @@ def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
     """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.render.sampling.SamplingTables`.
 
     Returns the raster ``(height, width, 3)`` in the views' dtype.  Routing is the table's view
-    (the canonical :func:`lenticalib.render.routing.view_map`); sampling is the reference encoder's
+    (the canonical :func:`lenticalib.core.routing.view_map`); sampling is the reference encoder's
     float64 bilinear blend in the same order of operations, so the result equals
     :func:`~lenticalib.render.encoders.reference.encode_reference` bit for bit.  Vectorized numpy over
     chunks of ``ROWS_PER_CHUNK`` rows, so temporaries stay bounded.

@@ -38,8 +38,8 @@ import warnings
 
 import numpy as np
 
-from ...errors import BackendUnavailableError, ConfigurationError, ImageError
-from ...profile import PanelProfile
+from ...core.errors import BackendUnavailableError, ConfigurationError, ImageError
+from ...core.profile import PanelProfile
 from ..sampling import NO_VIEW
 
 try:
@@ -280,7 +280,7 @@ def encode_torch(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
 
 
 def _unavailable(device=None) -> str | None:
-    """What the registry asks (:mod:`lenticalib.plugins`): None, or why torch cannot use ``device`` here."""
+    """What the registry asks (:mod:`lenticalib.core.plugins`): None, or why torch cannot use ``device`` here."""
     return None if device is None else device_unavailable(device)
 
 

@@ -6,7 +6,7 @@
 Tables (:class:`TorchTables`, built by :func:`build_tables` with numpy on the host, then moved to
 the device), per panel subpixel in output order ``[y, 3 x + c]`` (``c`` the colour channel):
 
-* ``primary_view`` uint8: the view the canonical routing (:func:`lenticalib.render.routing.view_map`)
+* ``primary_view`` uint8: the view the canonical routing (:func:`lenticalib.core.routing.view_map`)
   gives it, 255 where none (dark);
 * ``primary_index`` int32: flat index, into the view tensor ``(N, H_v, W_v, 3)``, of the top-left
   bilinear tap of that view (0 where dark).  The four bilinear sample indices are
@@ -20,7 +20,7 @@ the device), per panel subpixel in output order ``[y, 3 x + c]`` (``c`` the colo
   so for a profile the secondary weight is 0 everywhere and these tables are ``None`` (elided:
   nothing to read per frame).  They are filled only from an explicit two-view routing given to
   :func:`build_tables` (``lit=``, e.g. a crosstalk-compensating routing); a routing that puts more
-  than two views on a subpixel is refused with a :class:`~lenticalib.errors.ConfigurationError`;
+  than two views on a subpixel is refused with a :class:`~lenticalib.core.errors.ConfigurationError`;
 * bilinear weights, separable and exact: ``fx`` and ``1 - fx`` per output column (``3 W``
   float64), ``fy`` and ``1 - fy`` per row (float64), the values of
   :mod:`lenticalib.render.sampling`.
@@ -35,8 +35,8 @@ import dataclasses
 
 import numpy as np
 
-from ...errors import BackendUnavailableError, ConfigurationError, ImageError
-from ...profile import PanelProfile
+from ...core.errors import BackendUnavailableError, ConfigurationError, ImageError
+from ...core.profile import PanelProfile
 from ..sampling import NO_VIEW, sampling_tables
 from ..torch_devices import device_unavailable
 
@@ -150,9 +150,9 @@ def build_tables(profile: PanelProfile, view_shape: tuple[int, int], device="cpu
     """Build the encoding tables of ``profile`` for views of ``view_shape = (H_v, W_v)`` on ``device``.
 
     ARGUMENTS
-    ``lit``: the routing, default the canonical one (:func:`~lenticalib.render.routing.view_map`,
+    ``lit``: the routing, default the canonical one (:func:`~lenticalib.core.routing.view_map`,
     one view or none per subpixel).  Otherwise ``(count, views)`` in subpixel order ``[y, x_s]``,
-    the form :func:`lenticalib.render.routing.rule_views` returns: ``count`` ``(height, 3 width)``
+    the form :func:`lenticalib.core.routing.rule_views` returns: ``count`` ``(height, 3 width)``
     how many views light each subpixel, ``views`` ``(K, height, 3 width)`` which, first one first.
     The first becomes the primary, the second (if any) the secondary, blended with
     ``secondary_weight`` (array ``(height, 3 width)`` or a scalar, in [0, 1]; required when a

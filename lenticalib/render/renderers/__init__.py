@@ -11,7 +11,7 @@ pixel centres at integer coordinates (the backends shift to gsplat's half-pixel 
 
 Modules are imported only when a renderer is asked for, and a renderer that cannot run on this
 machine is refused when it is asked for, before anything else is loaded (its function's
-``unavailable(device)``, see :mod:`lenticalib.plugins`).  Third-party renderers register through
+``unavailable(device)``, see :mod:`lenticalib.core.plugins`).  Third-party renderers register through
 the ``lenticalib.renderers`` entry-point group with a value ``"module:function"``.
 """
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ...plugins import load, registry
+from ...core.plugins import load, registry
 
 DEFAULT_RENDERER = "cpu"
 

@@ -6,7 +6,7 @@ import numbers
 
 import numpy as np
 
-from ...errors import InputError
+from ...core.errors import InputError
 from ..gaussians import Gaussians
 
 NEAR_PLANE = 0.01  # camera-frame z, world units (gsplat's default)

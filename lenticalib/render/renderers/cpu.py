@@ -55,7 +55,7 @@ from numba import prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ...errors import InputError
+from ...core.errors import InputError
 from ..gaussians import Gaussians
 from .common import TILE_SIZE, check_render_inputs
 from .cpu_project import (_B, _CA, _CB, _CC, _CHUNKS, _EXT_Y, _G, _MX, _MY, _OP, _Q, _R, _RECORD, _SLOPE,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from ...errors import BackendUnavailableError
+from ...core.errors import BackendUnavailableError
 from ..gaussians import Gaussians
 from ..torch_devices import device_unavailable
 from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE, check_render_inputs
@@ -72,4 +72,4 @@ def render_gsplat(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *
     return torch.cat([colours, alphas], dim=-1)
 
 
-render_gsplat.unavailable = gsplat_unavailable  # asked by the registry (lenticalib.plugins)
+render_gsplat.unavailable = gsplat_unavailable  # asked by the registry (lenticalib.core.plugins)

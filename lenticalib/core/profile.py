@@ -11,7 +11,7 @@ A profile holds the routing constants (see ``docs/optics.md``; format: ``docs/pr
     subpixel_order   "RGB" or "BGR": which colour sits at subpixel position 0, 1, 2
 
 plus a format version, the optional ``physical`` block (lens pitch, gap, pixel pitch, the eye
-the constants are for: :mod:`lenticalib.physical`), the optional ``view_direction`` (+1: the
+the constants are for: :mod:`lenticalib.core.physical`), the optional ``view_direction`` (+1: the
 view index grows as the viewer moves to the right; -1: it falls; absent: unknown), optional
 1-sigma uncertainties, optional Looking Glass extras and a provenance record (how, when and from
 which inputs it was made, with which lenticalib).
@@ -265,7 +265,7 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any
     The file must be UTF-8 text (a leading byte-order mark is accepted).  Raises ProfileError
     naming the file for a missing, unreadable, empty, binary or non-UTF-8 file and for invalid
     JSON, and naming the field too for a number no float holds (``NaN``, ``Infinity``, ``1e400``,
-    a 400-digit integer: :mod:`lenticalib.fields`); ``what`` names the kind of file in messages (e.g. ``"profile"``), ``hint_missing`` says
+    a 400-digit integer: :mod:`lenticalib.core.fields`); ``what`` names the kind of file in messages (e.g. ``"profile"``), ``hint_missing`` says
     what to do when it does not exist.
     """
     src = str(path)
@@ -370,7 +370,7 @@ def describe_provenance(prov: Mapping[str, Any]) -> list[str]:
 
 def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) -> dict[str, Any]:
     """A provenance record: what made the profile, when, from which files (with SHA-256)."""
-    from . import __version__
+    from .. import __version__
 
     record: dict[str, Any] = {
         "method": method,

@@ -261,7 +261,7 @@ def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEF
                                  convention="i_ref = 0, s_ref reduced modulo Delta into [0, Delta)",
                                  view_direction={"value": 1, "method": "import-lkg",
                                                  "evidence": "invView = 1: the view index grows as the viewer "
-                                                             "moves right (module docstring of lenticalib.lkg)"})
+                                                             "moves right (module docstring of lenticalib.core.lkg)"})
     try:
         return PanelProfile(views=views, width=v["screenW"], height=v["screenH"],
                             subpixel_order="BGR" if flip_subp else "RGB", view_direction=1,

@@ -122,7 +122,7 @@ def check_size(size: tuple[int, int], expected_size: tuple[int, int], source: st
 def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image") -> Path:
     """Refuse, before any work, an image path that :func:`write_image` could not write.
 
-    Checks the path itself (:func:`lenticalib.outputs.check_output_file`: not a folder, parent
+    Checks the path itself (:func:`lenticalib.core.outputs.check_output_file`: not a folder, parent
     folder existing and writable), the suffix (``.png``, ``.tif``, ``.tiff``, ``.npy``) and that
     ``dtype`` (when given) fits that format.  Returns the path.
     """

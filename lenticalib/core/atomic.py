@@ -1,7 +1,7 @@
 """Atomic file output: a reader sees the old file or the new one, never a torn one.
 
 What an output path may name (checked before the work by
-:func:`lenticalib.outputs.check_output_file`, and again here when the file is written):
+:func:`lenticalib.core.outputs.check_output_file`, and again here when the file is written):
 
 - nothing yet, in an existing writable folder: the file is created with the umask's mode;
 - a regular file: it is replaced by the new one, which keeps its mode (set-user/group-id bits
@@ -9,7 +9,7 @@ What an output path may name (checked before the work by
 - a symbolic link to a regular file: the link is followed, as editors do: the *target* file is
   replaced (in the target's folder) and the link stays as it was;
 - anything else -- a folder, a FIFO, a device node, a socket, a dangling link or a link to any
-  of these -- is refused with an :class:`~lenticalib.errors.InputError`: it is never replaced
+  of these -- is refused with an :class:`~lenticalib.core.errors.InputError`: it is never replaced
   and never written into.
 
 The new content goes to a hidden temporary file ``.NAME.XXXXXXXX.tmp`` beside the target,

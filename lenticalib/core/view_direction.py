@@ -59,7 +59,7 @@ def with_direction(profile: PanelProfile, direction: int | None, method: str, **
     hand", "moved-right"), ``set`` (UTC, ISO 8601), ``lenticalib_version``, ``command`` and
     ``evidence`` (free-form, JSON-ready).  The rest of the provenance is kept.
     """
-    from . import __version__
+    from .. import __version__
 
     note: dict[str, Any] = {
         "value": direction, "method": method,

@@ -1,7 +1,7 @@
 """The optional physical block of a profile: the panel as lenses and pixels in millimetres.
 
 The routing constants of a profile are right for one eye position.  The physical block says what
-they are made of, so that they can be recomputed for another eye (:mod:`lenticalib.retarget`):
+they are made of, so that they can be recomputed for another eye (:mod:`lenticalib.core.retarget`):
 
     pixel_pitch_mm      p, the panel's (square) pixel pitch
     lens_pitch_mm       P_h, the horizontal lens pitch (along a panel row), mm

@@ -9,7 +9,7 @@ replaced.
 - an output *file* must be a new name or an existing regular file.  A symbolic link to a
   regular file is followed (the target file is replaced in its own folder, the link stays, as
   editors do); a folder, a FIFO, a device node, a socket, a dangling link or a link to anything
-  but a regular file is refused, and :mod:`lenticalib.atomic` checks again when it writes;
+  but a regular file is refused, and :mod:`lenticalib.core.atomic` checks again when it writes;
 - an output file gets the umask's mode, or the mode of the file it replaces without its
   set-user/group-id bits;
 - an output *folder* must not name an existing file; a link to a folder is followed;
@@ -17,7 +17,7 @@ replaced.
   any depth, is something the command itself writes there (``contents``), so a mistyped
   ``--report ~/Documents`` or ``render -o ~/Documents`` is refused, never wiped;
 - all checks run before the long work, so a wrong path costs seconds, not a whole fit;
-- files are written atomically (:mod:`lenticalib.atomic`); a folder of results is written into a
+- files are written atomically (:mod:`lenticalib.core.atomic`); a folder of results is written into a
   hidden sibling ``.NAME.XXXXXXXX.partial`` and moved into place when complete
   (:func:`staged_folder`), so a failed run leaves an earlier folder intact and no half-written
   one.  What a killed run leaves (``.NAME.*.partial`` folders, ``.NAME.*.tmp`` files) is removed
@@ -27,7 +27,7 @@ replaced.
   are guarded by :func:`restored_on_failure`: the earlier ones are copied aside first and put
   back if the run fails, so a failed run leaves the earlier results and nothing of its own.
 
-Every refusal is an :class:`~lenticalib.errors.InputError` naming the path and what to do.
+Every refusal is an :class:`~lenticalib.core.errors.InputError` naming the path and what to do.
 """
 
 from __future__ import annotations
@@ -148,7 +148,7 @@ def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -
     an existing ``path`` holding anything else is refused before the body runs, and again
     before it is replaced (a file put there meanwhile is never deleted).  The staging folder
     ``.NAME.XXXXXXXX.partial`` is locked while written; those of killed earlier runs are removed
-    first (:func:`lenticalib.atomic.remove_leftovers`).  On an exception the staging folder is
+    first (:func:`lenticalib.core.atomic.remove_leftovers`).  On an exception the staging folder is
     removed and ``path`` (if it existed) is untouched.  On success an existing ``path`` is
     renamed aside, the staged folder renamed into place, and the old one removed, so at every
     moment ``path`` is either the old folder or the complete new one (a crash between the two

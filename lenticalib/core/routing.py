@@ -36,7 +36,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..profile import PanelProfile
+from .profile import PanelProfile
 
 _TWO64 = 1 << 64
 _MASK32 = np.uint64(0xFFFFFFFF)
