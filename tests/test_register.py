@@ -102,7 +102,7 @@ def test_tone_curve_phase_error_is_measured_and_cancelled():
     x = xx * 9.6 + 0.3 * yy  # panel subpixels seen by each pixel, slightly rolled
 
     def tone(linear):  # decode(S(encode(L))): what the fit sees through a phone's S-curve
-        from lenticalib.calib.patterns import srgb_decode, srgb_encode
+        from lenticalib.core.colour import srgb_decode, srgb_encode
 
         v = srgb_encode(linear)
         return srgb_decode(v + 0.9 * (3 * v ** 2 - 2 * v ** 3 - v))

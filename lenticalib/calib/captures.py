@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.colour import srgb_decode, srgb_decode_lut
 from ..core.errors import CaptureError
 from ..core.imageio import read_image
-from .patterns import PatternSet, read_manifest, srgb_decode
+from .patterns import PatternSet, read_manifest
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
 MAX_WORKING_WIDTH = 2560  # photos wider than this are area-averaged down (linear light)
@@ -133,7 +134,7 @@ def _linear_rgb(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     global _DECODE_LUT8
     if raw.dtype == np.uint8:
         if _DECODE_LUT8 is None:
-            _DECODE_LUT8 = srgb_decode(np.arange(256) / 255.0).astype(np.float32)
+            _DECODE_LUT8 = srgb_decode_lut().astype(np.float32)
         clipped = (raw.max(axis=2) >= round(CLIP_LEVEL * 255)).astype(np.float32)
         return _DECODE_LUT8[raw], clipped
     scale = 65535.0 if raw.dtype == np.uint16 else 1.0

@@ -50,6 +50,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
+from ..core.colour import srgb_encode8
 from ..core.errors import InputError
 
 FORMAT_NAME = "lenticalib.patterns"
@@ -165,18 +166,6 @@ def design_patterns(width: int, height: int, views: int) -> PatternSet:
     return PatternSet(width, height, views, tuple(patterns))
 
 
-def srgb_encode(linear: np.ndarray) -> np.ndarray:
-    """Linear light in [0, 1] -> sRGB-encoded values in [0, 1] (IEC 61966-2-1)."""
-    linear = np.clip(linear, 0.0, 1.0)
-    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
-
-
-def srgb_decode(encoded: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] -> linear light in [0, 1]."""
-    encoded = np.clip(encoded, 0.0, 1.0)
-    return np.where(encoded <= 0.04045, encoded / 12.92, np.power((encoded + 0.055) / 1.055, 2.4))
-
-
 def pattern_linear(pattern: Pattern, coordinate: np.ndarray) -> np.ndarray:
     """Linear light of ``pattern`` at panel coordinates (subpixel or row *indices*, any shape)."""
     phase = 2.0 * math.pi * (np.asarray(coordinate, dtype=np.float64) + 0.5) / pattern.period + pattern.theta
@@ -191,13 +180,13 @@ def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
             continue
         if pattern.axis == "x":
             coordinate = 3 * np.arange(width) + CHANNEL_SLOT_RGB[channel]
-            values = np.rint(255.0 * srgb_encode(pattern_linear(pattern, coordinate))).astype(np.uint8)
+            values = srgb_encode8(pattern_linear(pattern, coordinate))
             image[:, :, ci] = values[None, :]
         else:
-            values = np.rint(255.0 * srgb_encode(pattern_linear(pattern, np.arange(height)))).astype(np.uint8)
+            values = srgb_encode8(pattern_linear(pattern, np.arange(height)))
             image[:, :, ci] = values[:, None]
     f = frame_width(height)
-    frame = np.rint(255.0 * srgb_encode(np.float64(FRAME_LEVEL))).astype(np.uint8)
+    frame = srgb_encode8(np.float64(FRAME_LEVEL))
     for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
         part[...] = frame
     return image

@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import overload
 
+from ..core.colour import srgb_decode_lut, srgb_encode8
 from ..core.errors import InputError
 
 TAP_FLOOR = 2e-3
@@ -180,18 +181,14 @@ _NO_TABLE_U = np.zeros(0, np.uint8)
 def _decode_lut() -> np.ndarray:
     global _DECODE
     if _DECODE is None:
-        from ..calib.patterns import srgb_decode
-
-        _DECODE = srgb_decode(np.arange(256) / 255.0).astype(np.float32)
+        _DECODE = srgb_decode_lut().astype(np.float32)
     return _DECODE
 
 
 def _encode_lut() -> np.ndarray:
     global _ENCODE
     if _ENCODE is None:
-        from ..calib.patterns import srgb_encode
-
-        _ENCODE = np.rint(255.0 * srgb_encode(np.arange(_LEVELS) / (_LEVELS - 1))).astype(np.uint8)
+        _ENCODE = srgb_encode8(np.arange(_LEVELS) / (_LEVELS - 1))
     return _ENCODE
 
 

@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from ..core.colour import srgb_decode, srgb_encode
 from ..core.errors import InputError
 from ..core.profile import PanelProfile
 from ..core.view_direction import direction_warning
@@ -215,9 +216,7 @@ class AvatarPipeline:
 
             rgb = rgb.clamp(0, 1)
             if self.compensator is not None:  # in linear light, on the device
-                linear = torch.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-                sent = self.compensator.apply_torch(linear)
-                rgb = torch.where(sent <= 0.0031308, 12.92 * sent, 1.055 * sent.clamp_min(1e-12) ** (1 / 2.4) - 0.055)
+                rgb = srgb_encode(self.compensator.apply_torch(srgb_decode(rgb)))
             views = (rgb * 255.0 + 0.5).to(dtype=torch.uint8).contiguous()
             raster = self._gpu_encoder().encode(views).cpu().numpy()
         else:

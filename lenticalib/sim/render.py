@@ -38,6 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..core.colour import srgb_decode_lut, srgb_encode
 from ..core.errors import ImageError
 from .camera import Camera
 from .scene import Scene
@@ -57,12 +58,6 @@ def _phi_table() -> np.ndarray:
 
 
 _PHI_TABLE = _phi_table()
-
-
-def srgb_decode_lut() -> np.ndarray:
-    """Linear light of the 256 sRGB-encoded 8-bit values, float64 ``(256,)``."""
-    v = np.arange(256, dtype=np.float64) / 255.0
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
 
 
 @njit(cache=True, inline="always")
@@ -363,7 +358,7 @@ def _tone_lut(gamma: float, contrast: float = 0.0) -> np.ndarray:
     """uint16 raw -> encoded value in [0, 1] (sRGB curve, ** gamma, then the S-curve of strength
     ``contrast``: v + contrast (3 v^2 - 2 v^3 - v)), float32 (65536,)."""
     v = np.arange(65536, dtype=np.float64) / 65535.0
-    enc = np.power(np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055), gamma)
+    enc = np.power(srgb_encode(v), gamma)
     out = (enc + contrast * (3 * enc ** 2 - 2 * enc ** 3 - enc)).astype(np.float32)
     out.setflags(write=False)
     return out

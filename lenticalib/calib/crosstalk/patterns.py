@@ -34,9 +34,10 @@ from typing import Any
 
 import numpy as np
 
+from ...core.colour import srgb_encode8
 from ...core.errors import InputError
 from ...core.profile import PanelProfile, profile_from_dict
-from ..patterns import FRAME_LEVEL, frame_width, srgb_encode
+from ..patterns import FRAME_LEVEL, frame_width
 
 FORMAT_NAME = "lenticalib.crosstalk-patterns"
 FORMAT_VERSION = 1
@@ -203,7 +204,7 @@ def render_crosstalk_pattern(pattern_set: CrosstalkPatternSet, pattern: Crosstal
         for channel in range(3):
             image[rows[0]:rows[-1] + 1, :, channel] = np.where(lit[:, rho[channel]::3], 255, 0)
     f = frame_width(h)
-    frame = np.rint(255.0 * srgb_encode(np.float64(FRAME_LEVEL))).astype(np.uint8)
+    frame = srgb_encode8(np.float64(FRAME_LEVEL))
     for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
         part[...] = frame
     return image

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.colour import srgb_decode, srgb_decode_lut
 from ...core.errors import CaptureError
 from . import photometry
 
@@ -22,14 +23,11 @@ MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved c
 
 def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
     """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo."""
-    from ..patterns import srgb_decode
-
     if raw.ndim != 3 or raw.shape[2] < 3:
         raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
     raw = raw[:, :, :3]
     if raw.dtype == np.uint8:
-        codes = np.arange(256) / 255.0
-        lut = (codes if mode == "linear" else srgb_decode(codes)).astype(np.float32)
+        lut = (np.arange(256) / 255.0 if mode == "linear" else srgb_decode_lut()).astype(np.float32)
         return lut[raw].sum(axis=2, dtype=np.float32), raw.max(axis=2) >= 250
     top = 65535.0 if raw.dtype == np.uint16 else 1.0
     value = raw.astype(np.float32) / np.float32(top)
@@ -130,8 +128,6 @@ def register_photos(luma, names, photos, lit, frame_fraction, warnings):
 
 def tone_spread(codes: dict[str, np.ndarray], warnings: list[str], first_photo: Path) -> tuple[float, float]:
     """(best power on sRGB-decoded light for half-0 + half-1 = white, its residual); (1, nan) without codes."""
-    from ..patterns import srgb_decode
-
     if not all(k in codes for k in ("half-0", "half-1", "white", "black")):
         return 1.0, math.nan
     dec = {k: srgb_decode(v / 255.0) for k, v in codes.items()}

@@ -34,6 +34,8 @@ from typing import Callable
 
 import numpy as np
 
+from ...core.colour import srgb_encode
+
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
 SUBPIX_LIMITS = (2, 25)  # pixels
@@ -66,7 +68,7 @@ def grey8(image: np.ndarray) -> np.ndarray:
     linear = cv2.cvtColor(np.ascontiguousarray(image.astype(np.float32)), cv2.COLOR_RGB2GRAY)
     level = float(np.percentile(linear, 99.5))
     v = np.clip(linear / level, 0.0, 1.0) if level > 0 else np.zeros_like(linear)
-    enc = np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
+    enc = srgb_encode(v)
     return np.clip(enc * 255.0 + 0.5, 0, 255).astype(np.uint8)
 
 

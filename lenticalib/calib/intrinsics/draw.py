@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.colour import srgb_encode8
 from ...core.errors import InputError
 from .board import PAGE_MARGIN, PRINT_DPI, PRINT_PDF, PRINT_PNG, Board
 
@@ -43,8 +44,7 @@ def panel_raster(board: Board) -> np.ndarray:
     black = ((ii + jj) % 2 == 0).astype(np.float64)  # (rows + 1, cols + 1)
     blackness = by.T @ black @ bx  # (h, w): share of black in light at each pixel centre
     light = 1.0 - blackness
-    enc = np.where(light <= 0.0031308, 12.92 * light, 1.055 * np.power(light, 1 / 2.4) - 0.055)
-    value = np.clip(np.round(enc * 255.0), 0, 255).astype(np.uint8)
+    value = srgb_encode8(light)
     return np.repeat(value[:, :, None], 3, axis=2)
 
 
