@@ -22,9 +22,10 @@ import pytest
 import lenticalib.calib.fit as fit_module
 import lenticalib.cli._progress as progress_module
 from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import design_patterns, read_manifest, write_patterns
+from lenticalib.calib.patterns import design_patterns, read_manifest
 from lenticalib.cli import main
 from lenticalib.core.errors import InputError
+from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.profile import load_profile
 
 FIXTURE = Path(__file__).resolve().parent.parent / "fixtures" / "capture-demo"
@@ -807,7 +808,8 @@ def test_very_noisy_photos_are_never_blamed_on_camera_motion(tmp_path):
     """High-ISO noise alone (250 e- full well, 14 e- read noise) must not trip a capture check: the
     single-fringe coordinates are smoothed before unwrapping and the motion check has a confidence.
     The fit runs to the end and judges itself; it may call itself untrusted, never the camera moved."""
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 

@@ -367,7 +367,8 @@ def test_manual_key_mode_takes_the_file_the_user_put_in_place(tmp_path):
 # -- sim -------------------------------------------------------------------------------------------
 
 def test_sim_photographs_the_shown_patterns_and_records_the_truth(tmp_path):
-    from lenticalib.calib.patterns import design_patterns, render_pattern, write_patterns
+    from lenticalib.calib.patterns import design_patterns, render_pattern
+    from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile
     from lenticalib.sim.capture import photograph_pattern
     from lenticalib.sim.scene import Scene, random_scene
@@ -403,7 +404,8 @@ def test_sim_photographs_the_shown_patterns_and_records_the_truth(tmp_path):
 
 
 def test_sim_record_is_complete_once_every_pattern_is_photographed(tmp_path):
-    from lenticalib.calib.patterns import design_patterns, render_pattern, write_patterns
+    from lenticalib.calib.patterns import design_patterns, render_pattern
+    from lenticalib.core.pattern_sets import write_patterns
 
     pattern_set = design_patterns(96, 64, 8)
     write_patterns(tmp_path, pattern_set)

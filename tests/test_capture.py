@@ -18,7 +18,8 @@ from lenticalib.calib.cameras import open_camera
 from lenticalib.calib.captures import load_photo
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.fit import fit_capture_set
-from lenticalib.calib.patterns import design_patterns, write_patterns
+from lenticalib.calib.patterns import design_patterns
+from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.errors import CaptureError
 from lenticalib.core.profile import load_profile
 from lenticalib.render.present import open_presenter
@@ -223,7 +224,7 @@ def _check_image(path):
 def _photograph(pattern_folder, raster_name, name, path):
     """What the virtual camera of ``captured_4k`` takes of pattern ``raster_name`` of
     ``pattern_folder`` as photo ``name`` (that name's noise), written to ``path``."""
-    from lenticalib.render.slides import slides_from_path
+    from lenticalib.core.slides import slides_from_path
     from lenticalib.sim.capture import photograph_pattern
     from lenticalib.sim.scene import random_scene
 

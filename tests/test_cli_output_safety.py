@@ -18,7 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from lenticalib.calib.patterns import design_patterns, write_patterns
+from lenticalib.calib.patterns import design_patterns
+from lenticalib.core.pattern_sets import write_patterns
 
 from .test_cli_outputs import _run
 

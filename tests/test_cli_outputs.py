@@ -12,10 +12,11 @@ from pathlib import Path
 import pytest
 
 import lenticalib.calib.fit as fit_module
-import lenticalib.calib.patterns as patterns_module
+import lenticalib.core.pattern_sets as patterns_module
 import lenticalib.core.imageio as imageio_module
 import lenticalib.sim.capture as capture_module
-from lenticalib.calib.patterns import design_patterns, write_patterns
+from lenticalib.calib.patterns import design_patterns
+from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.cli import main
 from lenticalib.core.errors import InputError
 from lenticalib.sim.scene import random_scene

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from lenticalib.calib.crosstalk.patterns import BAND_PATTERNS, design_crosstalk_patterns, lit_subpixels
-from lenticalib.calib.patterns import design_patterns, read_manifest, read_pattern_folder, write_patterns
+from lenticalib.calib.patterns import design_patterns, read_manifest
 from lenticalib.cli import main
 from lenticalib.core.errors import CaptureError, InputError
+from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
 from lenticalib.core.routing import view_coordinate
 from lenticalib.sim.scene import random_scene
 

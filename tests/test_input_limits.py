@@ -28,9 +28,10 @@ from lenticalib.core import lkg
 from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
 from lenticalib.calib.crosstalk.result import read_crosstalk
 from lenticalib.calib.intrinsics.board import panel_board, read_board, write_manifest
-from lenticalib.calib.patterns import design_patterns, read_pattern_folder, write_patterns
+from lenticalib.calib.patterns import design_patterns
 from lenticalib.core.errors import ImageError, InputError, ProfileError
 from lenticalib.core.imageio import MAX_IMAGE_PIXELS, check_image_pixels, read_image
+from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
 from lenticalib.core.profile import PanelProfile, load_profile, read_json_file, save_profile
 from lenticalib.render.cameras import ViewCameras
 from lenticalib.render.camera_models import arc_cameras
@@ -412,7 +413,7 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
     """The issue's 186 KB 8000x8000 PNG (64 megapixels: under the general limit, so decoded today at
     1.3 GB) as one view of a folder, as a slide of a pattern set and as a photo the simulator takes:
     refused from its header, naming the size that was due, with no pixel decoded."""
-    from lenticalib.render.slides import slides_from_path
+    from lenticalib.core.slides import slides_from_path
 
     big = _grey_png(8000, 8000)
     assert len(big) < 200_000

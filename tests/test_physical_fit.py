@@ -15,7 +15,8 @@ import types
 import numpy as np
 import pytest
 
-from lenticalib.calib.patterns import design_patterns, write_patterns
+from lenticalib.calib.patterns import design_patterns
+from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.cli import main
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile

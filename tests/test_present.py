@@ -156,8 +156,9 @@ def test_show_advances_by_itself_with_an_interval(xvfb, tmp_path):
 
 
 def test_show_a_pattern_set_without_its_pngs_draws_them_from_the_manifest(tmp_path):
-    from lenticalib.calib.patterns import design_patterns, render_pattern, write_patterns
-    from lenticalib.render.slides import slides_from_path
+    from lenticalib.calib.patterns import design_patterns, render_pattern
+    from lenticalib.core.pattern_sets import write_patterns
+    from lenticalib.core.slides import slides_from_path
 
     pattern_set = design_patterns(W, H, 8)
     write_patterns(tmp_path, pattern_set)

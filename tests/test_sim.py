@@ -190,7 +190,8 @@ def simulate_main(monkeypatch):
 
 
 def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, capsys):
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
 
     pattern_set = design_patterns(3840, 2160, 32)
     write_patterns(tmp_path, pattern_set)
@@ -226,7 +227,8 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, c
 
 
 def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
 
     write_patterns(tmp_path / "set", design_patterns(640, 360, 8))
     scene = random_scene(9, width=640, height=360, resolution=(1250, 800), subsamples=1)

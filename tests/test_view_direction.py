@@ -390,7 +390,8 @@ def test_an_untrustworthy_second_fit_gives_no_direction():
 def moved_sets(tmp_path_factory):
     """A 640x360, 8-view virtual panel photographed from the calibration position (``first``) and
     from 1.5 view zones (about 7 cm) to the right at the same distance (``right``)."""
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
@@ -481,7 +482,8 @@ def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_p
 
 def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch, capsys):
     import lenticalib.calib.fit as fit_module
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
 
     def no_fit(*args, **kwargs):
         raise AssertionError("the fit started before the arguments were checked")

@@ -41,6 +41,8 @@ from typing import Callable
 import numpy as np
 
 from ..core.errors import CameraError, CaptureError, InputError, LenticalibError
+from ..core.pattern_sets import read_pattern_folder
+from ..core.slides import slides_from_path
 from .captures import PHOTO_SUFFIXES, check_exposure, load_photo
 
 CAPTURE_FOLDER = "captures"
@@ -176,9 +178,6 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
     every photo again.  ``progress(message)`` is called once per pattern, ``notify(message)`` for
     each rejected photo.
     """
-    from ..render.slides import slides_from_path
-    from .patterns import read_pattern_folder
-
     start = time.perf_counter()
     directory = Path(directory)
     pattern_set = read_pattern_folder(directory)

@@ -1,4 +1,4 @@
-"""The calibration test patterns lenticalib draws, and their manifest ``patterns.json``.
+"""The calibration test patterns lenticalib draws, and what their manifest ``patterns.json`` says.
 
 Every pattern is a phase-shifted sinusoid in *linear light* (sRGB-encoded into the PNG), a
 function of one panel coordinate, evaluated at subpixel or row centres:
@@ -46,16 +46,17 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
 from ..core.colour import srgb_encode8
 from ..core.errors import InputError
+from ..core.pattern_sets import MANIFEST_NAME, manifest_matches, read_pattern_folder
+from ..core.profile import MAX_SIDE, MAX_VIEWS
 
 FORMAT_NAME = "lenticalib.patterns"
 FORMAT_VERSION = 2  # 2: registration frame
-MANIFEST_NAME = "patterns.json"
 MEAN_LEVEL = 0.5  # linear light
 AMPLITUDE = 0.45  # linear light
 FINE_PERIODS = (16.0, 22.0)  # subpixels
@@ -192,44 +193,9 @@ def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
     return image
 
 
-def write_patterns(directory: str | os.PathLike, pattern_set,
-                   progress: Iterable | None = None) -> Path:
-    """Write every pattern as ``DIR/NAME.png`` and the manifest ``DIR/patterns.json``.
-
-    ``pattern_set``: any pattern set (calibration or crosstalk) with ``patterns``, ``render``,
-    ``set_id`` and ``to_dict``.
-
-    Refuses to overwrite a manifest of a *different* pattern set when ``DIR/captures`` holds
-    photos (they would no longer match).  Returns the manifest path.
-    """
-    from ..core.atomic import write_text_atomic
-    from ..core.imageio import write_image
-
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    manifest_path = directory / MANIFEST_NAME
-    if manifest_path.exists() and any((directory / "captures").glob("*")):
-        try:
-            old = json.loads(manifest_path.read_text())
-            old_id = old.get("set_id")
-        except (OSError, ValueError, AttributeError):
-            old_id = None
-        if old_id != pattern_set.set_id:
-            raise InputError("holds photos of another pattern set", source=str(directory / "captures"),
-                             hint="write the patterns into an empty folder")
-    items = pattern_set.patterns if progress is None else progress
-    for pattern in items:
-        write_image(directory / pattern.file, pattern_set.render(pattern))
-    write_text_atomic(manifest_path, json.dumps(pattern_set.to_dict(), indent=2) + "\n")
-    return manifest_path
-
-
-_FREE_KEYS = ("created", "lenticalib_version", "note")
-
-
 def read_manifest(directory: str | os.PathLike) -> PatternSet:
     """The calibration pattern set described by ``DIR/patterns.json``; InputError naming the file if
-    unusable (a crosstalk pattern folder included: see :func:`read_pattern_folder`)."""
+    unusable (a crosstalk pattern folder included: see :func:`~lenticalib.core.pattern_sets.read_pattern_folder`)."""
     pattern_set = read_pattern_folder(directory)
     if not isinstance(pattern_set, PatternSet):
         raise InputError("holds crosstalk patterns, not calibration patterns", source=str(Path(directory) / MANIFEST_NAME),
@@ -238,34 +204,14 @@ def read_manifest(directory: str | os.PathLike) -> PatternSet:
     return pattern_set
 
 
-def read_pattern_folder(directory: str | os.PathLike):
-    """The pattern set of a pattern folder: calibration (:class:`PatternSet`) or crosstalk
-    (:class:`~lenticalib.calib.crosstalk.patterns.CrosstalkPatternSet`), by the manifest's format.
-
-    Both have ``width``, ``height``, ``views``, ``patterns`` (each with ``name``, ``file``,
-    ``group``), ``names``, ``set_id`` and ``render(pattern)``.  InputError naming the manifest
-    when it is missing, foreign or edited.
-    """
-    from ..core.profile import read_json_file
-
-    path = Path(directory) / MANIFEST_NAME
-    data = read_json_file(path, "pattern manifest",
-                          "run 'lenticalib patterns' (or 'lenticalib crosstalk patterns') to write the patterns "
-                          "and their manifest first")
-    source = str(path)
-    from .crosstalk.patterns import FORMAT_NAME as CROSSTALK_FORMAT, crosstalk_set_from_manifest
-
-    if isinstance(data, dict) and data.get("format") == CROSSTALK_FORMAT:
-        return crosstalk_set_from_manifest(data, source)
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
-        raise InputError("is not a lenticalib pattern manifest", source=source,
-                         hint="point at the folder 'lenticalib patterns' wrote")
+def pattern_set_from_manifest(data: dict[str, Any], source: str) -> PatternSet:
+    """The calibration pattern set a parsed ``patterns.json`` of this format describes (the
+    ``lenticalib.patterns`` kind of :mod:`lenticalib.core.pattern_sets`); InputError naming
+    ``source`` when it is of another version or edited."""
     if data.get("format_version") != FORMAT_VERSION:
         raise InputError(f"pattern format version {data.get('format_version')!r} is not supported "
                          f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
                          hint="write the patterns again with this lenticalib and photograph them")
-    from ..core.profile import MAX_SIDE, MAX_VIEWS
-
     for key, low, high in (("width", 1, MAX_SIDE), ("height", 1, MAX_SIDE), ("views", 2, MAX_VIEWS)):
         value = data.get(key)
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
@@ -276,7 +222,7 @@ def read_pattern_folder(directory: str | os.PathLike):
     except (TypeError, ValueError) as exc:
         raise InputError(f"describes no pattern set this lenticalib can draw ({exc})", source=source,
                          hint="write the patterns again with 'lenticalib patterns'") from None
-    if data != {**expected.to_dict(), **{k: data[k] for k in _FREE_KEYS if k in data}}:
+    if not manifest_matches(data, expected):
         raise InputError("describes patterns this lenticalib did not draw (edited, or from another version)",
                          source=source, hint="write the patterns again with 'lenticalib patterns' and "
                                              "photograph them")

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..calib.acquire import capture_set, wait_for_key
     from ..calib.cameras import make_camera
-    from ..calib.patterns import read_pattern_folder
+    from ..core.pattern_sets import read_pattern_folder
     from ..core.errors import DisplayError, InputError
     from ..render.present import open_presenter
     from ._progress import progress_bar

@@ -72,7 +72,7 @@ def _fraction(text: str) -> float:
 
 def run_patterns(args: argparse.Namespace) -> int:
     from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns
-    from ..calib.patterns import MANIFEST_NAME, write_patterns
+    from ..core.pattern_sets import MANIFEST_NAME, write_patterns
     from ..core.errors import InputError
     from ..core.outputs import check_output_folder, restored_on_failure
     from ..core.profile import load_profile

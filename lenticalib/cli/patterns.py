@@ -65,7 +65,8 @@ def check_options(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..calib.patterns import MANIFEST_NAME, design_patterns, write_patterns
+    from ..calib.patterns import design_patterns
+    from ..core.pattern_sets import MANIFEST_NAME, write_patterns
     from ..core.outputs import check_output_folder, restored_on_failure
     from ._progress import progress_bar
 

@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..core.errors import InputError
     from ..render.present import list_monitors, open_presenter
-    from ..render.slides import run_slideshow, slides_from_path
+    from ..core.slides import run_slideshow, slides_from_path
 
     if args.list_displays:
         for monitor in list_monitors():

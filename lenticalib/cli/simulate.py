@@ -178,7 +178,7 @@ def _check_outputs(directory: str):
 def run(args: argparse.Namespace) -> int:
     import time
 
-    from ..calib.patterns import read_pattern_folder
+    from ..core.pattern_sets import read_pattern_folder
     from ..core.outputs import restored_on_failure
     from ..sim.capture import simulate_capture_set
     from ._progress import progress_bar

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..core.atomic import write_bytes_atomic, write_text_atomic
 from ..core.errors import ImageError, InputError
+from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from .scene import Scene
 
 SIMULATION_NAME = "simulation.json"
@@ -82,7 +83,6 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
     Returns (its path, the constants recorded in ``simulation.json``: views, slant, period, offset,
     reference_view, width, height, subpixel_order, view_direction).
     """
-    from ..calib.patterns import MANIFEST_NAME
     from ..core.profile import make_provenance, save_profile
 
     directory = Path(directory)
@@ -157,7 +157,6 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene, raw: bool
     Raises InputError (file named) for a missing or foreign manifest, a scene of another panel
     size, a captures folder with foreign files, or an unreadable pattern image.
     """
-    from ..calib.patterns import MANIFEST_NAME, read_pattern_folder
     from ..core.imageio import read_image
 
     directory = Path(pattern_dir)

@@ -111,7 +111,7 @@ class SimCamera(CaptureCamera):
     def _start(self, shown: np.ndarray, directory: Path) -> None:
         """Read the pattern set of ``directory`` and draw the scene for the shown panel size."""
         from ...sim.scene import random_scene
-        from ..patterns import MANIFEST_NAME, read_pattern_folder
+        from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 
         pattern_set = read_pattern_folder(directory)
         height, width = shown.shape[:2]

@@ -31,6 +31,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ...core.errors import CaptureError, InputError
+from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct
@@ -90,7 +91,7 @@ def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | Non
                        profile_source: str = "--profile"):
     """(pattern set, capture set) of a crosstalk folder; InputError/CaptureError naming the fault."""
     from ..captures import match_captures
-    from ..patterns import MANIFEST_NAME, PatternSet, read_pattern_folder
+    from ..patterns import PatternSet
 
     directory = Path(directory)
     if not directory.is_dir():

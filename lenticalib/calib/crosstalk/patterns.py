@@ -36,6 +36,7 @@ import numpy as np
 
 from ...core.colour import srgb_encode8
 from ...core.errors import InputError
+from ...core.pattern_sets import manifest_matches
 from ...core.profile import PanelProfile, profile_from_dict
 from ..patterns import FRAME_LEVEL, frame_width
 
@@ -210,9 +211,6 @@ def render_crosstalk_pattern(pattern_set: CrosstalkPatternSet, pattern: Crosstal
     return image
 
 
-_FREE_KEYS = ("created", "lenticalib_version", "note")
-
-
 def crosstalk_set_from_manifest(data: dict[str, Any], source: str) -> CrosstalkPatternSet:
     """The crosstalk pattern set a parsed ``patterns.json`` describes; InputError naming ``source``."""
     if data.get("format_version") != FORMAT_VERSION:
@@ -227,7 +225,7 @@ def crosstalk_set_from_manifest(data: dict[str, Any], source: str) -> CrosstalkP
     if not (isinstance(sweep, (int, float)) and math.isfinite(sweep) and sweep > 0):
         raise InputError("field 'sweep_pixels' is missing or not a positive number", source=source)
     expected = design_crosstalk_patterns(profile, float(sweep))
-    if data != {**expected.to_dict(), **{k: data[k] for k in _FREE_KEYS if k in data}}:
+    if not manifest_matches(data, expected):
         raise InputError("describes crosstalk patterns this lenticalib did not draw (edited, or from another "
                          "version)", source=source,
                          hint="write the patterns again with 'lenticalib crosstalk patterns' and photograph them")

@@ -1,4 +1,5 @@
-"""What ``lenticalib show`` steps through: one image, a pattern set in manifest order, or a folder.
+"""What ``lenticalib show`` and ``lenticalib capture`` step through: one image, a pattern set in
+manifest order, or a folder.
 
 A *slide* is a named raster that is loaded when it is shown (a 4K raster is 25 MB; a pattern
 set is 23 of them).  Pattern sets are shown from their PNGs, or drawn from the manifest when
@@ -14,7 +15,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.errors import ImageError
+from .errors import ImageError
+from .imageio import read_image
+from .pattern_sets import MANIFEST_NAME, read_pattern_folder
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy", ".jpg", ".jpeg", ".bmp")
 NEXT_KEYS = {"space", "right", "down", "page_down", "enter"}
@@ -35,16 +38,12 @@ class Slide:
 def slides_from_path(path: str | Path) -> tuple[list[Slide], tuple[int, int]]:
     """(slides, (width, height) they all have) for an image file, a pattern folder or an image
     folder; ImageError / InputError naming the path for anything else."""
-    from ..core.imageio import read_image
-
     p = Path(path)
     if not p.exists():
         raise ImageError("no such file or folder", source=str(p), hint="give an image or a folder of images")
     if p.is_file():
         raster = read_image(p)
         return [Slide(p.name, str(p), lambda: raster)], (raster.shape[1], raster.shape[0])
-    from ..calib.patterns import MANIFEST_NAME, read_pattern_folder
-
     if (p / MANIFEST_NAME).exists():
         pattern_set = read_pattern_folder(p)
         slides = []

@@ -1,0 +1,100 @@
+"""Pattern-set folders: the PNGs a panel shows and their manifest ``patterns.json``.
+
+A pattern folder holds one PNG per pattern and ``patterns.json``, whose ``format`` names the
+*kind* of set; ``lenticalib show``, ``capture``, ``fit``, ``crosstalk measure`` and the
+simulated camera read every kind through :func:`read_pattern_folder`.  The kinds:
+
+    lenticalib.patterns            calibration patterns (:mod:`lenticalib.calib.patterns`)
+    lenticalib.crosstalk-patterns  crosstalk patterns (:mod:`lenticalib.calib.crosstalk.patterns`)
+
+Each kind is found by name through the plugin loader (:mod:`.plugins`), so this module needs
+none of them; a third-party kind registers in the ``lenticalib.pattern_sets`` entry-point group
+with a value ``"module:function"``.  The function takes ``(data, source)``, the parsed manifest
+(a dict whose ``format`` is the kind's name) and the manifest's path for messages, and returns
+the pattern set or raises InputError naming ``source``.  A pattern set has ``width``,
+``height``, ``views``, ``patterns`` (each with ``name``, ``file``, ``group``), ``names``,
+``set_id``, ``render(pattern)`` -> uint8 ``(height, width, 3)`` RGB raster and ``to_dict()``
+(the manifest).  A manifest equals the ``to_dict()`` of the set it describes, apart from the
+keys in :data:`FREE_KEYS` that a person may add.
+
+(The camera board set is not a pattern folder: one raster and ``board.json``,
+:mod:`lenticalib.calib.intrinsics.board`; the direction pattern is one PNG without a manifest.)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+from .atomic import write_text_atomic
+from .errors import InputError
+from .imageio import write_image
+from .plugins import load, registry
+from .profile import read_json_file
+
+MANIFEST_NAME = "patterns.json"
+FREE_KEYS = ("created", "lenticalib_version", "note")  # manifest keys a person may add
+PATTERN_SET_GROUP = "lenticalib.pattern_sets"
+BUILTIN_KINDS = {
+    "lenticalib.patterns": "lenticalib.calib.patterns:pattern_set_from_manifest",
+    "lenticalib.crosstalk-patterns": "lenticalib.calib.crosstalk.patterns:crosstalk_set_from_manifest",
+}
+
+
+def pattern_set_kinds() -> dict[str, str]:
+    """Every known kind: manifest ``format`` -> ``"module:function"`` (built-ins and entry points)."""
+    return registry(BUILTIN_KINDS, PATTERN_SET_GROUP)
+
+
+def read_pattern_folder(directory: str | os.PathLike):
+    """The pattern set ``DIR/patterns.json`` describes, of the kind its ``format`` names.
+
+    InputError naming the manifest when it is missing, unreadable, of no known kind, or (the
+    kind's own check) of another version or edited.
+    """
+    path = Path(directory) / MANIFEST_NAME
+    data = read_json_file(path, "pattern manifest",
+                          "run 'lenticalib patterns' (or 'lenticalib crosstalk patterns') to write the patterns "
+                          "and their manifest first")
+    source = str(path)
+    kinds = pattern_set_kinds()
+    kind = data.get("format") if isinstance(data, dict) else None
+    if not isinstance(kind, str) or kind not in kinds:
+        raise InputError("is not a lenticalib pattern manifest", source=source,
+                         hint="point at the folder 'lenticalib patterns' wrote")
+    return load(kinds, kind, "pattern set format", source)(data, source)
+
+
+def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable | None = None) -> Path:
+    """Write every pattern as ``DIR/NAME.png`` and the manifest ``DIR/patterns.json``.
+
+    ``pattern_set``: a pattern set of any kind (module docstring).  ``progress``: the set's
+    ``patterns``, wrapped (a progress bar), or None.
+
+    Refuses to overwrite a manifest of a *different* pattern set when ``DIR/captures`` holds
+    photos (they would no longer match).  Returns the manifest path.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    manifest_path = directory / MANIFEST_NAME
+    if manifest_path.exists() and any((directory / "captures").glob("*")):
+        try:
+            old = json.loads(manifest_path.read_text())
+            old_id = old.get("set_id")
+        except (OSError, ValueError, AttributeError):
+            old_id = None
+        if old_id != pattern_set.set_id:
+            raise InputError("holds photos of another pattern set", source=str(directory / "captures"),
+                             hint="write the patterns into an empty folder")
+    items = pattern_set.patterns if progress is None else progress
+    for pattern in items:
+        write_image(directory / pattern.file, pattern_set.render(pattern))
+    write_text_atomic(manifest_path, json.dumps(pattern_set.to_dict(), indent=2) + "\n")
+    return manifest_path
+
+
+def manifest_matches(data: dict[str, Any], expected) -> bool:
+    """Whether the manifest ``data`` is exactly ``expected.to_dict()``, apart from :data:`FREE_KEYS`."""
+    return data == {**expected.to_dict(), **{k: data[k] for k in FREE_KEYS if k in data}}
