@@ -530,7 +530,7 @@ def test_the_raster_routes_left_to_low_views_and_right_to_high_views():
     from lenticalib.core.routing import view_map
 
     profile = PanelProfile(**EIGHT)
-    raster = direction_raster(profile)
+    raster = direction_raster(profile, encode)
     assert raster.shape == (54, 96, 3) and raster.dtype == np.uint8
     views = direction_views(profile)
     all_left = encode(np.repeat(views[:1], 8, axis=0), profile, "reference")
@@ -555,10 +555,11 @@ def test_patterns_direction_writes_the_raster_and_the_instruction(tmp_path, caps
     code, stdout, err = _run(["patterns", "--direction", "--profile", profile_path, "-o", out], capsys)
     assert code == 0 and err == "", err
     from lenticalib.core.imageio import read_image
+    from lenticalib.render.encoders import encode
 
     raster = read_image(out / DIRECTION_PATTERN_NAME)
     assert raster.shape == (54, 96, 3) and raster.dtype == np.uint8
-    assert np.array_equal(raster, direction_raster(load_profile(profile_path)))
+    assert np.array_equal(raster, direction_raster(load_profile(profile_path), encode))
     assert f"lenticalib show {out / DIRECTION_PATTERN_NAME}" in stdout
     assert f"set-direction {profile_path} +1" in stdout and f"set-direction {profile_path} -1" in stdout
     assert sorted(p.name for p in out.iterdir()) == [DIRECTION_PATTERN_NAME]
@@ -588,12 +589,13 @@ def test_a_camera_to_the_right_of_the_calibration_position_sees_right(tmp_path):
     and photographed (noise-free radiance) from 2 view zones to its right and to its left: the
     photo correlates with the RIGHT view on the right and the LEFT view on the left (the
     simulated panel runs +1)."""
+    from lenticalib.render.encoders import encode
     from lenticalib.sim.render import render_radiance
     from lenticalib.sim.scene import random_scene
 
     scene = random_scene(5, width=SIM_W, height=SIM_H, resolution=CAMERA)
     truth = scene.truth_profile(SIM_VIEWS)
-    raster = direction_raster(truth)
+    raster = direction_raster(truth, encode)
     size = (960, 540)
     left = direction_view("LEFT", size).mean(axis=2)
     right = direction_view("RIGHT", size).mean(axis=2)

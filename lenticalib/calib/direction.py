@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -113,19 +113,24 @@ def direction_views(profile: PanelProfile) -> np.ndarray:
     return np.stack([direction_view("LEFT" if i < n / 2 else "RIGHT", size, i) for i in range(n)])
 
 
-def direction_raster(profile: PanelProfile, method: str = "reference") -> np.ndarray:
+def direction_raster(profile: PanelProfile, encode: Callable[..., np.ndarray], method: str = "reference") -> np.ndarray:
     """The panel raster of the direction pattern: :func:`direction_views` encoded with ``profile``.
+
+    ARGUMENTS
+    profile   the panel
+    encode    the encoder entry point, called as ``encode(views, profile, method, allow_stretch=True)``
+              -> raster: :func:`lenticalib.render.encoders.encode`.  The caller passes it because the
+              calibration layer stands beside the render layer, not on it (it imports only
+              ``lenticalib.core``): what the pattern shows is calibration's, turning N views into a
+              panel raster is render's, and the command that writes the pattern uses both.
+    method    the encoder's name (``reference``: the golden model; the pattern is drawn once)
 
     RETURNED VALUE
     uint8 ``(height, width, 3)`` RGB, ready for ``lenticalib show``.
     """
-    from ..render.encoders import encode
-    from ..render.encoders.common import ASPECT_TOLERANCE
-
-    views = direction_views(profile)
-    aspect = (views.shape[2] / views.shape[1]) / (profile.width / profile.height)
-    # only an extreme panel (a side of a few pixels) cannot be matched within the encoder's tolerance
-    return encode(views, profile, method, allow_stretch=abs(aspect - 1.0) > ASPECT_TOLERANCE)
+    # the views have the panel's aspect up to whole pixels (more than the encoder's 1 % only for a
+    # panel with a side of a few pixels): filling the panel with them is what is meant
+    return encode(direction_views(profile), profile, method, allow_stretch=True)
 
 
 @dataclasses.dataclass(frozen=True)

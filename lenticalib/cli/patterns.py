@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
 def run_direction(args: argparse.Namespace) -> int:
     """``--direction``: write DIR/direction.png and say how to read it."""
     from ..calib.direction import DIRECTION_PATTERN_NAME, direction_raster
+    from ..render.encoders import encode
     from ..core.imageio import check_image_output, write_image
     from ..core.outputs import check_output_folder
     from ..core.profile import load_profile
@@ -101,7 +102,7 @@ def run_direction(args: argparse.Namespace) -> int:
     target = folder / DIRECTION_PATTERN_NAME
     if folder.exists():  # a new folder is made only once the raster is ready
         check_image_output(target, what="direction pattern")
-    raster = direction_raster(profile)
+    raster = direction_raster(profile, encode)
     folder.mkdir(exist_ok=True)
     write_image(target, raster)
     last_left = (profile.views - 1) // 2

@@ -30,6 +30,7 @@ from numba import njit, prange, types
 from numba.extending import overload
 
 from ..core.colour import srgb_decode_lut, srgb_encode8
+from ..core.crosstalk_document import mixing_matrix, read_crosstalk_document
 from ..core.errors import InputError
 
 TAP_FLOOR = 2e-3
@@ -275,10 +276,8 @@ def compensator_from_file(path, views: int, regularisation: float = DEFAULT_REGU
                           black_lift: float = 0.0, iterations: int = DEFAULT_ITERATIONS,
                           source: str = "--compensate") -> Compensator:
     """A compensator from a ``crosstalk.json`` for a panel of ``views`` views (InputError naming ``source``)."""
-    from ..calib.crosstalk.result import read_crosstalk
-
-    data = read_crosstalk(path, views=views, source=source if source != "--compensate" else str(path))
-    return Compensator.from_matrix(np.asarray(data["matrix"], np.float64), regularisation, black_lift, iterations)
+    data = read_crosstalk_document(path, views=views, source=source if source != "--compensate" else str(path))
+    return Compensator.from_matrix(mixing_matrix(data), regularisation, black_lift, iterations)
 
 
 def compensation_study(compensator: Compensator, true_matrix: np.ndarray, linear_views: np.ndarray) -> dict:

@@ -1,4 +1,6 @@
-"""``crosstalk.json``: the measured mixing matrix, the figures derived from it, reading and checking.
+"""``crosstalk.json``: the measured mixing matrix, the figures derived from it, writing, reading and checking.
+
+The document's format and its matrix check: :mod:`lenticalib.core.crosstalk_document`.
 
 Definitions (``docs/crosstalk.md``; :data:`FIGURES` holds them for the document, the check's
 messages and the report), for a circulant ``M`` with row ``h = M[i]`` (``h[m]`` the share of the
@@ -26,11 +28,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ...core.errors import InputError
+from ...core.atomic import write_text_atomic
+from ...core.crosstalk_document import FORMAT_NAME, FORMAT_VERSION, mixing_matrix, read_crosstalk_document
 from ...core.fields import is_finite_number
-
-FORMAT_NAME = "lenticalib.crosstalk"
-FORMAT_VERSION = 1
 
 
 # key in crosstalk.json "figures": (name, what it is, in a few words), and the unit it is quoted in
@@ -165,45 +165,19 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
 
 
 def write_crosstalk(path: str | os.PathLike, document: Mapping[str, Any]) -> Path:
-    from ...core.atomic import write_text_atomic
-
     return write_text_atomic(path, json.dumps(document, indent=2) + "\n")
 
 
 def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: str | None = None) -> dict[str, Any]:
-    """A ``crosstalk.json`` document, checked: format, a square N x N ``matrix`` of numbers whose rows sum
-    to 1, ``views`` equal to ``views`` when given.  InputError naming the file otherwise."""
-    from ...core.profile import read_json_file
-
-    source = source or str(path)
-    data = read_json_file(path, "crosstalk file", "measure it with 'lenticalib crosstalk measure'")
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
-        raise InputError("is not a lenticalib crosstalk file", source=source,
-                         hint="give the crosstalk.json written by 'lenticalib crosstalk measure'")
-    if data.get("format_version") != FORMAT_VERSION:
-        raise InputError(f"crosstalk format version {data.get('format_version')!r} is not supported", source=source)
-    n = data.get("views")
-    matrix = data.get("matrix")
-    if not (isinstance(n, int) and 2 <= n <= 254):
-        raise InputError("field 'views' is missing or not a whole number 2..254", source=source)
-    if (not isinstance(matrix, list) or len(matrix) != n
-            or any(not isinstance(r, list) or len(r) != n for r in matrix)
-            or any(not is_finite_number(v) for r in matrix for v in r)):
-        raise InputError(f"field 'matrix' must be {n} rows of {n} numbers", source=source)
-    array = np.asarray(matrix, np.float64)
-    if np.any(array < -0.05) or np.any(np.abs(array.sum(axis=1) - 1.0) > 0.02):
-        raise InputError("field 'matrix' is not a mixing matrix (rows must be shares summing to 1)", source=source)
-    if views is not None and n != views:
-        raise InputError(f"is for {n} views, the profile has {views}", source=source,
-                         hint="measure the crosstalk of this panel with this profile's view count")
-    eye = data.get("eye_separation_views")
-    if eye is not None and not (is_finite_number(eye) and eye >= 0):
-        raise InputError("field 'eye_separation_views' must be a number of views >= 0 or null", source=source)
+    """A ``crosstalk.json`` document, checked (:func:`~lenticalib.core.crosstalk_document.read_crosstalk_document`:
+    format, the N x N mixing ``matrix``, ``views``), with its ``figures`` derived again from the matrix.
+    InputError naming the file otherwise."""
+    data = read_crosstalk_document(path, views=views, source=source)
     # the figures are derived again from the checked matrix (its first row: the light from each view
     # offset), so a hand-edited or older 'figures' block can neither break nor bend a check
     stored = data.get("figures") if isinstance(data.get("figures"), dict) else {}
     data["figures"] = {key: {"value": value, "sigma": _stored_sigma(stored.get(key))}
-                       for key, value in derived_figures(array[0], eye).items()}
+                       for key, value in derived_figures(mixing_matrix(data)[0], data.get("eye_separation_views")).items()}
     return data
 
 
