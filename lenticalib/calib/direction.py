@@ -57,6 +57,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.profile import PanelProfile
+from ..core.view_direction import with_direction
 
 MIN_SIGMAS = 3.0  # |dw| (and N/2 - |dw|) must exceed this many sigma
 VIEW_LONG_SIDE = 960  # pixels of the longer side of a view of the direction pattern
@@ -218,8 +219,6 @@ def add_moved_right(result, second, second_directory) -> None:
     evidence (for the fit summary), and appends one warning line to ``result.warnings`` when
     the direction stays unknown.  A second fit that failed a quality gate gives no direction.
     """
-    from ..core.view_direction import with_direction
-
     evidence = direction_from_moved_right(result.profile, second.profile)
     if not second.trusted and evidence.direction is not None:
         evidence = dataclasses.replace(evidence, direction=None,

@@ -29,7 +29,9 @@ import numpy as np
 
 from ..core.colour import srgb_decode, srgb_encode
 from ..core.errors import InputError
+from ..core.imageio import read_image
 from ..core.profile import PanelProfile
+from ..core.retarget import Retargeter
 from ..core.view_direction import direction_warning
 from .cameras import ViewCameras, order_for_direction
 
@@ -81,8 +83,6 @@ def parse_background(text: str | None, view_size: tuple[int, int] | None = None)
 
     if "," not in text and Path(text).suffix:
         import cv2
-
-        from ..core.imageio import read_image
 
         image = read_image(text)
         scale = 65535.0 if image.dtype == np.uint16 else (255.0 if image.dtype == np.uint8 else 1.0)
@@ -234,8 +234,6 @@ class AvatarPipeline:
         routing changed by more than the retargeter's tolerance (0.01 view), when the encoder's
         per-profile tables are rebuilt on the next frame; False when the current routing stands.
         """
-        from ..core.retarget import Retargeter
-
         if self._retargeter is None:
             self._retargeter = Retargeter(self.profile)
         new = self._retargeter.profile_for(eye)

@@ -34,7 +34,9 @@ import numpy as np
 
 from ..core.atomic import write_bytes_atomic, write_text_atomic
 from ..core.errors import ImageError, InputError
+from ..core.imageio import read_image
 from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
+from ..core.profile import make_provenance, save_profile
 from .scene import Scene
 
 SIMULATION_NAME = "simulation.json"
@@ -83,8 +85,6 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
     Returns (its path, the constants recorded in ``simulation.json``: views, slant, period, offset,
     reference_view, width, height, subpixel_order, view_direction).
     """
-    from ..core.profile import make_provenance, save_profile
-
     directory = Path(directory)
     provenance = make_provenance("simulation", inputs=[directory / MANIFEST_NAME], seed=scene.seed,
                                  simulation=SIMULATION_NAME, camera_position_mm=list(scene.eye))
@@ -157,8 +157,6 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene, raw: bool
     Raises InputError (file named) for a missing or foreign manifest, a scene of another panel
     size, a captures folder with foreign files, or an unreadable pattern image.
     """
-    from ..core.imageio import read_image
-
     directory = Path(pattern_dir)
     pattern_set = read_pattern_folder(directory)
     manifest = directory / MANIFEST_NAME

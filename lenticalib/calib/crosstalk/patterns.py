@@ -38,6 +38,7 @@ from ...core.colour import srgb_encode8
 from ...core.errors import InputError
 from ...core.pattern_sets import manifest_matches
 from ...core.profile import PanelProfile, profile_from_dict
+from ...core.routing import view_coordinate
 from ..patterns import FRAME_LEVEL, frame_width
 
 FORMAT_NAME = "lenticalib.crosstalk-patterns"
@@ -158,8 +159,6 @@ def band_centre(pattern_set: CrosstalkPatternSet, xs: np.ndarray, shift: float) 
 
 def lit_subpixels(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, rows: np.ndarray) -> np.ndarray:
     """bool ``(len(rows), 3 W)`` indexed ``[y, x_s]``: which subpixels the pattern lights (frame excluded)."""
-    from ...core.routing import view_coordinate
-
     profile = pattern_set.profile
     nsub = profile.subpixels_per_row
     if pattern.kind == "black":

@@ -14,6 +14,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode, srgb_decode_lut
 from ...core.errors import CaptureError
+from ...core.imageio import read_image
 from . import photometry
 
 WORKING_WIDTH = 1000  # working pixels across (about)
@@ -45,7 +46,6 @@ def working(image: np.ndarray, factor: int) -> np.ndarray:
 
 def load_all(capture, pattern_set, mode, progress):
     """Working-resolution linear luma of every photo, the white photo's clipped map, and factor."""
-    from ...core.imageio import read_image
     from ..captures import check_photo_size
 
     luma: dict[str, np.ndarray] = {}

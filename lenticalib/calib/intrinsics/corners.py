@@ -35,6 +35,7 @@ from typing import Callable
 import numpy as np
 
 from ...core.colour import srgb_encode
+from ...core.imageio import read_image
 
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
@@ -133,8 +134,6 @@ def find_corners(grey: np.ndarray, cols: int, rows: int, symmetric: bool = False
 
 def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False) -> PhotoCorners:
     """Read one photo (EXIF orientation applied) and find the board in it (a worker's task)."""
-    from ...core.imageio import read_image
-
     image = read_image(path, camera_orientation=True)
     size = (int(image.shape[1]), int(image.shape[0]))
     corners = find_corners(grey8(image), cols, rows, symmetric)

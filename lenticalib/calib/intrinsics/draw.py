@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.atomic import write_bytes_atomic
 from ...core.colour import srgb_encode8
 from ...core.errors import InputError
 from .board import PAGE_MARGIN, PRINT_DPI, PRINT_PDF, PRINT_PNG, Board
@@ -58,8 +59,6 @@ def write_print_sheet(board: Board, folder: str | os.PathLike) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
-
-    from ...core.atomic import write_bytes_atomic
 
     pw, ph = float(board.paper["width_mm"]), float(board.paper["height_mm"])
     s = board.square_mm
