@@ -41,7 +41,8 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
     from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
     from lenticalib.calib.fit import fit_capture_set
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import CROSSTALK_TRUTH_NAME, simulate_capture_set
     from lenticalib.sim.scene import random_scene
 

@@ -52,7 +52,8 @@ def parse_seeds(text: str) -> list[int]:
 def run_one(seed: int, root: Path, resolution, reuse: bool = False, conditions: str = "standard") -> dict:
     from lenticalib.calib.compare import compare_profiles
     from lenticalib.calib.fit import fit_capture_set
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene

@@ -58,7 +58,8 @@ def _camera_model(kind: str, scene, root: Path, seed: int) -> Path:
 
 
 def one_seed(seed: int, model_kind: str) -> dict:
-    from lenticalib.calib.patterns import design_patterns, write_patterns
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.cli import main
     from lenticalib.core.profile import load_profile
     from lenticalib.core.retarget import retarget_profile
