@@ -12,8 +12,7 @@ from pathlib import Path
 import pytest
 
 import lenticalib.calib.fit as fit_module
-import lenticalib.core.pattern_sets as patterns_module
-import lenticalib.core.imageio as imageio_module
+import lenticalib.core.pattern_sets as pattern_sets_module
 import lenticalib.sim.capture as capture_module
 from lenticalib.calib.patterns import design_patterns
 from lenticalib.core.pattern_sets import write_patterns
@@ -56,7 +55,7 @@ def no_work(monkeypatch):
         pytest.fail("the long work started before the options and outputs were checked")
 
     monkeypatch.setattr(fit_module, "fit_capture_set", reached)
-    monkeypatch.setattr(patterns_module, "write_patterns", reached)
+    monkeypatch.setattr(pattern_sets_module, "write_patterns", reached)
     monkeypatch.setattr(capture_module, "simulate_capture_set", reached)
 
 
@@ -182,7 +181,7 @@ def test_patterns_failing_half_way_leaves_nothing(tmp_path, capsys, monkeypatch,
     if earlier:
         write_patterns(folder, design_patterns(640, 360, 8))
     before = _tree(tmp_path)
-    _failing_after(monkeypatch, imageio_module, "write_image", 5)
+    _failing_after(monkeypatch, pattern_sets_module, "write_image", 5)  # as write_patterns calls it
     code, _, err = _run(["patterns", "--width", 512, "--height", 256, "--views", 16, "-o", folder], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "No space left" in err, err
     assert _tree(tmp_path) == before  # no half set, no mix of two sets, nothing hidden left
