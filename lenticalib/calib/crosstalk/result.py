@@ -176,8 +176,8 @@ def read_crosstalk(path: str | os.PathLike, views: int | None = None, source: st
     # the figures are derived again from the checked matrix (its first row: the light from each view
     # offset), so a hand-edited or older 'figures' block can neither break nor bend a check
     stored = data.get("figures") if isinstance(data.get("figures"), dict) else {}
-    data["figures"] = {key: {"value": value, "sigma": _stored_sigma(stored.get(key))}
-                       for key, value in derived_figures(mixing_matrix(data)[0], data.get("eye_separation_views")).items()}
+    figures = derived_figures(mixing_matrix(data)[0], data.get("eye_separation_views"))
+    data["figures"] = {key: {"value": value, "sigma": _stored_sigma(stored.get(key))} for key, value in figures.items()}
     return data
 
 
