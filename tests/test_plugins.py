@@ -216,3 +216,12 @@ def test_device_list_shows_plugin_transports(plugin_site, tmp_path):
     assert ("note: lostpigeon devices not searched: transport 'lostpigeon' is not available: no module "
             "named 'tests.no_such_module' (install its dependencies)") in lines
     assert "note: stuckpigeon devices not searched: listing them failed: OSError: the loft door is stuck" in lines
+
+
+def test_an_unknown_camera_model_is_refused_before_the_avatar_is_read(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "lenticalib.cli", "render", str(tmp_path / "missing.ply"), "--profile",
+                          str(tmp_path / "missing.json"), "--camera-model", "fisheye", "-o", str(tmp_path / "frames")],
+                         capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert out.returncode == 2 and out.stderr.splitlines() == [
+        "lenticalib: error: --camera-model: unknown camera model 'fisheye' (use one of arc, shear)"], out.stderr
+    assert not (tmp_path / "frames").exists()

@@ -28,8 +28,8 @@ def list_devices(*, emulators: bool = True) -> tuple[list[FoundDevice], list[str
         asked.add(target)
         try:
             lister = getattr(TRANSPORTS[scheme], "list_devices", None)
-        except LenticalibError as exc:
-            notes.append(f"{scheme} devices not searched: {exc}")
+        except LenticalibError as exc:  # its module does not import: the message and the hint, no source
+            notes.append(f"{scheme} devices not searched: {exc.message}" + (f" ({exc.hint})" if exc.hint else ""))
             continue
         if lister is None:
             continue
