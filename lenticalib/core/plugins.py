@@ -90,7 +90,9 @@ class Registry(Mapping[str, Any]):
 
     def check(self, name: str, source: str) -> str:
         """``name`` if it is registered; the registry's unknown-name error naming ``source`` otherwise."""
-        entries = self.entries()
+        return self._check(self.entries(), name, source)
+
+    def _check(self, entries: Mapping[str, str], name: str, source: str) -> str:
         if not isinstance(name, str) or name not in entries:
             raise self.unknown_error(f"unknown {self.what} {name!r}", source=source,
                                      hint=self.choices.format(names=", ".join(sorted(entries))))
@@ -104,8 +106,8 @@ class Registry(Mapping[str, Any]):
         BackendUnavailableError, with its one-line reason, passes) or when its
         ``unavailable(device)`` gives a reason; the hint names the backends that can run here.
         """
-        self.check(name, source)
-        backend = self._import(self.entries(), name, source)
+        entries = self.entries()  # read once: the entry points cost milliseconds
+        backend = self._import(entries, self._check(entries, name, source), source)
         reason = unavailable(backend, device)
         if reason is not None:
             others = self.runnable(device, exclude=name)

@@ -43,9 +43,9 @@ def parse_spec(spec: str) -> tuple[str, str | None]:
 
     InputError naming ``--camera`` for an empty spec, an empty target or an unknown kind.
     """
-    kinds = ", ".join(CAMERA_KINDS.names())
     if not isinstance(spec, str) or not spec.strip():
-        raise InputError(f"no camera given ({spec!r})", source="--camera", hint=f"choose one of {kinds}")
+        raise InputError(f"no camera given ({spec!r})", source="--camera",
+                         hint=f"choose one of {', '.join(CAMERA_KINDS.names())}")
     kind, colon, target = spec.strip().partition(":")
     kind = kind.strip().lower()
     CAMERA_KINDS.check(kind, "--camera")
