@@ -24,8 +24,9 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--encoder", default=None, help="fast (default on the CPU), torch (default with gsplat), "
                         "reference, tables")
     parser.add_argument("--device", default=None, help="torch device for gsplat/torch (default cuda)")
-    parser.add_argument("--camera-model", default="arc", choices=("arc", "shear"),
-                        help="virtual cameras: arc (LentiAvatar, default) or shear (Looking Glass style)")
+    parser.add_argument("--camera-model", default="arc", metavar="MODEL",
+                        help="virtual cameras: arc (LentiAvatar, default), shear (Looking Glass style) or a "
+                             "plug-in's model")
     parser.add_argument("--radius", type=float, help="camera distance from the look-at point (avatar units)")
     parser.add_argument("--fov", type=float, default=20.0, help="vertical field of view, degrees (default 20)")
     parser.add_argument("--yaw-range", type=float, default=50.0, help="yaw range of the N cameras, degrees "
@@ -45,7 +46,7 @@ def build_pipeline(args: argparse.Namespace):
     from ..core.errors import InputError
     from ..core.profile import load_profile
     from ..render.avatar import load_avatar
-    from ..render.camera_models import make_cameras
+    from ..render.camera_models import CAMERA_MODELS, make_cameras
     from ..render.controls import open_controls
     from ..render.encoders import get_encoder
     from ..render.loop import AvatarPipeline, parse_background
@@ -56,6 +57,7 @@ def build_pipeline(args: argparse.Namespace):
     device = args.device or ("cuda" if renderer == "gsplat" else "cpu")
     get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
     get_encoder(encoder, device=device)
+    CAMERA_MODELS.load(args.camera_model, "--camera-model")
     profile = load_profile(args.profile, "--profile")
     if not 0.0 <= args.edge_desaturation <= 1.0:
         raise InputError(f"{args.edge_desaturation} is out of range", source="--edge-desaturation", hint="use 0..1")

@@ -7,8 +7,8 @@ simulated camera read every kind through :func:`read_pattern_folder`.  The kinds
     lenticalib.patterns            calibration patterns (:mod:`lenticalib.calib.patterns`)
     lenticalib.crosstalk-patterns  crosstalk patterns (:mod:`lenticalib.calib.crosstalk.patterns`)
 
-Each kind is found by name through the plugin loader (:mod:`.plugins`), so this module needs
-none of them; a third-party kind registers in the ``lenticalib.pattern_sets`` entry-point group
+Each kind is found by name in the registry :data:`PATTERN_SETS` (:mod:`.plugins`), so this
+module imports none of them; a third-party kind registers in the ``lenticalib.pattern_sets`` entry-point group
 with a value ``"module:function"``.  The function takes ``(data, source)``, the parsed manifest
 (a dict whose ``format`` is the kind's name) and the manifest's path for messages, and returns
 the pattern set or raises InputError naming ``source``.  A pattern set has ``width``,
@@ -31,21 +31,16 @@ from typing import Any, Iterable
 from .atomic import write_text_atomic
 from .errors import InputError
 from .imageio import write_image
-from .plugins import load, registry
+from .plugins import Registry
 from .profile import read_json_file
 
 MANIFEST_NAME = "patterns.json"
 FREE_KEYS = ("created", "lenticalib_version", "note")  # manifest keys a person may add
 PATTERN_SET_GROUP = "lenticalib.pattern_sets"
-BUILTIN_KINDS = {
+PATTERN_SETS = Registry("pattern set format", {
     "lenticalib.patterns": "lenticalib.calib.patterns:pattern_set_from_manifest",
     "lenticalib.crosstalk-patterns": "lenticalib.calib.crosstalk.patterns:crosstalk_set_from_manifest",
-}
-
-
-def pattern_set_kinds() -> dict[str, str]:
-    """Every known kind: manifest ``format`` -> ``"module:function"`` (built-ins and entry points)."""
-    return registry(BUILTIN_KINDS, PATTERN_SET_GROUP)
+}, PATTERN_SET_GROUP)
 
 
 def read_pattern_folder(directory: str | os.PathLike):
@@ -59,12 +54,11 @@ def read_pattern_folder(directory: str | os.PathLike):
                           "run 'lenticalib patterns' (or 'lenticalib crosstalk patterns') to write the patterns "
                           "and their manifest first")
     source = str(path)
-    kinds = pattern_set_kinds()
     kind = data.get("format") if isinstance(data, dict) else None
-    if not isinstance(kind, str) or kind not in kinds:
+    if kind not in PATTERN_SETS:
         raise InputError("is not a lenticalib pattern manifest", source=source,
                          hint="point at the folder 'lenticalib patterns' wrote")
-    return load(kinds, kind, "pattern set format", source)(data, source)
+    return PATTERN_SETS.load(kind, source)(data, source)
 
 
 def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable | None = None) -> Path:
