@@ -66,7 +66,7 @@ def test_a_raster_reaches_the_screen_byte_for_byte(on_xvfb):
 def test_a_raster_of_another_size_or_depth_is_refused_not_scaled(on_xvfb):
     with WindowPresenter(list_monitors()[0]) as presenter:
         presenter.show(_raster(3))
-        with pytest.raises(ImageError, match=r"is 320x180 but the display is 640x360; rasters are never scaled"):
+        with pytest.raises(ImageError, match=r"is 320x180 pixels, the display is 640x360 \(rasters are never scaled"):
             presenter.show(_raster(4, (320, 180)), source="small.png")
         with pytest.raises(ImageError, match="16-bit but the display shows 8 bits"):
             presenter.show(_raster(5, dtype=np.uint16))
@@ -183,7 +183,7 @@ def test_every_bad_input_ends_in_one_line(xvfb, tmp_path):
         (["show", str(tmp_path / "empty")], xvfb.env(), "holds no images"),
         (["show", str(tmp_path / "missing.png")], xvfb.env(), "no such file or folder"),
         (["show", str(small)], xvfb.env(), "no monitor shows 320x180"),
-        (["show", str(small), "--display", "0"], xvfb.env(), "is 320x180 but the display is 640x360"),
+        (["show", str(small), "--display", "0"], xvfb.env(), "is 320x180 pixels, the display is 640x360"),
         (["show", str(good), "--display", "offscreen"], xvfb.env(), "--interval"),
         (["show"], xvfb.env(), "give an image or a folder"),
     ]
