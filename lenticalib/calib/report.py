@@ -58,8 +58,8 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
 
     Keys: the envelope (``format`` "lenticalib.fit-report", ``format_version``), ``capture_set``,
     ``trusted``, ``problems``, ``warnings`` (checks that could not measure), ``seconds``,
-    ``output`` (the profile path, or None when none was written), ``report`` (folder), ``profile`` (the profile as written,
-    its provenance without the quality block), ``quality`` (every quality number, once), and
+    ``output`` (the profile path, or None when none was written), ``report`` (folder), ``profile``
+    (the profile as written, its provenance without the quality block), ``quality`` (every quality number, once), and
     ``view_direction`` (the evidence of ``--moved-right``) when the fit had a second capture set.
     """
     profile = result.profile.to_dict()

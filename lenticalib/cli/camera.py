@@ -144,11 +144,10 @@ def run_simulate(args: argparse.Namespace) -> int:
 
     from ..core.errors import InputError
     from ..core.outputs import check_output_folder, staged_folder
+    from ..core.sizes import MIN_CAMERA_SIDE, parse_size
     from ..calib.intrinsics.report import REPORT_FILES
     from ..sim.board_set import CAPTURE_FOLDER, CONTENTS, TRUTH_NAME, simulate_board_set
     from ._progress import progress_bar
-
-    from ..core.sizes import MIN_CAMERA_SIDE, parse_size
 
     resolution = parse_size(args.resolution, "--resolution", MIN_CAMERA_SIDE, example="1600x1200")
     if not 3 <= args.photos <= 500:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 
 
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, help="panel raster width in pixels (default 3840)")
     parser.add_argument("--height", type=int, help="panel raster height in pixels (default 2160)")
