@@ -171,7 +171,7 @@ def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, cli
     code, stdout, err = cli("camera", "patterns", "-o", out, "--panel", "1920x1080", "--pixel-pitch", "0.36")
     assert code == 0, err
     manifest = json.loads((out / "board.json").read_text())
-    assert manifest["format"] == "lenticalib.camera-board" and manifest["version"] == 1
+    assert manifest["format"] == "lenticalib.camera-board" and manifest["format_version"] == 1
     assert manifest["kind"] == "panel" and (manifest["cols"], manifest["rows"]) == (15, 8)
     assert manifest["panel"] == {"width": 1920, "height": 1080, "pixel_pitch_mm": 0.36}
     assert manifest["square_mm"] == pytest.approx(manifest["square_px"] * 0.36, abs=1e-9)

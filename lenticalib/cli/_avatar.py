@@ -84,10 +84,6 @@ def build_pipeline(args: argparse.Namespace):
 
 
 def _size(text: str) -> tuple[int, int]:
-    from ..core.errors import InputError
+    from ..core.sizes import parse_size
 
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise InputError(f"{text!r} is not WxH", source="--view-size", hint="e.g. 960x540") from None
-    return w, h
+    return parse_size(text, "--view-size", example="960x540")

@@ -17,11 +17,9 @@ See ``docs/camera.md``.
 from __future__ import annotations
 
 import argparse
-import re
 
 from ._camera_calibrate import add_calibrate_arguments, run_calibrate
 
-_SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 SIM_CONTENTS_EXTRA = ("report", "camera.cameramodel")  # what the suggested next step writes into DIR
 
 
@@ -65,20 +63,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     s.set_defaults(run=run_simulate)
 
 
-def parse_size(text: str, source: str, lo: int, hi: int, example: str) -> tuple[int, int]:
-    """``"WxH"`` -> (W, H) within [lo, hi] per side; InputError naming ``source`` otherwise."""
-    from ..core.errors import InputError
-
-    match = _SIZE.match(text or "")
-    if not match:
-        raise InputError(f"bad size {text!r}", source=source,
-                         hint=f"write it as WIDTHxHEIGHT in pixels, e.g. {example}")
-    w, h = int(match.group(1)), int(match.group(2))
-    if not (lo <= w <= hi and lo <= h <= hi):
-        raise InputError(f"{w}x{h} is out of range", source=source, hint=f"use {lo}..{hi} pixels per side")
-    return w, h
-
-
 def _panel_geometry(args: argparse.Namespace):
     """(width, height, pixel pitch mm, lens pitch in pixels or None) from --profile or --panel/--pixel-pitch."""
     import math
@@ -103,7 +87,9 @@ def _panel_geometry(args: argparse.Namespace):
             raise InputError("the profile does not give the panel's pixel pitch", source=args.profile,
                              hint="pass --pixel-pitch MM (from the panel's data sheet)")
     else:
-        width, height = parse_size(args.panel, "--panel", 64, 16384, "3840x2160")
+        from ..core.sizes import MIN_PANEL_SIDE, parse_size
+
+        width, height = parse_size(args.panel, "--panel", MIN_PANEL_SIDE)
         if pitch is None:
             raise InputError("the panel's pixel pitch is needed for the board's square size", source="--panel",
                              hint="pass --pixel-pitch MM (from the panel's data sheet)")
@@ -158,11 +144,12 @@ def run_simulate(args: argparse.Namespace) -> int:
 
     from ..core.errors import InputError
     from ..core.outputs import check_output_folder, staged_folder
+    from ..core.sizes import MIN_CAMERA_SIDE, parse_size
     from ..calib.intrinsics.report import REPORT_FILES
     from ..sim.board_set import CAPTURE_FOLDER, CONTENTS, TRUTH_NAME, simulate_board_set
     from ._progress import progress_bar
 
-    resolution = parse_size(args.resolution, "--resolution", 320, 8000, "1600x1200")
+    resolution = parse_size(args.resolution, "--resolution", MIN_CAMERA_SIDE, example="1600x1200")
     if not 3 <= args.photos <= 500:
         raise InputError(f"{args.photos} photos is out of range", source="--photos",
                          hint="use 3..500 (15-30 is typical)")

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import argparse
 
-MAX_SIDE = 16384  # panel raster pixels per side (16K panels)
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, help="panel raster width in pixels (default 3840)")
@@ -38,6 +36,7 @@ def check_options(args: argparse.Namespace) -> None:
     option does not belong to the chosen mode (calibration patterns, or ``--direction``)."""
     from ..core.errors import InputError
     from ..core.profile import MAX_VIEWS
+    from ..core.sizes import MAX_SIDE, MIN_PANEL_SIDE
 
     if args.direction:
         if args.profile is None:
@@ -55,9 +54,9 @@ def check_options(args: argparse.Namespace) -> None:
         if getattr(args, key) is None:
             setattr(args, key, value)
     for flag, value in (("--width", args.width), ("--height", args.height)):
-        if not 64 <= value <= MAX_SIDE:
+        if not MIN_PANEL_SIDE <= value <= MAX_SIDE:
             raise InputError(f"{value} pixels is out of range", source=flag,
-                             hint=f"give the panel raster size in pixels, 64..{MAX_SIDE}")
+                             hint=f"give the panel raster size in pixels, {MIN_PANEL_SIDE}..{MAX_SIDE}")
     if not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"{args.views} views is out of range", source="--views", hint=f"use 2..{MAX_VIEWS}")
 

@@ -23,10 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 
-_RESOLUTION = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
-MAX_SIDE = 20000  # camera pixels per side
 MAX_PIXELS = 64_000_000  # camera pixels in all (the simulator holds several float images of this size)
 MAX_SEED = 2 ** 63 - 1
 DEFAULT_SUBSAMPLES = 3
@@ -63,13 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_resolution(text: str) -> tuple[int, int]:
     """``"4000x3000"`` -> (4000, 3000) camera pixels; InputError naming ``--resolution`` otherwise."""
-    from ..core.errors import InputError
+    from ..core.sizes import parse_size
 
-    match = _RESOLUTION.match(text or "")
-    if not match:
-        raise InputError(f"bad resolution {text!r}", source="--resolution",
-                         hint="write it as WIDTHxHEIGHT in pixels, e.g. 4000x3000")
-    width, height = int(match.group(1)), int(match.group(2))
+    width, height = parse_size(text, "--resolution", example="4000x3000")
     check_resolution(width, height, "--resolution")
     return width, height
 
@@ -82,6 +75,7 @@ def check_resolution(width: int, height: int, source: str) -> None:
     """
     from ..calib.captures import MIN_PHOTO_PIXELS
     from ..core.errors import InputError
+    from ..core.sizes import MAX_SIDE
 
     pixels = width * height
     if pixels < MIN_PHOTO_PIXELS:
@@ -124,7 +118,7 @@ def build_scene(args: argparse.Namespace, pattern_set):
     import secrets
 
     from ..core.errors import InputError
-    from ..core.profile import read_json_file
+    from ..core.documents import read_json_file
     from ..sim.scene import Scene, random_scene
 
     if args.scene:
