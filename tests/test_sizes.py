@@ -62,7 +62,7 @@ def test_the_lower_limit_is_the_callers():
 
 
 def test_every_size_option_parses_through_the_one_parser():
-    from lenticalib.calib.cameras.sim import parse_resolution as sim_camera
+    from lenticalib.sim.capture_camera import parse_resolution as sim_camera
     from lenticalib.cli._avatar import _size as view_size
     from lenticalib.cli.capture import _resolution as capture_resolution
     from lenticalib.device.emulator.config import parse_size as emulator_panel
