@@ -3,8 +3,9 @@
 The library names the argument at fault by its parameter name (``source="pixel_pitch_mm"``, a
 hint "pass pixel_pitch_mm ...").  :func:`flag_names` maps them: ``{"pixel_pitch_mm": "--pixel-pitch
 MM"}`` turns that source into ``--pixel-pitch`` (the first word) and, in the message and the
-hint, every whole-word ``pixel_pitch_mm`` into ``--pixel-pitch MM``.  Only names holding an
-underscore are replaced inside text (a plain word like ``views`` is mapped as a source only).
+hint, every whole-word ``pixel_pitch_mm`` into ``--pixel-pitch MM``.  Inside text, a name is
+replaced where it holds an underscore or stands in backquotes (```seed``` -> ``--seed N``); a
+plain word like ``views`` is otherwise left alone (it is mapped as a source only).
 """
 
 from __future__ import annotations
@@ -18,13 +19,14 @@ from ..core.errors import LenticalibError
 
 def with_flags(exc: LenticalibError, flags: Mapping[str, str]) -> LenticalibError:
     """``exc`` with its source and the argument names in its text replaced by ``flags`` (in place)."""
-    words = [name for name in flags if "_" in name]
-    if words:
-        pattern = re.compile(r"\b(" + "|".join(map(re.escape, sorted(words, key=len, reverse=True))) + r")\b")
+    names = "|".join(map(re.escape, sorted(flags, key=len, reverse=True)))
+    words = "|".join(map(re.escape, sorted((n for n in flags if "_" in n), key=len, reverse=True)))
+    pattern = re.compile(rf"`({names})`" + (rf"|\b({words})\b" if words else ""))
 
-        def replace(text):
-            return None if text is None else pattern.sub(lambda m: flags[m.group(1)], text)
+    def replace(text):
+        return None if text is None else pattern.sub(lambda m: flags[m.group(1) or m.group(2)], text)
 
+    if flags:
         exc.message, exc.hint = replace(exc.message), replace(exc.hint)
     if exc.source in flags:
         exc.source = flags[exc.source].split()[0]
