@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,24 +72,17 @@ def _fraction(text: str) -> float:
 
 
 def run_patterns(args: argparse.Namespace) -> int:
-    from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns
-    from ..calib.patterns import MANIFEST_NAME, write_patterns
-    from ..core.errors import InputError
-    from ..core.outputs import check_output_folder, restored_on_failure
+    from ..calib.pattern_folders import write_crosstalk_pattern_folder
+    from ..calib.patterns import MANIFEST_NAME
     from ..core.profile import load_profile
+    from ._flags import flag_names
     from ._progress import progress_bar
 
     profile = load_profile(args.profile, "--profile")
-    if args.sweep is not None and not (math.isfinite(args.sweep) and 4 * profile.views <= args.sweep <= 4 * profile.width):
-        raise InputError(f"sweep {args.sweep} pixels is out of range", source="--sweep",
-                         hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {default_sweep(profile):g})")
-    folder = check_output_folder(args.output, "crosstalk patterns")
-    pattern_set = design_crosstalk_patterns(profile, args.sweep)
-    written = ([folder / p.file for p in pattern_set.patterns] + [folder / MANIFEST_NAME]
-               if folder.exists() else [folder])
-    with restored_on_failure(written, "patterns"), \
-            progress_bar(len(pattern_set.patterns), "writing patterns") as bar:
-        write_patterns(folder, pattern_set, progress=bar.wrap(pattern_set.patterns))
+    with progress_bar(0, "writing patterns") as bar, flag_names({"sweep": "--sweep"}):
+        pattern_set = write_crosstalk_pattern_folder(profile, args.output, args.sweep, progress=bar.update,
+                                                     progress_total=bar.set_total)
+    folder = Path(args.output)
     print(f"wrote {len(pattern_set.patterns)} crosstalk patterns and {folder / MANIFEST_NAME} (set {pattern_set.set_id})")
     print(f"next: photograph them from the fit's camera position, without moving the camera "
           f"('lenticalib capture {args.output} --camera ...', or show each PNG and save captures/NAME.jpg); then "
