@@ -248,3 +248,40 @@ def _simulate_board(folder: Path, o: SimulationOptions, progress, progress_total
                                  progress=progress, board=board)
     seconds = round(time.perf_counter() - start, 2)
     return SimulationRun("board", folder, doc, None, seed, tuple(resolution), o.photos, seconds)
+
+
+CAMERA_SET_EXTRA = ("report", "camera.cameramodel")  # what the suggested next step writes into the folder
+
+
+def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", seed: int | None = None,
+                        photos: int = 24, resolution: tuple[int, int] = BOARD_RESOLUTION,
+                        conditions: str = "standard", subsamples: int = BOARD_SUBSAMPLES,
+                        progress: Callable[..., None] | None = None) -> SimulationRun:
+    """A synthetic camera-calibration set in ``directory`` (new, or one this function wrote before;
+    staged, whole or not at all): ``photos`` photos of a ``kind`` ('panel' or 'print') board by a
+    known camera of ``resolution`` (320..8000 pixels per side), ``DIR/truth.cameramodel`` and the
+    board poses in ``DIR/simulation.json`` (:func:`~.board_set.simulate_board_set`).  ``progress``
+    once per photo.  InputError naming the argument before any photo."""
+    from ..calib.intrinsics.report import REPORT_FILES
+    from ..core.outputs import check_output_folder, staged_folder
+    from .board_set import CAPTURE_FOLDER, CONTENTS, simulate_board_set
+
+    w, h = resolution
+    if not (320 <= w <= 8000 and 320 <= h <= 8000):
+        raise InputError(f"{w}x{h} is out of range", source="resolution", hint="use 320..8000 pixels per side")
+    if not 3 <= photos <= 500:
+        raise InputError(f"{photos} photos is out of range", source="photos", hint="use 3..500 (15-30 is typical)")
+    if not 1 <= subsamples <= 8:
+        raise InputError(f"{subsamples} subsamples is out of range", source="subsamples", hint="use 1..8")
+    if seed is not None and not 0 <= seed < 2 ** 63:
+        raise InputError(f"seed {seed} is out of range", source="seed", hint="use 0..2^63-1")
+    contents = (CONTENTS + CAMERA_SET_EXTRA + (f"{CAPTURE_FOLDER}/board-[0-9][0-9]*.jpg",)
+                + tuple(f"report/{name}" for name in REPORT_FILES))
+    check_output_folder(directory, "camera simulation", contents)
+    seed = seed if seed is not None else secrets.randbelow(2 ** 31)
+    start = time.perf_counter()
+    with staged_folder(directory, "camera simulation", contents) as stage:
+        doc = simulate_board_set(stage, kind=kind, seed=seed, photos=photos, resolution=tuple(resolution),
+                                 conditions=conditions, subsamples=subsamples, progress=progress)
+    seconds = round(time.perf_counter() - start, 2)
+    return SimulationRun("board", Path(directory), doc, None, seed, tuple(resolution), photos, seconds)

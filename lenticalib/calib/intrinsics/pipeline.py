@@ -186,3 +186,43 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES) as stage_dir:
             write_report(stage_dir, cal, qual, summary)
     return CameraCalibration(summary, output, None if report_dir is None else Path(report_dir), model, cal, qual)
+
+
+def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel_pitch_mm: float, *,
+                       squares: tuple[int, int] | None = None, lens_pitch_mm: float | None = None,
+                       lens_pitch_px: float | None = None, print_square_mm: float = 20.0, paper: str = "A4"):
+    """Write the calibration chessboard of a ``width`` x ``height`` panel of ``pixel_pitch_mm`` into
+    the folder ``output`` (staged, whole or not at all): ``board.png`` (the panel raster),
+    ``board.json``, and ``print/`` (a sheet of ``print_square_mm`` squares on ``paper``, PDF and PNG,
+    with its own ``board.json``).  ``squares``: inner corners (columns, rows) of the panel board
+    (default: 9 squares down the short side); the lens pitch (``lens_pitch_mm`` from a data sheet,
+    or ``lens_pitch_px`` panel pixels from a profile) widens the squares' soft edges to span at
+    least two lenses.  Returns (panel board, printed board); InputError naming the argument first.
+    """
+    from ...core.imageio import write_image
+    from ...core.outputs import check_output_folder, staged_folder
+    from .board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, panel_board, print_board,
+                        write_manifest)
+    from .draw import panel_raster, write_print_sheet
+
+    if not (isinstance(pixel_pitch_mm, (int, float)) and math.isfinite(pixel_pitch_mm)
+            and 0.005 <= pixel_pitch_mm <= 5.0):
+        raise InputError(f"pixel pitch {pixel_pitch_mm!r} mm is out of range", source="pixel_pitch_mm",
+                         hint="give the panel's pixel pitch in mm, 0.005..5 (e.g. 0.1796)")
+    if lens_pitch_mm is not None:
+        if not (math.isfinite(lens_pitch_mm) and 0.005 <= lens_pitch_mm <= 50.0):
+            raise InputError(f"lens pitch {lens_pitch_mm!r} mm is out of range", source="lens_pitch_mm",
+                             hint="give the sheet's horizontal lens pitch in mm, 0.005..50")
+        lens_pitch_px = lens_pitch_mm / pixel_pitch_mm
+    board = panel_board(width, height, float(pixel_pitch_mm), squares, lens_pitch_px=lens_pitch_px)
+    sheet = print_board(print_square_mm, paper)
+    contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER,
+                *(f"{PRINT_FOLDER}/{name}" for name in (PRINT_PDF, PRINT_PNG, MANIFEST_NAME)))
+    check_output_folder(output, "camera board folder", contents)
+    with staged_folder(output, "camera board folder", contents) as stage:
+        write_image(stage / PANEL_IMAGE, panel_raster(board))
+        write_manifest(board, stage)
+        (stage / PRINT_FOLDER).mkdir()
+        write_print_sheet(sheet, stage / PRINT_FOLDER)
+        write_manifest(sheet, stage / PRINT_FOLDER)
+    return board, sheet
