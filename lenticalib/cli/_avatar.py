@@ -20,8 +20,9 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--encoder", default=None, help="fast (default on the CPU), torch (default with gsplat), "
                         "reference, tables")
     parser.add_argument("--device", default=None, help="torch device for gsplat/torch (default cuda)")
-    parser.add_argument("--camera-model", default="arc", choices=("arc", "shear"),
-                        help="virtual cameras: arc (LentiAvatar, default) or shear (Looking Glass style)")
+    parser.add_argument("--camera-model", default="arc", metavar="MODEL",
+                        help="virtual cameras: arc (LentiAvatar, default), shear (Looking Glass style) or a "
+                             "plug-in's model")
     parser.add_argument("--radius", type=float, help="camera distance from the look-at point (avatar units)")
     parser.add_argument("--fov", type=float, default=20.0, help="vertical field of view, degrees (default 20)")
     parser.add_argument("--yaw-range", type=float, default=50.0, help="yaw range of the N cameras, degrees "
@@ -37,7 +38,8 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 FLAGS = {"profile": "--profile", "controls": "--controls", "edge_desaturation": "--edge-desaturation",
-         "frames": "--frames", "fps": "--fps", "output": "--output", "views_out": "--views-out VDIR"}
+         "frames": "--frames", "fps": "--fps", "output": "--output", "views_out": "--views-out VDIR",
+         "camera_model": "--camera-model"}
 """The library's argument names, as the flags of play and render (with those of --compensate)."""
 
 

@@ -25,17 +25,22 @@ shear   camera i at o_i = c + r e_forward + x_i e_side, x_i = r tan theta_i, loo
 
 Both return cameras ordered with ``view_direction = +1`` (view 0 on the viewer's left); reorder
 for a panel with :func:`.cameras.order_for_direction`.
+
+The models are a registry on the package's one loader (:mod:`lenticalib.core.plugins`): third
+parties add models through the entry-point group ``lenticalib.camera_models`` (value
+``"module:function"``, the function called as ``arc_cameras`` is and returning a ViewCameras).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.plugins import Registry
 from ..core.profile import MAX_VIEWS
 from .cameras import ViewCameras
 from .gaussians import Gaussians
@@ -101,7 +106,10 @@ def shear_cameras(bbox_min: Any, bbox_max: Any, n_views: int = 32, *, radius: fl
     return ViewCameras(K, viewmats, rig.width, rig.height, rig.yaw_deg, "shear", rig.params)
 
 
-CAMERA_MODELS: dict[str, Callable[..., ViewCameras]] = {"arc": arc_cameras, "shear": shear_cameras}
+CAMERA_MODELS = Registry("camera model", {
+    "arc": "lenticalib.render.camera_models:arc_cameras",
+    "shear": "lenticalib.render.camera_models:shear_cameras",
+}, "lenticalib.camera_models", choices="use one of {names}")
 
 
 def make_cameras(model: str, gaussians_or_bbox: Gaussians | tuple[Any, Any], n_views: int = 32,
@@ -109,12 +117,10 @@ def make_cameras(model: str, gaussians_or_bbox: Gaussians | tuple[Any, Any], n_v
     """N cameras of the named model (``CAMERA_MODELS``) around a Gaussians avatar or a (min, max) box.
 
     ``options`` are the model's keyword options (radius, fov_deg, yaw_range_deg, view_size, up,
-    forward, centre, height).  An unknown model is an InputError naming ``--camera-model``.
+    forward, centre, height).  An unknown model is an InputError naming ``--camera-model`` (before
+    the avatar is looked at).
     """
-    build = CAMERA_MODELS.get(model) if isinstance(model, str) else None
-    if build is None:
-        raise InputError(f"unknown camera model {model!r}", source="--camera-model",
-                         hint=f"use one of {', '.join(CAMERA_MODELS)}")
+    build = CAMERA_MODELS.load(model, "--camera-model")
     if isinstance(gaussians_or_bbox, Gaussians):
         if gaussians_or_bbox.count == 0:
             raise InputError("the avatar has no Gaussians", source="avatar")

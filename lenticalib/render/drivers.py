@@ -26,18 +26,19 @@ Specs (:func:`load_driver`):
     "NAME"             an entry point named NAME in the ``lenticalib.avatar_drivers`` group, whose value
                        is "module:callable"
 
-A spec without a colon that is not "rig" or a registered name, an empty module or attribute, an
-attribute that is missing or not callable is an InputError; a module that fails to import is a
+The names ("rig" and the entry points) are a registry on the package's one loader
+(:mod:`lenticalib.core.plugins`), which also imports a "module:callable" spec.  A spec without a
+colon that is not "rig" or a registered name, an empty module or attribute, an attribute that is
+missing or not callable is an InputError; a module that fails to import is a
 BackendUnavailableError; each is one line naming the spec.
 """
 
 from __future__ import annotations
 
-import importlib
-from importlib import metadata
 from typing import Any, Callable
 
-from ..core.errors import BackendUnavailableError, InputError
+from ..core.errors import InputError
+from ..core.plugins import Registry, import_target
 from .gaussians import Gaussians
 from .rig import ControlLayout, Rig
 
@@ -91,11 +92,10 @@ class RigDriver:
         return self.rig.deform(controls)
 
 
-def _registry() -> dict[str, str]:
-    try:
-        return {ep.name: ep.value for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
-    except Exception:  # a broken third-party distribution must not break the built-in
-        return {}
+# "rig" names the class the built-in driver is made of (RigDriver(rig)); every other name an entry
+# point whose value is a driver callable
+DRIVERS = Registry("driver", {BUILTIN: "lenticalib.render.drivers:RigDriver"}, ENTRY_POINT_GROUP,
+                   choices="use module:callable or one of {names}")
 
 
 def load_driver(spec: str | None = BUILTIN, *, rig: Rig | None = None) -> Driver:
@@ -104,38 +104,14 @@ def load_driver(spec: str | None = BUILTIN, *, rig: Rig | None = None) -> Driver
         if rig is None:
             raise InputError("the built-in driver needs a rig", source="--driver",
                              hint="give a rig file, or a driver as module:callable")
-        return Driver(BUILTIN, RigDriver(rig), layout=rig.layout)
+        return Driver(BUILTIN, DRIVERS.load(BUILTIN, "--driver")(rig), layout=rig.layout)
     if not isinstance(spec, str) or not spec.strip():
         raise InputError(f"bad driver {spec!r}", source="--driver", hint="use module:callable or 'rig'")
-    target = spec
-    if ":" not in spec:
-        registry = _registry()
-        if spec not in registry:
-            known = ", ".join([BUILTIN, *sorted(registry)])
-            raise InputError(f"unknown driver {spec!r}", source="--driver",
-                             hint=f"use module:callable or one of {known}")
-        target = registry[spec]
+    target = spec if ":" in spec else DRIVERS.entries()[DRIVERS.check(spec, "--driver")]
     module_name, _, attr = target.partition(":")
-    module_name, attr = module_name.strip(), attr.strip()
-    if not module_name or not attr or ":" in attr:
+    if not module_name.strip() or not attr.strip() or ":" in attr:
         raise InputError(f"bad driver {spec!r}", source="--driver", hint="use module:callable, e.g. mypkg.flame:drive")
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        missing = exc.name or module_name
-        raise BackendUnavailableError(f"driver module {module_name!r} cannot be imported: no module named "
-                                      f"{missing!r}", source=spec,
-                                      hint="install it or put its folder on PYTHONPATH") from None
-    except Exception as exc:  # the plugin's own import-time failure, reported on one line
-        first = str(exc).splitlines()[0] if str(exc) else ""
-        raise BackendUnavailableError(f"driver module {module_name!r} failed to import: {type(exc).__name__}"
-                                      f"{': ' + first if first else ''}", source=spec) from None
-    obj: Any = module
-    for part in attr.split("."):
-        if not hasattr(obj, part):
-            raise InputError(f"module {module_name!r} has no attribute {attr!r}", source=spec,
-                             hint="check the name after the colon")
-        obj = getattr(obj, part)
+    obj = import_target(target, f"driver {spec!r}", spec, hint="install it or put its folder on PYTHONPATH")
     if not callable(obj):
         raise InputError(f"{target} is a {type(obj).__name__}, not callable", source=spec,
                          hint="a driver is called as driver(controls, device)")

@@ -1,8 +1,8 @@
 """The avatar pipeline set up from plain options: what ``lenticalib play`` and ``render`` run.
 
 :func:`open_avatar_session` checks everything a user can get wrong before the first frame, in
-this order: the renderer and encoder (a name that is unknown or a backend that cannot run on
-this machine is refused before anything is loaded), the profile, the pre-compensation, the
+this order: the renderer, encoder and camera model (a name that is unknown or a backend that
+cannot run on this machine is refused before anything is loaded), the profile, the pre-compensation, the
 background, the avatar file and its driver, the controls (files are read in full), the cameras.
 
 Errors name the argument at fault by its parameter name (``source="edge_desaturation"``,
@@ -26,7 +26,7 @@ class AvatarOptions:
     ``controls``: 'demo', a file (.npz, .csv, .jsonl), '-' (JSON lines on stdin) or
     udp://HOST:PORT; ``driver``: 'rig' or module:callable; ``renderer`` (default cpu),
     ``encoder`` (default torch with gsplat, fast otherwise), ``device`` (default cuda with
-    gsplat, cpu otherwise); ``camera_model`` 'arc' or 'shear' with ``radius`` (avatar units),
+    gsplat, cpu otherwise); ``camera_model`` 'arc', 'shear' or a plug-in's, with ``radius`` (avatar units),
     ``fov_deg``, ``yaw_range_deg``; ``view_size`` (W, H) pixels; ``background``: 'R,G,B' or an
     image file; ``compensation``; ``edge_desaturation`` 0..1.
     """
@@ -74,7 +74,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     ``options`` say; every user error is an InputError (or BackendUnavailableError) before any frame."""
     from ..core.profile import load_profile
     from .avatar import load_avatar
-    from .camera_models import make_cameras
+    from .camera_models import CAMERA_MODELS, make_cameras
     from .controls import open_controls
     from .encoders import get_encoder
     from .loop import AvatarPipeline, parse_background
@@ -86,6 +86,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     device = o.device or ("cuda" if renderer == "gsplat" else "cpu")
     get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
     get_encoder(encoder, device=device)
+    CAMERA_MODELS.load(o.camera_model, "camera_model")
     if not isinstance(profile, PanelProfile):
         profile = load_profile(profile, "profile")
     if not 0.0 <= o.edge_desaturation <= 1.0:

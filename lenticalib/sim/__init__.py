@@ -8,6 +8,7 @@ the ground-truth profile for the camera position (``docs/optics.md``; overview i
     scene     Scene = optics + camera + seed; random_scene(); JSON form
     render    numba ray kernel and the camera's photometric chain: photograph()
     capture   simulate_capture_set(): photograph a pattern folder into DIR/captures
+    capture_camera  SimCamera: the capture camera ``--camera sim`` (registered in lenticalib.calib.cameras)
 
 Heavy modules (numba, OpenCV) load on first use of :func:`photograph`.
 """

@@ -18,7 +18,7 @@ holds files but no ``simulation.json`` (real photos, presumably) is never writte
 
 The per-photo step (:func:`photograph_pattern`, :func:`photo_record`) and the two records
 (:func:`write_truth`, :func:`write_simulation_record`) are shared with the virtual capture camera
-(:mod:`lenticalib.calib.cameras.sim`), which photographs what ``lenticalib capture`` shows.
+(:mod:`lenticalib.sim.capture_camera`), which photographs what ``lenticalib capture`` shows.
 """
 
 from __future__ import annotations

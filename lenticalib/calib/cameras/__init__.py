@@ -9,9 +9,14 @@
 
 Every kind is a :class:`~.base.CaptureCamera`: ``open()``, ``settings()`` (what was locked and
 what could not be), ``capture(name, shown, destination)`` (one photo, put in place atomically as
-``destination`` + suffix), ``close()``; a context manager.  The backend modules import their
-heavy dependencies (OpenCV, the simulator) only when a camera opens or captures, so building the
-registry costs nothing.
+``destination`` + suffix), ``close()``; a context manager.  The kinds are a registry of
+``"module:Class"`` strings on the package's one loader (:mod:`lenticalib.core.plugins`): a backend
+module is imported only when a camera of its kind is made, and the backends import their heavy
+dependencies (OpenCV, the simulator) only when a camera opens or captures.  The ``sim`` kind
+lives in :mod:`lenticalib.sim.capture_camera` (the simulator sits above this layer; a name in the
+table is not an import).  Third-party cameras register through the entry-point group
+``lenticalib.capture_cameras`` (name = kind, value = ``module:Class``, a CaptureCamera subclass
+constructed as ``Class(target, **options)``).
 
 :func:`make_camera` turns a ``--camera`` spec into a camera without touching any hardware (to
 check the argument before the work starts); :func:`open_camera` also opens it.
@@ -20,14 +25,15 @@ check the argument before the work starts); :func:`open_camera` also opens it.
 from __future__ import annotations
 
 from ...core.errors import InputError
+from ...core.plugins import Registry
 from .base import CaptureCamera
-from .gphoto2 import Gphoto2Camera
-from .manual import ManualCamera
-from .opencv import OpenCVCamera
-from .sim import SimCamera
 
-CAMERA_KINDS: dict[str, type[CaptureCamera]] = {
-    cls.kind: cls for cls in (Gphoto2Camera, OpenCVCamera, ManualCamera, SimCamera)}
+CAMERA_KINDS = Registry("camera kind", {
+    "gphoto2": "lenticalib.calib.cameras.gphoto2:Gphoto2Camera",
+    "opencv": "lenticalib.calib.cameras.opencv:OpenCVCamera",
+    "manual": "lenticalib.calib.cameras.manual:ManualCamera",
+    "sim": "lenticalib.sim.capture_camera:SimCamera",
+}, "lenticalib.capture_cameras", choices="choose one of {names} (e.g. --camera opencv:0)")
 
 __all__ = ["CAMERA_KINDS", "CaptureCamera", "make_camera", "open_camera", "parse_spec"]
 
@@ -37,14 +43,12 @@ def parse_spec(spec: str) -> tuple[str, str | None]:
 
     InputError naming ``--camera`` for an empty spec, an empty target or an unknown kind.
     """
-    kinds = ", ".join(CAMERA_KINDS)
     if not isinstance(spec, str) or not spec.strip():
-        raise InputError(f"no camera given ({spec!r})", source="--camera", hint=f"choose one of {kinds}")
+        raise InputError(f"no camera given ({spec!r})", source="--camera",
+                         hint=f"choose one of {', '.join(CAMERA_KINDS.names())}")
     kind, colon, target = spec.strip().partition(":")
     kind = kind.strip().lower()
-    if kind not in CAMERA_KINDS:
-        raise InputError(f"unknown camera kind {kind!r}", source="--camera",
-                         hint=f"choose one of {kinds} (e.g. --camera opencv:0)")
+    CAMERA_KINDS.check(kind, "--camera")
     if colon and not target.strip():
         raise InputError(f"nothing after the colon in {spec!r}", source="--camera",
                          hint=f"write {kind} alone, or {kind}:TARGET")
@@ -58,7 +62,7 @@ def make_camera(spec: str, **options) -> CaptureCamera:
     an option the kind does not take.
     """
     kind, target = parse_spec(spec)
-    return CAMERA_KINDS[kind](target, **options)
+    return CAMERA_KINDS.load(kind, "--camera")(target, **options)
 
 
 def open_camera(spec: str, **options) -> CaptureCamera:

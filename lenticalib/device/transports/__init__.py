@@ -1,56 +1,37 @@
 """Transport registry: URL scheme -> ``"module:attribute"``, imported only when used.
 
-As python-can's interface registry: third parties add schemes through the entry-point group
-``lenticalib.transports`` (name = scheme, value = ``module:Class``); a registered backend that
-does not import becomes one BackendUnavailableError naming the missing library.
+As python-can's interface registry, on the package's one loader (:mod:`lenticalib.core.plugins`):
+third parties add schemes through the entry-point group ``lenticalib.transports`` (name = scheme,
+value = ``module:Class``, or a factory ``(url, family) -> Transport``); a registered backend that
+does not import becomes one BackendUnavailableError naming the missing library.  A backend that
+can list its devices (``list_devices``, :mod:`.base`) shows them in ``lenticalib device list``.
 """
 
 from __future__ import annotations
 
-import importlib
-from importlib.metadata import entry_points
-
-from ...core.errors import BackendUnavailableError, DeviceNotFoundError
+from ...core.errors import DeviceNotFoundError
+from ...core.plugins import Registry
 from ..drivers import family_for
 from ..url import DeviceURL, parse_device_url
-from .base import Transport
+from .base import FoundDevice, Transport
 
-TRANSPORTS = {
+TRANSPORTS = Registry("transport", {
     "serial": "lenticalib.device.transports.serial:SerialTransport",
     "socket": "lenticalib.device.transports.serial:SerialTransport",
     "hid": "lenticalib.device.transports.hid:HidTransport",
     "usb": "lenticalib.device.transports.usb:UsbTransport",
     "emu": "lenticalib.device.transports.emulated:open_emulated",
-}
-_LIBRARY = {"serial": "pyserial", "socket": "pyserial", "hid": "hidapi", "usb": "pyusb", "emu": "pyserial"}
+}, "lenticalib.transports",
+    install={"serial": "pyserial", "socket": "pyserial", "hid": "hidapi", "usb": "pyusb", "emu": "pyserial"},
+    unknown_error=DeviceNotFoundError, choices="use one of: {names}")
 
-
-def _registry() -> dict[str, str]:
-    table = dict(TRANSPORTS)
-    for ep in entry_points(group="lenticalib.transports"):
-        table.setdefault(ep.name, ep.value)
-    return table
-
-
-def _load(scheme: str, url: DeviceURL):
-    table = _registry()
-    if scheme not in table:
-        raise DeviceNotFoundError(f"unknown transport '{scheme}'", source=str(url),
-                                  hint=f"use one of: {', '.join(sorted(table))}")
-    module_name, _, attr = table[scheme].partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as exc:
-        lib = _LIBRARY.get(scheme, module_name)
-        raise BackendUnavailableError(f"transport '{scheme}' is not available: {exc}", source=str(url),
-                                      hint=f"install {lib} (pip install {lib})") from None
-    return getattr(module, attr)
+__all__ = ["TRANSPORTS", "FoundDevice", "Transport", "open_transport"]
 
 
 def open_transport(url: str | DeviceURL) -> Transport:
     """An opened transport for ``url`` (see :mod:`lenticalib.device.url`)."""
     url = parse_device_url(url) if isinstance(url, str) else url
-    factory = _load(url.scheme, url)
+    factory = TRANSPORTS.load(url.scheme, str(url))
     if url.scheme in ("hid", "usb"):
         vid, pid, _ = url.vid_pid_serial()
         family = family_for(url.scheme, vid, pid)

@@ -7,20 +7,47 @@ and ``_read`` (one bounded attempt), plus ``_discard_buffered`` when it buffers 
 sequence numbers live above, in :mod:`lenticalib.device.client`, identical for every
 transport: each transport only carries the protocol's byte stream (a serial port carries it
 as is, HID packs it into 64-byte reports, USB into control transfers).
+
+A backend may also list the controllers it can reach (``lenticalib device list`` asks every
+registered transport, :mod:`lenticalib.device.discovery`): an attribute
+``list_devices() -> (list[FoundDevice], list[str])``, the devices and one-line notes about what
+could not be searched (a missing library, no permission), on the class (a classmethod) or on
+the factory function the registry names.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import time
+from typing import Iterator
 
 from ...core.errors import DeviceDisconnectedError, DeviceNotFoundError, DeviceTimeoutError, LenticalibError
-from ..drivers import ControllerFamily, TransportDescription
+from ..drivers import ControllerFamily, TransportDescription, families
 from ..url import DeviceURL
 
 
 _LIBRARY_PREFIXES = re.compile(r"^(?:(?:read|write) failed: |could not open port (?:\S+: )?|\[errno \d+\] )+",
                                re.IGNORECASE)
+
+
+@dataclasses.dataclass(frozen=True)
+class FoundDevice:
+    """One controller that can be opened at ``url``."""
+
+    url: str
+    transport: str
+    family: str
+    description: str
+    serial: str | None = None
+
+
+def family_ids(kind: str) -> Iterator[tuple[ControllerFamily, TransportDescription]]:
+    """(family, its transport entry) for every controller family file that lists a ``kind`` transport."""
+    for family in families():
+        for t in family.transports:
+            if t.kind == kind:
+                yield family, t
 
 
 def reason(exc: BaseException, url: str | None = None) -> str:

@@ -10,7 +10,7 @@ dropped (the frame CRC above catches what is left).
 from __future__ import annotations
 
 from ...core.errors import DeviceNotFoundError
-from .base import Transport
+from .base import FoundDevice, Transport, family_ids
 
 
 class HidTransport(Transport):
@@ -22,6 +22,26 @@ class HidTransport(Transport):
         self._pending = bytearray()
         self.dropped_reports = 0
         self.device = None
+
+    @classmethod
+    def list_devices(cls) -> tuple[list[FoundDevice], list[str]]:
+        """The HID devices whose VID:PID a controller family file lists (``device list``)."""
+        try:
+            import hid
+        except ImportError as exc:
+            return [], [f"HID devices not searched: {exc}"]
+        found = []
+        for family, t in family_ids("hid"):
+            try:
+                entries = hid.enumerate(t.vid, t.pid)
+            except OSError as exc:
+                return found, [f"HID enumeration failed: {exc}"]
+            for entry in entries:
+                serial = entry.get("serial_number") or None
+                url = f"hid://{t.vid:04x}:{t.pid:04x}" + (f"/{serial}" if serial else "")
+                found.append(FoundDevice(url, "hid", family.name, entry.get("product_string") or family.description,
+                                         serial))
+        return found, []
 
     def _open(self) -> None:
         vid, pid, serial_number = self.url.vid_pid_serial() if self.url.scheme == "hid" else (

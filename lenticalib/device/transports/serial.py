@@ -17,7 +17,7 @@ except ImportError:  # not POSIX
         pass
 
 from ...core.errors import DeviceDisconnectedError
-from .base import Transport
+from .base import FoundDevice, Transport, family_ids
 
 
 class SerialTransport(Transport):
@@ -37,6 +37,22 @@ class SerialTransport(Transport):
                                               write_timeout=self.family.flash_timeout_s, exclusive=True)
         except serial.SerialException as exc:
             raise OSError(str(exc)) from None
+
+    @classmethod
+    def list_devices(cls) -> tuple[list[FoundDevice], list[str]]:
+        """The serial ports whose USB VID:PID a controller family file lists (``device list``)."""
+        try:
+            from serial.tools import list_ports
+        except ImportError as exc:
+            return [], [f"serial ports not searched: {exc}"]
+        wanted = {(t.vid, t.pid): f for f, t in family_ids("serial")}
+        found = []
+        for port in list_ports.comports():
+            family = wanted.get((port.vid, port.pid))
+            if family:
+                found.append(FoundDevice(f"serial://{port.device}", "serial", family.name,
+                                         port.description or family.description, port.serial_number))
+        return found, []
 
     def open_hint(self) -> str:
         if self.url.scheme == "socket":

@@ -16,7 +16,7 @@ import usb.core
 import usb.util
 
 from ...core.errors import DeviceDisconnectedError, DeviceNotFoundError
-from .base import Transport
+from .base import FoundDevice, Transport, family_ids
 
 _POLL_S = 0.002
 
@@ -28,6 +28,23 @@ class UsbTransport(Transport):
         super().__init__(url, family, description)
         self._backend = backend
         self.device = None
+
+    @classmethod
+    def list_devices(cls) -> tuple[list[FoundDevice], list[str]]:
+        """The USB devices whose VID:PID a controller family file lists (``device list``)."""
+        found = []
+        for family, t in family_ids("usb"):
+            try:
+                devices = list(usb.core.find(find_all=True, idVendor=t.vid, idProduct=t.pid))
+            except usb.core.NoBackendError:
+                return found, ["USB devices not searched: pyusb found no libusb (install libusb-1.0)"]
+            except usb.core.USBError as exc:
+                return found, [f"USB enumeration failed: {exc}"]
+            for dev in devices:
+                serial = _serial_of(dev)  # None without permission: still listed, the udev rules fix access
+                url = f"usb://{t.vid:04x}:{t.pid:04x}" + (f"/{serial}" if serial else "")
+                found.append(FoundDevice(url, "usb", family.name, family.description, serial))
+        return found, []
 
     def _open(self) -> None:
         vid, pid, serial_number = self.url.vid_pid_serial() if self.url.scheme == "usb" else (

@@ -22,27 +22,23 @@ from typing import Callable
 
 import numpy as np
 
-from ...core.plugins import load, registry
+from ...core.plugins import Registry
 from ...core.profile import PanelProfile
 from .common import check_views, output_like
 
 DEFAULT_ENCODER = "fast"
 
-_BUILTIN = {
+ENCODERS = Registry("encoder", {
     "reference": "lenticalib.render.encoders.reference:encode_reference",
     "tables": "lenticalib.render.encoders.tables:encode_tables",
     "fast": "lenticalib.render.encoders.fast:encode_fast",
     "torch": "lenticalib.render.encoders.torch_encoder:encode_torch",
-}
-
-
-def _registry() -> dict[str, str]:
-    return registry(_BUILTIN, "lenticalib.encoders")
+}, "lenticalib.encoders")
 
 
 def available_encoders() -> list[str]:
     """Names of every registered encoder."""
-    return sorted(_registry())
+    return ENCODERS.names()
 
 
 def get_encoder(name: str, device: str | None = None) -> Callable[..., np.ndarray]:
@@ -52,7 +48,7 @@ def get_encoder(name: str, device: str | None = None) -> Callable[..., np.ndarra
     or it cannot run here (``torch`` on a CUDA device torch does not see): one line naming the
     encoders that can.
     """
-    return load(_registry(), name, "encoder", "encoder", device=device)
+    return ENCODERS.load(name, "encoder", device=device)
 
 
 def encode(views: np.ndarray, profile: PanelProfile, method: str = DEFAULT_ENCODER, *,

@@ -19,23 +19,19 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ...core.plugins import load, registry
+from ...core.plugins import Registry
 
 DEFAULT_RENDERER = "cpu"
 
-_BUILTIN = {
+RENDERERS = Registry("renderer", {
     "cpu": "lenticalib.render.renderers.cpu:render_cpu",
     "gsplat": "lenticalib.render.renderers.gsplat_backend:render_gsplat",
-}
-
-
-def _registry() -> dict[str, str]:
-    return registry(_BUILTIN, "lenticalib.renderers")
+}, "lenticalib.renderers")
 
 
 def available_renderers() -> list[str]:
     """Names of every registered renderer."""
-    return sorted(_registry())
+    return RENDERERS.names()
 
 
 def get_renderer(name: str, device: str | None = None) -> Callable:
@@ -45,7 +41,7 @@ def get_renderer(name: str, device: str | None = None) -> Callable:
     module fails to import or it cannot run here (``gsplat`` without a CUDA GPU): one line naming
     the renderers that can.
     """
-    return load(_registry(), name, "renderer", "--renderer", device=device)
+    return RENDERERS.load(name, "--renderer", device=device)
 
 
 def render(gaussians, viewmats, Ks, width: int, height: int, *, renderer: str = DEFAULT_RENDERER,

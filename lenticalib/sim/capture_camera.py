@@ -1,5 +1,7 @@
 """The virtual panel as the camera: a full show -> photograph -> fit run without hardware.
 
+A capture camera backend (``--camera sim``), registered by name in :mod:`lenticalib.calib.cameras`.
+
 Spec: ``sim`` or ``sim:SEED``.  Options: ``seed`` (default the spec's, else 1), ``resolution``
 camera (w, h) in pixels or ``"WxH"`` (default :data:`lenticalib.sim.scene.DEFAULT_RESOLUTION`, as for
 ``lenticalib simulate``; the fit needs at least 1 megapixel),
@@ -32,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.errors import CameraError, InputError
-from ...sim.scene import DEFAULT_RESOLUTION
-from .base import CaptureCamera
-from .files import write_photo
+from ..calib.cameras.base import CaptureCamera
+from ..calib.cameras.files import write_photo
+from ..core.errors import CameraError, InputError
+from .scene import DEFAULT_RESOLUTION
 
 DEFAULT_SEED = 1
 DEFAULT_SUBSAMPLES = 3
@@ -67,7 +69,7 @@ class SimCamera(CaptureCamera):
 
     def __init__(self, target: str | None = None, **options):
         super().__init__(target, **options)
-        from ...sim.scene import CONDITIONS
+        from .scene import CONDITIONS
 
         seed = self.options.get("seed")
         if target is not None:
@@ -96,7 +98,7 @@ class SimCamera(CaptureCamera):
         self._truth: dict | None = None
 
     def _open(self) -> list[str]:
-        from ..captures import MIN_PHOTO_PIXELS
+        from ..calib.captures import MIN_PHOTO_PIXELS
 
         width, height = self.resolution
         lines = [f"virtual camera: seed {self.seed}, {width}x{height} pixels, {self.subsamples}x{self.subsamples} "
@@ -110,8 +112,8 @@ class SimCamera(CaptureCamera):
 
     def _start(self, shown: np.ndarray, directory: Path) -> None:
         """Read the pattern set of ``directory`` and draw the scene for the shown panel size."""
-        from ...sim.scene import random_scene
-        from ..patterns import MANIFEST_NAME, read_pattern_folder
+        from ..calib.patterns import MANIFEST_NAME, read_pattern_folder
+        from .scene import random_scene
 
         pattern_set = read_pattern_folder(directory)
         height, width = shown.shape[:2]
@@ -127,9 +129,9 @@ class SimCamera(CaptureCamera):
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
         photos are still there (a resumed capture); empty otherwise."""
-        from ...core.profile import read_json_file
-        from ...sim.capture import SIMULATION_NAME
-        from ...sim.scene import Scene
+        from ..core.profile import read_json_file
+        from .capture import SIMULATION_NAME
+        from .scene import Scene
 
         try:
             record = read_json_file(self.directory / SIMULATION_NAME, "simulation record", "")
@@ -145,7 +147,7 @@ class SimCamera(CaptureCamera):
                 and isinstance(c.get("file"), str) and (self.directory / c["file"]).is_file()}
 
     def _capture(self, name, shown, destination: Path) -> Path:
-        from ...sim.capture import photo_record, photograph_pattern, write_truth
+        from .capture import photo_record, photograph_pattern, write_truth
 
         if shown is None:
             raise CameraError("the virtual camera photographs the shown raster, and none was given",
@@ -165,7 +167,7 @@ class SimCamera(CaptureCamera):
         if name in self.pattern_set.names:
             self._records[name] = photo_record(self.scene, name, path.relative_to(directory).as_posix())
         if self._truth is None:
-            from ...sim.capture import TRUTH_NAME
+            from .capture import TRUTH_NAME
 
             _, constants = write_truth(directory, self.scene, self.pattern_set)
             self._truth = {"file": TRUTH_NAME, **constants}
@@ -173,7 +175,7 @@ class SimCamera(CaptureCamera):
         return path
 
     def _write_record(self) -> None:
-        from ...sim.capture import write_simulation_record
+        from .capture import write_simulation_record
 
         complete = set(self.pattern_set.names) <= set(self._records)
         write_simulation_record(self.directory, self.scene, self.pattern_set,
