@@ -1,6 +1,8 @@
 """``lenticalib fit DIR -o profile.json``: fit a panel profile from photos of the test patterns.
 
-Before the fit starts, the options are range-checked and the profile path and the report
+The work is :func:`lenticalib.calib.fit_pipeline.fit_capture_sets`; this module parses the
+options, shows the progress, prints the outcome and maps the library's argument names to its
+flags (:data:`FLAGS`).  Before the fit starts, the options are range-checked and the profile path and the report
 folder are checked (:mod:`lenticalib.core.outputs`: no missing folder is created, a folder is not a
 profile path, a folder holding anything but a report is not replaced).  The report is written
 into a hidden sibling and moved into place complete.  Outcomes:
