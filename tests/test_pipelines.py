@@ -215,3 +215,12 @@ def test_encode_to_file_writes_what_encode_makes(tmp_path):
                        compensation=CompensationOptions(black_lift=0.1))
     assert caught.value.source == "black_lift" and "crosstalk_file" in str(caught.value)
     assert not (tmp_path / "x.png").exists()
+
+
+def test_field_paths_in_messages_are_not_taken_for_argument_names():
+    from lenticalib.cli._flags import with_flags
+
+    error = with_flags(InputError("field 'physical.gap_mm': 0 is outside 0.0001..50", source="p.json",
+                                  hint="either second_distance or gap_mm"), {"gap_mm": "--gap MM",
+                                                                             "second_distance": "--second-distance DIR2"})
+    assert str(error) == "p.json: field 'physical.gap_mm': 0 is outside 0.0001..50 (either --second-distance DIR2 or --gap MM)"
