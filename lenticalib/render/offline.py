@@ -73,7 +73,7 @@ def check_render_outputs(output: str | os.PathLike, frames: int, views_out: str 
         check_output_folder(views_out, "views folder", VIEWS_CONTENTS)
         out, views = (os.path.realpath(p) for p in (output, views_out))
         if out == views or views.startswith(out + os.sep) or out.startswith(views + os.sep):
-            raise InputError("is, or is inside, the output path", source=str(views_out),
+            raise InputError("is, or is inside, the `output` path", source=str(views_out),
                              hint="give the views a folder of their own, beside the output")
     return "image" if single else "video" if video else "folder"
 
