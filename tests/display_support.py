@@ -45,10 +45,18 @@ class VirtualDisplay:
             self.process.kill()
         pytest.fail("could not start Xvfb on any display :120-:199")
 
+    def variables(self) -> dict:
+        """What a process needs to show on this display: DISPLAY set, WAYLAND_DISPLAY unset (None)."""
+        return {"DISPLAY": self.name, "WAYLAND_DISPLAY": None}
+
     def env(self) -> dict:
+        """This process's environment with :meth:`variables` applied."""
         env = dict(os.environ)
-        env["DISPLAY"] = self.name
-        env.pop("WAYLAND_DISPLAY", None)
+        for name, value in self.variables().items():
+            if value is None:
+                env.pop(name, None)
+            else:
+                env[name] = value
         return env
 
     def screenshot(self) -> np.ndarray:

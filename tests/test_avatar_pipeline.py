@@ -23,11 +23,6 @@ PROFILE = "fixtures/panel-4k-32.json"
 SMALL_VIEWS = "192x108"
 
 
-def _cli(*args, timeout=600):
-    return subprocess.run([sys.executable, "-m", "lenticalib", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
-
-
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
     from lenticalib.render.demo_avatar import make_demo_avatar
@@ -50,9 +45,9 @@ def directed(tmp_path_factory):
     return out
 
 
-def test_render_writes_the_raster_the_views_and_the_cameras(demo, directed, tmp_path):
-    result = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "frame.png", "--view-size", SMALL_VIEWS,
-                  "--views-out", tmp_path / "views", "--background", "0.1,0.1,0.1")
+def test_render_writes_the_raster_the_views_and_the_cameras(demo, directed, tmp_path, cli_process):
+    result = cli_process("render", demo, "--profile", directed[1], "-o", tmp_path / "frame.png",
+                         "--view-size", SMALL_VIEWS, "--views-out", tmp_path / "views", "--background", "0.1,0.1,0.1")
     assert result.returncode == 0, result.stderr
     assert "warning" not in result.stderr
     for stage in ("drive", "render", "compose", "total", "fps"):
@@ -71,7 +66,7 @@ def test_render_writes_the_raster_the_views_and_the_cameras(demo, directed, tmp_
         assert np.abs(view[:5, :5].astype(int) - 26).max() <= 1
 
 
-def test_a_gaussian_lands_where_cameras_json_projects_it(directed, tmp_path):
+def test_a_gaussian_lands_where_cameras_json_projects_it(directed, tmp_path, cli_process):
     point = np.array([0.013, -0.021, 0.007])
     rng = np.random.default_rng(3)
     # one bright small Gaussian at a known point, and a few dim ones far away to give the box a size
@@ -82,8 +77,8 @@ def test_a_gaussian_lands_where_cameras_json_projects_it(directed, tmp_path):
     sh[0, 0] = (1.0 - 0.5) / SH_C0
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (7, 1)).astype(np.float32)
     save_ply(tmp_path / "dot.ply", Gaussians(means, quats, scales, opac, sh))
-    result = _cli("render", tmp_path / "dot.ply", "--profile", directed[1], "-o", tmp_path / "f.png",
-                  "--view-size", "480x270", "--views-out", tmp_path / "v")
+    result = cli_process("render", tmp_path / "dot.ply", "--profile", directed[1], "-o", tmp_path / "f.png",
+                         "--view-size", "480x270", "--views-out", tmp_path / "v")
     assert result.returncode == 0, result.stderr
     cameras = json.loads((tmp_path / "v" / "cameras.json").read_text())
     for index in (0, 11, 31):
@@ -99,43 +94,43 @@ def test_a_gaussian_lands_where_cameras_json_projects_it(directed, tmp_path):
         assert np.abs(centroid - expected).max() < 0.1, (index, centroid, expected)
 
 
-def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, directed, tmp_path):
+def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, directed, tmp_path, cli_process):
     out = {}
     for sign in (1, -1):
-        r = _cli("render", demo, "--profile", directed[sign], "-o", tmp_path / f"r{sign}.png", "--view-size",
-                 SMALL_VIEWS, "--views-out", tmp_path / f"v{sign}")
+        r = cli_process("render", demo, "--profile", directed[sign], "-o", tmp_path / f"r{sign}.png", "--view-size",
+                        SMALL_VIEWS, "--views-out", tmp_path / f"v{sign}")
         assert r.returncode == 0, r.stderr
         out[sign] = np.stack([read_image(tmp_path / f"v{sign}" / "frame-00000" / f"view-{i:02d}.png")
                               for i in range(32)])
     assert np.array_equal(out[1], out[-1][::-1])
     assert not np.array_equal(out[1][0], out[1][31])
-    r = _cli("render", demo, "--profile", PROFILE, "-o", tmp_path / "u.png", "--view-size", SMALL_VIEWS)
+    r = cli_process("render", demo, "--profile", PROFILE, "-o", tmp_path / "u.png", "--view-size", SMALL_VIEWS)
     assert r.returncode == 0, r.stderr
     assert "does not say which way its views run" in r.stderr
 
 
-def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_path):
+def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_path, cli_process):
     from lenticalib.core.imageio import write_image
 
     backdrop = np.zeros((108, 192, 3), np.uint8)
     backdrop[:, :96] = (200, 30, 40)
     backdrop[:, 96:] = (20, 60, 210)
     write_image(tmp_path / "backdrop.png", backdrop)
-    r = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "b.png", "--view-size", SMALL_VIEWS,
-             "--background", tmp_path / "backdrop.png", "--views-out", tmp_path / "v")
+    r = cli_process("render", demo, "--profile", directed[1], "-o", tmp_path / "b.png", "--view-size", SMALL_VIEWS,
+                    "--background", tmp_path / "backdrop.png", "--views-out", tmp_path / "v")
     assert r.returncode == 0, r.stderr
     view = read_image(tmp_path / "v" / "frame-00000" / "view-16.png").astype(int)
     assert np.abs(view[:6, :6] - (200, 30, 40)).max() <= 1 and np.abs(view[-6:, -6:] - (20, 60, 210)).max() <= 1
     assert np.abs(view[40:70, 80:112] - backdrop[40:70, 80:112]).sum(axis=2).mean() > 30  # the head covers it
 
 
-def test_a_sequence_as_pngs_and_as_a_lossless_video_holds_the_same_rasters(demo, directed, tmp_path):
+def test_a_sequence_as_pngs_and_as_a_lossless_video_holds_the_same_rasters(demo, directed, tmp_path, cli_process):
     import cv2
 
     args = ("--profile", directed[1], "--view-size", SMALL_VIEWS, "--frames", "2", "--fps", "2")
-    r = _cli("render", demo, "-o", tmp_path / "frames", *args)
+    r = cli_process("render", demo, "-o", tmp_path / "frames", *args)
     assert r.returncode == 0, r.stderr
-    r = _cli("render", demo, "-o", tmp_path / "seq.mkv", *args)
+    r = cli_process("render", demo, "-o", tmp_path / "seq.mkv", *args)
     assert r.returncode == 0, r.stderr
     capture = cv2.VideoCapture(str(tmp_path / "seq.mkv"))
     for k in range(2):
@@ -155,8 +150,9 @@ def _table(stdout: str) -> dict:
     return rows
 
 
-def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed):
-    result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS)
+def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed, cli_process):
+    result = cli_process("play", demo, "--profile", directed[1], "--headless", "--frames", "1",
+                         "--view-size", SMALL_VIEWS)
     assert result.returncode == 0, result.stderr
     assert "(1 frames" in result.stdout
     rows = _table(result.stdout)
@@ -190,16 +186,16 @@ def test_play_headless_keeps_running_through_hostile_stdin_and_reports_the_bad_l
     assert "Traceback" not in stderr
 
 
-def test_a_control_file_the_avatar_cannot_use_is_refused_before_play_starts(demo, directed, tmp_path):
+def test_a_control_file_the_avatar_cannot_use_is_refused_before_play_starts(demo, directed, tmp_path, cli_process):
     (tmp_path / "big.jsonl").write_text('{"t": 0, "jaw": [0, 0, 0]}\n{"t": 1, "jaw": [1e39, 0, 0]}\n')
-    result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS,
-                  "--controls", tmp_path / "big.jsonl")
+    result = cli_process("play", demo, "--profile", directed[1], "--headless", "--frames", "1",
+                         "--view-size", SMALL_VIEWS, "--controls", tmp_path / "big.jsonl")
     assert result.returncode == 2 and result.stdout == "", result.stdout
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and f"{tmp_path / 'big.jsonl'}:2: jaw[0] is 1e+39, out of range" in lines[0], lines
 
 
-def test_a_renderer_or_encoder_that_cannot_run_here_is_refused_before_anything_is_loaded(tmp_path):
+def test_a_renderer_or_encoder_that_cannot_run_here_is_refused_before_anything_is_loaded(tmp_path, cli_process):
     """Neither the avatar nor the profile exists: refusing the backend first is the only way to name it."""
     import importlib.util
 
@@ -212,12 +208,12 @@ def test_a_renderer_or_encoder_that_cannot_run_here_is_refused_before_anything_i
                             "none.json" if gsplat else "renderer 'gsplat' cannot run here: it needs gsplat"),
                            (["--encoder", "torch", "--device", "cuda"], "encoder 'torch' cannot run here: device "
                             "'cuda' requested but torch sees no CUDA device" if not cuda else "none.json")):
-        result = _cli("play", tmp_path / "none.npz", "--profile", tmp_path / "none.json", "--headless", *options)
+        result = cli_process("play", tmp_path / "none.npz", "--profile", tmp_path / "none.json", "--headless", *options)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 2 and len(lines) == 1 and words in lines[0], result.stderr
 
 
-def test_a_device_torch_cannot_use_is_refused_before_the_first_frame(demo, directed):
+def test_a_device_torch_cannot_use_is_refused_before_the_first_frame(demo, directed, cli_process):
     """The drive runs on --device too: the cpu renderer with the fast encoder still needs it to exist."""
     import torch
 
@@ -225,13 +221,13 @@ def test_a_device_torch_cannot_use_is_refused_before_the_first_frame(demo, direc
     if not torch.cuda.is_available():
         cases.append(("cuda", "--device: device 'cuda' requested but torch sees no CUDA device (use --device cpu)"))
     for device, words in cases:
-        result = _cli("play", demo, "--profile", directed[1], "--headless", "--frames", "1", "--view-size", SMALL_VIEWS,
-                      "--device", device)
+        result = cli_process("play", demo, "--profile", directed[1], "--headless", "--frames", "1",
+                             "--view-size", SMALL_VIEWS, "--device", device)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 2 and result.stdout == "" and len(lines) == 1 and words in lines[0], result.stderr
 
 
-def test_bad_inputs_end_in_one_line(demo, directed, tmp_path):
+def test_bad_inputs_end_in_one_line(demo, directed, tmp_path, cli_process):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     (tmp_path / "bad.jsonl").write_text('{"t": 0, "controls": [1, 2, 3]}\n')
     cases = [
@@ -247,14 +243,14 @@ def test_bad_inputs_end_in_one_line(demo, directed, tmp_path):
         (["render", demo, "--profile", tmp_path / "none.json", "-o", tmp_path / "a.png"], "none.json"),
     ]
     for args, message in cases:
-        result = _cli(*args)
+        result = cli_process(*args)
         assert result.returncode == 2, (args, result.stdout, result.stderr)
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (args, result.stderr)
     assert not (tmp_path / "a.png").exists()
 
 
-def test_crosstalk_compensation_in_the_loop_changes_what_is_encoded(demo, directed, tmp_path):
+def test_crosstalk_compensation_in_the_loop_changes_what_is_encoded(demo, directed, tmp_path, cli_process):
     n = 32
     row = np.full(n, 0.002)
     row[0], row[1], row[-1] = 0.5, 0.2, 0.2
@@ -263,13 +259,15 @@ def test_crosstalk_compensation_in_the_loop_changes_what_is_encoded(demo, direct
     crosstalk = tmp_path / "crosstalk.json"
     crosstalk.write_text(json.dumps({"format": "lenticalib.crosstalk", "format_version": 1, "views": n,
                                      "matrix": matrix.tolist()}))
-    result = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "frame.png", "--view-size", SMALL_VIEWS,
-                  "--views-out", tmp_path / "views", "--compensate", crosstalk, "--black-lift", "0.03")
+    result = cli_process("render", demo, "--profile", directed[1], "-o", tmp_path / "frame.png",
+                         "--view-size", SMALL_VIEWS, "--views-out", tmp_path / "views", "--compensate", crosstalk,
+                         "--black-lift", "0.03")
     assert result.returncode == 0, result.stderr
     raster = read_image(tmp_path / "frame.png")
     views = np.stack([read_image(tmp_path / "views" / "frame-00000" / f"view-{i:02d}.png") for i in range(n)])
     assert np.array_equal(encode(views, load_profile(PROFILE)), raster)  # the compensated views are what was encoded
-    plain = _cli("render", demo, "--profile", directed[1], "-o", tmp_path / "plain.png", "--view-size", SMALL_VIEWS)
+    plain = cli_process("render", demo, "--profile", directed[1], "-o", tmp_path / "plain.png",
+                        "--view-size", SMALL_VIEWS)
     assert plain.returncode == 0, plain.stderr
     assert not np.array_equal(read_image(tmp_path / "plain.png"), raster)
     assert np.abs(views[:, :5, :5].astype(int) - 48).max() <= 1  # the black background is lifted to 0.03 (sRGB 48)

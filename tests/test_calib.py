@@ -8,7 +8,6 @@ also gives the end-to-end test its output).  Copies of the set never include
 
 import contextlib
 import hashlib
-import io
 import json
 import math
 import shutil
@@ -23,9 +22,10 @@ import lenticalib.calib.fit as fit_module
 import lenticalib.cli._progress as progress_module
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.patterns import design_patterns, read_manifest, write_patterns
-from lenticalib.cli import main
 from lenticalib.core.errors import InputError
 from lenticalib.core.profile import load_profile
+
+from .cli_support import one_error_line, run_main
 
 FIXTURE = Path(__file__).resolve().parent.parent / "fixtures" / "capture-demo"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -47,29 +47,6 @@ def _copy_capture_set(destination: Path) -> Path:
     shutil.copy2(FIXTURE / "truth.json", destination / "truth.json")
     shutil.copytree(FIXTURE / "captures", destination / "captures")
     return destination
-
-
-def _run(argv, capsys):
-    """``lenticalib ARGV`` in-process: (exit status, stdout, stderr).  An exception escaping
-    ``main`` (what a user would see as a traceback) fails the test."""
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse
-        code = exc.code
-    except Exception as exc:  # noqa: BLE001 -- anything but a clean exit is a bug
-        captured = capsys.readouterr()
-        pytest.fail(f"lenticalib {' '.join(map(str, argv))} raised {type(exc).__name__}: {exc} "
-                    f"(a traceback instead of one error line); stderr: {captured.err!r}")
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def _one_error_line(err: str) -> str:
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, f"expected exactly one line on stderr, got {len(lines)}: {err!r}"
-    assert lines[0].startswith("lenticalib: error: "), lines[0]
-    assert "Traceback" not in err
-    return lines[0]
 
 
 def _circular(d: float, period: float) -> float:
@@ -188,15 +165,14 @@ def _fit_cli_recording(argv):
         results.append(result)
         return result
 
-    out, err = io.StringIO(), io.StringIO()
     _RecordingBar.bars = []
-    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with pytest.MonkeyPatch.context() as mp:
         mp.setattr(fit_module, "fit_capture_set", recording)
         mp.setattr(progress_module, "progress_bar", _recording_progress_bar)
-        code = main([str(a) for a in argv])
-    assert len(results) == 1, (code, err.getvalue())
+        code, out, err = run_main(*argv)
+    assert len(results) == 1, (code, err)
     assert len(_RecordingBar.bars) == 1
-    return code, out.getvalue(), err.getvalue(), results[0], _RecordingBar.bars[0]
+    return code, out, err, results[0], _RecordingBar.bars[0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -340,9 +316,9 @@ def test_edited_manifest_is_rejected(tmp_path, patterns_1080, edit):
     assert str(directory / "patterns.json") in str(info.value)
 
 
-def test_patterns_cli_writes_pngs_and_manifest(tmp_path, capsys):
+def test_patterns_cli_writes_pngs_and_manifest(tmp_path, cli):
     directory = tmp_path / "pat"
-    code, out, err = _run(["patterns", "--width", 640, "--height", 360, "--views", 8, "-o", directory], capsys)
+    code, out, err = cli("patterns", "--width", 640, "--height", 360, "--views", 8, "-o", directory)
     assert code == 0, err
     assert err == ""
     manifest = json.loads((directory / "patterns.json").read_text())
@@ -353,9 +329,9 @@ def test_patterns_cli_writes_pngs_and_manifest(tmp_path, capsys):
     assert sorted(p.name for p in directory.iterdir()) == sorted([p.file for p in ps.patterns] + ["patterns.json"])
     assert _check_pngs(directory) == len(ps.patterns) <= 24
     # bad sizes end in one line, nothing written
-    code, _, err = _run(["patterns", "--width", 32, "--height", 360, "-o", tmp_path / "small"], capsys)
+    code, _, err = cli("patterns", "--width", 32, "--height", 360, "-o", tmp_path / "small")
     assert code == 2
-    _one_error_line(err)
+    one_error_line(err)
     assert not (tmp_path / "small").exists()
 
 
@@ -413,7 +389,7 @@ def test_demo_fit_provenance_records_photos_and_pattern_set(demo_fit):
 # 3. the fit CLI end to end
 # ---------------------------------------------------------------------------------------------
 
-def test_fit_cli_writes_profile_and_report(demo_fit, capsys):
+def test_fit_cli_writes_profile_and_report(demo_fit, cli):
     assert demo_fit.code == 0, demo_fit.stderr
     assert demo_fit.stderr == ""
     assert f"wrote {demo_fit.profile_path}" in demo_fit.stdout
@@ -431,8 +407,8 @@ def test_fit_cli_writes_profile_and_report(demo_fit, capsys):
     # nothing else next to the profile (no temporary files left)
     assert sorted(p.name for p in demo_fit.out.iterdir()) == ["profile-report", "profile.json"]
 
-    code, out, err = _run(["profile", "compare", demo_fit.profile_path, demo_fit.directory / "truth.json",
-                           "--json"], capsys)
+    code, out, err = cli("profile", "compare", demo_fit.profile_path, demo_fit.directory / "truth.json",
+                         "--json")
     assert code == 0, err
     data = json.loads(out)
     diff = compare_profiles(profile, demo_fit.truth)
@@ -532,9 +508,9 @@ def _fit_returning(monkeypatch, result):
     monkeypatch.setattr(fit_module, "fit_capture_set", lambda *args, **kwargs: result)
 
 
-def test_summary_json_is_what_fit_json_prints(demo_fit, tmp_path, capsys, monkeypatch):
+def test_summary_json_is_what_fit_json_prints(demo_fit, tmp_path, cli, monkeypatch):
     _fit_returning(monkeypatch, demo_fit.result)
-    code, out, err = _run(["fit", demo_fit.directory, "-o", tmp_path / "p.json", "--json"], capsys)
+    code, out, err = cli("fit", demo_fit.directory, "-o", tmp_path / "p.json", "--json")
     assert code == 0, err
     text = (tmp_path / "p-report" / "summary.json").read_text()
     assert json.loads(out) == json.loads(text)
@@ -549,7 +525,7 @@ def test_summary_json_is_what_fit_json_prints(demo_fit, tmp_path, capsys, monkey
 
 
 @pytest.mark.parametrize("earlier", [False, True], ids=["fresh", "over-earlier-results"])
-def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, capsys, monkeypatch, earlier):
+def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, cli, monkeypatch, earlier):
     import lenticalib.calib.report as report_module
 
     _fit_returning(monkeypatch, demo_fit.result)
@@ -564,9 +540,9 @@ def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, capsys, mo
         raise InputError("cannot write output: No space left on device", source="residual.png")
 
     monkeypatch.setattr(report_module, "_residual_figure", full_disk)  # after two figures were written
-    code, _, err = _run(["fit", demo_fit.directory, "-o", out / "profile.json"], capsys)
+    code, _, err = cli("fit", demo_fit.directory, "-o", out / "profile.json")
     assert code == 2, err
-    assert "No space left" in _one_error_line(err)
+    assert "No space left" in one_error_line(err)
     after = {str(p.relative_to(out)): p.read_bytes() if p.is_file() else None for p in sorted(out.rglob("*"))}
     assert after == before  # no profile, no half report, nothing hidden left; earlier results intact
 
@@ -721,7 +697,7 @@ def _check_nothing_written(out: Path, profile_path: Path, old: bytes | None, bef
 
 
 @pytest.mark.parametrize("case", list(FAILURES))
-def test_fit_failure_mode(case, tmp_path, capsys):
+def test_fit_failure_mode(case, tmp_path, cli):
     mutate, existing = FAILURES[case]
     directory = _copy_capture_set(tmp_path / "set")
     named, fragments = mutate(directory)
@@ -730,9 +706,9 @@ def test_fit_failure_mode(case, tmp_path, capsys):
     profile_path = out / "profile.json"
     old = _old_profile(profile_path) if existing else None
     before = _listing(out)
-    code, _, err = _run(["fit", directory, "-o", profile_path], capsys)
+    code, _, err = cli("fit", directory, "-o", profile_path)
     assert code == 2, (code, err)
-    line = _one_error_line(err)
+    line = one_error_line(err)
     sources = named if isinstance(named, list) else [named]
     # the message starts with the file or folder at fault: "lenticalib: error: SOURCE: ..."
     assert any(line.startswith(f"lenticalib: error: {s}: ") for s in sources), (
@@ -755,7 +731,7 @@ def _blur(names, sigma):
     ("one-fine-photo", _blur(lambda d: ["f16-1"], 30.0), "f16-1.jpg"),
     ("every-photo", _blur(lambda d: [p.stem for p in (d / "captures").iterdir()], 30.0), None),
 ], ids=["f16-1", "every-photo"])
-def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_path, capsys):
+def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_path, cli):
     """A heavily blurred photo ends in an error (exit 2) or an untrusted fit (exit 3), no profile."""
     directory = _copy_capture_set(tmp_path / "set")
     mutate(directory)
@@ -764,12 +740,12 @@ def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_p
     profile_path = out / "profile.json"
     old = _old_profile(profile_path) if case == "every-photo" else None
     before = _listing(out)
-    code, _, err = _run(["fit", directory, "-o", profile_path], capsys)
+    code, _, err = cli("fit", directory, "-o", profile_path)
     if code == 0 and profile_path.exists() and profile_path.read_bytes() != old:
         diff = compare_profiles(load_profile(profile_path), load_profile(directory / "truth.json"))
         pytest.fail(f"blurred photos ({case}) were accepted: exit 0, profile written ({diff})")
     assert code in (2, 3), (code, err)
-    line = _one_error_line(err)
+    line = one_error_line(err)
     if code == 2:
         source = directory / "captures" / culprit if culprit else directory / "captures"
         assert line.startswith(f"lenticalib: error: {source}: "), line
@@ -782,21 +758,21 @@ def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_p
 # 6. the untrustworthy gate and --force
 # ---------------------------------------------------------------------------------------------
 
-def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, capsys, monkeypatch):
+def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
     monkeypatch.setattr(fit_module, "MAX_PREDICTED_ERROR", 1e-9)
     out = tmp_path / "out"
     out.mkdir()
     profile_path = out / "profile.json"
-    code, _, err = _run(["fit", demo_fit.directory, "-o", profile_path], capsys)
+    code, _, err = cli("fit", demo_fit.directory, "-o", profile_path)
     assert code == 3, (code, err)
-    line = _one_error_line(err)
+    line = one_error_line(err)
     assert "--force" in line and "not trustworthy" in line, line
     assert f"report in {out / 'profile-report'}" in line, line  # kept, and the user is told where
     assert not profile_path.exists()
     summary = json.loads((out / "profile-report" / "summary.json").read_text())
     assert summary["trusted"] is False and summary["output"] is None
 
-    code, _, err = _run(["fit", demo_fit.directory, "-o", profile_path, "--force"], capsys)
+    code, _, err = cli("fit", demo_fit.directory, "-o", profile_path, "--force")
     assert code == 0, err
     assert "not trustworthy" in err and "lenticalib: error" not in err
     profile = load_profile(profile_path)

@@ -138,14 +138,11 @@ def test_bad_camera_models_are_refused_with_the_file_named(tmp_path, content, na
     assert "\n" not in str(info.value)
 
 
-def test_a_cut_real_model_is_one_line(tmp_path, capsys):
-    from lenticalib.cli import main
-
+def test_a_cut_real_model_is_one_line(tmp_path, cli):
     path = tmp_path / "cam.cameramodel"
     _mrcal_calibrated_model(path)
     path.write_text(path.read_text()[: len(path.read_text()) // 2])
-    code = main(["fit", str(tmp_path), "-o", str(tmp_path / "p.json"), "--camera", str(path), "--pixel-pitch", "0.2"])
-    err = capsys.readouterr().err
+    code, _, err = cli("fit", tmp_path, "-o", tmp_path / "p.json", "--camera", path, "--pixel-pitch", "0.2")
     assert code == 2 and err.count("\n") == 1 and str(path) in err and "cannot read" in err
 
 

@@ -8,8 +8,6 @@ lenticalib.calib.intrinsics.quality.compare_to_truth).  A correct calibration wi
 uncertainty puts that Mahalanobis distance below 3 at ~99 % of the points.
 """
 
-import contextlib
-import io
 import json
 import os
 
@@ -20,23 +18,13 @@ from lenticalib.calib.intrinsics import board as boards
 from lenticalib.calib.intrinsics.corners import grey8, orient
 from lenticalib.calib.intrinsics.quality import compare_to_truth
 from lenticalib.calib.intrinsics.solve import OPENCV8, Solve, choose, write_cameramodel
-from lenticalib.cli import main
 from lenticalib.sim.board_set import read_truth_poses, simulate_board_set
 
 import mrcal  # noqa: E402  (a requirement of 'lenticalib camera')
 
+from .cli_support import one_error_line, run_main
+
 RESOLUTION = (1280, 960)
-
-
-def _run(argv, capsys=None):
-    if capsys is not None:
-        code = main([str(a) for a in argv])
-        captured = capsys.readouterr()
-        return code, captured.out, captured.err
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in argv])
-    return code, out.getvalue(), err.getvalue()
 
 
 def _calibrated(tmp_path_factory, kind):
@@ -44,7 +32,7 @@ def _calibrated(tmp_path_factory, kind):
     folder.mkdir()
     simulate_board_set(folder, kind=kind, seed=1, photos=24, resolution=RESOLUTION)
     model, report = folder / "camera.cameramodel", folder / "report"
-    code, out, err = _run(["camera", "calibrate", folder / "captures", "-o", model, "--report", report, "--json"])
+    code, out, err = run_main("camera", "calibrate", folder / "captures", "-o", model, "--report", report, "--json")
     assert code == 0, err
     return folder, model, report, json.loads(out)
 
@@ -178,9 +166,9 @@ def test_write_cameramodel_leaves_an_earlier_file_when_it_fails(tmp_path):
     assert mrcal.cameramodel(str(path)).intrinsics()[1][0] == 900.0
 
 
-def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, capsys):
+def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, cli):
     out = tmp_path / "boards"
-    code, stdout, err = _run(["camera", "patterns", "-o", out, "--panel", "1920x1080", "--pixel-pitch", "0.36"], capsys)
+    code, stdout, err = cli("camera", "patterns", "-o", out, "--panel", "1920x1080", "--pixel-pitch", "0.36")
     assert code == 0, err
     manifest = json.loads((out / "board.json").read_text())
     assert manifest["format"] == "lenticalib.camera-board" and manifest["version"] == 1
@@ -207,18 +195,17 @@ def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, cap
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4, "width": 1920,
                "height": 1080, "subpixel_order": "BGR", "physical": {"pixel_pitch_mm": 0.36}}
     (tmp_path / "panel.json").write_text(json.dumps(profile))
-    code, _, err = _run(["camera", "patterns", "-o", tmp_path / "b2", "--profile", tmp_path / "panel.json"], capsys)
+    code, _, err = cli("camera", "patterns", "-o", tmp_path / "b2", "--profile", tmp_path / "panel.json")
     assert code == 0, err
     assert json.loads((tmp_path / "b2" / "board.json").read_text())["square_mm"] == manifest["square_mm"]
 
 
-def _expect_error(capsys, argv, *fragments, absent=()):
-    code, out, err = _run(argv, capsys)
+def _expect_error(argv, *fragments, absent=()):
+    code, out, err = run_main(*argv)
     assert code == 2, (code, out, err)
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("lenticalib: error:"), err
+    line = one_error_line(err)
     for fragment in fragments:
-        assert fragment in lines[0], (fragment, lines[0])
+        assert fragment in line, (fragment, line)
     for path in absent:
         assert not os.path.lexists(path), path
 
@@ -232,40 +219,40 @@ def _blank_photos(folder, n, size=RESOLUTION):
         cv2.imwrite(str(folder / f"blank-{k:02d}.jpg"), img)
 
 
-def test_camera_errors_are_one_line_before_any_work(tmp_path, capsys, printed):
+def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
     folder = printed[0]
     captures = folder / "captures"
     out = tmp_path / "cam.cameramodel"
     calibrate = ["camera", "calibrate", "--jobs", "1"]
-    _expect_error(capsys, calibrate + [tmp_path / "nowhere", "-o", out], "no such file or folder", absent=[out])
-    _expect_error(capsys, calibrate + [captures, "-o", out, "--board", "11by6", "--square", "20"], "bad board size")
-    _expect_error(capsys, calibrate + [captures, "-o", out, "--board", "11x6"], "needs both")
-    _expect_error(capsys, calibrate + [captures, "-o", out, "--board", "11x6", "--square", "-20"], "out of range",
+    _expect_error(calibrate + [tmp_path / "nowhere", "-o", out], "no such file or folder", absent=[out])
+    _expect_error(calibrate + [captures, "-o", out, "--board", "11by6", "--square", "20"], "bad board size")
+    _expect_error(calibrate + [captures, "-o", out, "--board", "11x6"], "needs both")
+    _expect_error(calibrate + [captures, "-o", out, "--board", "11x6", "--square", "-20"], "out of range",
                   "--square")
-    _expect_error(capsys, calibrate + [captures, "-o", out, "--lensmodel", "LENSMODEL_FISHEYE"], "unknown lens model")
-    _expect_error(capsys, calibrate + [captures, "-o", tmp_path / "missing" / "c.cameramodel"], "does not exist")
-    _expect_error(capsys, calibrate + [captures, "-o", tmp_path], "is a folder")
+    _expect_error(calibrate + [captures, "-o", out, "--lensmodel", "LENSMODEL_FISHEYE"], "unknown lens model")
+    _expect_error(calibrate + [captures, "-o", tmp_path / "missing" / "c.cameramodel"], "does not exist")
+    _expect_error(calibrate + [captures, "-o", tmp_path], "is a folder")
     loose = tmp_path / "loose"
     _blank_photos(loose, 12)
-    _expect_error(capsys, calibrate + [loose, "-o", out], "no board geometry", "--board COLSxROWS")
-    _expect_error(capsys, calibrate + [loose / "blank-00.jpg", loose / "blank-01.jpg", "-o", out, "--board", "11x6",
-                                       "--square", "20"], "only 2 photos given", "at least 10")
+    _expect_error(calibrate + [loose, "-o", out], "no board geometry", "--board COLSxROWS")
+    _expect_error(calibrate + [loose / "blank-00.jpg", loose / "blank-01.jpg", "-o", out, "--board", "11x6",
+                               "--square", "20"], "only 2 photos given", "at least 10")
     (loose / "blank-05.jpg").write_bytes(b"not a jpeg at all")
-    _expect_error(capsys, calibrate + [loose, "-o", out, "--board", "11x6", "--square", "20"], "blank-05.jpg",
+    _expect_error(calibrate + [loose, "-o", out, "--board", "11x6", "--square", "20"], "blank-05.jpg",
                   "not a readable photo", absent=[out])
     patterns = ["camera", "patterns", "-o", tmp_path / "b"]
-    _expect_error(capsys, patterns + ["--panel", "1920x1080"], "pixel pitch", "--pixel-pitch", absent=[tmp_path / "b"])
-    _expect_error(capsys, patterns + ["--panel", "1920x1080", "--pixel-pitch", "0.3", "--squares", "15x9"],
+    _expect_error(patterns + ["--panel", "1920x1080"], "pixel pitch", "--pixel-pitch", absent=[tmp_path / "b"])
+    _expect_error(patterns + ["--panel", "1920x1080", "--pixel-pitch", "0.3", "--squares", "15x9"],
                   "half turn")
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4, "width": 1920,
                "height": 1080, "subpixel_order": "BGR"}
     (tmp_path / "panel.json").write_text(json.dumps(profile))
-    _expect_error(capsys, patterns + ["--profile", tmp_path / "panel.json"], "does not give the panel's pixel pitch")
-    _expect_error(capsys, ["camera", "simulate", tmp_path / "s", "--resolution", "12x9"], "out of range",
+    _expect_error(patterns + ["--profile", tmp_path / "panel.json"], "does not give the panel's pixel pitch")
+    _expect_error(["camera", "simulate", tmp_path / "s", "--resolution", "12x9"], "out of range",
                   absent=[tmp_path / "s"])
 
 
-def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, capsys, printed, monkeypatch):
+def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, printed, monkeypatch):
     """3 photos with the board and 9 without: refused after detection, before any solve."""
     folder = printed[0]
     photos = tmp_path / "captures"
@@ -279,28 +266,28 @@ def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, capsys, 
 
     monkeypatch.setattr(solve, "calibrate", no_solve)
     out = tmp_path / "cam.cameramodel"
-    _expect_error(capsys, ["camera", "calibrate", photos, "-o", out, "--board", "11x6", "--square", "20",
-                           "--jobs", "1"], "found in 3 of 12 photos", "at least 10", "tilt", absent=[out])
+    _expect_error(["camera", "calibrate", photos, "-o", out, "--board", "11x6", "--square", "20",
+                   "--jobs", "1"], "found in 3 of 12 photos", "at least 10", "tilt", absent=[out])
 
 
-def test_lenticalib_simulate_photographs_the_board_of_a_camera_patterns_folder(tmp_path, capsys):
+def test_lenticalib_simulate_photographs_the_board_of_a_camera_patterns_folder(tmp_path, cli):
     from lenticalib.calib.camera_file import load_camera_model
 
     folder = tmp_path / "board"
-    code, out, err = _run(["camera", "patterns", "-o", folder, "--panel", "1920x1080", "--pixel-pitch", "0.36",
-                           "--lens-pitch", "1.9"], capsys)
+    code, out, err = cli("camera", "patterns", "-o", folder, "--panel", "1920x1080", "--pixel-pitch", "0.36",
+                         "--lens-pitch", "1.9")
     assert code == 0, err
-    code, out, err = _run(["simulate", folder, "--seed", 4, "--photos", 12, "--resolution", "1280x960"], capsys)
+    code, out, err = cli("simulate", folder, "--seed", 4, "--photos", 12, "--resolution", "1280x960")
     assert code == 0, err
     assert len(list((folder / "captures").glob("board-*.jpg"))) == 12
     doc = json.loads((folder / "simulation.json").read_text())
     assert doc["optics"]["width"] == 1920 and doc["optics"]["pixel_pitch"] == pytest.approx(0.36)
-    code, out, err = _run(["camera", "calibrate", folder / "captures", "-o", tmp_path / "c.cameramodel"], capsys)
+    code, out, err = cli("camera", "calibrate", folder / "captures", "-o", tmp_path / "c.cameramodel")
     assert code == 0, err
     fitted, truth = load_camera_model(tmp_path / "c.cameramodel"), load_camera_model(folder / "truth.cameramodel")
     assert np.allclose(fitted.intrinsics[:2], truth.intrinsics[:2], rtol=0.01)
     for argv, words in ((["simulate", folder / "print"], "printed board"),
                         (["simulate", folder, "--distance", 500], "--distance"),
                         (["simulate", folder, "--photos", 1], "--photos")):
-        code, out, err = _run(argv, capsys)
+        code, out, err = cli(*argv)
         assert code == 2 and words in err and err.count("\n") == 1

@@ -5,10 +5,7 @@ after an interruption; retakes of a bad photo; and one-line refusals of bad inpu
 """
 
 import json
-import os
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -23,6 +20,7 @@ from lenticalib.core.errors import CaptureError
 from lenticalib.core.profile import load_profile
 from lenticalib.render.present import open_presenter
 
+from .cli_support import run_process
 from .display_support import VirtualDisplay
 
 W, H, VIEWS = 640, 360, 8
@@ -43,19 +41,15 @@ def pattern_dir(tmp_path_factory):
     return folder
 
 
-def _cli(args, env=None, timeout=600):
-    return subprocess.run([sys.executable, "-m", "lenticalib", *map(str, args)], env=env or dict(os.environ),
-                          capture_output=True, text=True, timeout=timeout)
-
-
 @pytest.fixture(scope="module")
 def captured(xvfb, pattern_dir, tmp_path_factory):
     """``lenticalib capture DIR --camera sim:3 --display 0`` on the virtual display, then the fit."""
     folder = tmp_path_factory.mktemp("capture") / "cal"
     shutil.copytree(pattern_dir, folder)
-    result = _cli(["capture", folder, "--camera", "sim:3", "--display", "0", "--resolution", CAMERA], xvfb.env())
+    result = run_process("capture", folder, "--camera", "sim:3", "--display", "0", "--resolution", CAMERA,
+                         env=xvfb.variables())
     assert result.returncode == 0, result.stderr
-    fit = _cli(["fit", folder, "-o", folder.parent / "profile.json"])
+    fit = run_process("fit", folder, "-o", folder.parent / "profile.json")
     return folder, result, fit
 
 
@@ -72,7 +66,7 @@ def test_capture_with_the_virtual_camera_then_fit(captured):
     assert difference.rms <= 0.05 and difference.worst <= 0.15 and abs(difference.centring) <= 0.25, difference
 
 
-def test_the_virtual_camera_photographs_what_the_screen_showed(captured, tmp_path):
+def test_the_virtual_camera_photographs_what_the_screen_showed(captured, tmp_path, cli_process):
     """The same scene photographed straight from the pattern PNGs (``lenticalib simulate``) gives
     the same photos: the window presenter put the patterns on screen unchanged."""
     folder, _, _ = captured
@@ -82,20 +76,20 @@ def test_the_virtual_camera_photographs_what_the_screen_showed(captured, tmp_pat
     for name in ("simulation.json", "truth.json"):
         (reference / name).unlink()
     write_patterns(reference, design_patterns(W, H, VIEWS))
-    result = _cli(["simulate", reference, "--seed", "3", "--resolution", CAMERA])
+    result = cli_process("simulate", reference, "--seed", "3", "--resolution", CAMERA)
     assert result.returncode == 0, result.stderr
     for name in ("x1-0", "f16-2", "order-b"):
         assert (reference / "captures" / f"{name}.jpg").read_bytes() == (folder / "captures" / f"{name}.jpg").read_bytes()
 
 
-def test_an_interrupted_capture_resumes_where_it_stopped(captured, tmp_path):
+def test_an_interrupted_capture_resumes_where_it_stopped(captured, tmp_path, cli_process):
     folder, _, _ = captured
     again = tmp_path / "cal"
     shutil.copytree(folder, again)
     for name in ("y1-2", "f22-0", "order-r"):
         (again / "captures" / f"{name}.jpg").unlink()
     before = {p.name: p.read_bytes() for p in (again / "captures").iterdir()}
-    result = _cli(["capture", again, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA])
+    result = cli_process("capture", again, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
     assert result.returncode == 0, result.stderr
     assert "captured 3 photo(s), kept 20 from before" in result.stdout
     for name, data in before.items():
@@ -150,14 +144,14 @@ def test_a_photo_that_stays_bad_stops_the_capture_naming_it(pattern_dir, tmp_pat
     assert len(list((folder / "rejected").iterdir())) == 2
 
 
-def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path):
+def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_process):
     folder = tmp_path / "cal"
     shutil.copytree(pattern_dir, folder)
     foreign = tmp_path / "foreign"
     shutil.copytree(pattern_dir, foreign)
     (foreign / "captures").mkdir()
     (foreign / "captures" / "holiday.jpg").write_bytes(b"x")
-    no_gphoto2 = dict(os.environ, PATH="/nonexistent")
+    no_gphoto2 = {"PATH": "/nonexistent"}
     big = tmp_path / "big"
     write_patterns(big, design_patterns(800, 600, VIEWS))
     cases = [
@@ -166,30 +160,30 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path):
         (["capture", folder, "--camera", "gphoto2", "--display", "none"], no_gphoto2, "gphoto2 is not installed"),
         (["capture", tmp_path / "nowhere", "--camera", "sim"], None, "patterns.json"),
         (["capture", foreign, "--camera", "sim", "--display", "none"], None, "holds files that are not photos"),
-        (["capture", big, "--camera", "sim", "--display", "0"], xvfb.env(), "is 640x360"),
+        (["capture", big, "--camera", "sim", "--display", "0"], xvfb.variables(), "is 640x360"),
         (["capture", folder, "--camera", "sim", "--settle", "-1"], None, "--settle"),
     ]
     for args, env, message in cases:
-        result = _cli(args, env, timeout=120)
+        result = cli_process(*args, env=env, timeout=120)
         assert result.returncode == 2, (args, result.stdout, result.stderr)
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (args, result.stderr)
     assert not (folder / "captures").exists() or not any((folder / "captures").iterdir())
 
 
-def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path):
+def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path, cli_process):
     """``crosstalk patterns`` from the fitted profile, then ``capture`` shows and photographs them on the
     same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set."""
     folder, _, fit = captured
     assert fit.returncode == 0, fit.stderr
     xt = tmp_path / "xt"
-    assert _cli(["crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt]).returncode == 0
-    result = _cli(["capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA])
+    assert cli_process("crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt).returncode == 0
+    result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
     assert result.returncode == 0, result.stderr
     names = sorted(p.stem for p in (xt / "captures").iterdir())
     assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)])
     assert (xt / "crosstalk-truth.json").exists()
-    measured = _cli(["crosstalk", "measure", xt, "-o", tmp_path / "crosstalk.json"])
+    measured = cli_process("crosstalk", "measure", xt, "-o", tmp_path / "crosstalk.json")
     assert measured.returncode == 0, measured.stderr
     truth = np.asarray(json.loads((xt / "crosstalk-truth.json").read_text())["matrix"])
     data = json.loads((tmp_path / "crosstalk.json").read_text())

@@ -20,20 +20,13 @@ import pytest
 
 from lenticalib.calib.patterns import design_patterns, write_patterns
 
-from .test_cli_outputs import _run
+from .cli_support import refused
 
 REPO = Path(__file__).resolve().parent.parent
 FIXTURE = REPO / "fixtures" / "capture-demo"
 PROFILE = REPO / "fixtures" / "panel-4k-32.json"
 SMALL_PROFILE = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4, "width": 640,
                  "height": 360, "subpixel_order": "RGB"}
-
-
-def _refused(argv, capsys) -> str:
-    code, _, err = _run(argv, capsys)
-    lines = err.strip().splitlines()
-    assert code == 2 and len(lines) == 1 and "Traceback" not in err, (argv, code, err)
-    return lines[0]
 
 
 def _tree(folder: Path) -> dict:
@@ -103,7 +96,7 @@ NODES = ("fifo", "device", "link-to-dev-null", "link-to-fifo", "dangling-link", 
 
 @pytest.mark.parametrize("kind", NODES)
 @pytest.mark.parametrize("command", FILE_COMMANDS)
-def test_an_output_file_never_replaces_a_node(command, kind, tmp_path, capsys, inputs, monkeypatch):
+def test_an_output_file_never_replaces_a_node(command, kind, tmp_path, inputs, monkeypatch):
     monkeypatch.setenv("LENTICALIB_EMULATOR_DIR", str(tmp_path / "emu"))
     argv, name = FILE_COMMANDS[command]
     folder = tmp_path / "out"
@@ -112,37 +105,37 @@ def test_an_output_file_never_replaces_a_node(command, kind, tmp_path, capsys, i
     _make_node(kind, out)
     before = {p.name: _identity(p) for p in folder.iterdir()}
     argv = [str(a).replace("OUT", str(out)).replace("DIR", str(folder)).replace("IN", str(inputs)) for a in argv]
-    line = _refused(argv, capsys)
+    line = refused(*argv)
     assert str(out) in line, line
     assert {p.name: _identity(p) for p in folder.iterdir()} == before  # nothing replaced, nothing added
     if kind == "folder":
         assert _tree(out) == {"notes.txt": b"keep"}
 
 
-def test_an_output_file_through_a_link_replaces_the_target_file(tmp_path, capsys):
+def test_an_output_file_through_a_link_replaces_the_target_file(tmp_path, cli):
     (tmp_path / "real").mkdir()
     real = tmp_path / "real" / "visual.json"
     real.write_text("an earlier export")
     real.chmod(0o664)
     link = tmp_path / "visual.json"
     link.symlink_to(real)
-    code, _, err = _run(["profile", "export-lkg", PROFILE, "--dpi", 280, "-o", link], capsys)
+    code, _, err = cli("profile", "export-lkg", PROFILE, "--dpi", 280, "-o", link)
     assert code == 0, err
     assert link.is_symlink() and os.readlink(link) == str(real)
     assert json.loads(real.read_text()) and real.stat().st_mode & 0o777 == 0o664
 
 
-def test_an_unwritable_folder_is_named_not_writable(capsys):
-    line = _refused(["device", "read", "emu://blank", "-o", "/proc/lenticalib-test.json"], capsys)
+def test_an_unwritable_folder_is_named_not_writable():
+    line = refused("device", "read", "emu://blank", "-o", "/proc/lenticalib-test.json")
     assert line.startswith("lenticalib: error: /proc: folder is not writable"), line
 
 
-def test_render_takes_no_lossy_image_or_video_suffix(tmp_path, capsys, inputs):
+def test_render_takes_no_lossy_image_or_video_suffix(tmp_path, inputs):
     for name in ("x.jpg", "x.JPEG", "x.webp", "x.mp4", "x.avi"):
-        line = _refused(["render", inputs / "demo.npz", "--profile", PROFILE, "-o", tmp_path / name], capsys)
+        line = refused("render", inputs / "demo.npz", "--profile", PROFILE, "-o", tmp_path / name)
         assert f"render does not write .{name.split('.')[1].lower()} files" in line, line
-    line = _refused(["render", inputs / "demo.npz", "--profile", PROFILE, "-o", tmp_path / "f", "--views-out",
-                     tmp_path / "f"], capsys)  # one folder replacing the other at the end
+    line = refused("render", inputs / "demo.npz", "--profile", PROFILE, "-o", tmp_path / "f", "--views-out",
+                   tmp_path / "f")  # one folder replacing the other at the end
     assert "--output" in line, line
     assert list(tmp_path.iterdir()) == []
 
@@ -174,7 +167,7 @@ REPLACED_FOLDERS = {  # folders written whole: an existing one with foreign file
 
 
 @pytest.mark.parametrize("command", REPLACED_FOLDERS)
-def test_a_folder_with_foreign_files_is_refused_not_wiped(command, tmp_path, capsys, inputs):
+def test_a_folder_with_foreign_files_is_refused_not_wiped(command, tmp_path, inputs):
     folder = tmp_path / "Documents"
     if "(deep)" in command:
         _foreign(folder, deep=True)
@@ -187,29 +180,29 @@ def test_a_folder_with_foreign_files_is_refused_not_wiped(command, tmp_path, cap
     before = _tree(tmp_path)
     argv = [str(a).replace("DIR", str(folder)).replace("TMP", str(tmp_path)).replace("IN", str(inputs))
             for a in REPLACED_FOLDERS[command]]
-    line = _refused(argv, capsys)
+    line = refused(*argv)
     assert line.startswith(f"lenticalib: error: {folder}: holds ") and "thesis.tex" in line, line
     assert _tree(tmp_path) == before
 
 
-def test_patterns_and_crosstalk_patterns_write_into_a_folder_and_keep_its_files(tmp_path, capsys, inputs):
+def test_patterns_and_crosstalk_patterns_write_into_a_folder_and_keep_its_files(tmp_path, cli, inputs):
     for argv in (["patterns", "--width", 64, "--height", 64, "--views", 2, "-o", "DIR"],
                  ["crosstalk", "patterns", "--profile", inputs / "small.json", "-o", "DIR"],
                  ["patterns", "--direction", "--profile", inputs / "small.json", "-o", "DIR"]):
         folder = _foreign(tmp_path / argv[0] / argv[1])
-        code, _, err = _run([str(a).replace("DIR", str(folder)) for a in argv], capsys)
+        code, _, err = cli(*(str(a).replace("DIR", str(folder)) for a in argv))
         assert code == 0, err
         assert (folder / "thesis.tex").read_text() == "my work" and len(list(folder.iterdir())) > 1
 
 
-def test_simulate_keeps_the_files_of_the_pattern_folder(tmp_path, capsys):
+def test_simulate_keeps_the_files_of_the_pattern_folder(tmp_path, cli):
     folder = tmp_path / "set"
     write_patterns(folder, design_patterns(640, 360, 8))
     _foreign(folder)
     (folder / "captures").mkdir()
     (folder / "simulation.json").write_text('{"status": "complete"}\n')  # an earlier simulation
     (folder / "captures" / "my-note.txt").write_text("keep")
-    code, _, err = _run(["simulate", folder, "--seed", 2, "--resolution", "1250x800", "--subsamples", 1], capsys)
+    code, _, err = cli("simulate", folder, "--seed", 2, "--resolution", "1250x800", "--subsamples", 1)
     assert code == 0, err
     assert (folder / "thesis.tex").read_text() == "my work"
     assert (folder / "captures" / "my-note.txt").read_text() == "keep"

@@ -16,32 +16,13 @@ import lenticalib.calib.patterns as patterns_module
 import lenticalib.core.imageio as imageio_module
 import lenticalib.sim.capture as capture_module
 from lenticalib.calib.patterns import design_patterns, write_patterns
-from lenticalib.cli import main
 from lenticalib.core.errors import InputError
 from lenticalib.sim.scene import random_scene
 
+from .cli_support import refused
 from .outputs_support import read_only  # noqa: F401 -- pytest fixture
 
 FIXTURE = Path(__file__).resolve().parent.parent / "fixtures" / "capture-demo"
-
-
-def _run(argv, capsys):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def _refused(argv, capsys, source) -> str:
-    """Run, expect exit 2 and one error line starting with ``source``; return the line."""
-    code, out, err = _run(argv, capsys)
-    lines = err.strip().splitlines()
-    assert code == 2 and len(lines) == 1, (code, err)
-    assert lines[0].startswith(f"lenticalib: error: {source}: "), lines[0]
-    assert "Traceback" not in err
-    return lines[0]
 
 
 def _tree(folder: Path) -> dict:
@@ -63,7 +44,7 @@ def no_work(monkeypatch):
 # refusals before the work
 # ---------------------------------------------------------------------------------------------
 
-def test_patterns_refuses_options_and_outputs_before_work(tmp_path, capsys, no_work, read_only):
+def test_patterns_refuses_options_and_outputs_before_work(tmp_path, no_work, read_only):
     (tmp_path / "file").write_text("not a folder")
     ro = read_only(tmp_path / "ro")
     cases = [
@@ -78,12 +59,12 @@ def test_patterns_refuses_options_and_outputs_before_work(tmp_path, capsys, no_w
         (["--height", 100000, "-o", tmp_path / "p"], "--height"),
     ]
     for argv, source in cases:
-        _refused(["patterns", *argv], capsys, source)
+        refused("patterns", *argv, source=source)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "ro"]
     assert list(ro.iterdir()) == []
 
 
-def test_fit_refuses_options_and_outputs_before_the_fit(tmp_path, capsys, no_work, read_only):
+def test_fit_refuses_options_and_outputs_before_the_fit(tmp_path, no_work, read_only):
     existing = tmp_path / "existing"
     existing.mkdir()
     (tmp_path / "file").write_text("x")
@@ -106,9 +87,9 @@ def test_fit_refuses_options_and_outputs_before_the_fit(tmp_path, capsys, no_wor
         (["-o", out, "--views", 255], "--views"),
     ]
     for argv, source in cases:
-        _refused(["fit", FIXTURE, *argv], capsys, source)
+        refused("fit", FIXTURE, *argv, source=source)
     (tmp_path / "p-report").write_text("a file where the default report folder goes")
-    line = _refused(["fit", FIXTURE, "-o", out], capsys, tmp_path / "p-report")
+    line = refused("fit", FIXTURE, "-o", out, source=tmp_path / "p-report")
     assert "--report" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["existing", "file", "mine", "p-report", "ro"]
     assert list(existing.iterdir()) == [] and _tree(mine) == {"thesis.tex": b"keep me"}
@@ -129,7 +110,7 @@ def _copy(source: Path, destination: Path) -> Path:
     return destination
 
 
-def test_simulate_refuses_options_and_outputs_before_work(tmp_path, small_patterns, capsys, no_work, read_only):
+def test_simulate_refuses_options_and_outputs_before_work(tmp_path, small_patterns, no_work, read_only):
     directory = _copy(small_patterns, tmp_path / "set")
     small = random_scene(9, width=640, height=360, resolution=(600, 400))
     (tmp_path / "small-scene.json").write_text(json.dumps(small.to_dict()))
@@ -145,14 +126,14 @@ def test_simulate_refuses_options_and_outputs_before_work(tmp_path, small_patter
         (["--jpeg-quality", 0], "--jpeg-quality"),
     ]
     for argv, source in cases:
-        line = _refused(["simulate", directory, *argv], capsys, source)
+        line = refused("simulate", directory, *argv, source=source)
         if "600x400" in argv:
             assert "1 megapixel" in line, line
     (directory / "captures").write_text("a file where the photos go")
-    _refused(["simulate", directory, "--seed", 1, "--resolution", "1250x800"], capsys, directory / "captures")
+    refused("simulate", directory, "--seed", 1, "--resolution", "1250x800", source=directory / "captures")
     (directory / "captures").unlink()
     ro = read_only(_copy(small_patterns, tmp_path / "ro"))
-    _refused(["simulate", ro, "--seed", 1, "--resolution", "1250x800"], capsys, ro)
+    refused("simulate", ro, "--seed", 1, "--resolution", "1250x800", source=ro)
     assert sorted(p.name for p in directory.iterdir()) == sorted(p.name for p in small_patterns.iterdir())
 
 
@@ -176,19 +157,19 @@ def _failing_after(monkeypatch, module, name, calls):
 
 
 @pytest.mark.parametrize("earlier", [False, True], ids=["fresh", "over-an-earlier-set"])
-def test_patterns_failing_half_way_leaves_nothing(tmp_path, capsys, monkeypatch, earlier):
+def test_patterns_failing_half_way_leaves_nothing(tmp_path, cli, monkeypatch, earlier):
     folder = tmp_path / "pat"
     if earlier:
         write_patterns(folder, design_patterns(640, 360, 8))
     before = _tree(tmp_path)
     _failing_after(monkeypatch, imageio_module, "write_image", 5)
-    code, _, err = _run(["patterns", "--width", 512, "--height", 256, "--views", 16, "-o", folder], capsys)
+    code, _, err = cli("patterns", "--width", 512, "--height", 256, "--views", 16, "-o", folder)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "No space left" in err, err
     assert _tree(tmp_path) == before  # no half set, no mix of two sets, nothing hidden left
 
 
 @pytest.mark.parametrize("earlier", [False, True], ids=["fresh", "over-an-earlier-simulation"])
-def test_simulate_failing_half_way_leaves_nothing(tmp_path, small_patterns, capsys, earlier):
+def test_simulate_failing_half_way_leaves_nothing(tmp_path, small_patterns, earlier):
     directory = _copy(small_patterns, tmp_path / "set")
     if earlier:  # stands for an earlier simulation of the folder
         (directory / "captures").mkdir()
@@ -199,7 +180,6 @@ def test_simulate_failing_half_way_leaves_nothing(tmp_path, small_patterns, caps
     broken = directory / "x1-0.png"  # the fourth pattern: three photos are taken before it
     broken.write_bytes(b"not a PNG any more")
     before = _tree(tmp_path)
-    line = _refused(["simulate", directory, "--seed", 2, "--resolution", "1250x800", "--subsamples", 1], capsys,
-                    broken)
+    line = refused("simulate", directory, "--seed", 2, "--resolution", "1250x800", "--subsamples", 1, source=broken)
     assert "readable" in line, line
     assert _tree(tmp_path) == before  # today: a half set of new photos (and simulation.json "in progress")

@@ -7,10 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from lenticalib.cli import main
 from lenticalib.core.errors import InputError
 from lenticalib.core.imageio import read_image, write_image
 from lenticalib.render.compensation import Compensator, circulant_row, compensation_study
+
+from .cli_support import one_error_line
 
 N = 16
 
@@ -106,7 +107,7 @@ def _crosstalk_file(path, n):
     return path
 
 
-def test_encode_compensate_changes_the_raster_and_refuses_a_file_for_another_panel(tmp_path, capsys):
+def test_encode_compensate_changes_the_raster_and_refuses_a_file_for_another_panel(tmp_path, cli):
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
                "width": 96, "height": 54, "subpixel_order": "RGB"}
     (tmp_path / "p.json").write_text(json.dumps(profile))
@@ -115,18 +116,19 @@ def test_encode_compensate_changes_the_raster_and_refuses_a_file_for_another_pan
     rng = np.random.default_rng(1)
     for i in range(8):
         write_image(folder / f"v{i}.png", rng.integers(40, 200, (27, 48, 3), dtype=np.uint8))
-    assert main(["encode", "--profile", str(tmp_path / "p.json"), "--views", str(folder), "-o", str(tmp_path / "a.png")]) == 0
+    encode = ["encode", "--profile", tmp_path / "p.json", "--views", folder]
+    code, _, err = cli(*encode, "-o", tmp_path / "a.png")
+    assert code == 0, err
     good = _crosstalk_file(tmp_path / "x8.json", 8)
-    assert main(["encode", "--profile", str(tmp_path / "p.json"), "--views", str(folder), "-o", str(tmp_path / "b.png"),
-                 "--compensate", str(good), "--black-lift", "0.02"]) == 0
-    assert "pre-compensation" in capsys.readouterr().out
+    code, out, err = cli(*encode, "-o", tmp_path / "b.png", "--compensate", good, "--black-lift", "0.02")
+    assert code == 0, err
+    assert "pre-compensation" in out
     assert not np.array_equal(read_image(tmp_path / "a.png"), read_image(tmp_path / "b.png"))
     bad = _crosstalk_file(tmp_path / "x16.json", 16)
-    assert main(["encode", "--profile", str(tmp_path / "p.json"), "--views", str(folder), "-o", str(tmp_path / "c.png"),
-                 "--compensate", str(bad)]) == 2
-    err = capsys.readouterr().err
+    code, _, err = cli(*encode, "-o", tmp_path / "c.png", "--compensate", bad)
+    assert code == 2
     assert "x16.json" in err and "is for 16 views, the profile has 8" in err and len(err.strip().splitlines()) == 1
-    assert main(["encode", "--profile", str(tmp_path / "p.json"), "--views", str(folder), "-o", str(tmp_path / "c.png"),
-                 "--black-lift", "0.1"]) == 2
-    assert "--black-lift: is only used with --compensate" in capsys.readouterr().err
+    code, _, err = cli(*encode, "-o", tmp_path / "c.png", "--black-lift", "0.1")
+    assert code == 2
+    assert "--black-lift: is only used with --compensate" in one_error_line(err)
     assert not (tmp_path / "c.png").exists()

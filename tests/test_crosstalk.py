@@ -10,10 +10,11 @@ import pytest
 
 from lenticalib.calib.crosstalk.patterns import BAND_PATTERNS, design_crosstalk_patterns, lit_subpixels
 from lenticalib.calib.patterns import design_patterns, read_manifest, read_pattern_folder, write_patterns
-from lenticalib.cli import main
 from lenticalib.core.errors import CaptureError, InputError
 from lenticalib.core.routing import view_coordinate
 from lenticalib.sim.scene import random_scene
+
+from .cli_support import refused, run_main
 
 VIEWS = 32
 
@@ -132,20 +133,16 @@ def test_jpeg_photos_carry_their_unknown_tone_curve_in_the_uncertainty(tmp_path,
 @pytest.fixture(scope="module")
 def measured_cli(measured_set, tmp_path_factory):
     """``crosstalk measure --report`` of the measured set, run once: (crosstalk.json, report folder, stdout)."""
-    import contextlib
-    import io
-
     folder, _ = measured_set
     root = tmp_path_factory.mktemp("xt-cli")
     out, report = root / "crosstalk.json", root / "report"
-    stdout = io.StringIO()
-    with contextlib.redirect_stdout(stdout):
-        assert main(["crosstalk", "measure", str(folder), "-o", str(out), "--report", str(report), "--photos",
-                     "linear", "--eye-separation-mm", "64", "--distance", "620", "--cone-angle", "40"]) == 0
-    return out, report, stdout.getvalue()
+    code, stdout, stderr = run_main("crosstalk", "measure", folder, "-o", out, "--report", report, "--photos", "linear",
+                                    "--eye-separation-mm", "64", "--distance", "620", "--cone-angle", "40")
+    assert code == 0, stderr
+    return out, report, stdout
 
 
-def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured_cli, capsys):
+def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured_cli, cli):
     out, report, _ = measured_cli
     data = json.loads(out.read_text())
     assert len(data["matrix"]) == VIEWS and all(len(r) == VIEWS for r in data["matrix"])
@@ -155,13 +152,14 @@ def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured
                                                          "view-cone.png"]
     prediction = data["compensation_prediction"]
     assert prediction["mean_rms_with"] < prediction["mean_rms_without"]
-    capsys.readouterr()
     adjacent = data["figures"]["adjacent_crosstalk"]["value"]
-    assert main(["crosstalk", "check", str(out), "--max-adjacent", str(adjacent + 0.01)]) == 0
-    assert capsys.readouterr().out.startswith("PASS")
-    assert main(["crosstalk", "check", str(out), "--max-adjacent", f"{100 * (adjacent - 0.01):.3f}%",
-                 "--max-eye-pair", "0"]) == 1
-    lines = capsys.readouterr().out.strip().splitlines()
+    code, stdout, _ = cli("crosstalk", "check", out, "--max-adjacent", adjacent + 0.01)
+    assert code == 0
+    assert stdout.startswith("PASS")
+    code, stdout, _ = cli("crosstalk", "check", out, "--max-adjacent", f"{100 * (adjacent - 0.01):.3f}%",
+                          "--max-eye-pair", "0")
+    assert code == 1
+    lines = stdout.strip().splitlines()
     assert len(lines) == 2 and all(line.startswith("FAIL") for line in lines)
 
 
@@ -179,15 +177,16 @@ def _soft_sheet_file(tmp_path, own=0.3685, neighbour=0.2306):
     return path, figures
 
 
-def test_check_names_each_figure_with_its_definition_and_explains_over_100_percent(tmp_path, capsys):
+def test_check_names_each_figure_with_its_definition_and_explains_over_100_percent(tmp_path, cli):
     """Issue 19: 'adjacent crosstalk 125.19% exceeds the limit 90.00%' said neither what was divided by
     what nor why a crosstalk can exceed 100 %."""
     path, figures = _soft_sheet_file(tmp_path)
     adjacent, system = figures["adjacent_crosstalk"]["value"], figures["total_crosstalk"]["value"]
     assert adjacent > 1.0 and system > adjacent
-    assert main(["crosstalk", "check", str(path), "--max-adjacent", "0.9", "--max-system", "150%",
-                 "--max-eye-pair", "1e-6"]) == 1
-    lines = capsys.readouterr().out.strip().splitlines()
+    code, out, _ = cli("crosstalk", "check", path, "--max-adjacent", "0.9", "--max-system", "150%",
+                       "--max-eye-pair", "1e-6")
+    assert code == 1
+    lines = out.strip().splitlines()
     assert len(lines) == 3
     assert lines[0] == (f"FAIL {path}: adjacent crosstalk (light from the two neighbouring views over the view's own "
                         f"light) {100 * adjacent:.2f}% exceeds the limit 90.00%; a crosstalk above 100 % means the "
@@ -198,8 +197,9 @@ def test_check_names_each_figure_with_its_definition_and_explains_over_100_perce
                                f"IEC 62629's system crosstalk) {100 * system:.2f}% exceeds the limit 150.00%")
     assert lines[2].startswith(f"FAIL {path}: eye-pair crosstalk (light of the other eye's view over the eye's own "
                                "view's light) ") and "above 100 %" not in lines[2]
-    assert main(["crosstalk", "check", str(path), "--max-adjacent", "150%", "--max-system", "2"]) == 0
-    assert capsys.readouterr().out.strip() == (f"PASS {path}: adjacent crosstalk {100 * adjacent:.2f}% <= 150.00%; "
+    code, out, _ = cli("crosstalk", "check", path, "--max-adjacent", "150%", "--max-system", "2")
+    assert code == 0
+    assert out.strip() == (f"PASS {path}: adjacent crosstalk {100 * adjacent:.2f}% <= 150.00%; "
                                                f"system crosstalk {100 * system:.2f}% <= 200.00%")
 
 
@@ -337,30 +337,26 @@ def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile, monk
     assert fitted and max(fitted) <= CHECK_SAMPLES, fitted  # no fit of the whole panel before the refusal
 
 
-def test_bad_inputs_end_in_one_line(measured_set, tmp_path, capsys, profile):
+def test_bad_inputs_end_in_one_line(measured_set, tmp_path, profile):
     from lenticalib.core.profile import save_profile
 
     folder = _copy_set(measured_set[0], tmp_path)
     (folder / "captures" / "white.png").unlink()
-    assert main(["crosstalk", "measure", str(folder), "-o", str(tmp_path / "x.json")]) == 2
-    assert "white" in capsys.readouterr().err
+    assert "white" in refused("crosstalk", "measure", folder, "-o", tmp_path / "x.json")
     calibration = tmp_path / "cal"
     write_patterns(calibration, design_patterns(640, 360, VIEWS))
-    assert main(["crosstalk", "measure", str(calibration), "-o", str(tmp_path / "x.json")]) == 2
-    assert "calibration patterns" in capsys.readouterr().err
+    assert "calibration patterns" in refused("crosstalk", "measure", calibration, "-o", tmp_path / "x.json")
     other = tmp_path / "other.json"
     save_profile(profile.replace(offset=profile.offset + 1.0), other)
-    assert main(["crosstalk", "measure", str(measured_set[0]), "--profile", str(other), "-o", str(tmp_path / "x.json")]) == 2
-    assert "not the profile the crosstalk patterns were drawn from" in capsys.readouterr().err
+    line = refused("crosstalk", "measure", measured_set[0], "--profile", other, "-o", tmp_path / "x.json")
+    assert "not the profile the crosstalk patterns were drawn from" in line
     assert not (tmp_path / "x.json").exists()
-    assert main(["crosstalk", "measure", str(measured_set[0]), "-o", str(tmp_path / "x.json"),
-                 "--eye-separation", "40"]) == 2
-    assert "--eye-separation" in capsys.readouterr().err
-    assert main(["fit", str(measured_set[0]), "-o", str(tmp_path / "p.json")]) == 2
-    assert "crosstalk patterns" in capsys.readouterr().err
+    assert "--eye-separation" in refused("crosstalk", "measure", measured_set[0], "-o", tmp_path / "x.json",
+                                         "--eye-separation", "40")
+    assert "crosstalk patterns" in refused("fit", measured_set[0], "-o", tmp_path / "p.json")
 
 
-def test_crosstalk_file_for_another_view_count_is_refused(tmp_path, capsys):
+def test_crosstalk_file_for_another_view_count_is_refused(tmp_path):
     from lenticalib.calib.crosstalk.result import read_crosstalk
 
     bad = tmp_path / "crosstalk.json"
@@ -376,8 +372,7 @@ def test_crosstalk_file_for_another_view_count_is_refused(tmp_path, capsys):
                                "matrix": (matrix * 2).tolist()}))
     with pytest.raises(InputError, match="rows must be shares"):
         read_crosstalk(bad)
-    assert main(["crosstalk", "check", str(tmp_path / "missing.json"), "--max-adjacent", "0.1"]) == 2
-    assert "missing.json" in capsys.readouterr().err
+    assert "missing.json" in refused("crosstalk", "check", tmp_path / "missing.json", "--max-adjacent", "0.1")
 
 
 def test_glare_is_measured_outside_the_panel_and_removed():

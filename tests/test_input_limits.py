@@ -36,7 +36,7 @@ from lenticalib.render.cameras import ViewCameras
 from lenticalib.render.camera_models import arc_cameras
 from lenticalib.sim.scene import Scene, random_scene
 
-from .test_cli_outputs import _refused
+from .cli_support import refused
 
 SMALL = {"views": 8, "slant": -0.2, "period": 9.5, "offset": 1.25, "reference_view": 0.0, "width": 320,
          "height": 180, "subpixel_order": "RGB"}
@@ -173,10 +173,10 @@ def test_every_json_reader_refuses_absurd_numbers_in_one_line_naming_file_and_fi
     path.write_text(json.dumps(original))
 
 
-def test_a_profile_with_a_400_digit_slant_is_one_line_through_the_cli(tmp_path, capsys):
+def test_a_profile_with_a_400_digit_slant_is_one_line_through_the_cli(tmp_path):
     path = tmp_path / "p.json"
     path.write_text(json.dumps(SMALL).replace('"slant": -0.2', f'"slant": {HUGE_INT}'))
-    line = _refused(["profile", "validate", path], capsys, path)
+    line = refused("profile", "validate", path, source=path)
     assert "field 'slant': 100000000000...000000 (401 digits) is too large" in line
     with pytest.raises(ProfileError, match="field 'slant': must be finite"):
         PanelProfile(**{**SMALL, "slant": 10 ** 400})  # built in code, no JSON: the same check, no OverflowError
@@ -190,51 +190,49 @@ def test_a_profile_with_a_400_digit_slant_is_one_line_through_the_cli(tmp_path, 
     ("DPI", "[324]", "field 'DPI': must be a number"),
     ("screenW", "true", "field 'screenW': must be a number"),
 ])
-def test_import_lkg_refuses_absurd_numbers_in_one_line(tmp_path, capsys, field, literal, words):
+def test_import_lkg_refuses_absurd_numbers_in_one_line(tmp_path, field, literal, words):
     doc = copy.deepcopy(VISUAL)
     doc[field] = {"value": "@@"}
     path = tmp_path / "visual.json"
     path.write_text(json.dumps(doc).replace('"@@"', literal))
-    line = _refused(["profile", "import-lkg", path, "--views", 45, "-o", tmp_path / "out.json"], capsys, path)
+    line = refused("profile", "import-lkg", path, "--views", 45, "-o", tmp_path / "out.json", source=path)
     assert words in line
     assert not (tmp_path / "out.json").exists()
 
 
-def test_crosstalk_check_refuses_a_matrix_entry_of_1e400_in_one_line(tmp_path, capsys):
+def test_crosstalk_check_refuses_a_matrix_entry_of_1e400_in_one_line(tmp_path):
     path = tmp_path / "crosstalk.json"
     path.write_text('{"format": "lenticalib.crosstalk", "format_version": 1, "views": 2, '
                     '"matrix": [[0.9, 0.1], [1e400, 0.9]]}')
-    line = _refused(["crosstalk", "check", path, "--max-adjacent", "0.1"], capsys, path)
+    line = refused("crosstalk", "check", path, "--max-adjacent", "0.1", source=path)
     assert "field 'matrix[1][0]': 1e400 is too large for a number" in line
 
 
 @pytest.mark.parametrize("figures", ['{"adjacent_crosstalk": {"value": "0.1"}}', '{"adjacent_crosstalk": 0.1}', '[]',
                                      '{"adjacent_crosstalk": {"value": 0.0001, "sigma": 0.0}}'])
-def test_crosstalk_check_judges_the_matrix_whatever_the_figures_block_says(tmp_path, capsys, figures):
+def test_crosstalk_check_judges_the_matrix_whatever_the_figures_block_says(tmp_path, cli, figures):
     """A hand-edited 'figures' block (wrong types, or a value that disagrees with the matrix) neither
     ends in a traceback nor bends the verdict: the figures are derived from the checked matrix."""
-    from .test_cli_outputs import _run
-
     path = tmp_path / "crosstalk.json"
     rows = [[0.6, 0.15, 0.1, 0.15], [0.15, 0.6, 0.15, 0.1], [0.1, 0.15, 0.6, 0.15], [0.15, 0.1, 0.15, 0.6]]
     path.write_text('{"format": "lenticalib.crosstalk", "format_version": 1, "views": 4, "matrix": %s, '
                     '"eye_separation_views": 2, "figures": %s}' % (json.dumps(rows), figures))
-    code, out, err = _run(["crosstalk", "check", path, "--max-adjacent", "40%", "--max-eye-pair", "20%"], capsys)
+    code, out, err = cli("crosstalk", "check", path, "--max-adjacent", "40%", "--max-eye-pair", "20%")
     assert (code, err) == (1, ""), (code, err)
     assert out.splitlines() == [f"FAIL {path}: adjacent crosstalk (light from the two neighbouring views over the "
                                 "view's own light) 50.00% exceeds the limit 40.00%"], out
-    code, out, err = _run(["crosstalk", "check", path, "--max-adjacent", "60%", "--max-eye-pair", "20%"], capsys)
+    code, out, err = cli("crosstalk", "check", path, "--max-adjacent", "60%", "--max-eye-pair", "20%")
     assert code == 0 and out.startswith(f"PASS {path}: adjacent crosstalk 50.00% <= 60.00%"), (code, out, err)
 
 
 # ------------------------------------------------------------------ misspelt keys
 
-def test_a_misspelt_profile_key_is_named_with_its_close_match(tmp_path, capsys):
+def test_a_misspelt_profile_key_is_named_with_its_close_match(tmp_path):
     doc = dict(SMALL)
     doc["slnat"] = doc.pop("slant")
     path = tmp_path / "p.json"
     path.write_text(json.dumps(doc))
-    line = _refused(["profile", "validate", path], capsys, path)
+    line = refused("profile", "validate", path, source=path)
     assert "unknown field 'slnat' (did you mean 'slant'?)" in line
     doc["slant"] = doc.pop("slnat")
     doc["reference_veiw"] = doc.pop("reference_view")
@@ -290,7 +288,7 @@ def _npz(path, arrays, raw_members=()):
     return path
 
 
-def test_a_rig_array_claiming_10_to_the_12_elements_is_refused_from_its_header(tmp_path, capsys):
+def test_a_rig_array_claiming_10_to_the_12_elements_is_refused_from_its_header(tmp_path):
     from lenticalib.render.rig_file import load_rig
 
     arrays = _rig_arrays()
@@ -299,8 +297,8 @@ def test_a_rig_array_claiming_10_to_the_12_elements_is_refused_from_its_header(t
     text = _raises_one_line(lambda: load_rig(path))
     assert text.startswith(f"{path}: array 'means' claims shape (1000000000000, 3) of float32") and "holds only" in text
     assert _peak_traced(lambda: pytest.raises(InputError, load_rig, path)) < 16 * MiB
-    _refused(["render", path, "--profile", save_profile(PanelProfile(**SMALL), tmp_path / "p.json"),
-              "-o", tmp_path / "out.png"], capsys, path)
+    refused("render", path, "--profile", save_profile(PanelProfile(**SMALL), tmp_path / "p.json"),
+            "-o", tmp_path / "out.png", source=path)
     assert not (tmp_path / "out.png").exists()
 
 
@@ -325,7 +323,7 @@ def test_rig_arrays_over_the_size_limit_are_refused_unread(tmp_path, monkeypatch
     assert "exceed the limit of 4.0 KiB" in text and text.startswith(str(path))
 
 
-def test_a_control_npz_claiming_a_huge_track_and_a_pickle_are_one_line(tmp_path, capsys):
+def test_a_control_npz_claiming_a_huge_track_and_a_pickle_are_one_line(tmp_path):
     from lenticalib.render.controls import load_controls
 
     path = _npz(tmp_path / "c.npz", {"t": np.arange(3.0)}, [("controls", _npy_header((10 ** 12, 70)), bytes(64), 1)])
@@ -341,7 +339,7 @@ PLY_PROPERTIES = ("x y z f_dc_0 f_dc_1 f_dc_2 opacity scale_0 scale_1 scale_2 ro
 
 
 @pytest.mark.parametrize("encoding", ["binary_little_endian", "ascii"])
-def test_a_ply_header_claiming_10_to_the_13_vertices_is_refused_before_reading(tmp_path, capsys, encoding):
+def test_a_ply_header_claiming_10_to_the_13_vertices_is_refused_before_reading(tmp_path, encoding):
     from lenticalib.render.ply import load_ply
 
     header = (f"ply\nformat {encoding} 1.0\nelement vertex {10 ** 13}\n"
@@ -351,8 +349,8 @@ def test_a_ply_header_claiming_10_to_the_13_vertices_is_refused_before_reading(t
     text = _raises_one_line(lambda: load_ply(path))
     assert "the header claims 10000000000000 'vertex' rows" in text and "168 bytes after the header" in text
     assert _peak_traced(lambda: pytest.raises(InputError, load_ply, path)) < 16 * MiB
-    _refused(["render", path, "--profile", save_profile(PanelProfile(**SMALL), tmp_path / "p.json"),
-              "-o", tmp_path / "out.png"], capsys, path)
+    refused("render", path, "--profile", save_profile(PanelProfile(**SMALL), tmp_path / "p.json"),
+            "-o", tmp_path / "out.png", source=path)
 
 
 # ------------------------------------------------------------------ image pixel limit
@@ -392,11 +390,11 @@ def test_the_pixel_limit_admits_16k_rasters_and_large_camera_photos():
         check_image_pixels(16385, 16384, "raster.png")
 
 
-def test_huge_images_are_one_line_through_the_cli_and_the_photo_size_check(huge_png, tmp_path, capsys):
+def test_huge_images_are_one_line_through_the_cli_and_the_photo_size_check(huge_png, tmp_path):
     from lenticalib.cli._camera_calibrate import photo_size
 
     profile = save_profile(PanelProfile(**SMALL), tmp_path / "p.json")
-    line = _refused(["encode", "--profile", profile, "--quilt", huge_png, "-o", tmp_path / "out.png"], capsys, huge_png)
+    line = refused("encode", "--profile", profile, "--quilt", huge_png, "-o", tmp_path / "out.png", source=huge_png)
     assert "over the limit of 268 megapixels" in line
     assert "over the limit" in _raises_one_line(lambda: photo_size(huge_png), ImageError)
     npy = tmp_path / "views.npy"
@@ -408,7 +406,7 @@ def test_huge_images_are_one_line_through_the_cli_and_the_photo_size_check(huge_
     assert "is 20000x20000 pixels" in _raises_one_line(lambda: read_image(npy), ImageError)
 
 
-def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_header(tmp_path, capsys):
+def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_header(tmp_path):
     """The issue's 186 KB 8000x8000 PNG (64 megapixels: under the general limit, so decoded today at
     1.3 GB) as one view of a folder, as a slide of a pattern set and as a photo the simulator takes:
     refused from its header, naming the size that was due, with no pixel decoded."""
@@ -426,8 +424,8 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
     (views / f"v{SMALL['views'] - 1}.png").write_bytes(big)
     profile = save_profile(PanelProfile(**SMALL), tmp_path / "p.json")
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    line = _refused(["encode", "--profile", profile, "--views", views, "-o", tmp_path / "out.png"], capsys,
-                    views / f"v{SMALL['views'] - 1}.png")
+    line = refused("encode", "--profile", profile, "--views", views, "-o", tmp_path / "out.png",
+                   source=views / f"v{SMALL['views'] - 1}.png")
     assert f"is 8000x8000 pixels, v0.png is {small.shape[1]}x{small.shape[0]}" in line
     assert "all views must have one size" in line
     grown = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) * 1024

@@ -16,12 +16,13 @@ import numpy as np
 import pytest
 
 from lenticalib.calib.patterns import design_patterns, write_patterns
-from lenticalib.cli import main
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile
 from lenticalib.sim.capture import simulate_capture_set
 from lenticalib.sim.optics import routing_error
 from lenticalib.sim.scene import random_scene
+
+from .cli_support import run_main
 
 DISTANCES = (600.0, 850.0)
 
@@ -59,9 +60,9 @@ def two_distances(tmp_path_factory):
     model = _true_model(scene.camera, root / "camera.cameramodel")
     out = root / "out"
     out.mkdir()
-    code = main(["fit", str(sets[0][0]), "-o", str(out / "profile.json"), "--camera", str(model), "--pixel-pitch",
-                 str(scene.optics.pixel_pitch), "--second-distance", str(sets[1][0]), "--json"])
-    assert code == 0
+    code, _, err = run_main("fit", sets[0][0], "-o", out / "profile.json", "--camera", model, "--pixel-pitch",
+                            scene.optics.pixel_pitch, "--second-distance", sets[1][0], "--json")
+    assert code == 0, err
     summary = json.loads((out / "profile-report" / "summary.json").read_text())
     return types.SimpleNamespace(scene=scene, sets=sets, profile=load_profile(out / "profile.json"),
                                  summary=summary, root=root, model=model)
@@ -109,16 +110,14 @@ def test_the_retargeted_profile_meets_the_target(two_distances, distance, latera
     assert np.abs(unmoved).max() > 1.0
 
 
-def test_without_the_gap_the_profile_says_why(two_distances, tmp_path, capsys):
+def test_without_the_gap_the_profile_says_why(two_distances, tmp_path, cli):
     t = two_distances
-    code = main(["fit", str(t.sets[1][0]), "-o", str(tmp_path / "p.json"), "--camera", str(t.model),
-                 "--pixel-pitch", str(t.scene.optics.pixel_pitch)])
-    out = capsys.readouterr().out
+    code, out, _ = cli("fit", t.sets[1][0], "-o", tmp_path / "p.json", "--camera", t.model,
+                       "--pixel-pitch", t.scene.optics.pixel_pitch)
     assert code == 0 and "gap unknown" in out
     block = load_profile(tmp_path / "p.json").physical
     assert "gap_mm" not in block and "eye_mm" not in block and block["pixel_pitch_mm"] > 0
-    code = main(["profile", "retarget", str(tmp_path / "p.json"), "--distance", "700", "-o", str(tmp_path / "q.json")])
-    err = capsys.readouterr().err
+    code, _, err = cli("profile", "retarget", tmp_path / "p.json", "--distance", "700", "-o", tmp_path / "q.json")
     assert code == 2 and "gap" in err and err.count("\n") == 1
 
 
@@ -129,11 +128,10 @@ def test_without_the_gap_the_profile_says_why(two_distances, tmp_path, capsys):
     (["--camera", "{model}", "--pixel-pitch", "0.3", "--second-distance", "{set0}"], "same capture set"),
     (["--camera", "{model}", "--pixel-pitch", "0.3", "--gap", "1", "--second-distance", "{set1}"], "one way"),
 ])
-def test_physical_options_are_checked_before_the_fit(two_distances, tmp_path, capsys, argv, words):
+def test_physical_options_are_checked_before_the_fit(two_distances, tmp_path, cli, argv, words):
     t = two_distances
     names = {"model": str(t.model), "set0": str(t.sets[0][0]), "set1": str(t.sets[1][0])}
-    code = main(["fit", str(t.sets[0][0]), "-o", str(tmp_path / "p.json")] + [a.format(**names) for a in argv])
-    err = capsys.readouterr().err
+    code, _, err = cli("fit", t.sets[0][0], "-o", tmp_path / "p.json", *[a.format(**names) for a in argv])
     assert code == 2 and words in err and err.count("\n") == 1
     assert not (tmp_path / "p.json").exists()
 
@@ -149,12 +147,13 @@ def calibrated(two_distances):
     boards.mkdir()
     simulate_board_set(boards, kind="panel", seed=7, photos=20, scene=t.scene)
     model = t.root / "calibrated.cameramodel"
-    assert main(["camera", "calibrate", str(boards / "captures"), "-o", str(model), "--report",
-                 str(t.root / "camera-report")]) == 0
+    code, _, err = run_main("camera", "calibrate", boards / "captures", "-o", model, "--report", t.root / "camera-report")
+    assert code == 0, err
     out = t.root / "out-calibrated"
     out.mkdir()
-    assert main(["fit", str(t.sets[0][0]), "-o", str(out / "profile.json"), "--camera", str(model), "--pixel-pitch",
-                 str(t.scene.optics.pixel_pitch), "--second-distance", str(t.sets[1][0])]) == 0
+    code, _, err = run_main("fit", t.sets[0][0], "-o", out / "profile.json", "--camera", model, "--pixel-pitch",
+                            t.scene.optics.pixel_pitch, "--second-distance", t.sets[1][0])
+    assert code == 0, err
     return types.SimpleNamespace(profile=load_profile(out / "profile.json"), model=model)
 
 

@@ -111,11 +111,6 @@ def test_monitor_choice_by_index_position_name_and_size():
     assert "desktop scale 1.5x1.5" in MONITORS[2].describe()
 
 
-def _cli(args, env, timeout=60):
-    return subprocess.run([sys.executable, "-m", "lenticalib", *args], env=env, capture_output=True, text=True,
-                          timeout=timeout)
-
-
 def _wait_for_screen(display, raster, timeout=20.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -147,10 +142,10 @@ def test_show_steps_through_a_folder_with_the_keys(xvfb, tmp_path):
     assert "showed 5 raster(s) of 640x360" in out
 
 
-def test_show_advances_by_itself_with_an_interval(xvfb, tmp_path):
+def test_show_advances_by_itself_with_an_interval(xvfb, tmp_path, cli_process):
     for k in range(2):
         _write_png(tmp_path / f"s{k}.png", _raster(20 + k))
-    result = _cli(["show", str(tmp_path), "--interval", "0.3"], xvfb.env())
+    result = cli_process("show", str(tmp_path), "--interval", "0.3", env=xvfb.variables(), timeout=60)
     assert result.returncode == 0, result.stderr
     assert "showed 2 raster(s)" in result.stdout
 
@@ -168,34 +163,32 @@ def test_show_a_pattern_set_without_its_pngs_draws_them_from_the_manifest(tmp_pa
     assert np.array_equal(x21.load(), render_pattern(pattern_set.group("x2")[1], W, H))
 
 
-def test_every_bad_input_ends_in_one_line(xvfb, tmp_path):
-    import os
-
+def test_every_bad_input_ends_in_one_line(xvfb, tmp_path, cli_process):
     good = tmp_path / "good.png"
     _write_png(good, _raster(30))
     small = tmp_path / "small.png"
     _write_png(small, _raster(31, (320, 180)))
     (tmp_path / "empty").mkdir()
-    no_display = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    no_display = {"DISPLAY": None, "WAYLAND_DISPLAY": None}
     cases = [
         (["show", str(good)], no_display, "there is no display to show on"),
-        (["show", str(good), "--display", "7"], xvfb.env(), "--display: no monitor matches '7'"),
-        (["show", str(tmp_path / "empty")], xvfb.env(), "holds no images"),
-        (["show", str(tmp_path / "missing.png")], xvfb.env(), "no such file or folder"),
-        (["show", str(small)], xvfb.env(), "no monitor shows 320x180"),
-        (["show", str(small), "--display", "0"], xvfb.env(), "is 320x180 but the display is 640x360"),
-        (["show", str(good), "--display", "offscreen"], xvfb.env(), "--interval"),
-        (["show"], xvfb.env(), "give an image or a folder"),
+        (["show", str(good), "--display", "7"], xvfb.variables(), "--display: no monitor matches '7'"),
+        (["show", str(tmp_path / "empty")], xvfb.variables(), "holds no images"),
+        (["show", str(tmp_path / "missing.png")], xvfb.variables(), "no such file or folder"),
+        (["show", str(small)], xvfb.variables(), "no monitor shows 320x180"),
+        (["show", str(small), "--display", "0"], xvfb.variables(), "is 320x180 but the display is 640x360"),
+        (["show", str(good), "--display", "offscreen"], xvfb.variables(), "--interval"),
+        (["show"], xvfb.variables(), "give an image or a folder"),
     ]
     for args, env, message in cases:
-        result = _cli(args, env)
+        result = cli_process(*args, env=env, timeout=60)
         assert result.returncode == 2, (args, result.stdout, result.stderr)
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (args, result.stderr)
         assert "Traceback" not in result.stderr
 
 
-def test_list_displays(xvfb):
-    result = _cli(["show", "--list-displays"], xvfb.env())
+def test_list_displays(xvfb, cli_process):
+    result = cli_process("show", "--list-displays", env=xvfb.variables(), timeout=60)
     assert result.returncode == 0, result.stderr
     assert "0: screen 640x360" in result.stdout

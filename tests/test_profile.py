@@ -104,12 +104,10 @@ def test_physical_ranges_are_enforced_for_every_profile(tmp_path, change, field)
         PanelProfile(**{**EIGHT, **change})
 
 
-def test_profile_validate_refuses_a_period_of_1e9_in_one_line(tmp_path, capsys):
-    from lenticalib.cli import main
-
+def test_profile_validate_refuses_a_period_of_1e9_in_one_line(tmp_path, cli):
     path = _write(tmp_path, {**EIGHT, "period": 1e9})
-    assert main(["profile", "validate", str(path)]) == 2
-    err = capsys.readouterr().err
+    code, _, err = cli("profile", "validate", path)
+    assert code == 2
     assert err.count("\n") == 1 and err.startswith(f"lenticalib: error: {path}: field 'period': ")
     assert "1000000000.0" in err
 

@@ -11,7 +11,6 @@ import math
 import numpy as np
 import pytest
 
-from lenticalib.cli import main
 from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.physical import gap_from_view_cone, validate_physical, view_cone_deg
 from lenticalib.core.profile import load_profile, profile_from_dict, save_profile
@@ -142,18 +141,12 @@ def test_eye_positions_are_checked():
             Eye.parse(bad)
 
 
-def _run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def test_profile_retarget_cli(tmp_path, capsys):
+def test_profile_retarget_cli(tmp_path, cli):
     optics = random_scene(9, width=3840, height=2160, distance=620).optics
     source = _exact(optics, (10.0, 20.0, -620.0))
     save_profile(source, tmp_path / "p.json")
-    code, out, err = _run(capsys, "profile", "retarget", tmp_path / "p.json", "--distance", 850, "--lateral", -40,
-                          "-o", tmp_path / "p850.json")
+    code, out, err = cli("profile", "retarget", tmp_path / "p.json", "--distance", 850, "--lateral", -40,
+                         "-o", tmp_path / "p850.json")
     assert code == 0, err
     assert "period" in out and "wrote" in out
     moved = load_profile(tmp_path / "p850.json")
@@ -162,14 +155,14 @@ def test_profile_retarget_cli(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("case", ["no physical", "no gap", "bad distance", "missing output folder"])
-def test_profile_retarget_refusals_are_one_line(tmp_path, capsys, case):
+def test_profile_retarget_refusals_are_one_line(tmp_path, cli, case):
     profile = load_profile("fixtures/panel-4k-32.json")
     if case == "no gap":
         profile = profile.replace(physical={"pixel_pitch_mm": 0.18, "design_distance_mm": 600.0})
     save_profile(profile, tmp_path / "p.json")
     distance = 5 if case == "bad distance" else 800
     output = tmp_path / ("nowhere/p2.json" if case == "missing output folder" else "p2.json")
-    code, out, err = _run(capsys, "profile", "retarget", tmp_path / "p.json", "--distance", distance, "-o", output)
+    code, out, err = cli("profile", "retarget", tmp_path / "p.json", "--distance", distance, "-o", output)
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
     words = {"no physical": "gap", "no gap": "gap", "bad distance": "--distance",
              "missing output folder": "does not exist"}[case]
@@ -177,20 +170,20 @@ def test_profile_retarget_refusals_are_one_line(tmp_path, capsys, case):
     assert not (tmp_path / "p2.json").exists()
 
 
-def test_set_physical_from_a_data_sheet_then_retarget(tmp_path, capsys):
+def test_set_physical_from_a_data_sheet_then_retarget(tmp_path, cli):
     optics = random_scene(10, width=3840, height=2160, distance=600).optics
     truth = truth_profile(optics, (0.0, 0.0, -600.0), 32)
     save_profile(truth, tmp_path / "p.json")
     cone = view_cone_deg(optics.lens_pitch, math.degrees(optics.slant_angle), optics.gap)
-    code, out, err = _run(capsys, "profile", "set-physical", tmp_path / "p.json", "--pixel-pitch", optics.pixel_pitch,
-                          "--lens-pitch", optics.lens_pitch, "--view-cone", cone, "--design-distance", 600)
+    code, out, err = cli("profile", "set-physical", tmp_path / "p.json", "--pixel-pitch", optics.pixel_pitch,
+                         "--lens-pitch", optics.lens_pitch, "--view-cone", cone, "--design-distance", 600)
     assert code == 0, err
     block = load_profile(tmp_path / "p.json").physical
     assert block["gap_mm"] == pytest.approx(optics.gap, rel=1e-9) and block["source"] == "data sheet"
-    code, out, err = _run(capsys, "profile", "retarget", tmp_path / "p.json", "--distance", 450, "-o",
-                          tmp_path / "p450.json")
+    code, out, err = cli("profile", "retarget", tmp_path / "p.json", "--distance", 450, "-o",
+                         tmp_path / "p450.json")
     assert code == 0, err
     moved = load_profile(tmp_path / "p450.json")
     assert np.abs(routing_error(optics, (0.0, 0.0, -450.0), moved)).max() < 1e-6
-    code, out, err = _run(capsys, "profile", "set-physical", tmp_path / "p.json", "--gap", -1)
+    code, out, err = cli("profile", "set-physical", tmp_path / "p.json", "--gap", -1)
     assert code == 2 and "physical.gap_mm" in err

@@ -11,6 +11,8 @@ from lenticalib.core.routing import view_coordinate
 from lenticalib.sim import Scene, random_scene, view_coordinate_truth
 from lenticalib.sim.render import photograph, photograph_jpeg
 
+from .cli_support import one_error_line
+
 N = 32
 
 
@@ -182,22 +184,22 @@ def test_noise_free_settings_are_honoured():
 
 # 5. The CLI end to end ------------------------------------------------------------------------------
 @pytest.fixture
-def simulate_main(monkeypatch):
-    import lenticalib.cli as cli
+def simulate_main(monkeypatch, cli):
+    """The ``cli`` runner with ``simulate`` as the only command."""
+    import lenticalib.cli as cli_module
 
-    monkeypatch.setattr(cli, "_COMMANDS", {"simulate": cli._COMMANDS["simulate"]})
-    return cli.main
+    monkeypatch.setattr(cli_module, "_COMMANDS", {"simulate": cli_module._COMMANDS["simulate"]})
+    return cli
 
 
-def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, capsys):
+def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
     from lenticalib.calib.patterns import design_patterns, write_patterns
 
     pattern_set = design_patterns(3840, 2160, 32)
     write_patterns(tmp_path, pattern_set)
     # the smallest camera the fit takes (captures.MIN_PHOTO_PIXELS), one ray per pixel for speed
-    code = simulate_main(["simulate", str(tmp_path), "--seed", "3", "--resolution", "1250x800", "--subsamples", "1",
-                          "--json"])
-    out, err = capsys.readouterr()
+    code, out, err = simulate_main("simulate", tmp_path, "--seed", "3", "--resolution", "1250x800", "--subsamples", "1",
+                                   "--json")
     assert code == 0, err
     summary = json.loads(out)
     captures = sorted(p.name for p in (tmp_path / "captures").iterdir())
@@ -221,11 +223,11 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main, c
     assert again == (tmp_path / entry["file"]).read_bytes()
 
     # --scene reuses it; it fixes the scene, so --seed cannot come with it
-    code = simulate_main(["simulate", str(tmp_path), "--scene", str(tmp_path / "simulation.json"), "--seed", "4"])
-    assert code == 2 and "--scene" in capsys.readouterr().err
+    code, _, err = simulate_main("simulate", tmp_path, "--scene", tmp_path / "simulation.json", "--seed", "4")
+    assert code == 2 and "--scene" in one_error_line(err)
 
 
-def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
+def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main):
     from lenticalib.calib.patterns import design_patterns, write_patterns
 
     write_patterns(tmp_path / "set", design_patterns(640, 360, 8))
@@ -235,11 +237,11 @@ def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
     real = tmp_path / "set" / "captures" / "IMG_0001.jpg"  # someone's real photos: never touched
     real.parent.mkdir()
     real.write_bytes(b"photo")
-    assert simulate_main(args) == 2 and "captures" in capsys.readouterr().err
+    code, _, err = simulate_main(*args)
+    assert code == 2 and "captures" in one_error_line(err)
     assert real.read_bytes() == b"photo" and not (tmp_path / "set" / "simulation.json").exists()
     real.unlink()
-    code = simulate_main(args)
-    out, err = capsys.readouterr()
+    code, out, err = simulate_main(*args)
     assert code == 0, err
     assert "truth" in out and "1250x800" in out
     record = json.loads((tmp_path / "set" / "simulation.json").read_text())
@@ -248,18 +250,17 @@ def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main, capsys):
     # a scene for another panel size is refused, naming the manifest
     other = random_scene(9, width=1280, height=720, resolution=(1250, 800))
     (tmp_path / "other.json").write_text(json.dumps(other.to_dict()))
-    code = simulate_main(["simulate", str(tmp_path / "set"), "--scene", str(tmp_path / "other.json")])
-    err = capsys.readouterr().err
-    assert code == 2 and "patterns.json" in err and "640x360" in err
+    code, _, err = simulate_main("simulate", tmp_path / "set", "--scene", tmp_path / "other.json")
+    line = one_error_line(err)
+    assert code == 2 and "patterns.json" in line and "640x360" in line
 
 
-def test_simulate_cli_without_patterns_fails_with_one_line(tmp_path, simulate_main, capsys):
-    code = simulate_main(["simulate", str(tmp_path), "--seed", "1"])
-    out, err = capsys.readouterr()
+def test_simulate_cli_without_patterns_fails_with_one_line(tmp_path, simulate_main):
+    code, out, err = simulate_main("simulate", tmp_path, "--seed", "1")
     assert code == 2 and out == ""
     assert err.count("\n") == 1 and "patterns.json" in err and "Traceback" not in err
-    code = simulate_main(["simulate", str(tmp_path), "--resolution", "big"])
-    assert code == 2 and "--resolution" in capsys.readouterr().err
+    code, _, err = simulate_main("simulate", tmp_path, "--resolution", "big")
+    assert code == 2 and "--resolution" in one_error_line(err)
 
 
 def test_hard_conditions_add_phone_behaviour_and_leave_every_other_draw_alone():

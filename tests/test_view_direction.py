@@ -10,10 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
-import subprocess
-import sys
 import types
 from pathlib import Path
 
@@ -23,10 +20,11 @@ import pytest
 from lenticalib.core import lkg
 from lenticalib.calib.direction import (DIRECTION_PATTERN_NAME, add_moved_right, direction_from_moved_right,
                                         direction_raster, direction_view, direction_views)
-from lenticalib.cli import main
 from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
 from lenticalib.core.view_direction import direction_warning, with_direction
+
+from .cli_support import one_error_line, run_main
 
 REPO = Path(__file__).resolve().parents[1]
 EIGHT = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
@@ -43,22 +41,6 @@ def _write(tmp_path, data, name="p.json") -> Path:
     path = tmp_path / name
     path.write_text(data if isinstance(data, str) else json.dumps(data))
     return path
-
-
-def _run(argv, capsys):
-    """``lenticalib ARGV`` in-process: (exit status, stdout, stderr); a traceback fails the test."""
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
-def _one_error_line(err: str) -> str:
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("lenticalib: error: "), err
-    return lines[0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -119,63 +101,63 @@ def test_with_direction_keeps_the_provenance_and_notes_how():
 # 2. profile show / compare / set-direction
 # ---------------------------------------------------------------------------------------------
 
-def test_show_prints_the_direction_or_unknown(tmp_path, capsys):
+def test_show_prints_the_direction_or_unknown(tmp_path, cli):
     path = _write(tmp_path, EIGHT)
-    code, out, _ = _run(["profile", "show", path], capsys)
+    code, out, _ = cli("profile", "show", path)
     assert code == 0 and "view_direction  unknown" in out
     save_profile(PanelProfile(**EIGHT, view_direction=-1), path)
-    code, out, _ = _run(["profile", "show", path], capsys)
+    code, out, _ = cli("profile", "show", path)
     assert "view_direction  -1 (the view index falls as the viewer moves right)" in out
-    code, out, _ = _run(["profile", "show", path, "--json"], capsys)
+    code, out, _ = cli("profile", "show", path, "--json")
     assert json.loads(out)["view_direction"] == -1
 
 
-def test_set_direction_writes_the_field_and_a_provenance_note(tmp_path, capsys):
+def test_set_direction_writes_the_field_and_a_provenance_note(tmp_path, cli):
     path = _write(tmp_path, EIGHT)
-    code, out, err = _run(["profile", "set-direction", path, "+1"], capsys)
+    code, out, err = cli("profile", "set-direction", path, "+1")
     assert code == 0 and err == "" and "view_direction +1" in out and "(was unknown)" in out
     p = load_profile(path)
     assert p.view_direction == 1
     note = p.provenance["view_direction"]
     assert note["value"] == 1 and "set-direction" in note["method"] and note["evidence"] == {"previous": None}
-    code, out, _ = _run(["profile", "set-direction", path, "-1"], capsys)
+    code, out, _ = cli("profile", "set-direction", path, "-1")
     assert code == 0 and load_profile(path).view_direction == -1 and "(was +1)" in out
-    code, out, _ = _run(["profile", "set-direction", path, "unknown"], capsys)
+    code, out, _ = cli("profile", "set-direction", path, "unknown")
     assert code == 0 and load_profile(path).view_direction is None
     assert [p.name for p in tmp_path.iterdir()] == ["p.json"]  # nothing but the profile (atomic write)
 
 
 @pytest.mark.parametrize("value", ["0", "2", "left", "", "+-1"])
-def test_set_direction_refuses_a_bad_value_and_leaves_the_file(tmp_path, capsys, value):
+def test_set_direction_refuses_a_bad_value_and_leaves_the_file(tmp_path, cli, value):
     path = _write(tmp_path, EIGHT)
     before = path.read_bytes()
-    code, out, err = _run(["profile", "set-direction", path, value], capsys)
-    line = _one_error_line(err)
+    code, out, err = cli("profile", "set-direction", path, value)
+    line = one_error_line(err)
     assert code == 2 and "DIRECTION: must be +1, -1 or unknown" in line and out == ""
     assert path.read_bytes() == before
 
 
-def test_set_direction_on_a_missing_or_invalid_profile_is_one_line(tmp_path, capsys):
-    code, _, err = _run(["profile", "set-direction", tmp_path / "absent.json", "+1"], capsys)
-    assert code == 2 and "no such file" in _one_error_line(err)
+def test_set_direction_on_a_missing_or_invalid_profile_is_one_line(tmp_path, cli):
+    code, _, err = cli("profile", "set-direction", tmp_path / "absent.json", "+1")
+    assert code == 2 and "no such file" in one_error_line(err)
     bad = _write(tmp_path, {**EIGHT, "period": -1})
-    code, _, err = _run(["profile", "set-direction", bad, "+1"], capsys)
-    assert code == 2 and "field 'period'" in _one_error_line(err)
+    code, _, err = cli("profile", "set-direction", bad, "+1")
+    assert code == 2 and "field 'period'" in one_error_line(err)
     assert not (tmp_path / "absent.json").exists()
 
 
 @pytest.mark.parametrize("a, b, match, text", [(1, 1, True, ""), (1, -1, False, "MISMATCH"),
                                                (None, 1, None, "not compared"), (-1, None, None, "not compared")])
-def test_compare_reports_whether_the_directions_match(tmp_path, capsys, a, b, match, text):
+def test_compare_reports_whether_the_directions_match(tmp_path, cli, a, b, match, text):
     pa = save_profile(PanelProfile(**EIGHT, view_direction=a), tmp_path / "a.json")
     pb = save_profile(PanelProfile(**EIGHT, view_direction=b), tmp_path / "b.json")
-    code, out, _ = _run(["profile", "compare", pa, pb], capsys)
+    code, out, _ = cli("profile", "compare", pa, pb)
     names = {1: "+1", -1: "-1", None: "unknown"}
     line = next(line for line in out.splitlines() if "view direction" in line)
     assert code == 0 and f"{names[a]} vs {names[b]}" in line and text in line
     if match:
         assert "MISMATCH" not in line and "not compared" not in line
-    code, out, _ = _run(["profile", "compare", pa, pb, "--json"], capsys)
+    code, out, _ = cli("profile", "compare", pa, pb, "--json")
     data = json.loads(out)
     assert data["view_direction"] == [a, b] and data["view_direction_match"] is match
 
@@ -199,23 +181,23 @@ def test_export_writes_inv_view_one_and_reimports_plus_one(tmp_path):
         assert lkg.import_visual_json(path, 8).view_direction == 1  # (same routing: test_lkg.py)
 
 
-def test_export_refuses_minus_one_in_one_line(tmp_path, capsys):
+def test_export_refuses_minus_one_in_one_line(tmp_path, cli):
     profile = PanelProfile(**EIGHT, view_direction=-1, looking_glass={"DPI": 100.0}, name="mirrored")
     with pytest.raises(ProfileError) as err:
         lkg.visual_from_profile(profile)
     assert "view_direction is -1" in str(err.value) and "invView = 1" in str(err.value)
     path = save_profile(profile, tmp_path / "p.json")
-    code, out, err = _run(["profile", "export-lkg", path, "-o", tmp_path / "v.json"], capsys)
-    assert code == 2 and "view_direction is -1" in _one_error_line(err) and not (tmp_path / "v.json").exists()
+    code, out, err = cli("profile", "export-lkg", path, "-o", tmp_path / "v.json")
+    assert code == 2 and "view_direction is -1" in one_error_line(err) and not (tmp_path / "v.json").exists()
 
 
-def test_export_of_an_unknown_direction_warns_in_one_line(tmp_path, capsys):
+def test_export_of_an_unknown_direction_warns_in_one_line(tmp_path, cli):
     path = save_profile(PanelProfile(**EIGHT, looking_glass={"DPI": 100.0}), tmp_path / "p.json")
-    code, out, err = _run(["profile", "export-lkg", path, "-o", tmp_path / "v.json"], capsys)
+    code, out, err = cli("profile", "export-lkg", path, "-o", tmp_path / "v.json")
     (line,) = err.strip().splitlines()
     assert code == 0 and line.startswith("lenticalib: warning: ") and "invView = 1" in line
     save_profile(PanelProfile(**EIGHT, looking_glass={"DPI": 100.0}, view_direction=1), path)
-    code, out, err = _run(["profile", "export-lkg", path, "-o", tmp_path / "v.json"], capsys)
+    code, out, err = cli("profile", "export-lkg", path, "-o", tmp_path / "v.json")
     assert code == 0 and err == ""
 
 
@@ -281,28 +263,23 @@ def test_the_spare_record_bits_are_refused_by_layout_one_peers():
         assert info.value.status == "OUT_OF_RANGE"
 
 
-def _cli(*args, env):
-    return subprocess.run([sys.executable, "-m", "lenticalib.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=REPO, env={**os.environ, **env}, timeout=120)
-
-
-def test_flash_warns_and_read_says_the_direction_is_unknown(tmp_path):
+def test_flash_warns_and_read_says_the_direction_is_unknown(tmp_path, cli_process):
     env = {"LENTICALIB_EMULATOR_DIR": str(tmp_path / "emu")}
     profile = PanelProfile(views=32, slant=0.1835, period=19.47, offset=7.3, reference_view=16.0,
                            width=3840, height=2160, subpixel_order="RGB", view_direction=1)
     original = save_profile(profile, tmp_path / "p.json")
-    flashed = _cli("device", "flash", "emu://dir", original, env=env)
+    flashed = cli_process("device", "flash", "emu://dir", original, env=env)
     assert flashed.returncode == 0, flashed.stderr
     (warning,) = flashed.stderr.strip().splitlines()
     assert warning.startswith("lenticalib: warning: ") and "no room for view_direction (+1)" in warning
     back = tmp_path / "back.json"
-    read = _cli("device", "read", "emu://dir", "-o", back, env=env)
+    read = cli_process("device", "read", "emu://dir", "-o", back, env=env)
     assert read.returncode == 0 and read.stderr == ""
     (note,) = [line for line in read.stdout.splitlines() if line.startswith("note:")]
     assert "no room for the view direction" in note and f"set-direction {back} +1|-1" in note
     assert load_profile(back).view_direction is None
     assert load_profile(back).routing_key() == profile.routing_key()
-    assert _cli("device", "verify", "emu://dir", original, env=env).returncode == 0  # still holds the profile
+    assert cli_process("device", "verify", "emu://dir", original, env=env).returncode == 0  # still holds the profile
 
 
 # ---------------------------------------------------------------------------------------------
@@ -412,17 +389,11 @@ def moved_sets(tmp_path_factory):
 @pytest.fixture(scope="module")
 def moved_fit(moved_sets):
     """``lenticalib fit first -o out/profile.json --moved-right right --json`` (in-process)."""
-    import contextlib
-    import io
-
     out = moved_sets.root / "out"
     out.mkdir()
-    stdout, stderr = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        code = main(["fit", str(moved_sets.first), "-o", str(out / "profile.json"),
-                     "--moved-right", str(moved_sets.right), "--json"])
-    return types.SimpleNamespace(code=code, out=stdout.getvalue(), err=stderr.getvalue(),
-                                 profile_path=out / "profile.json")
+    code, stdout, stderr = run_main("fit", moved_sets.first, "-o", out / "profile.json",
+                                    "--moved-right", moved_sets.right, "--json")
+    return types.SimpleNamespace(code=code, out=stdout, err=stderr, profile_path=out / "profile.json")
 
 
 def test_fit_with_moved_right_finds_the_true_direction(moved_sets, moved_fit):
@@ -462,7 +433,7 @@ def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
     assert swapped.direction == -1 and swapped.dw == pytest.approx(-evidence["delta_w_views"], abs=1e-3)
 
 
-def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_path, monkeypatch, capsys):
+def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_path, monkeypatch, cli):
     import lenticalib.calib.fit as fit_module
 
     real = fit_module.fit_capture_set
@@ -473,13 +444,13 @@ def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_p
         return real(*args, **kwargs)
 
     monkeypatch.setattr(fit_module, "fit_capture_set", recording)
-    code, out, err = _run(["fit", moved_sets.first, "-o", tmp_path / "p.json"], capsys)
+    code, out, err = cli("fit", moved_sets.first, "-o", tmp_path / "p.json")
     assert code == 0 and "view_direction" not in err and len(calls) == 1  # no warning: a note on stdout
     assert "view direction unknown" in out and "--moved-right" in out
     assert load_profile(tmp_path / "p.json").view_direction is None
 
 
-def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch, capsys):
+def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch, cli):
     import lenticalib.calib.fit as fit_module
     from lenticalib.calib.patterns import design_patterns, write_patterns
 
@@ -498,8 +469,8 @@ def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch
              (empty, "no captures folder"),
              (other, "holds photos of pattern set")]
     for dir2, expected in cases:
-        code, out, err = _run(["fit", moved_sets.first, "-o", tmp_path / "p.json", "--moved-right", dir2], capsys)
-        line = _one_error_line(err)
+        code, out, err = cli("fit", moved_sets.first, "-o", tmp_path / "p.json", "--moved-right", dir2)
+        line = one_error_line(err)
         assert code == 2 and expected in line, (dir2, line)
     assert not (tmp_path / "p.json").exists() and not (tmp_path / "p-report").exists()
 
@@ -547,10 +518,10 @@ def test_the_raster_routes_left_to_low_views_and_right_to_high_views():
     assert np.array_equal(flat[high & top], rights[high & top])
 
 
-def test_patterns_direction_writes_the_raster_and_the_instruction(tmp_path, capsys):
+def test_patterns_direction_writes_the_raster_and_the_instruction(tmp_path, cli):
     profile_path = save_profile(PanelProfile(**EIGHT, view_direction=1), tmp_path / "panel.json")
     out = tmp_path / "check"
-    code, stdout, err = _run(["patterns", "--direction", "--profile", profile_path, "-o", out], capsys)
+    code, stdout, err = cli("patterns", "--direction", "--profile", profile_path, "-o", out)
     assert code == 0 and err == "", err
     from lenticalib.core.imageio import read_image
 
@@ -561,11 +532,11 @@ def test_patterns_direction_writes_the_raster_and_the_instruction(tmp_path, caps
     assert f"set-direction {profile_path} +1" in stdout and f"set-direction {profile_path} -1" in stdout
     assert sorted(p.name for p in out.iterdir()) == [DIRECTION_PATTERN_NAME]
     # again into the same folder: replaced
-    code, _, err = _run(["patterns", "--direction", "--profile", profile_path, "-o", out], capsys)
+    code, _, err = cli("patterns", "--direction", "--profile", profile_path, "-o", out)
     assert code == 0 and err == ""
 
 
-def test_patterns_direction_refusals_are_one_line(tmp_path, capsys):
+def test_patterns_direction_refusals_are_one_line(tmp_path, cli):
     profile_path = save_profile(PanelProfile(**EIGHT), tmp_path / "panel.json")
     (tmp_path / "file").write_text("x")
     cases = [(["--direction", "-o", tmp_path / "a"], "--direction: needs the panel's profile"),
@@ -576,8 +547,8 @@ def test_patterns_direction_refusals_are_one_line(tmp_path, capsys):
              (["--direction", "--profile", profile_path, "-o", tmp_path / "file"], "is a file, not a folder"),
              (["--direction", "--profile", profile_path, "-o", tmp_path / "no" / "a"], "does not exist")]
     for args, expected in cases:
-        code, out, err = _run(["patterns", *args], capsys)
-        assert code == 2 and expected in _one_error_line(err), (args, err)
+        code, out, err = cli("patterns", *args)
+        assert code == 2 and expected in one_error_line(err), (args, err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "panel.json"]
 
 
