@@ -35,7 +35,7 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
 
 COMPENSATION_FLAGS = {"crosstalk_file": "--compensate crosstalk.json", "black_lift": "--black-lift",
                       "regularisation": "--regularisation", "iterations": "--iterations"}
-FLAGS = {**COMPENSATION_FLAGS, "views_dir": "--views-dir DIR", "quilt": "--quilt FILE", "allow_stretch": "--stretch"}
+FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE", "allow_stretch": "--stretch"}
 
 
 def compensation_options(args: argparse.Namespace):

@@ -93,7 +93,7 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
     if (views_dir is None) == (quilt is None):
         raise InputError("give the views one way", source="views_dir", hint="either views_dir or quilt")
     if not isinstance(profile, PanelProfile):
-        profile = load_profile(profile, "profile")
+        profile = load_profile(profile, "`profile`")
     get_encoder(encoder)  # an unknown encoder is refused before the views are read
     compensator = (compensation or CompensationOptions()).compensator(profile.views)
     check_image_output(output, what="panel raster")  # a wrong output path costs nothing

@@ -88,7 +88,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     get_encoder(encoder, device=device)
     CAMERA_MODELS.load(o.camera_model, "camera_model")
     if not isinstance(profile, PanelProfile):
-        profile = load_profile(profile, "profile")
+        profile = load_profile(profile, "`profile`")
     if not 0.0 <= o.edge_desaturation <= 1.0:
         raise InputError(f"{o.edge_desaturation} is out of range", source="edge_desaturation", hint="use 0..1")
     compensator = (o.compensation or CompensationOptions()).compensator(profile.views)

@@ -108,7 +108,7 @@ def load_view_folder(folder: str | os.PathLike, views: int) -> np.ndarray:
         raise ImageError("no such folder", source=str(root), hint="give the folder of the view images")
     if not root.is_dir():
         raise ImageError("is a file, not a folder of views", source=str(root),
-                         hint="give the folder of the view images; a quilt image is read as a quilt")
+                         hint="give the folder of the view images; a quilt image goes in as `quilt`")
     files = sorted((f for f in root.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES
                     and not f.name.startswith(".")), key=_natural_key)
     if len(files) != views:

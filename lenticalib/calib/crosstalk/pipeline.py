@@ -125,7 +125,7 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
             raise InputError("is also the crosstalk file path", source="report_dir", hint="give the report a folder")
     profile_file = None
     if profile is not None and not isinstance(profile, PanelProfile):
-        profile_file, profile = profile, load_profile(profile, "profile")
+        profile_file, profile = profile, load_profile(profile, "`profile`")
     pattern_set, _ = open_crosstalk_set(directory, profile, "profile")
     eye_views, eye_note = (eye or EyeSeparation()).resolve(pattern_set.views)
     if progress_total is not None:
