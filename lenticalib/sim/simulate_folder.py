@@ -221,8 +221,8 @@ def _simulate_board(folder: Path, o: SimulationOptions, progress, progress_total
     board = read_board(folder / "board.json")
     if board.kind != "panel":
         raise InputError("is a printed board's folder", source=str(folder / "board.json"),
-                         hint="simulate the panel board folder (the one with board.png), or use 'lenticalib camera "
-                              "simulate DIR --kind print'")
+                         hint="simulate the panel board folder (the one with board.png); a printed board is "
+                              "simulated as a set of its own (simulate_camera_set, kind 'print')")
     ignored = [f"`{name}`" for name, value in (("scene", o.scene), ("slant", o.slant), ("period", o.period),
                                                ("order", o.order), ("distance_mm", o.distance_mm),
                                                ("raw", o.raw or None)) if value is not None]
