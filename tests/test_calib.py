@@ -138,7 +138,8 @@ def _read_bgr(path: Path) -> np.ndarray:
 
 
 class _RecordingBar:
-    """Stands in for the CLI's progress bar: the total it was opened with and every update."""
+    """Stands in for the CLI's progress bar: its total (given when opened, or set before the first
+    update: a total set later fails the test) and every update."""
 
     bars: list = []
 
@@ -148,6 +149,10 @@ class _RecordingBar:
 
     def update(self, message=None):
         self.updates.append(message)
+
+    def set_total(self, total):
+        assert not self.updates, "the total came after the first update"
+        self.total = total
 
 
 @contextlib.contextmanager
@@ -356,8 +361,9 @@ def test_demo_fit_matches_the_truth(demo_fit):
 
 
 def test_fit_progress_counts_to_its_total(demo_fit):
-    """The fit's progress bar is opened with the number of updates the fit then makes: one per
-    photo read, one per stage (it once stood at 100 % with a third of the fit to go)."""
+    """The fit's progress bar is given, before the first update, the number of updates the fit
+    then makes: one per photo read, one per stage (it once stood at 100 % with a third of the fit
+    to go)."""
     bar = demo_fit.progress
     patterns = read_manifest(demo_fit.directory)
     assert bar.total == len(bar.updates) == fit_module.progress_steps(patterns)

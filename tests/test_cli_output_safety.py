@@ -83,7 +83,7 @@ FILE_COMMANDS = {
     "profile export-lkg": (["profile", "export-lkg", PROFILE, "-o", "OUT"], "visual.json"),
     "profile retarget": (["profile", "retarget", PROFILE, "--distance", 900, "-o", "OUT"], "p900.json"),
     "device read": (["device", "read", "emu://blank", "-o", "OUT"], "back.json"),
-    "encode": (["encode", "--profile", PROFILE, "--views", "IN", "-o", "OUT"], "raster.png"),
+    "encode": (["encode", "--profile", PROFILE, "--views-dir", "IN", "-o", "OUT"], "raster.png"),
     "render -o PNG": (["render", "IN/demo.npz", "--profile", PROFILE, "-o", "OUT"], "frame.png"),
     "render -o MKV": (["render", "IN/demo.npz", "--profile", PROFILE, "-o", "OUT"], "video.mkv"),
     "crosstalk measure": (["crosstalk", "measure", "IN", "-o", "OUT"], "crosstalk.json"),

@@ -1,8 +1,9 @@
 """The fit in millimetres: camera pose, gap from two distances, physical constants, retargeting.
 
 One virtual panel photographed by one camera (fixed intrinsics, the simulator's OpenCV model
-written as an mrcal .cameramodel) from 600 and 850 mm; both sets fitted through the CLI
-(``lenticalib fit --camera --pixel-pitch --second-distance``).  Checked against the scene's
+written as an mrcal .cameramodel) from 600 and 850 mm; both sets fitted through the library
+(``fit_capture_sets`` with ``PhysicalOptions``: what ``lenticalib fit --camera --pixel-pitch
+--second-distance`` runs).  Checked against the scene's
 truth: the camera's distance (and the lens-sheet magnification's share of it), the gap, lens
 pitch, lens position, and the retargeted profile at 400-900 mm against the ray-traced routing.
 """
@@ -15,14 +16,14 @@ import types
 import numpy as np
 import pytest
 
+from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
+from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.calib.patterns import design_patterns, write_patterns
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile
 from lenticalib.sim.capture import simulate_capture_set
 from lenticalib.sim.optics import routing_error
 from lenticalib.sim.scene import random_scene
-
-from .cli_support import run_main
 
 DISTANCES = (600.0, 850.0)
 
@@ -60,9 +61,10 @@ def two_distances(tmp_path_factory):
     model = _true_model(scene.camera, root / "camera.cameramodel")
     out = root / "out"
     out.mkdir()
-    code, _, err = run_main("fit", sets[0][0], "-o", out / "profile.json", "--camera", model, "--pixel-pitch",
-                            scene.optics.pixel_pitch, "--second-distance", sets[1][0], "--json")
-    assert code == 0, err
+    run = fit_capture_sets(sets[0][0], output=out / "profile.json",
+                           physical=PhysicalOptions(camera_model=model, pixel_pitch_mm=scene.optics.pixel_pitch,
+                                                    second_distance=sets[1][0]))
+    assert run.trusted and run.profile_written, run.result.problems
     summary = json.loads((out / "profile-report" / "summary.json").read_text())
     return types.SimpleNamespace(scene=scene, sets=sets, profile=load_profile(out / "profile.json"),
                                  summary=summary, root=root, model=model)
@@ -138,8 +140,9 @@ def test_physical_options_are_checked_before_the_fit(two_distances, tmp_path, cl
 
 @pytest.fixture(scope="module")
 def calibrated(two_distances):
-    """The user's path: the same camera calibrated by 'lenticalib camera calibrate' from 20 simulated
-    photos of a board shown on the same panel, then both sets fitted with that model."""
+    """The user's path: the same camera calibrated (``calibrate_camera``: what 'lenticalib camera
+    calibrate' runs) from 20 simulated photos of a board shown on the same panel, then both sets
+    fitted with that model."""
     from lenticalib.sim.board_set import simulate_board_set
 
     t = two_distances
@@ -147,13 +150,13 @@ def calibrated(two_distances):
     boards.mkdir()
     simulate_board_set(boards, kind="panel", seed=7, photos=20, scene=t.scene)
     model = t.root / "calibrated.cameramodel"
-    code, _, err = run_main("camera", "calibrate", boards / "captures", "-o", model, "--report", t.root / "camera-report")
-    assert code == 0, err
+    calibrate_camera([boards / "captures"], model, report_dir=t.root / "camera-report")
     out = t.root / "out-calibrated"
     out.mkdir()
-    code, _, err = run_main("fit", t.sets[0][0], "-o", out / "profile.json", "--camera", model, "--pixel-pitch",
-                            t.scene.optics.pixel_pitch, "--second-distance", t.sets[1][0])
-    assert code == 0, err
+    run = fit_capture_sets(t.sets[0][0], output=out / "profile.json",
+                           physical=PhysicalOptions(camera_model=model, pixel_pitch_mm=t.scene.optics.pixel_pitch,
+                                                    second_distance=t.sets[1][0]))
+    assert run.trusted and run.profile_written, run.result.problems
     return types.SimpleNamespace(profile=load_profile(out / "profile.json"), model=model)
 
 

@@ -24,7 +24,7 @@ from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
 from lenticalib.core.view_direction import direction_warning, with_direction
 
-from .cli_support import one_error_line, run_main
+from .cli_support import one_error_line
 
 REPO = Path(__file__).resolve().parents[1]
 EIGHT = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
@@ -388,21 +388,23 @@ def moved_sets(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def moved_fit(moved_sets):
-    """``lenticalib fit first -o out/profile.json --moved-right right --json`` (in-process)."""
+    """``fit_capture_sets(first, output=out/profile.json, moved_right=right)``: what ``lenticalib fit
+    first -o out/profile.json --moved-right right`` runs."""
+    from lenticalib.calib.fit_pipeline import fit_capture_sets
+
     out = moved_sets.root / "out"
     out.mkdir()
-    code, stdout, stderr = run_main("fit", moved_sets.first, "-o", out / "profile.json",
-                                    "--moved-right", moved_sets.right, "--json")
-    return types.SimpleNamespace(code=code, out=stdout, err=stderr, profile_path=out / "profile.json")
+    run = fit_capture_sets(moved_sets.first, output=out / "profile.json", moved_right=moved_sets.right)
+    return types.SimpleNamespace(run=run, summary=run.summary, profile_path=out / "profile.json")
 
 
 def test_fit_with_moved_right_finds_the_true_direction(moved_sets, moved_fit):
-    assert moved_fit.code == 0, moved_fit.err
+    assert moved_fit.run.trusted and moved_fit.run.profile_written, moved_fit.run.result.problems
     truth = load_profile(moved_sets.first / "truth.json")
     assert truth.view_direction == 1
     profile = load_profile(moved_fit.profile_path)
     assert profile.view_direction == truth.view_direction
-    summary = json.loads(moved_fit.out)
+    summary = moved_fit.summary
     evidence = summary["view_direction"]
     assert evidence["result"] == 1 and evidence["method"] == "moved-right"
     assert evidence["capture_set"] == str(moved_sets.right) and evidence["moved_right_trusted"] is True
@@ -419,7 +421,7 @@ def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
     """The sign follows the camera's move: swapping the two sets (the 'moved' camera is then to
     the LEFT of the first) gives -1; a user who moved the wrong way gets the wrong sign, which is
     why the option is named for the direction to move."""
-    evidence = json.loads(moved_fit.out)["view_direction"]  # the two fits, rebuilt from it
+    evidence = moved_fit.summary["view_direction"]  # the two fits, rebuilt from it
     base = {k: v for k, v in load_profile(moved_fit.profile_path).to_dict().items()
             if k in ("views", "width", "height")}
     first, right = evidence["first"], evidence["moved_right"]

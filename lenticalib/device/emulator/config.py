@@ -1,7 +1,7 @@
 """How an emulated controller is configured: its panel and firmware generation, as text.
 
 The same spellings serve ``lenticalib emulate`` (``--panel 3840x2160 --subpixel-order RGB
---views 32 --protocol 1.1``) and ``emu://`` URLs (``emu://bench?panel=1920x1080&views=8,16``);
+--view-counts 32 --protocol 1.1``) and ``emu://`` URLs (``emu://bench?panel=1920x1080&views=8,16``);
 each parser raises ValueError with a message that fits after the option's name.
 """
 
