@@ -207,16 +207,14 @@ def patterns_1080(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def sim_fit(tmp_path_factory, patterns_1080):
-    """A fresh simulated capture set (BGR, negative slant, small camera) and its fit."""
-    from lenticalib.sim.capture import simulate_capture_set
+def sim_fit(tmp_path_factory, capture_set):
+    """A fresh simulated capture set (BGR, negative slant, small camera) of a 1920x1080, 32-view
+    panel and its fit."""
     from lenticalib.sim.scene import random_scene
 
-    directory = tmp_path_factory.mktemp("sim") / "set"
-    shutil.copytree(patterns_1080, directory)
     scene = random_scene(7, width=1920, height=1080, resolution=(1500, 1000), period=22.5, slant=-0.3,
                          order="BGR", jpeg_quality=85)
-    simulate_capture_set(directory, scene)
+    directory = capture_set(scene)
     # the fit sees what a user has: the manifest and the photos (no simulation.json, no truth)
     fit_dir = tmp_path_factory.mktemp("sim-fit") / "set"
     fit_dir.mkdir()
@@ -557,6 +555,7 @@ def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, cli, monke
 # 4. a fresh simulated capture set: BGR, negative slant, small camera
 # ---------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_simulated_bgr_set_fits_to_the_truth(sim_fit):
     result, truth = sim_fit.result, sim_fit.truth
     assert truth.subpixel_order == "BGR" and truth.slant == pytest.approx(-0.3)
@@ -682,6 +681,7 @@ FAILURES = {
     "no-captures-folder": (_no_captures_folder, True),
     "no-manifest": (_no_manifest, False),
 }
+SLOW_FAILURES = {"another-pattern-set", "y-photo-as-x2-1"}  # the two slowest refusals (several seconds each)
 
 
 def _old_profile(path: Path) -> bytes:
@@ -702,7 +702,7 @@ def _check_nothing_written(out: Path, profile_path: Path, old: bytes | None, bef
     assert _listing(out) == before  # no temporary file left behind either
 
 
-@pytest.mark.parametrize("case", list(FAILURES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_FAILURES else c for c in FAILURES])
 def test_fit_failure_mode(case, tmp_path, cli):
     mutate, existing = FAILURES[case]
     directory = _copy_capture_set(tmp_path / "set")
@@ -737,6 +737,7 @@ def _blur(names, sigma):
     ("one-fine-photo", _blur(lambda d: ["f16-1"], 30.0), "f16-1.jpg"),
     ("every-photo", _blur(lambda d: [p.stem for p in (d / "captures").iterdir()], 30.0), None),
 ], ids=["f16-1", "every-photo"])
+@pytest.mark.slow
 def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_path, cli):
     """A heavily blurred photo ends in an error (exit 2) or an untrusted fit (exit 3), no profile."""
     directory = _copy_capture_set(tmp_path / "set")
@@ -764,6 +765,7 @@ def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_p
 # 6. the untrustworthy gate and --force
 # ---------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
     monkeypatch.setattr(fit_module, "MAX_PREDICTED_ERROR", 1e-9)
     out = tmp_path / "out"
@@ -785,19 +787,15 @@ def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
     assert profile == demo_fit.result.profile  # the same fit, only the gate differs
 
 
-def test_very_noisy_photos_are_never_blamed_on_camera_motion(tmp_path):
+@pytest.mark.slow
+def test_very_noisy_photos_are_never_blamed_on_camera_motion(capture_set):
     """High-ISO noise alone (250 e- full well, 14 e- read noise) must not trip a capture check: the
     single-fringe coordinates are smoothed before unwrapping and the motion check has a confidence.
     The fit runs to the end and judges itself; it may call itself untrusted, never the camera moved."""
-    from lenticalib.calib.patterns import design_patterns, write_patterns
-    from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
-    folder = tmp_path / "noisy"
     scene = random_scene(12, width=1920, height=1080, resolution=(1400, 934), subsamples=1,
                          full_well=250.0, read_noise=14.0)
-    write_patterns(folder, design_patterns(1920, 1080, 32))
-    simulate_capture_set(folder, scene)
-    result = fit_module.fit_capture_set(folder)
+    result = fit_module.fit_capture_set(capture_set(scene, views=32))
     assert not any("moved" in w for w in result.warnings)
     assert result.profile.subpixel_order == scene.optics.subpixel_order

@@ -62,6 +62,7 @@ def _three_sigma_check(folder, model_path, summary):
     return near, far
 
 
+@pytest.mark.slow
 def test_printed_board_intrinsics_are_within_their_uncertainty(printed):
     folder, model_path, _, summary = printed
     assert summary["photos"]["used"] == 24 and summary["photos"]["rejected"] == []
@@ -71,6 +72,7 @@ def test_printed_board_intrinsics_are_within_their_uncertainty(printed):
     assert np.max(np.abs(near["error"])) < 1.0  # pixels, anywhere in the image
 
 
+@pytest.mark.slow
 def test_panel_shown_board_intrinsics_are_unbiased(shown):
     """Seen through the lens sheet the board is a rigid board in the pixel plane (z = +g): modelled
     there, the intrinsics come out within their uncertainty, and the solved board poses are those of
@@ -92,6 +94,7 @@ def test_panel_shown_board_intrinsics_are_unbiased(shown):
     assert abs(offset) < 0.3 * gap, (offset, gap)
 
 
+@pytest.mark.slow
 def test_calibrate_writes_a_real_cameramodel_and_a_report(printed):
     folder, model_path, report, summary = printed
     model = mrcal.cameramodel(str(model_path))
@@ -115,6 +118,7 @@ def test_calibrate_writes_a_real_cameramodel_and_a_report(printed):
     assert {c["lensmodel"] for c in summary["candidates"]} >= {OPENCV8}
 
 
+@pytest.mark.slow
 def test_corner_labels_do_not_depend_on_the_detector_order(printed):
     """Any labelling of the grid (from either end, mirrored) is turned back into the drawn one."""
     folder = printed[0]
@@ -219,6 +223,7 @@ def _blank_photos(folder, n, size=RESOLUTION):
         cv2.imwrite(str(folder / f"blank-{k:02d}.jpg"), img)
 
 
+@pytest.mark.slow
 def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
     folder = printed[0]
     captures = folder / "captures"
@@ -252,6 +257,7 @@ def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
                   absent=[tmp_path / "s"])
 
 
+@pytest.mark.slow
 def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, printed, monkeypatch):
     """3 photos with the board and 9 without: refused after detection, before any solve."""
     folder = printed[0]

@@ -195,6 +195,7 @@ def test_patterns_and_crosstalk_patterns_write_into_a_folder_and_keep_its_files(
         assert (folder / "thesis.tex").read_text() == "my work" and len(list(folder.iterdir())) > 1
 
 
+@pytest.mark.slow
 def test_simulate_keeps_the_files_of_the_pattern_folder(tmp_path, cli):
     folder = tmp_path / "set"
     write_patterns(folder, design_patterns(640, 360, 8))

@@ -47,6 +47,7 @@ def _encode_tensor(views, profile, dtype=torch.float64):
 
 # --- bit-identical to the reference ------------------------------------------------------------
 
+@pytest.mark.slow
 def test_bundled_profile_bit_identical_to_reference_everywhere():
     # the demo profile has ~2,500 subpixels on a view boundary (ties): every one routed canonically
     profile = load_profile(FIXTURES / "panel-4k-32.json")

@@ -10,7 +10,6 @@ pitch, lens position, and the retargeted profile at 400-900 mm against the ray-t
 
 import dataclasses
 import json
-import shutil
 import types
 
 import numpy as np
@@ -18,12 +17,14 @@ import pytest
 
 from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
 from lenticalib.calib.intrinsics.pipeline import calibrate_camera
-from lenticalib.calib.patterns import design_patterns, write_patterns
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile
-from lenticalib.sim.capture import simulate_capture_set
 from lenticalib.sim.optics import routing_error
 from lenticalib.sim.scene import random_scene
+
+
+# every test reads the two 1920x1080 capture sets and their fit (minutes on two cores)
+pytestmark = pytest.mark.slow
 
 DISTANCES = (600.0, 850.0)
 
@@ -37,27 +38,22 @@ def _true_model(camera, path):
     return path
 
 
-def simulate_two_distances(root, seed=7, distances=DISTANCES):
-    """Two capture sets of one panel, one camera (same intrinsics) at two distances."""
-    patterns = root / "patterns"
-    write_patterns(patterns, design_patterns(1920, 1080, 32))
+def simulate_two_distances(capture_set, seed=7, distances=DISTANCES):
+    """Two capture sets of one 1920x1080, 32-view panel, one camera (same intrinsics) at two distances."""
     scene = random_scene(seed, width=1920, height=1080, resolution=(1500, 1000), distance=distances[0],
                          jpeg_quality=90)
     sets = []
     for distance in distances:
         cam = scene.camera
         moved = dataclasses.replace(scene, camera=cam.replace(position=(cam.position[0], cam.position[1], -distance)))
-        folder = root / f"set-{distance:.0f}"
-        shutil.copytree(patterns, folder)
-        simulate_capture_set(folder, moved)
-        sets.append((folder, moved))
+        sets.append((capture_set(moved, views=32), moved))
     return scene, sets
 
 
 @pytest.fixture(scope="module")
-def two_distances(tmp_path_factory):
+def two_distances(tmp_path_factory, capture_set):
     root = tmp_path_factory.mktemp("two-distances")
-    scene, sets = simulate_two_distances(root)
+    scene, sets = simulate_two_distances(capture_set)
     model = _true_model(scene.camera, root / "camera.cameramodel")
     out = root / "out"
     out.mkdir()

@@ -12,23 +12,9 @@ from lenticalib.render.monitors import Monitor, choose_monitor, list_monitors
 from lenticalib.render.present import WindowPresenter
 from lenticalib.render.present_offscreen import OffscreenPresenter
 
-from .display_support import VirtualDisplay
+from .display_support import SCREEN
 
-W, H = 640, 360
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    display = VirtualDisplay(W, H)
-    yield display
-    display.close()
-
-
-@pytest.fixture
-def on_xvfb(xvfb, monkeypatch):
-    monkeypatch.setenv("DISPLAY", xvfb.name)
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    return xvfb
+W, H = SCREEN  # the xvfb fixture's screen
 
 
 def _raster(seed, size=(W, H), dtype=np.uint8):

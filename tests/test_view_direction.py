@@ -364,25 +364,21 @@ def test_an_untrustworthy_second_fit_gives_no_direction():
 # ---------------------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def moved_sets(tmp_path_factory):
+def moved_sets(tmp_path_factory, capture_set):
     """A 640x360, 8-view virtual panel photographed from the calibration position (``first``) and
-    from 1.5 view zones (about 7 cm) to the right at the same distance (``right``)."""
+    from 1.5 view zones (about 7 cm) to the right at the same distance (``right``); the sets hold
+    what a user has (no simulation.json)."""
     from lenticalib.calib.patterns import design_patterns, write_patterns
-    from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
     root = tmp_path_factory.mktemp("moved")
-    write_patterns(root / "patterns", design_patterns(SIM_W, SIM_H, SIM_VIEWS))
+    patterns = design_patterns(SIM_W, SIM_H, SIM_VIEWS)
+    write_patterns(root / "patterns", patterns)
     scene = random_scene(3, width=SIM_W, height=SIM_H, resolution=CAMERA)
     zone = scene.optics.view_zone_width(scene.camera.distance, SIM_VIEWS)
     ex, ey, ez = scene.eye
     moved = scene.replace_camera(position=(ex + 1.5 * zone, ey, ez))
-    sets = {}
-    for name, s in (("first", scene), ("right", moved)):
-        shutil.copytree(root / "patterns", root / name)
-        simulate_capture_set(root / name, s)
-        (root / name / "simulation.json").unlink()  # the fit sees what a user has
-        sets[name] = root / name
+    sets = {name: capture_set(s, patterns, keep_simulation=False) for name, s in (("first", scene), ("right", moved))}
     return types.SimpleNamespace(root=root, zone_mm=zone, scene=scene, **sets)
 
 
@@ -398,6 +394,7 @@ def moved_fit(moved_sets):
     return types.SimpleNamespace(run=run, summary=run.summary, profile_path=out / "profile.json")
 
 
+@pytest.mark.slow
 def test_fit_with_moved_right_finds_the_true_direction(moved_sets, moved_fit):
     assert moved_fit.run.trusted and moved_fit.run.profile_written, moved_fit.run.result.problems
     truth = load_profile(moved_sets.first / "truth.json")
@@ -417,6 +414,7 @@ def test_fit_with_moved_right_finds_the_true_direction(moved_sets, moved_fit):
     assert (moved_fit.profile_path.parent / "profile-report" / "summary.json").exists()
 
 
+@pytest.mark.slow
 def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
     """The sign follows the camera's move: swapping the two sets (the 'moved' camera is then to
     the LEFT of the first) gives -1; a user who moved the wrong way gets the wrong sign, which is
@@ -435,6 +433,7 @@ def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
     assert swapped.direction == -1 and swapped.dw == pytest.approx(-evidence["delta_w_views"], abs=1e-3)
 
 
+@pytest.mark.slow
 def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_path, monkeypatch, cli):
     import lenticalib.calib.fit as fit_module
 
@@ -452,6 +451,7 @@ def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_p
     assert load_profile(tmp_path / "p.json").view_direction is None
 
 
+@pytest.mark.slow
 def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch, cli):
     import lenticalib.calib.fit as fit_module
     from lenticalib.calib.patterns import design_patterns, write_patterns
