@@ -1,11 +1,16 @@
-"""Shared fixtures: the hypothesis profiles and the ``lenticalib`` runners (see cli_support.py)."""
+"""Shared fixtures: the hypothesis profiles, the ``lenticalib`` runners (see cli_support.py), one
+virtual display (see display_support.py) and the simulated capture sets.
+
+Tests of minutes carry ``@pytest.mark.slow``: ``pytest -m "not slow"`` is the inner loop."""
 
 import os
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
 
 from .cli_support import run_main, run_process
+from .display_support import SCREEN, VirtualDisplay
 
 settings.register_profile("lenticalib", derandomize=True, deadline=None, print_blob=True,
                           suppress_health_check=[HealthCheck.too_slow])
@@ -24,3 +29,58 @@ def cli_process():
     """``cli_process(*argv, env=None, timeout=600) -> CompletedProcess``: ``python -m lenticalib ARGV``
     as a real process in the repository root (:func:`run_process`)."""
     return run_process
+
+
+@pytest.fixture(scope="session")
+def xvfb():
+    """One Xvfb server of ``SCREEN`` (640x360) for the session: the presenter, ``show`` and
+    ``capture`` tests.  Processes get it through ``env=xvfb.variables()``."""
+    display = VirtualDisplay(*SCREEN)
+    yield display
+    display.close()
+
+
+@pytest.fixture
+def on_xvfb(xvfb, monkeypatch):
+    """This process shows on the ``xvfb`` display for the test (DISPLAY set, WAYLAND_DISPLAY unset)."""
+    for name, value in xvfb.variables().items():
+        if value is None:
+            monkeypatch.delenv(name, raising=False)
+        else:
+            monkeypatch.setenv(name, value)
+    return xvfb
+
+
+@pytest.fixture(scope="session")
+def capture_set(tmp_path_factory):
+    """``capture_set(scene, patterns=None, *, views=32, raw=False, keep_simulation=True) -> Path``:
+    a simulated capture set, made once per session for the same arguments.
+
+    ``patterns`` (a calibration or crosstalk pattern set; by default the calibration patterns of
+    the scene's panel with ``views`` views) is written and photographed on the virtual panel of
+    ``scene`` (``lenticalib.sim.capture.simulate_capture_set``; ``raw``: 16-bit linear PNGs).
+    Without ``keep_simulation`` the set is what a user has: no ``simulation.json`` (``truth.json``
+    stays for the test).  The folder is shared: copy it before changing it.
+    """
+    import json
+
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
+    from lenticalib.sim.capture import simulate_capture_set
+
+    made: dict[str, Path] = {}
+
+    def make(scene, patterns=None, *, views: int = 32, raw: bool = False, keep_simulation: bool = True) -> Path:
+        if patterns is None:
+            patterns = design_patterns(scene.optics.width, scene.optics.height, views)
+        key = json.dumps([scene.to_dict(), patterns.set_id, raw, keep_simulation], sort_keys=True)
+        if key not in made:
+            folder = tmp_path_factory.mktemp("capture-set") / "set"
+            write_patterns(folder, patterns)
+            simulate_capture_set(folder, scene, raw=raw)
+            if not keep_simulation:
+                (folder / "simulation.json").unlink()
+            made[key] = folder
+        return made[key]
+
+    return make

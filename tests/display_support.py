@@ -23,6 +23,9 @@ def require(program: str, package: str) -> str:
     return path
 
 
+SCREEN = (640, 360)  # width, height of the tests' Xvfb screen (the ``xvfb`` fixture in conftest.py)
+
+
 class VirtualDisplay:
     """An Xvfb server of one screen ``width`` x ``height`` x 24 bits on a free display number."""
 

@@ -94,6 +94,7 @@ def test_a_gaussian_lands_where_cameras_json_projects_it(directed, tmp_path, cli
         assert np.abs(centroid - expected).max() < 0.1, (index, centroid, expected)
 
 
+@pytest.mark.slow
 def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, directed, tmp_path, cli_process):
     out = {}
     for sign in (1, -1):
@@ -124,6 +125,7 @@ def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_p
     assert np.abs(view[40:70, 80:112] - backdrop[40:70, 80:112]).sum(axis=2).mean() > 30  # the head covers it
 
 
+@pytest.mark.slow
 def test_a_sequence_as_pngs_and_as_a_lossless_video_holds_the_same_rasters(demo, directed, tmp_path, cli_process):
     import cv2
 
@@ -227,6 +229,7 @@ def test_a_device_torch_cannot_use_is_refused_before_the_first_frame(demo, direc
         assert result.returncode == 2 and result.stdout == "" and len(lines) == 1 and words in lines[0], result.stderr
 
 
+@pytest.mark.slow
 def test_bad_inputs_end_in_one_line(demo, directed, tmp_path, cli_process):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     (tmp_path / "bad.jsonl").write_text('{"t": 0, "controls": [1, 2, 3]}\n')
@@ -250,6 +253,7 @@ def test_bad_inputs_end_in_one_line(demo, directed, tmp_path, cli_process):
     assert not (tmp_path / "a.png").exists()
 
 
+@pytest.mark.slow
 def test_crosstalk_compensation_in_the_loop_changes_what_is_encoded(demo, directed, tmp_path, cli_process):
     n = 32
     row = np.full(n, 0.002)

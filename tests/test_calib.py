@@ -139,7 +139,8 @@ def _read_bgr(path: Path) -> np.ndarray:
 
 
 class _RecordingBar:
-    """Stands in for the CLI's progress bar: the total it was opened with and every update."""
+    """Stands in for the CLI's progress bar: its total (given when opened, or set before the first
+    update: a total set later fails the test) and every update."""
 
     bars: list = []
 
@@ -149,6 +150,10 @@ class _RecordingBar:
 
     def update(self, message=None):
         self.updates.append(message)
+
+    def set_total(self, total):
+        assert not self.updates, "the total came after the first update"
+        self.total = total
 
 
 @contextlib.contextmanager
@@ -203,16 +208,14 @@ def patterns_1080(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def sim_fit(tmp_path_factory, patterns_1080):
-    """A fresh simulated capture set (BGR, negative slant, small camera) and its fit."""
-    from lenticalib.sim.capture import simulate_capture_set
+def sim_fit(tmp_path_factory, capture_set):
+    """A fresh simulated capture set (BGR, negative slant, small camera) of a 1920x1080, 32-view
+    panel and its fit."""
     from lenticalib.sim.scene import random_scene
 
-    directory = tmp_path_factory.mktemp("sim") / "set"
-    shutil.copytree(patterns_1080, directory)
     scene = random_scene(7, width=1920, height=1080, resolution=(1500, 1000), period=22.5, slant=-0.3,
                          order="BGR", jpeg_quality=85)
-    simulate_capture_set(directory, scene)
+    directory = capture_set(scene)
     # the fit sees what a user has: the manifest and the photos (no simulation.json, no truth)
     fit_dir = tmp_path_factory.mktemp("sim-fit") / "set"
     fit_dir.mkdir()
@@ -357,8 +360,9 @@ def test_demo_fit_matches_the_truth(demo_fit):
 
 
 def test_fit_progress_counts_to_its_total(demo_fit):
-    """The fit's progress bar is opened with the number of updates the fit then makes: one per
-    photo read, one per stage (it once stood at 100 % with a third of the fit to go)."""
+    """The fit's progress bar is given, before the first update, the number of updates the fit
+    then makes: one per photo read, one per stage (it once stood at 100 % with a third of the fit
+    to go)."""
     bar = demo_fit.progress
     patterns = read_manifest(demo_fit.directory)
     assert bar.total == len(bar.updates) == fit_module.progress_steps(patterns)
@@ -552,6 +556,7 @@ def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, cli, monke
 # 4. a fresh simulated capture set: BGR, negative slant, small camera
 # ---------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_simulated_bgr_set_fits_to_the_truth(sim_fit):
     result, truth = sim_fit.result, sim_fit.truth
     assert truth.subpixel_order == "BGR" and truth.slant == pytest.approx(-0.3)
@@ -677,6 +682,7 @@ FAILURES = {
     "no-captures-folder": (_no_captures_folder, True),
     "no-manifest": (_no_manifest, False),
 }
+SLOW_FAILURES = {"another-pattern-set", "y-photo-as-x2-1"}  # the two slowest refusals (several seconds each)
 
 
 def _old_profile(path: Path) -> bytes:
@@ -697,7 +703,7 @@ def _check_nothing_written(out: Path, profile_path: Path, old: bytes | None, bef
     assert _listing(out) == before  # no temporary file left behind either
 
 
-@pytest.mark.parametrize("case", list(FAILURES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_FAILURES else c for c in FAILURES])
 def test_fit_failure_mode(case, tmp_path, cli):
     mutate, existing = FAILURES[case]
     directory = _copy_capture_set(tmp_path / "set")
@@ -732,6 +738,7 @@ def _blur(names, sigma):
     ("one-fine-photo", _blur(lambda d: ["f16-1"], 30.0), "f16-1.jpg"),
     ("every-photo", _blur(lambda d: [p.stem for p in (d / "captures").iterdir()], 30.0), None),
 ], ids=["f16-1", "every-photo"])
+@pytest.mark.slow
 def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_path, cli):
     """A heavily blurred photo ends in an error (exit 2) or an untrusted fit (exit 3), no profile."""
     directory = _copy_capture_set(tmp_path / "set")
@@ -759,6 +766,7 @@ def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_p
 # 6. the untrustworthy gate and --force
 # ---------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
     monkeypatch.setattr(fit_module, "MAX_PREDICTED_ERROR", 1e-9)
     out = tmp_path / "out"
@@ -780,20 +788,15 @@ def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
     assert profile == demo_fit.result.profile  # the same fit, only the gate differs
 
 
-def test_very_noisy_photos_are_never_blamed_on_camera_motion(tmp_path):
+@pytest.mark.slow
+def test_very_noisy_photos_are_never_blamed_on_camera_motion(capture_set):
     """High-ISO noise alone (250 e- full well, 14 e- read noise) must not trip a capture check: the
     single-fringe coordinates are smoothed before unwrapping and the motion check has a confidence.
     The fit runs to the end and judges itself; it may call itself untrusted, never the camera moved."""
-    from lenticalib.calib.patterns import design_patterns
-    from lenticalib.core.pattern_sets import write_patterns
-    from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
-    folder = tmp_path / "noisy"
     scene = random_scene(12, width=1920, height=1080, resolution=(1400, 934), subsamples=1,
                          full_well=250.0, read_noise=14.0)
-    write_patterns(folder, design_patterns(1920, 1080, 32))
-    simulate_capture_set(folder, scene)
-    result = fit_module.fit_capture_set(folder)
+    result = fit_module.fit_capture_set(capture_set(scene, views=32))
     assert not any("moved" in w for w in result.warnings)
     assert result.profile.subpixel_order == scene.optics.subpixel_order

@@ -1,7 +1,7 @@
 """``lenticalib camera``: boards, corner labelling, the mrcal solve against synthetic ground truth, the CLI.
 
 The two ground-truth tests photograph a board 24 times with a known simulated camera (OpenCV
-k1 k2 p1 p2 k3 distortion, defocus, Bayer noise, JPEG), calibrate through the CLI, read the written
+k1 k2 p1 p2 k3 distortion, defocus, Bayer noise, JPEG), calibrate through the library (``calibrate_camera``), read the written
 .cameramodel back and compare its projections with the truth's over a 40 x 30 grid of the image,
 normalised by mrcal's own predicted 2 x 2 covariance (the "mean-pcam" reference: see
 lenticalib.calib.intrinsics.quality.compare_to_truth).  A correct calibration with a correct
@@ -16,6 +16,7 @@ import pytest
 
 from lenticalib.calib.intrinsics import board as boards
 from lenticalib.calib.intrinsics.corners import grey8, orient
+from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.calib.intrinsics.quality import compare_to_truth
 from lenticalib.calib.intrinsics.solve import OPENCV8, Solve, choose, write_cameramodel
 from lenticalib.sim.board_set import read_truth_poses, simulate_board_set
@@ -32,9 +33,8 @@ def _calibrated(tmp_path_factory, kind):
     folder.mkdir()
     simulate_board_set(folder, kind=kind, seed=1, photos=24, resolution=RESOLUTION)
     model, report = folder / "camera.cameramodel", folder / "report"
-    code, out, err = run_main("camera", "calibrate", folder / "captures", "-o", model, "--report", report, "--json")
-    assert code == 0, err
-    return folder, model, report, json.loads(out)
+    run = calibrate_camera([folder / "captures"], model, report_dir=report)  # what 'camera calibrate' runs
+    return folder, model, report, json.loads(json.dumps(run.summary))  # as --json prints it
 
 
 @pytest.fixture(scope="module")
@@ -62,6 +62,7 @@ def _three_sigma_check(folder, model_path, summary):
     return near, far
 
 
+@pytest.mark.slow
 def test_printed_board_intrinsics_are_within_their_uncertainty(printed):
     folder, model_path, _, summary = printed
     assert summary["photos"]["used"] == 24 and summary["photos"]["rejected"] == []
@@ -71,6 +72,7 @@ def test_printed_board_intrinsics_are_within_their_uncertainty(printed):
     assert np.max(np.abs(near["error"])) < 1.0  # pixels, anywhere in the image
 
 
+@pytest.mark.slow
 def test_panel_shown_board_intrinsics_are_unbiased(shown):
     """Seen through the lens sheet the board is a rigid board in the pixel plane (z = +g): modelled
     there, the intrinsics come out within their uncertainty, and the solved board poses are those of
@@ -92,6 +94,7 @@ def test_panel_shown_board_intrinsics_are_unbiased(shown):
     assert abs(offset) < 0.3 * gap, (offset, gap)
 
 
+@pytest.mark.slow
 def test_calibrate_writes_a_real_cameramodel_and_a_report(printed):
     folder, model_path, report, summary = printed
     model = mrcal.cameramodel(str(model_path))
@@ -115,6 +118,7 @@ def test_calibrate_writes_a_real_cameramodel_and_a_report(printed):
     assert {c["lensmodel"] for c in summary["candidates"]} >= {OPENCV8}
 
 
+@pytest.mark.slow
 def test_corner_labels_do_not_depend_on_the_detector_order(printed):
     """Any labelling of the grid (from either end, mirrored) is turned back into the drawn one."""
     folder = printed[0]
@@ -171,7 +175,7 @@ def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, cli
     code, stdout, err = cli("camera", "patterns", "-o", out, "--panel", "1920x1080", "--pixel-pitch", "0.36")
     assert code == 0, err
     manifest = json.loads((out / "board.json").read_text())
-    assert manifest["format"] == "lenticalib.camera-board" and manifest["version"] == 1
+    assert manifest["format"] == "lenticalib.camera-board" and manifest["format_version"] == 1
     assert manifest["kind"] == "panel" and (manifest["cols"], manifest["rows"]) == (15, 8)
     assert manifest["panel"] == {"width": 1920, "height": 1080, "pixel_pitch_mm": 0.36}
     assert manifest["square_mm"] == pytest.approx(manifest["square_px"] * 0.36, abs=1e-9)
@@ -219,6 +223,7 @@ def _blank_photos(folder, n, size=RESOLUTION):
         cv2.imwrite(str(folder / f"blank-{k:02d}.jpg"), img)
 
 
+@pytest.mark.slow
 def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
     folder = printed[0]
     captures = folder / "captures"
@@ -252,6 +257,7 @@ def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
                   absent=[tmp_path / "s"])
 
 
+@pytest.mark.slow
 def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, printed, monkeypatch):
     """3 photos with the board and 9 without: refused after detection, before any solve."""
     folder = printed[0]

@@ -14,25 +14,18 @@ from lenticalib.calib import acquire
 from lenticalib.calib.cameras import open_camera
 from lenticalib.calib.captures import load_photo
 from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.fit import fit_capture_set
 from lenticalib.calib.patterns import design_patterns
-from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.errors import CaptureError
+from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.profile import load_profile
 from lenticalib.render.present import open_presenter
 
 from .cli_support import run_process
-from .display_support import VirtualDisplay
+from .display_support import SCREEN
 
-W, H, VIEWS = 640, 360, 8
+W, H = SCREEN  # the panel is the xvfb fixture's screen
+VIEWS = 8
 CAMERA = "1200x900"
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    display = VirtualDisplay(W, H)
-    yield display
-    display.close()
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +47,7 @@ def captured(xvfb, pattern_dir, tmp_path_factory):
     return folder, result, fit
 
 
+@pytest.mark.slow
 def test_capture_with_the_virtual_camera_then_fit(captured):
     folder, result, fit = captured
     assert "captured 23 photo(s), kept 0 from before, 0 retaken" in result.stdout
@@ -67,6 +61,7 @@ def test_capture_with_the_virtual_camera_then_fit(captured):
     assert difference.rms <= 0.05 and difference.worst <= 0.15 and abs(difference.centring) <= 0.25, difference
 
 
+@pytest.mark.slow
 def test_the_virtual_camera_photographs_what_the_screen_showed(captured, tmp_path, cli_process):
     """The same scene photographed straight from the pattern PNGs (``lenticalib simulate``) gives
     the same photos: the window presenter put the patterns on screen unchanged."""
@@ -83,6 +78,7 @@ def test_the_virtual_camera_photographs_what_the_screen_showed(captured, tmp_pat
         assert (reference / "captures" / f"{name}.jpg").read_bytes() == (folder / "captures" / f"{name}.jpg").read_bytes()
 
 
+@pytest.mark.slow
 def test_an_interrupted_capture_resumes_where_it_stopped(captured, tmp_path, cli_process):
     folder, _, _ = captured
     again = tmp_path / "cal"
@@ -117,6 +113,7 @@ class _FirstPhotoBlack:
         return self.inner.capture(name, shown, destination)
 
 
+@pytest.mark.slow
 def test_a_bad_photo_is_retaken_at_once_and_kept_aside(pattern_dir, tmp_path):
     folder = tmp_path / "cal"
     shutil.copytree(pattern_dir, folder)
@@ -172,6 +169,7 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_proce
     assert not (folder / "captures").exists() or not any((folder / "captures").iterdir())
 
 
+@pytest.mark.slow
 def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path, cli_process):
     """``crosstalk patterns`` from the fitted profile, then ``capture`` shows and photographs them on the
     same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set."""
@@ -229,6 +227,7 @@ def _photograph(pattern_folder, raster_name, name, path):
     return path
 
 
+@pytest.mark.slow
 def test_a_4k_set_is_captured_with_no_photo_taken_for_unchanged(captured_4k):
     """Fine fringes (f16, f22) barely resolved by a 1-megapixel camera still pass: their step is
     judged against two photos of one pattern, not against a fixed share of the light."""
@@ -240,6 +239,7 @@ def test_a_4k_set_is_captured_with_no_photo_taken_for_unchanged(captured_4k):
     assert record["status"] == "complete" and len(record["captures"]) == 23  # the repeat is not a pattern's photo
 
 
+@pytest.mark.slow
 def test_unchanged_photos_are_rejected_and_fine_steps_pass(captured_4k, tmp_path):
     folder, _, _ = captured_4k
     captures = folder / "captures"
@@ -279,6 +279,7 @@ def captured_4k_crosstalk(captured_4k):
     return xt, pattern_set, report, notes
 
 
+@pytest.mark.slow
 def test_every_crosstalk_band_is_captured_and_a_stale_band_is_not(captured_4k_crosstalk, tmp_path):
     """A band moved by a tenth of the view cone moves little light, yet clearly more than noise; two
     bands the camera sees nowhere give the same dark photo, rightly (the patterns say so); a band

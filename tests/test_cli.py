@@ -47,7 +47,7 @@ def test_encode_quilt_and_folder_give_the_same_raster(tmp_path, profile_path, cl
     code, out, err = cli("encode", "--profile", profile_path, "--quilt", quilt_path, "-o", tmp_path / "a.png", "--json")
     assert code == 0, err
     assert json.loads(out)["width"] == 96
-    code, _, err = cli("encode", "--profile", profile_path, "--views", folder, "-o", tmp_path / "b.png")
+    code, _, err = cli("encode", "--profile", profile_path, "--views-dir", folder, "-o", tmp_path / "b.png")
     assert code == 0, err
     a, b = read_image(tmp_path / "a.png"), read_image(tmp_path / "b.png")
     assert a.shape == (54, 96, 3) and a.dtype == np.uint8
@@ -80,20 +80,20 @@ def test_bad_inputs_end_in_one_clear_line(tmp_path, profile_path):
     # wrong number of views
     for i in range(7):
         write_image(folder / f"{i}.png", views[i])
-    _expect_error(["encode", "--profile", profile_path, "--views", folder, "-o", out],
+    _expect_error(["encode", "--profile", profile_path, "--views-dir", folder, "-o", out],
                   "found 7 images, the profile has 8 views", str(folder))
     # views of different sizes
     write_image(folder / "7.png", views[0][:20])
-    _expect_error(["encode", "--profile", profile_path, "--views", folder, "-o", out],
+    _expect_error(["encode", "--profile", profile_path, "--views-dir", folder, "-o", out],
                   "7.png", "all views must have one size")
     # unreadable image
     (folder / "7.png").write_bytes(b"not a png")
-    _expect_error(["encode", "--profile", profile_path, "--views", folder, "-o", out],
+    _expect_error(["encode", "--profile", profile_path, "--views-dir", folder, "-o", out],
                   "7.png", "not a readable image")
     # missing image / folder
     _expect_error(["encode", "--profile", profile_path, "--quilt", tmp_path / "none_qs4x2a1.78.png", "-o", out],
                   "none_qs4x2a1.78.png", "no such file")
-    _expect_error(["encode", "--profile", profile_path, "--views", tmp_path / "nowhere", "-o", out], "no such folder")
+    _expect_error(["encode", "--profile", profile_path, "--views-dir", tmp_path / "nowhere", "-o", out], "no such folder")
     # quilt that does not divide into its grid
     write_image(tmp_path / "q_qs4x2a1.78.png", make_quilt(views, QuiltGrid(4, 2))[:, :190])
     _expect_error(["encode", "--profile", profile_path, "--quilt", tmp_path / "q_qs4x2a1.78.png", "-o", out],

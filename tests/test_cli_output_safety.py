@@ -84,7 +84,7 @@ FILE_COMMANDS = {
     "profile export-lkg": (["profile", "export-lkg", PROFILE, "-o", "OUT"], "visual.json"),
     "profile retarget": (["profile", "retarget", PROFILE, "--distance", 900, "-o", "OUT"], "p900.json"),
     "device read": (["device", "read", "emu://blank", "-o", "OUT"], "back.json"),
-    "encode": (["encode", "--profile", PROFILE, "--views", "IN", "-o", "OUT"], "raster.png"),
+    "encode": (["encode", "--profile", PROFILE, "--views-dir", "IN", "-o", "OUT"], "raster.png"),
     "render -o PNG": (["render", "IN/demo.npz", "--profile", PROFILE, "-o", "OUT"], "frame.png"),
     "render -o MKV": (["render", "IN/demo.npz", "--profile", PROFILE, "-o", "OUT"], "video.mkv"),
     "crosstalk measure": (["crosstalk", "measure", "IN", "-o", "OUT"], "crosstalk.json"),
@@ -196,6 +196,7 @@ def test_patterns_and_crosstalk_patterns_write_into_a_folder_and_keep_its_files(
         assert (folder / "thesis.tex").read_text() == "my work" and len(list(folder.iterdir())) > 1
 
 
+@pytest.mark.slow
 def test_simulate_keeps_the_files_of_the_pattern_folder(tmp_path, cli):
     folder = tmp_path / "set"
     write_patterns(folder, design_patterns(640, 360, 8))

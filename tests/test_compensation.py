@@ -116,7 +116,7 @@ def test_encode_compensate_changes_the_raster_and_refuses_a_file_for_another_pan
     rng = np.random.default_rng(1)
     for i in range(8):
         write_image(folder / f"v{i}.png", rng.integers(40, 200, (27, 48, 3), dtype=np.uint8))
-    encode = ["encode", "--profile", tmp_path / "p.json", "--views", folder]
+    encode = ["encode", "--profile", tmp_path / "p.json", "--views-dir", folder]
     code, _, err = cli(*encode, "-o", tmp_path / "a.png")
     assert code == 0, err
     good = _crosstalk_file(tmp_path / "x8.json", 8)

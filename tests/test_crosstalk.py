@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import types
 
 import numpy as np
 import pytest
@@ -33,15 +34,10 @@ def profile(scene):
 
 
 @pytest.fixture(scope="module")
-def measured_set(tmp_path_factory, scene, profile):
-    """A crosstalk capture set of the virtual panel (photographed once per test session) and its measurement."""
-    from lenticalib.calib.crosstalk.measure import measure_crosstalk
-    from lenticalib.sim.capture import simulate_capture_set
-
-    folder = tmp_path_factory.mktemp("xt") / "set"
-    write_patterns(folder, design_crosstalk_patterns(profile))
-    simulate_capture_set(folder, scene, raw=True)  # 16-bit linear, as from a raw converter
-    return folder, measure_crosstalk(folder, profile, photos="linear")
+def measured_set(capture_set, scene, profile):
+    """A crosstalk capture set of the virtual panel, photographed once per test session (measured once,
+    by ``lenticalib crosstalk measure``: see ``measured_cli``)."""
+    return capture_set(scene, design_crosstalk_patterns(profile), raw=True)  # 16-bit linear, as from a raw converter
 
 
 def test_band_patterns_light_one_view_wide_bands_that_sweep_across_the_panel(profile):
@@ -101,8 +97,9 @@ def test_true_matrix_is_a_circulant_mixing_matrix_matching_the_view_cone(scene, 
     assert cone[1] / cone[0] == pytest.approx(m[0, 1] / m[0, 0], abs=0.01)
 
 
-def test_measured_matrix_matches_the_truth_within_its_uncertainty(measured_set):
-    folder, m = measured_set
+@pytest.mark.slow
+def test_measured_matrix_matches_the_truth_within_its_uncertainty(measured_set, measured_cli):
+    folder, m = measured_set, measured_cli.measurement
     truth = np.asarray(json.loads((folder / "crosstalk-truth.json").read_text())["matrix"])
     sigma = m.row_sigma[(np.arange(VIEWS)[None, :] - np.arange(VIEWS)[:, None]) % VIEWS]
     err = m.matrix - truth
@@ -113,16 +110,14 @@ def test_measured_matrix_matches_the_truth_within_its_uncertainty(measured_set):
     assert np.isfinite(m.regions).all() and m.regions.max() - m.regions.min() < 0.2
 
 
-def test_jpeg_photos_carry_their_unknown_tone_curve_in_the_uncertainty(tmp_path, scene, profile):
+@pytest.mark.slow
+def test_jpeg_photos_carry_their_unknown_tone_curve_in_the_uncertainty(capture_set, scene, profile):
     """Camera JPEGs are decoded as sRGB; this camera's curve is 8 % off (power 0.925), and the reported
     sigma must cover what that does."""
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
-    from lenticalib.sim.capture import simulate_capture_set
 
     assert abs(scene.camera.tone_gamma - 1) > 0.05
-    folder = tmp_path / "jpeg"
-    write_patterns(folder, design_crosstalk_patterns(profile))
-    simulate_capture_set(folder, scene)
+    folder = capture_set(scene, design_crosstalk_patterns(profile))
     m = measure_crosstalk(folder, profile)
     truth = np.asarray(json.loads((folder / "crosstalk-truth.json").read_text())["matrix"])
     sigma = m.row_sigma[(np.arange(VIEWS)[None, :] - np.arange(VIEWS)[:, None]) % VIEWS]
@@ -132,19 +127,34 @@ def test_jpeg_photos_carry_their_unknown_tone_curve_in_the_uncertainty(tmp_path,
 
 
 @pytest.fixture(scope="module")
-def measured_cli(measured_set, tmp_path_factory):
-    """``crosstalk measure --report`` of the measured set, run once: (crosstalk.json, report folder, stdout)."""
-    folder, _ = measured_set
+def measured_cli(measured_set, profile, tmp_path_factory):
+    """``crosstalk measure --report`` of the measured set, run once: ``out`` (crosstalk.json), ``report``
+    (folder), ``stdout`` and ``measurement``, the library's Measurement that run computed (recorded on
+    its way to the CLI; the library-level checks read it, so the set is measured once per session)."""
+    import lenticalib.calib.crosstalk.measure as measure_module
+
     root = tmp_path_factory.mktemp("xt-cli")
     out, report = root / "crosstalk.json", root / "report"
-    code, stdout, stderr = run_main("crosstalk", "measure", folder, "-o", out, "--report", report, "--photos", "linear",
-                                    "--eye-separation-mm", "64", "--distance", "620", "--cone-angle", "40")
+    recorded = []
+    real = measure_module.measure_crosstalk
+
+    def recording(*args, **kwargs):
+        recorded.append(real(*args, **kwargs))
+        return recorded[-1]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(measure_module, "measure_crosstalk", recording)
+        code, stdout, stderr = run_main("crosstalk", "measure", measured_set, "-o", out, "--report", report,
+                                        "--photos", "linear", "--eye-separation-mm", "64", "--distance", "620",
+                                        "--cone-angle", "40")
     assert code == 0, stderr
-    return out, report, stdout
+    assert len(recorded) == 1 and recorded[0].profile.routing_key() == profile.routing_key()
+    return types.SimpleNamespace(out=out, report=report, stdout=stdout, measurement=recorded[0])
 
 
+@pytest.mark.slow
 def test_measure_cli_writes_the_document_and_report_and_check_judges_it(measured_cli, cli):
-    out, report, _ = measured_cli
+    out, report = measured_cli.out, measured_cli.report
     data = json.loads(out.read_text())
     assert len(data["matrix"]) == VIEWS and all(len(r) == VIEWS for r in data["matrix"])
     assert {"own_view_share", "adjacent_crosstalk", "non_adjacent_crosstalk", "eye_pair_crosstalk"} <= set(data["figures"])
@@ -232,8 +242,9 @@ def test_readme_check_example_passes_the_bundled_demo_panel():
     assert limits[0] < 2 * figures["adjacent_crosstalk"] and limits[1] < 4 * figures["eye_pair_crosstalk"]
 
 
+@pytest.mark.slow
 def test_measure_cli_prints_each_figure_with_its_definition(measured_cli):
-    out, _, stdout = measured_cli
+    out, stdout = measured_cli.out, measured_cli.stdout
     data = json.loads(out.read_text())
     f = data["figures"]
     assert (f"adjacent crosstalk (light from the two neighbouring views over the view's own light) "
@@ -251,11 +262,12 @@ def _texts(record) -> list[str]:
                                                                      *ax["texts"], *ax["legend"])]
 
 
+@pytest.mark.slow
 def test_report_figures_state_the_numbers_of_crosstalk_json(measured_cli):
     from lenticalib.calib.crosstalk.result import FIGURES
     from lenticalib.calib.report import read_figure_record
 
-    out, report, _ = measured_cli
+    out, report = measured_cli.out, measured_cli.report
     data = json.loads(out.read_text())
     cone = read_figure_record(report / "view-cone.png")
     for key in ("own_view_share", "adjacent_crosstalk", "total_crosstalk", "eye_pair_crosstalk"):
@@ -289,11 +301,12 @@ def test_report_figures_state_the_numbers_of_crosstalk_json(measured_cli):
     assert not any("delta" in t.lower() for t in _texts(photos))
 
 
+@pytest.mark.slow
 def test_every_report_figure_has_a_title_and_axes_with_units(measured_cli):
     from lenticalib.calib.crosstalk.report import FIGURE_SIZES
     from lenticalib.calib.report import read_figure_record
 
-    _, report, _ = measured_cli
+    report = measured_cli.report
     for name in FIGURE_SIZES:
         record = read_figure_record(report / name)
         assert record["title"], name
@@ -309,6 +322,7 @@ def _copy_set(folder, tmp_path):
     return target
 
 
+@pytest.mark.slow
 def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile, monkeypatch):
     """A duplicate and a photo of another pattern are named, before the cone fit of the whole panel
     (only the check's own fits of a few thousand working pixels run)."""
@@ -324,13 +338,13 @@ def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile, monk
         return real_fit_cone(ratios, *args, **kwargs)
 
     monkeypatch.setattr(cone, "fit_cone", recording_fit_cone)
-    folder = _copy_set(measured_set[0], tmp_path)
+    folder = _copy_set(measured_set, tmp_path)
     captures = folder / "captures"
     shutil.copy(captures / "band-05.png", captures / "band-02.png")
     with pytest.raises(CaptureError, match="shows the same pattern as band-02.png") as err:
         measure_crosstalk(folder, profile, photos="linear")
     assert "band-05.png" in str(err.value)
-    shutil.copy(measured_set[0] / "captures" / "band-02.png", captures / "band-02.png")
+    shutil.copy(measured_set / "captures" / "band-02.png", captures / "band-02.png")
     shutil.copy(captures / "half-0.png", captures / "band-07.png")
     with pytest.raises(CaptureError, match="does not show pattern band-07") as err:
         measure_crosstalk(folder, profile, photos="linear")
@@ -338,10 +352,11 @@ def test_photo_of_another_pattern_is_named(measured_set, tmp_path, profile, monk
     assert fitted and max(fitted) <= CHECK_SAMPLES, fitted  # no fit of the whole panel before the refusal
 
 
+@pytest.mark.slow
 def test_bad_inputs_end_in_one_line(measured_set, tmp_path, profile):
     from lenticalib.core.profile import save_profile
 
-    folder = _copy_set(measured_set[0], tmp_path)
+    folder = _copy_set(measured_set, tmp_path)
     (folder / "captures" / "white.png").unlink()
     assert "white" in refused("crosstalk", "measure", folder, "-o", tmp_path / "x.json")
     calibration = tmp_path / "cal"
@@ -349,12 +364,12 @@ def test_bad_inputs_end_in_one_line(measured_set, tmp_path, profile):
     assert "calibration patterns" in refused("crosstalk", "measure", calibration, "-o", tmp_path / "x.json")
     other = tmp_path / "other.json"
     save_profile(profile.replace(offset=profile.offset + 1.0), other)
-    line = refused("crosstalk", "measure", measured_set[0], "--profile", other, "-o", tmp_path / "x.json")
+    line = refused("crosstalk", "measure", measured_set, "--profile", other, "-o", tmp_path / "x.json")
     assert "not the profile the crosstalk patterns were drawn from" in line
     assert not (tmp_path / "x.json").exists()
-    assert "--eye-separation" in refused("crosstalk", "measure", measured_set[0], "-o", tmp_path / "x.json",
+    assert "--eye-separation" in refused("crosstalk", "measure", measured_set, "-o", tmp_path / "x.json",
                                          "--eye-separation", "40")
-    assert "crosstalk patterns" in refused("fit", measured_set[0], "-o", tmp_path / "p.json")
+    assert "crosstalk patterns" in refused("fit", measured_set, "-o", tmp_path / "p.json")
 
 
 def test_crosstalk_file_for_another_view_count_is_refused(tmp_path):
@@ -394,6 +409,7 @@ def test_glare_is_measured_outside_the_panel_and_removed():
     assert np.abs(cleaned - direct)[100:200, 120:280].max() < 0.003
 
 
+@pytest.mark.slow
 def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     from lenticalib.calib.crosstalk import cone
 
@@ -419,6 +435,7 @@ def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     assert np.abs(row - truth).max() < 0.006
 
 
+@pytest.mark.slow
 def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     """A close camera resolves which subpixel each lens shows of a one-view band: a moire of lit (full)
     and dark places whose average over its phase is the cone.  The measurement averages it out

@@ -141,7 +141,7 @@ def test_emulator_survives_a_client_that_resets_or_never_reads(tmp_path, cli_pro
      "DIR/missing: the folder for the profile does not exist", ["refused"]),
     (["device", "read", "emu://blank", "-o", "DIR"], "is a folder, not a file name for the profile", ["no calibration"]),
     (["emulate", "--panel", "4k"], "--panel: must be WIDTHxHEIGHT", []),
-    (["emulate", "--views", "1"], "--views: must be 1 to 32 view counts in 2..254", []),
+    (["emulate", "--view-counts", "1"], "--view-counts: must be 1 to 32 view counts in 2..254", []),
     (["emulate", "--protocol", "0.9"], "--protocol: must be 1.0 or 1.1", []),
     # a bare device path: the URL it most likely meant, not the generic examples
     (["device", "info", "/dev/pts/0"], "/dev/pts/0: not a device URL (did you mean serial:///dev/pts/0?)",
@@ -223,7 +223,7 @@ def test_a_profile_read_from_a_device_says_where_when_and_by_what(tmp_path, cli_
 def test_flash_refuses_a_profile_for_another_panel_unless_forced(tmp_path, cli_process):
     profile = tmp_path / "4k.json"
     save_profile(profile_a(), profile)
-    with emulator_process("--flash", str(tmp_path / "hd.flash"), "--panel", "1920x1080", "--views", "8,32") as (_, url):
+    with emulator_process("--flash", str(tmp_path / "hd.flash"), "--panel", "1920x1080", "--view-counts", "8,32") as (_, url):
         refused = cli_process("device", "flash", url, str(profile))
         assert refused.returncode == 2 and "Traceback" not in refused.stderr
         (line,) = refused.stderr.strip().splitlines()

@@ -116,7 +116,7 @@ def test_bad_image_files(files):
     assert "is empty (0 bytes), not an image" in _error_line(encode + ["--quilt", files / "empty_qs4x2a1.78.png"])
     (files / "dir_qs4x2a1.78.png").mkdir()
     assert "is a folder, not an image" in _error_line(encode + ["--quilt", files / "dir_qs4x2a1.78.png"])
-    line = _error_line(encode + ["--views", files / "plain.png"])
+    line = _error_line(encode + ["--views-dir", files / "plain.png"])
     assert "is a file, not a folder of views" in line and "--quilt" in line
     # a 16-bit quilt with the wrong grid: the grid message, after the file was read
     deep = make_quilt(np.full((6, 10, 16, 3), 4000, np.uint16), QuiltGrid(3, 2))
@@ -152,7 +152,7 @@ def test_float_views_into_png_are_refused_before_encoding(files, no_encoding):
     folder.mkdir()
     for i in range(8):
         np.save(folder / f"v{i}.npy", np.zeros((27, 48, 3), np.float32))
-    line = _error_line(["encode", "--profile", files / "panel.json", "--views", folder, "-o", files / "o.png"])
+    line = _error_line(["encode", "--profile", files / "panel.json", "--views-dir", folder, "-o", files / "o.png"])
     assert ".png cannot hold float32 pixels" in line
 
 

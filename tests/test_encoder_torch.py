@@ -47,6 +47,7 @@ def _encode_tensor(views, profile, dtype=torch.float64):
 
 # --- bit-identical to the reference ------------------------------------------------------------
 
+@pytest.mark.slow
 def test_bundled_profile_bit_identical_to_reference_everywhere():
     # the demo profile has ~2,500 subpixels on a view boundary (ties): every one routed canonically
     profile = load_profile(FIXTURES / "panel-4k-32.json")
@@ -345,16 +346,18 @@ def test_registry_gives_encode_torch_and_caches_encoders():
     te.clear_cache()
 
 
-def test_encode_command_with_the_torch_encoder(tmp_path, cli):
+def test_encode_to_file_with_the_torch_encoder(tmp_path):
+    """What 'lenticalib encode --encoder torch' runs: the raster file is the reference encoding."""
+    from lenticalib.render.encode_file import encode_to_file
+
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
                "width": 96, "height": 54, "subpixel_order": "BGR"}
     (tmp_path / "panel.json").write_text(json.dumps(profile))
     views = np.random.default_rng(0).integers(0, 256, (8, 27, 48, 3), dtype=np.uint8)
     write_image(tmp_path / "q_qs4x2a1.78.png", make_quilt(views, QuiltGrid(4, 2)))
-    code, out, err = cli("encode", "--profile", tmp_path / "panel.json", "--quilt", tmp_path / "q_qs4x2a1.78.png",
-                         "-o", tmp_path / "o.png", "--encoder", "torch", "--json")
-    assert code == 0, err
-    assert json.loads(out)["encoder"] == "torch"
+    done = encode_to_file(tmp_path / "panel.json", tmp_path / "o.png", quilt=tmp_path / "q_qs4x2a1.78.png",
+                          encoder="torch")
+    assert done.summary()["encoder"] == "torch"
     loaded, _ = load_quilt(tmp_path / "q_qs4x2a1.78.png", 8)
     np.testing.assert_array_equal(read_image(tmp_path / "o.png"),
                                   encode(loaded, load_profile(tmp_path / "panel.json"), "reference"))

@@ -55,6 +55,7 @@ def test_every_encoder_chooses_the_canonical_view_everywhere(name, dtype, profil
     np.testing.assert_array_equal(_chosen_views(name, profile, dtype), expected)
 
 
+@pytest.mark.slow
 def test_encoders_agree_on_the_bundled_profile_everywhere():
     # no tie exclusion: the demo profile has ~2,500 subpixels whose w sits on a view boundary
     # (to float64 precision), where the float64 evaluation of the routing rule used to light two views or the other one

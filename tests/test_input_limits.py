@@ -31,8 +31,9 @@ from lenticalib.calib.intrinsics.board import panel_board, read_board, write_man
 from lenticalib.calib.patterns import design_patterns
 from lenticalib.core.errors import ImageError, InputError, ProfileError
 from lenticalib.core.imageio import MAX_IMAGE_PIXELS, check_image_pixels, read_image
+from lenticalib.core.documents import read_json_file
 from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
-from lenticalib.core.profile import PanelProfile, load_profile, read_json_file, save_profile
+from lenticalib.core.profile import PanelProfile, load_profile, save_profile
 from lenticalib.render.cameras import ViewCameras
 from lenticalib.render.camera_models import arc_cameras
 from lenticalib.sim.scene import Scene, random_scene
@@ -392,7 +393,7 @@ def test_the_pixel_limit_admits_16k_rasters_and_large_camera_photos():
 
 
 def test_huge_images_are_one_line_through_the_cli_and_the_photo_size_check(huge_png, tmp_path):
-    from lenticalib.cli._camera_calibrate import photo_size
+    from lenticalib.calib.intrinsics.pipeline import photo_size
 
     profile = save_profile(PanelProfile(**SMALL), tmp_path / "p.json")
     line = refused("encode", "--profile", profile, "--quilt", huge_png, "-o", tmp_path / "out.png", source=huge_png)
@@ -425,7 +426,7 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
     (views / f"v{SMALL['views'] - 1}.png").write_bytes(big)
     profile = save_profile(PanelProfile(**SMALL), tmp_path / "p.json")
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    line = refused("encode", "--profile", profile, "--views", views, "-o", tmp_path / "out.png",
+    line = refused("encode", "--profile", profile, "--views-dir", views, "-o", tmp_path / "out.png",
                    source=views / f"v{SMALL['views'] - 1}.png")
     assert f"is 8000x8000 pixels, v0.png is {small.shape[1]}x{small.shape[0]}" in line
     assert "all views must have one size" in line

@@ -209,7 +209,7 @@ def test_outputs_get_the_umask_mode_or_the_replaced_files_mode(tmp_path):
     import numpy as np
 
     from lenticalib.core.atomic import write_bytes_atomic
-    from lenticalib.cli.render import _VideoFile
+    from lenticalib.render.offline import _VideoFile
 
     old_mask = os.umask(0o027)
     try:

@@ -1,29 +1,30 @@
 """The fit in millimetres: camera pose, gap from two distances, physical constants, retargeting.
 
 One virtual panel photographed by one camera (fixed intrinsics, the simulator's OpenCV model
-written as an mrcal .cameramodel) from 600 and 850 mm; both sets fitted through the CLI
-(``lenticalib fit --camera --pixel-pitch --second-distance``).  Checked against the scene's
+written as an mrcal .cameramodel) from 600 and 850 mm; both sets fitted through the library
+(``fit_capture_sets`` with ``PhysicalOptions``: what ``lenticalib fit --camera --pixel-pitch
+--second-distance`` runs).  Checked against the scene's
 truth: the camera's distance (and the lens-sheet magnification's share of it), the gap, lens
 pitch, lens position, and the retargeted profile at 400-900 mm against the ray-traced routing.
 """
 
 import dataclasses
 import json
-import shutil
 import types
 
 import numpy as np
 import pytest
 
-from lenticalib.calib.patterns import design_patterns
-from lenticalib.core.pattern_sets import write_patterns
+from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
+from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile
-from lenticalib.sim.capture import simulate_capture_set
 from lenticalib.sim.optics import routing_error
 from lenticalib.sim.scene import random_scene
 
-from .cli_support import run_main
+
+# every test reads the two 1920x1080 capture sets and their fit (minutes on two cores)
+pytestmark = pytest.mark.slow
 
 DISTANCES = (600.0, 850.0)
 
@@ -37,33 +38,29 @@ def _true_model(camera, path):
     return path
 
 
-def simulate_two_distances(root, seed=7, distances=DISTANCES):
-    """Two capture sets of one panel, one camera (same intrinsics) at two distances."""
-    patterns = root / "patterns"
-    write_patterns(patterns, design_patterns(1920, 1080, 32))
+def simulate_two_distances(capture_set, seed=7, distances=DISTANCES):
+    """Two capture sets of one 1920x1080, 32-view panel, one camera (same intrinsics) at two distances."""
     scene = random_scene(seed, width=1920, height=1080, resolution=(1500, 1000), distance=distances[0],
                          jpeg_quality=90)
     sets = []
     for distance in distances:
         cam = scene.camera
         moved = dataclasses.replace(scene, camera=cam.replace(position=(cam.position[0], cam.position[1], -distance)))
-        folder = root / f"set-{distance:.0f}"
-        shutil.copytree(patterns, folder)
-        simulate_capture_set(folder, moved)
-        sets.append((folder, moved))
+        sets.append((capture_set(moved, views=32), moved))
     return scene, sets
 
 
 @pytest.fixture(scope="module")
-def two_distances(tmp_path_factory):
+def two_distances(tmp_path_factory, capture_set):
     root = tmp_path_factory.mktemp("two-distances")
-    scene, sets = simulate_two_distances(root)
+    scene, sets = simulate_two_distances(capture_set)
     model = _true_model(scene.camera, root / "camera.cameramodel")
     out = root / "out"
     out.mkdir()
-    code, _, err = run_main("fit", sets[0][0], "-o", out / "profile.json", "--camera", model, "--pixel-pitch",
-                            scene.optics.pixel_pitch, "--second-distance", sets[1][0], "--json")
-    assert code == 0, err
+    run = fit_capture_sets(sets[0][0], output=out / "profile.json",
+                           physical=PhysicalOptions(camera_model=model, pixel_pitch_mm=scene.optics.pixel_pitch,
+                                                    second_distance=sets[1][0]))
+    assert run.trusted and run.profile_written, run.result.problems
     summary = json.loads((out / "profile-report" / "summary.json").read_text())
     return types.SimpleNamespace(scene=scene, sets=sets, profile=load_profile(out / "profile.json"),
                                  summary=summary, root=root, model=model)
@@ -139,8 +136,9 @@ def test_physical_options_are_checked_before_the_fit(two_distances, tmp_path, cl
 
 @pytest.fixture(scope="module")
 def calibrated(two_distances):
-    """The user's path: the same camera calibrated by 'lenticalib camera calibrate' from 20 simulated
-    photos of a board shown on the same panel, then both sets fitted with that model."""
+    """The user's path: the same camera calibrated (``calibrate_camera``: what 'lenticalib camera
+    calibrate' runs) from 20 simulated photos of a board shown on the same panel, then both sets
+    fitted with that model."""
     from lenticalib.sim.board_set import simulate_board_set
 
     t = two_distances
@@ -148,13 +146,13 @@ def calibrated(two_distances):
     boards.mkdir()
     simulate_board_set(boards, kind="panel", seed=7, photos=20, scene=t.scene)
     model = t.root / "calibrated.cameramodel"
-    code, _, err = run_main("camera", "calibrate", boards / "captures", "-o", model, "--report", t.root / "camera-report")
-    assert code == 0, err
+    calibrate_camera([boards / "captures"], model, report_dir=t.root / "camera-report")
     out = t.root / "out-calibrated"
     out.mkdir()
-    code, _, err = run_main("fit", t.sets[0][0], "-o", out / "profile.json", "--camera", model, "--pixel-pitch",
-                            t.scene.optics.pixel_pitch, "--second-distance", t.sets[1][0])
-    assert code == 0, err
+    run = fit_capture_sets(t.sets[0][0], output=out / "profile.json",
+                           physical=PhysicalOptions(camera_model=model, pixel_pitch_mm=t.scene.optics.pixel_pitch,
+                                                    second_distance=t.sets[1][0]))
+    assert run.trusted and run.profile_written, run.result.problems
     return types.SimpleNamespace(profile=load_profile(out / "profile.json"), model=model)
 
 

@@ -12,23 +12,9 @@ from lenticalib.render.monitors import Monitor, choose_monitor, list_monitors
 from lenticalib.render.present import WindowPresenter
 from lenticalib.render.present_offscreen import OffscreenPresenter
 
-from .display_support import VirtualDisplay
+from .display_support import SCREEN
 
-W, H = 640, 360
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    display = VirtualDisplay(W, H)
-    yield display
-    display.close()
-
-
-@pytest.fixture
-def on_xvfb(xvfb, monkeypatch):
-    monkeypatch.setenv("DISPLAY", xvfb.name)
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    return xvfb
+W, H = SCREEN  # the xvfb fixture's screen
 
 
 def _raster(seed, size=(W, H), dtype=np.uint8):
@@ -66,7 +52,7 @@ def test_a_raster_reaches_the_screen_byte_for_byte(on_xvfb):
 def test_a_raster_of_another_size_or_depth_is_refused_not_scaled(on_xvfb):
     with WindowPresenter(list_monitors()[0]) as presenter:
         presenter.show(_raster(3))
-        with pytest.raises(ImageError, match=r"is 320x180 but the display is 640x360; rasters are never scaled"):
+        with pytest.raises(ImageError, match=r"is 320x180 pixels, the display is 640x360 \(rasters are never scaled"):
             presenter.show(_raster(4, (320, 180)), source="small.png")
         with pytest.raises(ImageError, match="16-bit but the display shows 8 bits"):
             presenter.show(_raster(5, dtype=np.uint16))
@@ -177,7 +163,7 @@ def test_every_bad_input_ends_in_one_line(xvfb, tmp_path, cli_process):
         (["show", str(tmp_path / "empty")], xvfb.variables(), "holds no images"),
         (["show", str(tmp_path / "missing.png")], xvfb.variables(), "no such file or folder"),
         (["show", str(small)], xvfb.variables(), "no monitor shows 320x180"),
-        (["show", str(small), "--display", "0"], xvfb.variables(), "is 320x180 but the display is 640x360"),
+        (["show", str(small), "--display", "0"], xvfb.variables(), "is 320x180 pixels, the display is 640x360"),
         (["show", str(good), "--display", "offscreen"], xvfb.variables(), "--interval"),
         (["show"], xvfb.variables(), "give an image or a folder"),
     ]

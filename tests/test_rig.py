@@ -25,7 +25,7 @@ from lenticalib.render.demo_avatar_parts import DEMO_BONES  # noqa: E402
 from lenticalib.render.drivers import load_driver  # noqa: E402
 from lenticalib.render.gaussians import SH_C0, Gaussians  # noqa: E402
 from lenticalib.render.rig import DEFAULT_LAYOUT  # noqa: E402
-from lenticalib.render.rig_file import RIG_FORMAT, load_rig, rig_from_arrays, save_rig  # noqa: E402
+from lenticalib.render.rig_file import envelope_arrays, load_rig, rig_from_arrays, save_rig  # noqa: E402
 
 L = DEFAULT_LAYOUT
 D = L.dim
@@ -83,7 +83,7 @@ def small_arrays(G=40, K=4, seed=0):
     shape = np.r_[np.zeros(15), np.ones(15), np.full(5, 2)].astype(np.int32)
     names = list(L.default_names())
     return {
-        "format": np.array(RIG_FORMAT), "version": np.array(1, np.int32),
+        **envelope_arrays(),
         "means": rng.uniform(-0.1, 0.1, (G, 3)).astype(np.float32), "quats": q.astype(np.float32),
         "log_scales": rng.uniform(-7, -5, (G, 3)).astype(np.float32),
         "opacity_logits": rng.uniform(-2, 4, G).astype(np.float32),
@@ -136,6 +136,24 @@ def test_round_trip(tmp_path, small):
     for f in ("means", "quats", "scales", "opacities", "sh"):
         np.testing.assert_allclose(getattr(g1, f).numpy(), getattr(g2, f).numpy(), atol=1e-5, err_msg=f)
     assert back.provenance == {"made_by": "tests/test_rig.py"}
+
+
+def test_a_saved_rig_carries_the_envelope_and_rigs_in_the_old_spelling_still_read(tmp_path, small):
+    path = tmp_path / "rig.npz"
+    save_rig(path, small)
+    with np.load(path) as stored:
+        assert str(stored["format"]) == "lenticalib.rig" and int(stored["format_version"]) == 1
+        assert "version" not in stored.files
+    old = small_arrays()
+    del old["format_version"]
+    old.update({"format": np.array("lenticalib-rig"), "version": np.array(1, np.int32)})  # before the envelope
+    back = load_rig(write_npz(tmp_path / "old.npz", old))
+    np.testing.assert_array_equal(back.to_arrays()["means"], small.to_arrays()["means"])
+    del old["version"]
+    no_version = write_npz(tmp_path / "no-version.npz", old)
+    with pytest.raises(InputError) as exc:
+        load_rig(no_version)
+    assert one_line(exc).startswith(f"{no_version}: field 'format_version' is missing")
 
 
 @pytest.mark.parametrize("rig_name", ["small", "demo"])
@@ -298,8 +316,8 @@ def _nan(a):
     (_drop("skin_weights"), "'skin_weights' is missing"),
     (_drop("means"), "'means' is missing"),
     (_set("quats", np.ones((40, 3), np.float32)), "'quats' has shape (40, 3), expected (40, 4)"),
-    (_set("version", np.array(2, np.int32)), "version 2, this lenticalib reads version 1"),
-    (_set("format", np.array("something-else")), "not a rig file"),
+    (_set("format_version", np.array(2, np.int32)), "field 'format_version': unknown version 2"),
+    (_set("format", np.array("something-else")), "field 'format': expected \"lenticalib.rig\", got 'something-else'"),
     (_nan, "'means' holds a non-finite value"),
     (_set("sh", np.zeros((40, 2, 3), np.float32)), "'sh' has shape (40, 2, 3)"),
     (_set("control_dim", np.array(71, np.int32)), "'control_dim' is 71"),

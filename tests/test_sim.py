@@ -192,6 +192,7 @@ def simulate_main(monkeypatch, cli):
     return cli
 
 
+@pytest.mark.slow
 def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
     from lenticalib.calib.patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
@@ -228,6 +229,7 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
     assert code == 2 and "--scene" in one_error_line(err)
 
 
+@pytest.mark.slow
 def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main):
     from lenticalib.calib.patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns

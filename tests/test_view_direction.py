@@ -24,7 +24,7 @@ from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
 from lenticalib.core.view_direction import direction_warning, with_direction
 
-from .cli_support import one_error_line, run_main
+from .cli_support import one_error_line
 
 REPO = Path(__file__).resolve().parents[1]
 EIGHT = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
@@ -364,46 +364,45 @@ def test_an_untrustworthy_second_fit_gives_no_direction():
 # ---------------------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def moved_sets(tmp_path_factory):
+def moved_sets(tmp_path_factory, capture_set):
     """A 640x360, 8-view virtual panel photographed from the calibration position (``first``) and
-    from 1.5 view zones (about 7 cm) to the right at the same distance (``right``)."""
+    from 1.5 view zones (about 7 cm) to the right at the same distance (``right``); the sets hold
+    what a user has (no simulation.json)."""
     from lenticalib.calib.patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
-    from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
     root = tmp_path_factory.mktemp("moved")
-    write_patterns(root / "patterns", design_patterns(SIM_W, SIM_H, SIM_VIEWS))
+    patterns = design_patterns(SIM_W, SIM_H, SIM_VIEWS)
+    write_patterns(root / "patterns", patterns)
     scene = random_scene(3, width=SIM_W, height=SIM_H, resolution=CAMERA)
     zone = scene.optics.view_zone_width(scene.camera.distance, SIM_VIEWS)
     ex, ey, ez = scene.eye
     moved = scene.replace_camera(position=(ex + 1.5 * zone, ey, ez))
-    sets = {}
-    for name, s in (("first", scene), ("right", moved)):
-        shutil.copytree(root / "patterns", root / name)
-        simulate_capture_set(root / name, s)
-        (root / name / "simulation.json").unlink()  # the fit sees what a user has
-        sets[name] = root / name
+    sets = {name: capture_set(s, patterns, keep_simulation=False) for name, s in (("first", scene), ("right", moved))}
     return types.SimpleNamespace(root=root, zone_mm=zone, scene=scene, **sets)
 
 
 @pytest.fixture(scope="module")
 def moved_fit(moved_sets):
-    """``lenticalib fit first -o out/profile.json --moved-right right --json`` (in-process)."""
+    """``fit_capture_sets(first, output=out/profile.json, moved_right=right)``: what ``lenticalib fit
+    first -o out/profile.json --moved-right right`` runs."""
+    from lenticalib.calib.fit_pipeline import fit_capture_sets
+
     out = moved_sets.root / "out"
     out.mkdir()
-    code, stdout, stderr = run_main("fit", moved_sets.first, "-o", out / "profile.json",
-                                    "--moved-right", moved_sets.right, "--json")
-    return types.SimpleNamespace(code=code, out=stdout, err=stderr, profile_path=out / "profile.json")
+    run = fit_capture_sets(moved_sets.first, output=out / "profile.json", moved_right=moved_sets.right)
+    return types.SimpleNamespace(run=run, summary=run.summary, profile_path=out / "profile.json")
 
 
+@pytest.mark.slow
 def test_fit_with_moved_right_finds_the_true_direction(moved_sets, moved_fit):
-    assert moved_fit.code == 0, moved_fit.err
+    assert moved_fit.run.trusted and moved_fit.run.profile_written, moved_fit.run.result.problems
     truth = load_profile(moved_sets.first / "truth.json")
     assert truth.view_direction == 1
     profile = load_profile(moved_fit.profile_path)
     assert profile.view_direction == truth.view_direction
-    summary = json.loads(moved_fit.out)
+    summary = moved_fit.summary
     evidence = summary["view_direction"]
     assert evidence["result"] == 1 and evidence["method"] == "moved-right"
     assert evidence["capture_set"] == str(moved_sets.right) and evidence["moved_right_trusted"] is True
@@ -416,11 +415,12 @@ def test_fit_with_moved_right_finds_the_true_direction(moved_sets, moved_fit):
     assert (moved_fit.profile_path.parent / "profile-report" / "summary.json").exists()
 
 
+@pytest.mark.slow
 def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
     """The sign follows the camera's move: swapping the two sets (the 'moved' camera is then to
     the LEFT of the first) gives -1; a user who moved the wrong way gets the wrong sign, which is
     why the option is named for the direction to move."""
-    evidence = json.loads(moved_fit.out)["view_direction"]  # the two fits, rebuilt from it
+    evidence = moved_fit.summary["view_direction"]  # the two fits, rebuilt from it
     base = {k: v for k, v in load_profile(moved_fit.profile_path).to_dict().items()
             if k in ("views", "width", "height")}
     first, right = evidence["first"], evidence["moved_right"]
@@ -434,6 +434,7 @@ def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
     assert swapped.direction == -1 and swapped.dw == pytest.approx(-evidence["delta_w_views"], abs=1e-3)
 
 
+@pytest.mark.slow
 def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_path, monkeypatch, cli):
     import lenticalib.calib.fit as fit_module
 
@@ -451,6 +452,7 @@ def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_p
     assert load_profile(tmp_path / "p.json").view_direction is None
 
 
+@pytest.mark.slow
 def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch, cli):
     import lenticalib.calib.fit as fit_module
     from lenticalib.calib.patterns import design_patterns

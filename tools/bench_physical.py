@@ -3,9 +3,10 @@
 For every seed: a random panel and camera (1920x1080 patterns, 1500x1000 camera); two capture
 sets of the same patterns from D1 (drawn in 450..650 mm) and 1.45 D1, one camera (same
 intrinsics); the camera model either the truth (``--model truth``) or calibrated by
-``lenticalib camera calibrate`` from simulated photos of a board shown on the same panel
-(``--model calibrated``, the user's path); both sets fitted with ``lenticalib fit --camera
---pixel-pitch --second-distance``.  Reports per seed and as medians / worst:
+``lenticalib.calib.intrinsics.pipeline.calibrate_camera`` (what ``lenticalib camera calibrate``
+runs) from simulated photos of a board shown on the same panel (``--model calibrated``, the
+user's path); both sets fitted with ``lenticalib.calib.fit_pipeline.fit_capture_sets`` (what
+``lenticalib fit --camera --pixel-pitch --second-distance`` runs).  Reports per seed and as medians / worst:
 
     distance error (mm, and in reported sigmas), lateral error (sigmas), gap error (% and
     sigmas), lens pitch error (ppm), and the retargeted profile's w - w* (views, RMS and worst,
@@ -18,9 +19,7 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import contextlib
 import dataclasses
-import io
 import json
 import shutil
 import statistics
@@ -44,23 +43,20 @@ def _camera_model(kind: str, scene, root: Path, seed: int) -> Path:
         mrcal.cameramodel(intrinsics=("LENSMODEL_OPENCV5", intrinsics), imagersize=(cam.width, cam.height)).write(
             str(path))
         return path
-    from lenticalib.cli import main
+    from lenticalib.calib.intrinsics.pipeline import calibrate_camera
     from lenticalib.sim.board_set import simulate_board_set
 
     boards = root / "boards"
     boards.mkdir()
     simulate_board_set(boards, kind="panel", seed=seed, photos=20, scene=scene)
-    with contextlib.redirect_stdout(io.StringIO()):
-        code = main(["camera", "calibrate", str(boards / "captures"), "-o", str(path), "--jobs", "1"])
-    if code != 0:
-        raise RuntimeError(f"seed {seed}: camera calibration failed")
+    calibrate_camera([boards / "captures"], path, jobs=1)
     return path
 
 
 def one_seed(seed: int, model_kind: str) -> dict:
+    from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
     from lenticalib.calib.patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
-    from lenticalib.cli import main
     from lenticalib.core.profile import load_profile
     from lenticalib.core.retarget import retarget_profile
     from lenticalib.sim.capture import simulate_capture_set
@@ -85,11 +81,9 @@ def one_seed(seed: int, model_kind: str) -> dict:
             sets.append(folder)
         model = _camera_model(model_kind, scene, root, seed)
         optics = scene.optics
-        with contextlib.redirect_stdout(io.StringIO()):
-            code = main(["fit", str(sets[0]), "-o", str(root / "profile.json"), "--camera", str(model),
-                         "--pixel-pitch", str(optics.pixel_pitch), "--second-distance", str(sets[1]), "--force"])
-        if code != 0:
-            raise RuntimeError(f"seed {seed}: fit exit {code}")
+        fit_capture_sets(sets[0], output=root / "profile.json", force=True,
+                         physical=PhysicalOptions(camera_model=model, pixel_pitch_mm=optics.pixel_pitch,
+                                                  second_distance=sets[1]))
         profile = load_profile(root / "profile.json")
         block = profile.physical
         unc = block["uncertainty"]

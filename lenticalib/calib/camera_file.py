@@ -147,7 +147,7 @@ def load_camera_model(path: str | os.PathLike) -> CameraModel:
             return _from_mrcal(path)
         if path.suffix in (".yaml", ".yml", ".xml"):
             return _from_opencv_storage(path)
-        from ..core.profile import read_json_file
+        from ..core.documents import read_json_file
 
         try:
             data = read_json_file(path, "camera model", HINT)

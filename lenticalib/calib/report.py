@@ -32,10 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.atomic import write_bytes_atomic, write_text_atomic
+from ..core.atomic import write_bytes_atomic
+from ..core.documents import FORMATS, write_document
 
 FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
+DOCUMENT = FORMATS["lenticalib.fit-report"]  # summary.json
 CROP = (24, 14)  # panel pixels (width, height) of the view-map crop: 72 x 14 subpixels, each resolved
 _DPI = 100
 _STYLE = {"font.size": 12, "axes.titlesize": 13, "axes.labelsize": 12, "xtick.labelsize": 11,
@@ -54,16 +56,16 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
                 output: str | os.PathLike | None = None) -> dict:
     """The summary of a fit: ``summary.json`` of the report and what ``lenticalib fit --json`` prints.
 
-    Keys: ``capture_set``, ``trusted``, ``problems``, ``warnings`` (checks that could not measure),
-    ``seconds``, ``output`` (the profile path,
-    or None when none was written), ``report`` (folder), ``profile`` (the profile as written,
-    its provenance without the quality block), ``quality`` (every quality number, once), and
+    Keys: the envelope (``format`` "lenticalib.fit-report", ``format_version``), ``capture_set``,
+    ``trusted``, ``problems``, ``warnings`` (checks that could not measure), ``seconds``,
+    ``output`` (the profile path, or None when none was written), ``report`` (folder), ``profile``
+    (the profile as written, its provenance without the quality block), ``quality`` (every quality number, once), and
     ``view_direction`` (the evidence of ``--moved-right``) when the fit had a second capture set.
     """
     profile = result.profile.to_dict()
     if "provenance" in profile:
         profile["provenance"] = {k: v for k, v in profile["provenance"].items() if k != "quality"}
-    summary = {"capture_set": str(capture_dir), "trusted": bool(result.trusted),
+    summary = {**DOCUMENT.envelope(), "capture_set": str(capture_dir), "trusted": bool(result.trusted),
                "problems": list(result.problems), "warnings": list(result.warnings),
                "seconds": round(float(result.seconds), 2),
                "output": None if output is None else str(output),
@@ -86,7 +88,7 @@ def write_report(result, directory: str | os.PathLike, capture_dir: str | os.Pat
     write_figures(directory, [("panel.png", _panel_figure), ("view-map.png", _view_map_figure),
                               ("residual.png", _residual_figure)], FIGURE_SIZES, result)
     summary = fit_summary(result, capture_dir, report=directory) if summary is None else summary
-    write_text_atomic(directory / "summary.json", json.dumps(summary, indent=2) + "\n")
+    write_document(directory / "summary.json", DOCUMENT, summary)
     return directory
 
 

@@ -1,9 +1,5 @@
-"""Options and set-up shared by ``lenticalib play`` and ``lenticalib render``.
-
-Everything a user can get wrong is checked here, before the first frame: the renderer and
-encoder (first: a name that is unknown or a backend that cannot run on this machine is refused
-before anything is loaded), the avatar file, the driver, the profile, the controls (files are
-read in full), the camera options, the background.
+"""Options shared by ``lenticalib play`` and ``lenticalib render``, as
+:class:`lenticalib.render.session.AvatarOptions` (which checks them all before the first frame).
 """
 
 from __future__ import annotations
@@ -41,53 +37,31 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
                         help="desaturate partly transparent edges by S (0..1; the LentiAvatar chroma attenuation)")
 
 
-def build_pipeline(args: argparse.Namespace):
-    """(pipeline, controls source, avatar) from the parsed options; one-line errors before any frame."""
-    from ..core.errors import InputError
-    from ..core.profile import load_profile
-    from ..render.avatar import load_avatar
-    from ..render.camera_models import CAMERA_MODELS, make_cameras
-    from ..render.controls import open_controls
-    from ..render.encoders import get_encoder
-    from ..render.loop import AvatarPipeline, parse_background
-    from ..render.renderers import get_renderer
+FLAGS = {"profile": "--profile", "controls": "--controls", "edge_desaturation": "--edge-desaturation",
+         "frames": "--frames", "fps": "--fps", "output": "--output", "views_out": "--views-out VDIR",
+         "camera_model": "--camera-model"}
+"""The library's argument names, as the flags of play and render (with those of --compensate)."""
 
-    renderer = args.renderer or "cpu"
-    encoder = args.encoder or ("torch" if renderer == "gsplat" else "fast")
-    device = args.device or ("cuda" if renderer == "gsplat" else "cpu")
-    get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
-    get_encoder(encoder, device=device)
-    CAMERA_MODELS.load(args.camera_model, "--camera-model")
-    profile = load_profile(args.profile, "--profile")
-    if not 0.0 <= args.edge_desaturation <= 1.0:
-        raise InputError(f"{args.edge_desaturation} is out of range", source="--edge-desaturation", hint="use 0..1")
-    from .encode import compensator_from_args
 
-    compensator = compensator_from_args(args, profile.views)
-    view_size = _size(args.view_size)
-    background = parse_background(args.background, view_size)
-    avatar = load_avatar(args.avatar, args.driver)
-    controls = None
-    if avatar.kind == "animated":
-        controls = open_controls(args.controls, avatar.layout)
-    elif args.controls != "demo":
-        raise InputError("a static avatar (.ply) takes no controls", source="--controls",
-                         hint="drop --controls, or give an animated avatar (a rig .npz)")
-    options = {"fov_deg": args.fov, "yaw_range_deg": args.yaw_range, "view_size": view_size}
-    if args.radius is not None:
-        options["radius"] = args.radius
-    cameras = make_cameras(args.camera_model, avatar.bounding_box(), profile.views, **options)
-    pipeline = AvatarPipeline(avatar, profile, cameras, renderer=renderer, encoder=encoder, device=device,
-                              background=background, edge_desaturation=args.edge_desaturation,
-                              compensator=compensator)
-    return pipeline, controls, avatar
+def avatar_options(args: argparse.Namespace):
+    """The :class:`~lenticalib.render.session.AvatarOptions` the parsed options ask for."""
+    from ..render.session import AvatarOptions
+    from .encode import compensation_options
+
+    return AvatarOptions(controls=args.controls, driver=args.driver, renderer=args.renderer, encoder=args.encoder,
+                         device=args.device, camera_model=args.camera_model, radius=args.radius, fov_deg=args.fov,
+                         yaw_range_deg=args.yaw_range, view_size=_size(args.view_size), background=args.background,
+                         compensation=compensation_options(args), edge_desaturation=args.edge_desaturation)
+
+
+def flags():
+    """:data:`FLAGS` with those of the compensation options."""
+    from .encode import COMPENSATION_FLAGS
+
+    return {**FLAGS, **COMPENSATION_FLAGS}
 
 
 def _size(text: str) -> tuple[int, int]:
-    from ..core.errors import InputError
+    from ..core.sizes import parse_size
 
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise InputError(f"{text!r} is not WxH", source="--view-size", hint="e.g. 960x540") from None
-    return w, h
+    return parse_size(text, "--view-size", example="960x540")

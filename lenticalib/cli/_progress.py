@@ -45,3 +45,22 @@ def progress_bar(total: int, desc: str):
         yield bar
     finally:
         bar.close()
+
+
+@contextlib.contextmanager
+def staged_bars():
+    """A ``stage(name, steps)`` callback for a library function with several stages: each call closes
+    the bar of the stage before and opens one for ``steps`` steps, returning its ``update``."""
+    bars: list[_Bar] = []
+
+    def stage(name: str, steps: int):
+        if bars:
+            bars.pop().close()
+        bars.append(_Bar(steps, name))
+        return bars[-1].update
+
+    try:
+        yield stage
+    finally:
+        for bar in bars:
+            bar.close()

@@ -17,12 +17,9 @@ See ``docs/camera.md``.
 from __future__ import annotations
 
 import argparse
-import re
 
 from ._camera_calibrate import add_calibrate_arguments, run_calibrate
 
-_SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
-SIM_CONTENTS_EXTRA = ("report", "camera.cameramodel")  # what the suggested next step writes into DIR
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -65,24 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     s.set_defaults(run=run_simulate)
 
 
-def parse_size(text: str, source: str, lo: int, hi: int, example: str) -> tuple[int, int]:
-    """``"WxH"`` -> (W, H) within [lo, hi] per side; InputError naming ``source`` otherwise."""
-    from ..core.errors import InputError
-
-    match = _SIZE.match(text or "")
-    if not match:
-        raise InputError(f"bad size {text!r}", source=source,
-                         hint=f"write it as WIDTHxHEIGHT in pixels, e.g. {example}")
-    w, h = int(match.group(1)), int(match.group(2))
-    if not (lo <= w <= hi and lo <= h <= hi):
-        raise InputError(f"{w}x{h} is out of range", source=source, hint=f"use {lo}..{hi} pixels per side")
-    return w, h
-
-
 def _panel_geometry(args: argparse.Namespace):
-    """(width, height, pixel pitch mm, lens pitch in pixels or None) from --profile or --panel/--pixel-pitch."""
-    import math
-
+    """(width, height, pixel pitch mm or None, lens pitch in pixels or None) from --profile or --panel/--pixel-pitch."""
     from ..core.errors import InputError
 
     if (args.profile is None) == (args.panel is None):
@@ -96,50 +77,38 @@ def _panel_geometry(args: argparse.Namespace):
         profile = load_profile(args.profile, "--profile")
         width, height = profile.width, profile.height
         lens_px = profile.period / 3.0
-        physical = profile.physical or {}
         if pitch is None:
-            pitch = physical.get("pixel_pitch_mm")
+            pitch = (profile.physical or {}).get("pixel_pitch_mm")
         if pitch is None:
             raise InputError("the profile does not give the panel's pixel pitch", source=args.profile,
                              hint="pass --pixel-pitch MM (from the panel's data sheet)")
     else:
-        width, height = parse_size(args.panel, "--panel", 64, 16384, "3840x2160")
+        from ..core.sizes import MIN_PANEL_SIDE, parse_size
+
+        width, height = parse_size(args.panel, "--panel", MIN_PANEL_SIDE)
         if pitch is None:
             raise InputError("the panel's pixel pitch is needed for the board's square size", source="--panel",
                              hint="pass --pixel-pitch MM (from the panel's data sheet)")
-    if not (isinstance(pitch, (int, float)) and math.isfinite(pitch) and 0.005 <= pitch <= 5.0):
-        raise InputError(f"pixel pitch {pitch!r} mm is out of range", source="--pixel-pitch",
-                         hint="give the panel's pixel pitch in mm, 0.005..5 (e.g. 0.1796)")
-    if args.lens_pitch is not None:
-        if not (math.isfinite(args.lens_pitch) and 0.005 <= args.lens_pitch <= 50.0):
-            raise InputError(f"lens pitch {args.lens_pitch!r} mm is out of range", source="--lens-pitch",
-                             hint="give the sheet's horizontal lens pitch in mm, 0.005..50")
-        lens_px = args.lens_pitch / pitch
-    return width, height, float(pitch), lens_px
+    return width, height, pitch, lens_px
+
+
+FLAGS = {"pixel_pitch_mm": "--pixel-pitch", "lens_pitch_mm": "--lens-pitch", "resolution": "--resolution",
+         "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed"}  # the library's argument names
 
 
 def run_patterns(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..calib.intrinsics.board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG,
-                                          panel_board, parse_squares, print_board, write_manifest)
-    from ..calib.intrinsics.draw import panel_raster, write_print_sheet
-    from ..core.imageio import write_image
-    from ..core.outputs import check_output_folder, staged_folder
+    from ..calib.intrinsics.board import MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, parse_squares
+    from ..calib.intrinsics.pipeline import write_board_folder
+    from ._flags import flag_names
 
     width, height, pitch, lens_px = _panel_geometry(args)
     squares = parse_squares(args.squares) if args.squares else None
-    board = panel_board(width, height, pitch, squares, lens_pitch_px=lens_px)
-    sheet = print_board(args.print_square, args.paper)
-    contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER,
-                *(f"{PRINT_FOLDER}/{name}" for name in (PRINT_PDF, PRINT_PNG, MANIFEST_NAME)))
-    check_output_folder(args.output, "camera board folder", contents)
-    with staged_folder(args.output, "camera board folder", contents) as stage:
-        write_image(stage / PANEL_IMAGE, panel_raster(board))
-        write_manifest(board, stage)
-        (stage / PRINT_FOLDER).mkdir()
-        write_print_sheet(sheet, stage / PRINT_FOLDER)
-        write_manifest(sheet, stage / PRINT_FOLDER)
+    with flag_names(FLAGS):
+        board, sheet = write_board_folder(args.output, width, height, pitch, squares=squares,
+                                          lens_pitch_mm=args.lens_pitch, lens_pitch_px=lens_px,
+                                          print_square_mm=args.print_square, paper=args.paper)
     out = Path(args.output)
     print(f"wrote {out / PANEL_IMAGE} ({width}x{height}: {board.cols}x{board.rows} inner corners, squares of "
           f"{board.square_px} px = {board.square_mm:.4f} mm, edges {board.edge_px} px) and {out / MANIFEST_NAME}")
@@ -153,33 +122,20 @@ def run_patterns(args: argparse.Namespace) -> int:
 
 def run_simulate(args: argparse.Namespace) -> int:
     import json
-    import secrets
-    import time
 
-    from ..core.errors import InputError
-    from ..core.outputs import check_output_folder, staged_folder
-    from ..calib.intrinsics.report import REPORT_FILES
-    from ..sim.board_set import CAPTURE_FOLDER, CONTENTS, TRUTH_NAME, simulate_board_set
+    from ..sim.board_set import CAPTURE_FOLDER, TRUTH_NAME
+    from ..sim.simulate_folder import simulate_camera_set
+    from ._flags import flag_names
     from ._progress import progress_bar
 
-    resolution = parse_size(args.resolution, "--resolution", 320, 8000, "1600x1200")
-    if not 3 <= args.photos <= 500:
-        raise InputError(f"{args.photos} photos is out of range", source="--photos",
-                         hint="use 3..500 (15-30 is typical)")
-    if not 1 <= args.subsamples <= 8:
-        raise InputError(f"{args.subsamples} subsamples is out of range", source="--subsamples", hint="use 1..8")
-    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
-        raise InputError(f"seed {args.seed} is out of range", source="--seed", hint="use 0..2^63-1")
-    contents = (CONTENTS + SIM_CONTENTS_EXTRA + (f"{CAPTURE_FOLDER}/board-[0-9][0-9]*.jpg",)
-                + tuple(f"report/{name}" for name in REPORT_FILES))
-    check_output_folder(args.directory, "camera simulation", contents)
-    seed = args.seed if args.seed is not None else secrets.randbelow(2 ** 31)
-    start = time.perf_counter()
-    with staged_folder(args.directory, "camera simulation", contents) as stage, \
-            progress_bar(args.photos, "photographing") as bar:
-        doc = simulate_board_set(stage, kind=args.kind, seed=seed, photos=args.photos, resolution=resolution,
-                                 conditions=args.conditions, subsamples=args.subsamples, progress=bar.update)
-    seconds = round(time.perf_counter() - start, 2)
+    from ..core.sizes import MIN_CAMERA_SIDE, parse_size
+
+    resolution = parse_size(args.resolution, "--resolution", MIN_CAMERA_SIDE, example="1600x1200")
+    with progress_bar(args.photos, "photographing") as bar, flag_names(FLAGS):
+        done = simulate_camera_set(args.directory, kind=args.kind, seed=args.seed, photos=args.photos,
+                                   resolution=resolution, conditions=args.conditions, subsamples=args.subsamples,
+                                   progress=bar.update)
+    doc, seed, seconds = done.summary, done.seed, done.seconds
     if args.json:
         print(json.dumps({"directory": str(args.directory), "kind": args.kind, "seed": seed, "photos": args.photos,
                           "resolution": list(resolution), "seconds": seconds,

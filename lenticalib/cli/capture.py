@@ -94,12 +94,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _resolution(text: str) -> tuple[int, int]:
-    from ..core.errors import InputError
+    from ..core.sizes import MIN_CAMERA_SIDE, parse_size
 
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise InputError(f"{text!r} is not WxH", source="--resolution", hint="e.g. 4000x3000") from None
-    if not (320 <= w <= 12000 and 240 <= h <= 9000):
-        raise InputError(f"{w}x{h} is out of range", source="--resolution", hint="use 320x240 .. 12000x9000")
-    return w, h
+    return parse_size(text, "--resolution", MIN_CAMERA_SIDE, example="4000x3000")

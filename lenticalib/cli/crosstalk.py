@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,24 +72,17 @@ def _fraction(text: str) -> float:
 
 
 def run_patterns(args: argparse.Namespace) -> int:
-    from ..calib.crosstalk.patterns import default_sweep, design_crosstalk_patterns
-    from ..core.pattern_sets import MANIFEST_NAME, write_patterns
-    from ..core.errors import InputError
-    from ..core.outputs import check_output_folder, restored_on_failure
+    from ..calib.pattern_folders import write_crosstalk_pattern_folder
+    from ..core.pattern_sets import MANIFEST_NAME
     from ..core.profile import load_profile
+    from ._flags import flag_names
     from ._progress import progress_bar
 
     profile = load_profile(args.profile, "--profile")
-    if args.sweep is not None and not (math.isfinite(args.sweep) and 4 * profile.views <= args.sweep <= 4 * profile.width):
-        raise InputError(f"sweep {args.sweep} pixels is out of range", source="--sweep",
-                         hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {default_sweep(profile):g})")
-    folder = check_output_folder(args.output, "crosstalk patterns")
-    pattern_set = design_crosstalk_patterns(profile, args.sweep)
-    written = ([folder / p.file for p in pattern_set.patterns] + [folder / MANIFEST_NAME]
-               if folder.exists() else [folder])
-    with restored_on_failure(written, "patterns"), \
-            progress_bar(len(pattern_set.patterns), "writing patterns") as bar:
-        write_patterns(folder, pattern_set, progress=bar.wrap(pattern_set.patterns))
+    with progress_bar(0, "writing patterns") as bar, flag_names({"sweep": "--sweep"}):
+        pattern_set = write_crosstalk_pattern_folder(profile, args.output, args.sweep, progress=bar.update,
+                                                     progress_total=bar.set_total)
+    folder = Path(args.output)
     print(f"wrote {len(pattern_set.patterns)} crosstalk patterns and {folder / MANIFEST_NAME} (set {pattern_set.set_id})")
     print(f"next: photograph them from the fit's camera position, without moving the camera "
           f"('lenticalib capture {args.output} --camera ...', or show each PNG and save captures/NAME.jpg); then "
@@ -96,80 +90,29 @@ def run_patterns(args: argparse.Namespace) -> int:
     return 0
 
 
-def _eye_separation(args, views: int):
-    from ..calib.crosstalk.result import eye_separation_views
-    from ..core.errors import InputError
-
-    if args.eye_separation is not None and args.eye_separation_mm is not None:
-        raise InputError("give the eye separation once", source="--eye-separation-mm",
-                         hint="use --eye-separation VIEWS or --eye-separation-mm MM, not both")
-    if args.eye_separation is not None:
-        if not (math.isfinite(args.eye_separation) and 0.5 <= args.eye_separation <= views / 2):
-            raise InputError(f"{args.eye_separation} views is out of range", source="--eye-separation",
-                             hint=f"use 0.5..{views / 2:g} views")
-        return args.eye_separation, None
-    if args.eye_separation_mm is None:
-        if args.distance is not None or args.cone_angle is not None:
-            raise InputError("is only used with --eye-separation-mm", source="--distance" if args.distance is not None
-                             else "--cone-angle", hint="add --eye-separation-mm MM")
-        return None, None
-    for flag, value, lo, hi in (("--eye-separation-mm", args.eye_separation_mm, 20.0, 120.0),
-                                ("--distance", args.distance, 100.0, 10000.0),
-                                ("--cone-angle", args.cone_angle, 1.0, 120.0)):
-        if value is None:
-            raise InputError("is needed with --eye-separation-mm", source=flag,
-                             hint="give the viewing distance in mm and the panel's full view-cone angle in degrees")
-        if not (math.isfinite(value) and lo <= value <= hi):
-            raise InputError(f"{value} is out of range", source=flag, hint=f"use {lo:g}..{hi:g}")
-    e = eye_separation_views(args.eye_separation_mm, args.distance, args.cone_angle, views)
-    if not 0.5 <= e <= views / 2:
-        raise InputError(f"{args.eye_separation_mm} mm is {e:.2f} views at {args.distance:g} mm", source="--eye-separation-mm",
-                         hint=f"the eyes must be 0.5..{views / 2:g} views apart; check --distance and --cone-angle")
-    return e, (f"{args.eye_separation_mm:g} mm at {args.distance:g} mm from a panel with a {args.cone_angle:g} degree "
-               f"view cone")
+MEASURE_FLAGS = {"profile": "--profile", "report_dir": "--report DIR", "photos": "--photos",
+                 "eye_separation_views": "--eye-separation VIEWS", "eye_separation_mm": "--eye-separation-mm MM",
+                 "distance_mm": "--distance MM", "cone_angle_deg": "--cone-angle DEG"}  # library names -> flags
 
 
 def run_measure(args: argparse.Namespace) -> int:
-    import os
     import sys
 
-    from ..calib.crosstalk.measure import measure_crosstalk, open_crosstalk_set
-    from ..calib.crosstalk.report import REPORT_FILES, write_crosstalk_report
-    from ..calib.crosstalk.result import (FIGURES, HEADLINE, OVER_100, crosstalk_document, describe_figure,
-                                          write_crosstalk)
-    from ..core.errors import InputError
-    from ..core.outputs import check_output_file, check_output_folder, staged_folder
-    from ..core.profile import load_profile, make_provenance
-    from ..render.compensation import Compensator, compensation_study, test_views
+    from ..calib.crosstalk.pipeline import EyeSeparation, measure_crosstalk_set
+    from ..calib.crosstalk.result import FIGURES, HEADLINE, OVER_100, describe_figure
+    from ..render.compensation import PREDICTION_BLACK_LIFT, predict_compensation
+    from ._flags import flag_names
     from ._progress import progress_bar
 
-    output = check_output_file(args.output, "crosstalk file", example="crosstalk.json")
-    if args.report:
-        check_output_folder(args.report, "crosstalk report", contents=REPORT_FILES)
-        if os.path.abspath(args.report) == os.path.abspath(output):
-            raise InputError("is also the crosstalk file path", source="--report", hint="give the report a folder")
-    profile = load_profile(args.profile, "--profile") if args.profile else None
-    pattern_set, capture = open_crosstalk_set(args.directory, profile)
-    eye, eye_note = _eye_separation(args, pattern_set.views)
-    with progress_bar(len(pattern_set.patterns) + 2, "measuring") as bar:
-        measurement = measure_crosstalk(args.directory, profile, photos=args.photos, progress=bar.update)
+    eye = EyeSeparation(views=args.eye_separation, mm=args.eye_separation_mm, distance_mm=args.distance,
+                        cone_angle_deg=args.cone_angle)
+    with progress_bar(0, "measuring") as bar, flag_names(MEASURE_FLAGS):
+        run = measure_crosstalk_set(args.directory, args.output, profile=args.profile, report_dir=args.report,
+                                    eye=eye, photos=args.photos, predict=predict_compensation,
+                                    progress=bar.update, progress_total=bar.set_total)
+    measurement, document, output, eye = run.measurement, run.document, run.output, run.eye_separation
     for warning in measurement.warnings:
         print(f"lenticalib: warning: {warning}", file=sys.stderr)
-    provenance = make_provenance("crosstalk measurement", inputs=measurement.inputs,
-                                 **({"profile_file": str(args.profile)} if args.profile else {}),
-                                 pattern_set=pattern_set.set_id, seconds=round(measurement.seconds, 2))
-    document = crosstalk_document(measurement, eye, eye_note, provenance)
-    # what pre-compensation with this matrix would do, if the matrix is right (synthetic test views)
-    study = compensation_study(Compensator.from_matrix(measurement.matrix, black_lift=0.02),
-                               measurement.matrix, test_views(measurement.views))
-    document["compensation_prediction"] = {k: (round(v, 5) if isinstance(v, float) else v) for k, v in study.items()
-                                           if not isinstance(v, list)}
-    if args.report:
-        with staged_folder(args.report, "crosstalk report", contents=REPORT_FILES) as stage:
-            write_crosstalk_report(measurement, stage, document, compensation=study)
-            write_crosstalk(output, document)
-    else:
-        write_crosstalk(output, document)
     if args.json:
         print(json.dumps(document, indent=2))
         return 0
@@ -182,10 +125,10 @@ def run_measure(args: argparse.Namespace) -> int:
     if any(FIGURES[k][2] == "%" and v["value"] > 1.0 for k, v in f.items()):
         print(f"note: {OVER_100}")
     c = document["compensation_prediction"]
-    print(f"pre-compensation (--compensate {output} --black-lift 0.02) would bring the views seen at the zone centres "
-          f"from {c['mean_rms_without']:.4f} to {c['mean_rms_with']:.4f} RMS of the intended (linear light 0..1), "
-          f"the system crosstalk of the resulting mixing from {100 * c['residual_crosstalk_without']:.1f}% to "
-          f"{100 * c['residual_crosstalk_with']:.1f}%")
+    print(f"pre-compensation (--compensate {output} --black-lift {PREDICTION_BLACK_LIFT:g}) would bring the views "
+          f"seen at the zone centres from {c['mean_rms_without']:.4f} to {c['mean_rms_with']:.4f} RMS of the "
+          f"intended (linear light 0..1), the system crosstalk of the resulting mixing from "
+          f"{100 * c['residual_crosstalk_without']:.1f}% to {100 * c['residual_crosstalk_with']:.1f}%")
     print(f"wrote {output}" + (f" and the report {args.report}" if args.report else "")
           + f" ({measurement.seconds:.1f} s)")
     return 0

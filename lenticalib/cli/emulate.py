@@ -20,7 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                       "family's, drivers/lc32.toml)")
     panel.add_argument("--panel", metavar="WxH", help="panel size in pixels, e.g. 3840x2160")
     panel.add_argument("--subpixel-order", metavar="RGB|BGR", help="colour at subpixel positions 0, 1, 2")
-    panel.add_argument("--views", metavar="N[,N...]", help="view counts the controller supports, e.g. 32 or 16,32")
+    panel.add_argument("--view-counts", metavar="N[,N...]",
+                       help="view counts the controller supports, e.g. 32 or 16,32")
     parser.add_argument("--protocol", default=None, metavar="1.0|1.1",
                         help="firmware generation to emulate (default 1.1; 1.0: CRCs over all 128 record bytes, "
                              "no panel in IDENTIFY)")
@@ -68,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(str(exc), source="--protocol") from None
     panel = default_panel()
     for option, argument, text in (("--panel", "size", args.panel), ("--subpixel-order", "order", args.subpixel_order),
-                                   ("--views", "views", args.views)):
+                                   ("--view-counts", "views", args.view_counts)):
         if text is not None:
             try:
                 panel = config.panel_geometry(panel, **{argument: text})

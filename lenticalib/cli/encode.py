@@ -10,7 +10,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", required=True, metavar="P", help="panel profile (JSON)")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--quilt", metavar="FILE", help="quilt image, view 0 bottom-left")
-    source.add_argument("--views", metavar="DIR", help="folder of N view images, natural file-name order")
+    source.add_argument("--views-dir", metavar="DIR", help="folder of N view images, natural file-name order")
     parser.add_argument("--grid", metavar="COLSxROWS", help="quilt grid when the file name has no _qs suffix")
     parser.add_argument("-o", "--output", required=True, metavar="OUT", help="panel raster (.png, .tif or .npy)")
     parser.add_argument("--encoder", default="fast", help="encoder name (default: fast; see 'reference', 'tables', 'torch')")
@@ -33,70 +33,41 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --compensate: projected-gradient steps of the bounded solve (default 2)")
 
 
+COMPENSATION_FLAGS = {"crosstalk_file": "--compensate crosstalk.json", "black_lift": "--black-lift",
+                      "regularisation": "--regularisation", "iterations": "--iterations"}
+FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE", "allow_stretch": "--stretch"}
+
+
+def compensation_options(args: argparse.Namespace):
+    """The :class:`~lenticalib.render.encode_file.CompensationOptions` of ``--compensate`` and its knobs."""
+    from ..render.encode_file import CompensationOptions
+
+    return CompensationOptions(args.compensate, args.black_lift, args.regularisation, args.iterations)
+
+
 def compensator_from_args(args: argparse.Namespace, views: int):
     """The :class:`~lenticalib.render.compensation.Compensator` the options ask for, or None; InputError
-    for knobs without ``--compensate`` or out of range."""
-    from ..core.errors import InputError
-    from ..render.compensation import DEFAULT_ITERATIONS, DEFAULT_REGULARISATION, compensator_from_file
+    naming the flag for knobs without ``--compensate`` or out of range."""
+    from ._flags import flag_names
 
-    if args.compensate is None:
-        for flag, value, default in (("--black-lift", args.black_lift, 0.0), ("--regularisation", args.regularisation, None),
-                                     ("--iterations", args.iterations, None)):
-            if value != default:
-                raise InputError("is only used with --compensate", source=flag, hint="add --compensate crosstalk.json")
-        return None
-    return compensator_from_file(args.compensate, views,
-                                 DEFAULT_REGULARISATION if args.regularisation is None else args.regularisation,
-                                 args.black_lift, DEFAULT_ITERATIONS if args.iterations is None else args.iterations)
+    with flag_names(COMPENSATION_FLAGS):
+        return compensation_options(args).compensator(views)
 
 
 def run(args: argparse.Namespace) -> int:
-    import time
+    from ..render.encode_file import encode_to_file
+    from ..render.views import parse_grid
+    from ._flags import flag_names
 
-    import numpy as np
-
-    from ..render.encoders import encode, get_encoder
-    from ..core.errors import ImageError
-    from ..core.imageio import check_image_output, write_image
-    from ..core.profile import load_profile
-    from ..render.views import load_quilt, load_view_folder, parse_grid
-
-    profile = load_profile(args.profile, "--profile")
-    get_encoder(args.encoder)  # an unknown --encoder is refused before the views are read
-    compensator = compensator_from_args(args, profile.views)
-    check_image_output(args.output, what="panel raster")  # a wrong -o costs nothing
-    if args.quilt:
-        views, grid = load_quilt(args.quilt, profile.views, parse_grid(args.grid) if args.grid else None)
-        panel_aspect = profile.width / profile.height
-        if grid.aspect and not args.stretch and abs(grid.aspect / panel_aspect - 1.0) > 0.01:
-            raise ImageError(f"quilt was made for aspect {grid.aspect:g}, the profile's panel is "
-                             f"{profile.width}x{profile.height} (aspect {panel_aspect:.4f})", source=args.quilt,
-                             hint="use the profile of the panel the quilt was made for, or --stretch")
-    else:
-        views = load_view_folder(args.views, profile.views)
-    check_image_output(args.output, views.dtype, what="panel raster")  # e.g. float views into a .png
-    compensate_seconds = None
-    if compensator is not None:
-        if views.dtype != np.uint8:
-            raise ImageError(f"--compensate works on 8-bit views, these are {views.dtype}",
-                             source=args.views or args.quilt, hint="save the views as 8-bit PNG or JPEG")
-        start = time.perf_counter()
-        views = compensator.apply(views)
-        compensate_seconds = time.perf_counter() - start
-    start = time.perf_counter()
-    raster = encode(views, profile, args.encoder, allow_stretch=args.stretch)
-    elapsed = time.perf_counter() - start
-    write_image(args.output, raster)
-    summary = {"output": args.output, "width": profile.width, "height": profile.height, "views": profile.views,
-               "view_size": [int(views.shape[2]), int(views.shape[1])], "dtype": str(raster.dtype),
-               "encoder": args.encoder, "encode_seconds": round(elapsed, 4),
-               "compensate": args.compensate,
-               "compensate_seconds": None if compensate_seconds is None else round(compensate_seconds, 4)}
+    grid = parse_grid(args.grid) if args.grid else None
+    with flag_names(FLAGS):
+        done = encode_to_file(args.profile, args.output, views_dir=args.views_dir, quilt=args.quilt, grid=grid,
+                              encoder=args.encoder, allow_stretch=args.stretch, compensation=compensation_options(args))
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(done.summary()))
     else:
-        print(f"wrote {args.output}: {profile.width}x{profile.height} {raster.dtype} from {profile.views} views of "
-              f"{views.shape[2]}x{views.shape[1]} ({args.encoder} encoder, {elapsed * 1000:.0f} ms incl. compile"
-              + (f"; crosstalk pre-compensation {compensate_seconds * 1000:.0f} ms" if compensate_seconds is not None
-                 else "") + ")")
+        p, (w, h), compensate = done.profile, done.view_size, done.compensate_seconds
+        print(f"wrote {args.output}: {p.width}x{p.height} {done.dtype} from {p.views} views of {w}x{h} "
+              f"({done.encoder} encoder, {done.encode_seconds * 1000:.0f} ms incl. compile"
+              + (f"; crosstalk pre-compensation {compensate * 1000:.0f} ms" if compensate is not None else "") + ")")
     return 0

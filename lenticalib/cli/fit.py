@@ -1,6 +1,8 @@
 """``lenticalib fit DIR -o profile.json``: fit a panel profile from photos of the test patterns.
 
-Before the fit starts, the options are range-checked and the profile path and the report
+The work is :func:`lenticalib.calib.fit_pipeline.fit_capture_sets`; this module parses the
+options, shows the progress, prints the outcome and maps the library's argument names to its
+flags (:data:`FLAGS`).  Before the fit starts, the options are range-checked and the profile path and the report
 folder are checked (:mod:`lenticalib.core.outputs`: no missing folder is created, a folder is not a
 profile path, a folder holding anything but a report is not replaced).  The report is written
 into a hidden sibling and moved into place complete.  Outcomes:
@@ -57,83 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=run)
 
 
-def check_arguments(args: argparse.Namespace):
-    """(profile path, report folder) once every option and output path is usable; InputError otherwise."""
-    import os
-
-    from ..calib.report import REPORT_FILES
-    from ..core.errors import InputError
-    from ..core.outputs import check_output_file, check_output_folder
-    from ..core.profile import MAX_VIEWS
-
-    if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
-        raise InputError(f"{args.views} views is out of range", source="--views",
-                         hint=f"use 2..{MAX_VIEWS}, or leave it out to use the pattern set's")
-    output = check_output_file(args.output, "profile", example="profile.json")
-    if args.report:
-        report = check_output_folder(args.report, "report", contents=REPORT_FILES)
-    else:
-        report = output.with_name(output.stem + "-report")
-        if report.exists() and not report.is_dir():
-            raise InputError("is a file, not a folder for the report", source=str(report),
-                             hint="remove it, or choose the report folder with --report")
-        check_output_folder(report, "report", contents=REPORT_FILES)
-    if os.path.abspath(report) == os.path.abspath(output):
-        raise InputError("is also the profile path", source=str(report), hint="give the report another folder")
-    if args.moved_right is not None:
-        check_moved_right(args.directory, args.moved_right)
-    check_physical_options(args)
-    return output, report
-
-
-def check_physical_options(args: argparse.Namespace) -> None:
-    """InputError for a missing or out-of-range --pixel-pitch/--gap or a bad --second-distance,
-    and load the camera model now (a broken file is one line before the fit starts)."""
-    from ..calib.camera_file import load_camera_model
-    from ..core.errors import InputError
-    from ..core.physical import LIMITS
-
-    for option, key, value in (("--pixel-pitch", "pixel_pitch_mm", args.pixel_pitch), ("--gap", "gap_mm", args.gap)):
-        low, high = LIMITS[key]
-        if value is not None and not low <= value <= high:
-            raise InputError(f"{value:g} mm is out of range", source=option, hint=f"give {low:g}..{high:g} mm")
-    needs_camera = [o for o, v in (("--pixel-pitch", args.pixel_pitch), ("--second-distance", args.second_distance),
-                                   ("--gap", args.gap)) if v is not None]
-    if needs_camera and not args.camera:
-        raise InputError("needs a camera model", source=needs_camera[0],
-                         hint="calibrate the camera ('lenticalib camera calibrate ...') and pass --camera MODEL")
-    args.camera_model = load_camera_model(args.camera) if args.camera else None  # read once for every fit
-    if args.camera:
-        if args.pixel_pitch is None:
-            raise InputError("a camera model gives the camera's pose in mm only with the panel's pixel pitch",
-                             source="--camera", hint="pass --pixel-pitch MM (the panel's width in mm / its pixels)")
-    if args.second_distance is not None and args.gap is not None:
-        raise InputError("give the gap one way", source="--gap", hint="either --second-distance DIR2 or --gap MM")
-    if args.second_distance is not None:
-        check_second_set(args.directory, args.second_distance, "--second-distance",
-                         "photograph the patterns again from another distance, into a copy of the pattern folder")
-
-
-def check_moved_right(directory, moved_right) -> None:
-    """InputError/CaptureError unless ``moved_right`` is another complete capture set of the same patterns."""
-    check_second_set(directory, moved_right, "--moved-right", "photograph the patterns again after moving the camera "
-                     "a few centimetres to the right, into a copy of the pattern folder")
-
-
-def check_second_set(directory, other, option: str, how: str) -> None:
-    """InputError/CaptureError unless ``other`` is another complete capture set of the same patterns."""
-    import os
-
-    from ..calib.captures import open_capture_set
-    from ..core.errors import InputError
-
-    if os.path.realpath(other) == os.path.realpath(directory):
-        raise InputError("is the same capture set as DIR", source=option, hint=how)
-    first, second = open_capture_set(directory), open_capture_set(other)
-    if first.patterns.set_id != second.patterns.set_id:
-        raise InputError(f"holds photos of pattern set {second.patterns.set_id}, {directory} of set "
-                         f"{first.patterns.set_id}", source=str(other),
-                         hint="photograph the same patterns from both camera positions")
+FLAGS = {"capture_dir": "DIR", "views": "--views", "report_dir": "--report DIR", "moved_right": "--moved-right DIR2",
+         "camera_model": "--camera MODEL", "pixel_pitch_mm": "--pixel-pitch MM", "gap_mm": "--gap MM",
+         "second_distance": "--second-distance DIR2"}  # the library's argument names, as this command's flags
 
 
 def describe_physical(result) -> str:
@@ -158,40 +86,21 @@ def describe_physical(result) -> str:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..calib.captures import open_capture_set
-    from ..calib.fit import fit_capture_set, progress_steps
-    from ..calib.report import REPORT_FILES, fit_summary, write_report
-    from ..core.outputs import staged_folder
-    from ..core.profile import save_profile
+    from ..calib.fit_pipeline import PhysicalOptions, fit_capture_sets
     from ..core.view_direction import describe_direction
+    from ._flags import flag_names
     from ._progress import progress_bar
 
-    output, report_dir = check_arguments(args)
-    directories = [args.directory] + [d for d in (args.moved_right, args.second_distance if args.camera else None) if d]
-    total = sum(progress_steps(open_capture_set(d).patterns) for d in directories)  # the fit's first step
-    options = dict(views=args.views, camera_model=args.camera_model, pixel_pitch_mm=args.pixel_pitch)
-    with progress_bar(total, "fitting") as bar:
-        result = fit_capture_set(args.directory, progress=bar.update, **options)
-        if args.moved_right:
-            from ..calib.direction import add_moved_right
-
-            second = fit_capture_set(args.moved_right, progress=bar.update, **options)
-            add_moved_right(result, second, args.moved_right)
-        if args.camera:
-            from ..calib.physical_fit import add_physical
-
-            other = fit_capture_set(args.second_distance, progress=bar.update, **options) \
-                if args.second_distance else None
-            add_physical(result, args.pixel_pitch, second=other, gap=args.gap, second_directory=args.second_distance)
+    physical = PhysicalOptions(camera_model=args.camera, pixel_pitch_mm=args.pixel_pitch,
+                               second_distance=args.second_distance, gap_mm=args.gap)
+    with progress_bar(0, "fitting") as bar, flag_names(FLAGS):
+        run = fit_capture_sets(args.directory, output=args.output, report_dir=args.report,
+                               moved_right=args.moved_right, views=args.views, physical=physical, force=args.force,
+                               progress=bar.update, progress_total=bar.set_total)
+    result, output, report_dir, summary = run.result, run.profile_path, run.report_dir, run.summary
     for warning in result.warnings:
         print(f"lenticalib: warning: {warning}", file=sys.stderr)
     profile = result.profile
-    write_profile = result.trusted or args.force
-    summary = fit_summary(result, args.directory, report=report_dir, output=output if write_profile else None)
-    with staged_folder(report_dir, "report", contents=REPORT_FILES) as stage:
-        write_report(result, stage, args.directory, summary)
-        if write_profile:
-            save_profile(profile, output)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import argparse
 
-MAX_SIDE = 16384  # panel raster pixels per side (16K panels)
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=int, help="panel raster width in pixels (default 3840)")
@@ -34,10 +32,9 @@ DEFAULTS = {"width": 3840, "height": 2160, "views": 32}
 
 
 def check_options(args: argparse.Namespace) -> None:
-    """InputError naming the option when the panel size or the view count is out of range, or an
-    option does not belong to the chosen mode (calibration patterns, or ``--direction``)."""
+    """InputError naming the option when an option does not belong to the chosen mode (calibration
+    patterns, or ``--direction``); the defaults filled in."""
     from ..core.errors import InputError
-    from ..core.profile import MAX_VIEWS
 
     if args.direction:
         if args.profile is None:
@@ -54,32 +51,25 @@ def check_options(args: argparse.Namespace) -> None:
     for key, value in DEFAULTS.items():
         if getattr(args, key) is None:
             setattr(args, key, value)
-    for flag, value in (("--width", args.width), ("--height", args.height)):
-        if not 64 <= value <= MAX_SIDE:
-            raise InputError(f"{value} pixels is out of range", source=flag,
-                             hint=f"give the panel raster size in pixels, 64..{MAX_SIDE}")
-    if not 2 <= args.views <= MAX_VIEWS:
-        raise InputError(f"{args.views} views is out of range", source="--views", hint=f"use 2..{MAX_VIEWS}")
+
+
+FLAGS = {"width": "--width", "height": "--height", "views": "--views"}  # the library's argument names
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..calib.patterns import design_patterns
-    from ..core.pattern_sets import MANIFEST_NAME, write_patterns
-    from ..core.outputs import check_output_folder, restored_on_failure
+    from ..calib.pattern_folders import write_calibration_patterns
+    from ..core.pattern_sets import MANIFEST_NAME
+    from ._flags import flag_names
     from ._progress import progress_bar
 
     check_options(args)
     if args.direction:
         return run_direction(args)
-    folder = check_output_folder(args.output, "patterns")
-    pattern_set = design_patterns(args.width, args.height, args.views)
-    written = ([folder / p.file for p in pattern_set.patterns] + [folder / MANIFEST_NAME]
-               if folder.exists() else [folder])
-    with restored_on_failure(written, "patterns"), \
-            progress_bar(len(pattern_set.patterns), "writing patterns") as bar:
-        write_patterns(folder, pattern_set, progress=bar.wrap(pattern_set.patterns))
+    with progress_bar(0, "writing patterns") as bar, flag_names(FLAGS):
+        pattern_set = write_calibration_patterns(args.output, args.width, args.height, args.views, progress=bar.update,
+                                                 progress_total=bar.set_total)
     manifest = Path(args.output) / MANIFEST_NAME
     print(f"wrote {len(pattern_set.patterns)} patterns and {manifest} (set {pattern_set.set_id})")
     print("next: show each PNG full screen on the panel, photograph it from the viewing position with the "
@@ -90,21 +80,13 @@ def run(args: argparse.Namespace) -> int:
 
 def run_direction(args: argparse.Namespace) -> int:
     """``--direction``: write DIR/direction.png and say how to read it."""
-    from ..calib.direction import DIRECTION_PATTERN_NAME, direction_raster
+    from ..calib.pattern_folders import write_direction_pattern
     from ..render.encoders import encode
-    from ..core.imageio import check_image_output, write_image
-    from ..core.outputs import check_output_folder
     from ..core.profile import load_profile
     from ..core.view_direction import describe_direction
 
     profile = load_profile(args.profile, "--profile")
-    folder = check_output_folder(args.output, "direction pattern")
-    target = folder / DIRECTION_PATTERN_NAME
-    if folder.exists():  # a new folder is made only once the raster is ready
-        check_image_output(target, what="direction pattern")
-    raster = direction_raster(profile, encode)
-    folder.mkdir(exist_ok=True)
-    write_image(target, raster)
+    target = write_direction_pattern(profile, args.output, encode)
     last_left = (profile.views - 1) // 2
     print(f"wrote {target} ({profile.width}x{profile.height}, {profile.views} views: views 0..{last_left} "
           f"say LEFT, the others RIGHT; the profile's view_direction is {describe_direction(profile.view_direction)})")

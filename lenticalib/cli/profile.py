@@ -204,25 +204,16 @@ def run_set_direction(args) -> int:
 
 def run_set_physical(args) -> int:
     from ..core.errors import InputError
-    from ..core.physical import gap_from_view_cone, validate_physical
+    from ..core.physical import with_data_sheet
     from ..core.profile import load_profile, save_profile
 
     given = {"pixel_pitch_mm": args.pixel_pitch, "gap_mm": args.gap, "lens_pitch_mm": args.lens_pitch,
              "view_cone_deg": args.view_cone, "design_distance_mm": args.design_distance}
-    given = {k: v for k, v in given.items() if v is not None}
-    if not given:
+    if all(v is None for v in given.values()):  # before the file is read
         raise InputError("nothing to set", source="set-physical",
                          hint="give --pixel-pitch, --gap, --lens-pitch, --view-cone or --design-distance")
     profile = load_profile(args.profile, "PROFILE")
-    block = dict(profile.physical or {})
-    block.update(given)
-    if "gap_mm" not in block and "view_cone_deg" in block and "lens_pitch_mm" in block:
-        import math
-
-        block["gap_mm"] = gap_from_view_cone(block["lens_pitch_mm"], math.degrees(math.atan(profile.slant)),
-                                             block["view_cone_deg"])
-    block["source"] = "data sheet" if block.get("source") in (None, "data sheet") else f"{block['source']} + data sheet"
-    block = validate_physical(block, "set-physical")  # names the option's field before anything is written
+    block = with_data_sheet(profile.physical, profile.slant, "set-physical", **given)  # names physical.FIELD
     save_profile(profile.replace(physical=block), args.profile)
     print(f"{args.profile}: physical " + ", ".join(f"{k} {v:g}" for k, v in block.items() if isinstance(v, float)))
     return 0

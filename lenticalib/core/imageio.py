@@ -4,10 +4,10 @@ Arrays are ``(H, W, 3)`` RGB in uint8, uint16 or float32 (OpenCV's BGR order is 
 at this boundary only).  Grey images are expanded to RGB; an alpha channel is dropped.
 
 SIZE LIMIT.  An image is refused before decoding when its header states more than
-:data:`MAX_IMAGE_PIXELS` (16384 x 16384, 268 megapixels: the largest raster 'lenticalib
-patterns' writes, and above any camera photo, 100-150 megapixels for medium format): the size is
-read from the header (Pillow reads it without decoding; an ``.npy``'s from its header), so a
-small file claiming a huge image costs no memory.  The error names the file, its size and the limit.
+:data:`MAX_IMAGE_PIXELS` (16384 x 16384, 268 megapixels: :data:`lenticalib.core.sizes.MAX_SIDE`
+squared, the largest raster 'lenticalib patterns' writes, and above any camera photo, 100-150
+megapixels for medium format): the size is read from the header (Pillow reads it without
+decoding; an ``.npy``'s from its header), so a small file claiming a huge image costs no memory.  The error names the file, its size and the limit.
 A file Pillow does not recognise is left to OpenCV, whose own limit is 2^30 pixels.
 
 OpenCV is imported through :func:`cv2_quiet`, which silences OpenCV's own logging once: its
@@ -26,8 +26,9 @@ import numpy as np
 from .atomic import write_bytes_atomic
 from .errors import ImageError, InputError
 from .outputs import check_output_file
+from .sizes import MAX_SIDE, check_raster_size
 
-MAX_IMAGE_PIXELS = 16384 * 16384  # module docstring; equals 'lenticalib patterns' largest raster
+MAX_IMAGE_PIXELS = MAX_SIDE * MAX_SIDE  # module docstring; the largest raster of :mod:`.sizes`
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".npy")
 WRITE_FORMATS = {".png": (np.uint8, np.uint16), ".tif": (np.uint8, np.uint16, np.float32),
                  ".tiff": (np.uint8, np.uint16, np.float32), ".npy": None}
@@ -80,7 +81,7 @@ def check_image_pixels(width: int, height: int, source: str) -> None:
         raise ImageError(f"is {width}x{height} pixels ({width * height / 1e6:.0f} megapixels), over the limit of "
                          f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels ({int(MAX_IMAGE_PIXELS ** 0.5)} x "
                          f"{int(MAX_IMAGE_PIXELS ** 0.5)})", source=source,
-                         hint="scale the image down; lenticalib reads images of up to 16384 x 16384 pixels")
+                         hint=f"scale the image down; lenticalib reads images of up to {MAX_SIDE} x {MAX_SIDE} pixels")
 
 
 def header_size(path: str | os.PathLike, *, camera_orientation: bool = False) -> tuple[int, int] | None:
@@ -108,15 +109,7 @@ def _check_header(p: Path, camera_orientation: bool, expected_size: tuple[int, i
     """Refuse, before decoding, an image over :data:`MAX_IMAGE_PIXELS` or not of ``expected_size``."""
     size = header_size(p, camera_orientation=camera_orientation)
     if size is not None and expected_size is not None:
-        check_size(size, expected_size, str(p), what, hint)
-
-
-def check_size(size: tuple[int, int], expected_size: tuple[int, int], source: str, what: str,
-               hint: str | None = None) -> None:
-    """ImageError naming ``source`` when an image of ``size`` (W, H) is not ``expected_size``."""
-    if tuple(size) != tuple(expected_size):
-        raise ImageError(f"is {size[0]}x{size[1]} pixels, {what} is {expected_size[0]}x{expected_size[1]}",
-                         source=source, hint=hint or f"give a {expected_size[0]}x{expected_size[1]} image")
+        check_raster_size(size, expected_size, str(p), what, hint)
 
 
 def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image") -> Path:
@@ -165,7 +158,7 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False,
             if len(header.shape) in (2, 3):
                 check_image_pixels(header.shape[1], header.shape[0], str(p))
                 if expected_size is not None:
-                    check_size((header.shape[1], header.shape[0]), expected_size, str(p), what, hint)
+                    check_raster_size((header.shape[1], header.shape[0]), expected_size, str(p), what, hint)
 
         try:
             img = load_npy(p, check=pixels, source=str(p))
@@ -204,7 +197,7 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False,
         raise ImageError(f"unsupported pixel type {img.dtype}", source=str(p),
                          hint="use 8- or 16-bit integer or 32-bit float images")
     if expected_size is not None:  # formats Pillow does not know, or a header that lied
-        check_size((img.shape[1], img.shape[0]), expected_size, str(p), what, hint)
+        check_raster_size((img.shape[1], img.shape[0]), expected_size, str(p), what, hint)
     return np.ascontiguousarray(img)
 
 

@@ -86,9 +86,11 @@ from typing import Any, Mapping
 import numpy as np
 
 from .atomic import write_text_atomic
+from .documents import read_json_file
 from .errors import ProfileError
 from .fields import is_finite_number, is_number, short_repr
-from .profile import MAX_SIDE, MAX_VIEWS, PanelProfile, make_provenance, read_json_file
+from .profile import MAX_VIEWS, PanelProfile, make_provenance
+from .sizes import MAX_SIDE
 
 REQUIRED_FIELDS = ("pitch", "slope", "center", "DPI", "screenW", "screenH")
 NUMERIC_FIELDS = REQUIRED_FIELDS + ("viewCone", "invView", "verticalAngle", "flipImageX",
@@ -182,7 +184,7 @@ def read_visual_json(path: str | os.PathLike) -> dict[str, Any]:
     pitch <= 0, slope == 0 or a screen size that is not a positive whole number.
     """
     src = str(path)
-    raw = read_json_file(path, "visual.json", "give the path of the Looking Glass visual.json")
+    raw = read_json_file(path, "visual.json", "give the path of the Looking Glass visual.json", ProfileError)
     return _normalize(raw, src)
 
 

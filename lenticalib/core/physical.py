@@ -111,3 +111,27 @@ def view_cone_deg(lens_pitch_mm: float, slant_angle_deg: float, gap_mm: float) -
     """The inverse of :func:`gap_from_view_cone`: the full view-cone angle (degrees) in air."""
     p_u = lens_pitch_mm * math.cos(math.radians(slant_angle_deg))
     return math.degrees(2.0 * math.atan(p_u / (2.0 * gap_mm)))
+
+
+def with_data_sheet(block: Mapping[str, Any] | None, slant: float, source: str = "data sheet",
+                    **given: float) -> dict[str, Any]:
+    """A profile's physical ``block`` (or None) with the data-sheet values ``given`` (``pixel_pitch_mm``,
+    ``gap_mm``, ``lens_pitch_mm``, ``view_cone_deg``, ``design_distance_mm``), checked.
+
+    The gap follows from the view cone and the lens pitch when neither block nor ``given`` has it
+    (``slant``: the profile's C_r, pixels per row); ``source`` says where the block came from
+    ("data sheet", or "FIT + data sheet").  InputError when nothing is given, ProfileError naming
+    ``physical.FIELD`` (in ``source``) when a value is out of range.
+    """
+    from .errors import InputError
+
+    given = {k: v for k, v in given.items() if v is not None}
+    if not given:
+        raise InputError("nothing to set", source=source,
+                         hint="give pixel_pitch_mm, gap_mm, lens_pitch_mm, view_cone_deg or design_distance_mm")
+    out = dict(block or {})
+    out.update(given)
+    if "gap_mm" not in out and "view_cone_deg" in out and "lens_pitch_mm" in out:
+        out["gap_mm"] = gap_from_view_cone(out["lens_pitch_mm"], math.degrees(math.atan(slant)), out["view_cone_deg"])
+    out["source"] = "data sheet" if out.get("source") in (None, "data sheet") else f"{out['source']} + data sheet"
+    return validate_physical(out, source)

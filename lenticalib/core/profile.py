@@ -32,13 +32,15 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .atomic import write_text_atomic
+from .documents import FORMATS, check_envelope, read_json_file  # read_json_file: also imported from here
 from .errors import ProfileError
-from .fields import is_finite_number, is_number, parse_json, short_repr, unknown_key_message, unusable_number
+from .fields import is_finite_number, is_number, short_repr, unknown_key_message
+from .sizes import MAX_SIDE
 
-FORMAT_NAME = "lenticalib.profile"
-FORMAT_VERSION = 1
+DOCUMENT = FORMATS["lenticalib.profile"]
+FORMAT_NAME = DOCUMENT.name
+FORMAT_VERSION = DOCUMENT.version
 MAX_VIEWS = 254  # view indices are stored as uint8 with 255 meaning "no view"
-MAX_SIDE = 65535
 
 # Physical ranges of the constants, enforced for every profile (load, construction, device
 # record).  Beyond them a profile describes no real lens sheet: a slant over 4 pixels/row is a
@@ -119,7 +121,7 @@ class PanelProfile:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping in the current format."""
-        out: dict[str, Any] = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION}
+        out: dict[str, Any] = DOCUMENT.envelope()
         if self.name:
             out["name"] = self.name
         for key in CONSTANT_KEYS:
@@ -227,14 +229,7 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
     """Build a validated :class:`PanelProfile` from parsed JSON; errors name ``source`` and field."""
     if not isinstance(data, dict):
         raise ProfileError("must be a JSON object with the panel constants", source=source)
-    fmt = data.get("format", FORMAT_NAME)
-    if fmt != FORMAT_NAME:
-        raise ProfileError(f"field 'format': expected \"{FORMAT_NAME}\", got {fmt!r}", source=source,
-                           hint="is this a Looking Glass visual.json? use 'lenticalib profile import-lkg'")
-    version = data.get("format_version", FORMAT_VERSION)
-    if not _is_int(version) or version != FORMAT_VERSION:
-        raise ProfileError(f"field 'format_version': unknown version {version!r}", source=source,
-                           hint=f"this lenticalib reads version {FORMAT_VERSION}; upgrade lenticalib")
+    check_envelope(data, DOCUMENT, source, ProfileError)
     unknown = set(data) - set(CONSTANT_KEYS) - set(OPTIONAL_KEYS)
     if unknown:  # before the missing ones: a misspelt key is also a missing one
         raise ProfileError(unknown_key_message(unknown, CONSTANT_KEYS + OPTIONAL_KEYS), source=source,
@@ -259,65 +254,6 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
     return PanelProfile(**fields)
 
 
-def read_json_file(path: str | os.PathLike, what: str, hint_missing: str) -> Any:
-    """Parse a JSON file (data only: nothing in it is executed); unusable numbers are refused.
-
-    The file must be UTF-8 text (a leading byte-order mark is accepted).  Raises ProfileError
-    naming the file for a missing, unreadable, empty, binary or non-UTF-8 file and for invalid
-    JSON, and naming the field too for a number no float holds (``NaN``, ``Infinity``, ``1e400``,
-    a 400-digit integer: :mod:`lenticalib.core.fields`); ``what`` names the kind of file in messages (e.g. ``"profile"``), ``hint_missing`` says
-    what to do when it does not exist.
-    """
-    src = str(path)
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise ProfileError("no such file", source=src, hint=hint_missing) from None
-    except IsADirectoryError:
-        raise ProfileError(f"is a folder, not a {what} file", source=src, hint=hint_missing) from None
-    except OSError as exc:
-        raise ProfileError(f"cannot read: {exc.strerror or exc}", source=src) from None
-    if not raw.strip():
-        raise ProfileError(f"is empty, not a JSON {what}", source=src, hint=hint_missing)
-    kind = _binary_kind(raw)
-    if kind:
-        raise ProfileError(f"is {kind}, not a JSON {what}", source=src, hint=hint_missing)
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ProfileError(f"is not a JSON {what}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at "
-                           f"offset {exc.start})", source=src,
-                           hint=f"save the {what} as UTF-8 JSON") from None
-    try:
-        document = parse_json(text)
-    except json.JSONDecodeError as exc:
-        raise ProfileError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})",
-                           source=src) from None
-    except (ValueError, RecursionError) as exc:
-        raise ProfileError(f"not usable JSON: {exc}", source=src) from None
-    bad = unusable_number(document)
-    if bad is not None:
-        field, number = bad
-        raise ProfileError(f"field '{field}': {number.text} {number.why}" if field else f"{number.text} {number.why}",
-                           source=src, hint="write a finite number")
-    return document
-
-
-_MAGIC = ((b"\x89PNG\r\n\x1a\n", "a PNG image"), (b"\xff\xd8\xff", "a JPEG image"),
-          (b"II*\x00", "a TIFF image"), (b"MM\x00*", "a TIFF image"),
-          (b"\x93NUMPY", "a numpy array"), (b"PK\x03\x04", "a ZIP archive"))
-
-
-def _binary_kind(raw: bytes) -> str | None:
-    """What a file that cannot be JSON text looks like: a known image/array signature or binary."""
-    for magic, kind in _MAGIC:
-        if raw.startswith(magic):
-            return kind
-    if b"\x00" in raw[:4096]:
-        return "a binary file"
-    return None
-
-
 def load_profile(path: str | os.PathLike, argument: str | None = None) -> PanelProfile:
     """Read and validate a profile JSON file.  Raises ProfileError naming the file and field.
 
@@ -325,7 +261,7 @@ def load_profile(path: str | os.PathLike, argument: str | None = None) -> PanelP
     the hint for a missing file; without it the hint speaks of "the profile path".
     """
     hint = f"check the path given as {argument}" if argument else "check the profile path"
-    data = read_json_file(path, "profile", hint)
+    data = read_json_file(path, "profile", hint, ProfileError)
     return profile_from_dict(data, source=str(path))
 
 

@@ -14,10 +14,11 @@ import sys
 import tomllib
 from pathlib import Path
 
+from ..core.documents import FORMATS, check_envelope
 from ..core.errors import InputError
 from .protocol import PanelGeometry
 
-FORMAT_NAME = "lenticalib.driver"
+DOCUMENT = FORMATS["lenticalib.driver"]
 TRANSPORT_KINDS = ("serial", "hid", "usb")
 DEFAULT_FAMILY = "lc32"
 
@@ -82,8 +83,7 @@ def load_family(path: str | os.PathLike) -> ControllerFamily:
                              source=source, hint="see drivers/lc32.toml for the format")
         return value
 
-    if data.get("format") != FORMAT_NAME or data.get("format_version") != 1:
-        raise InputError(f"not a {FORMAT_NAME} version 1 file", source=source)
+    check_envelope(data, DOCUMENT, source)
     family = data.get("family") if isinstance(data.get("family"), dict) else {}
     timeouts = data.get("timeouts") if isinstance(data.get("timeouts"), dict) else {}
     transports = []

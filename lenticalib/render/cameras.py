@@ -32,17 +32,15 @@ View order
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from typing import Any
 
 import numpy as np
 
-from ..core.atomic import write_text_atomic
+from ..core.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
 
-FORMAT = "lenticalib.cameras"
-FORMAT_VERSION = 1
+DOCUMENT = FORMATS["lenticalib.cameras"]
 
 
 def camera_side(yaw_deg: float) -> str:
@@ -110,8 +108,7 @@ class ViewCameras:
         """The cameras.json content: format tag, model, view size, view_direction, params, and per
         view its index, yaw (degrees), K (3x3, pixels) and world_to_camera (4x4, OpenCV)."""
         return {
-            "format": FORMAT,
-            "format_version": FORMAT_VERSION,
+            **DOCUMENT.envelope(),
             "model": self.model,
             "width": self.width,
             "height": self.height,
@@ -123,20 +120,13 @@ class ViewCameras:
 
     def write_json(self, path: str | os.PathLike) -> None:
         """Write cameras.json to ``path`` atomically."""
-        write_text_atomic(path, json.dumps(self.to_json_dict(), indent=1) + "\n")
+        write_document(path, DOCUMENT, self.to_json_dict(), indent=1)
 
     @classmethod
     def from_json(cls, path: str | os.PathLike) -> "ViewCameras":
         """Read a cameras.json written by :meth:`write_json`; InputError naming ``path`` if it is not one."""
-        from ..core.profile import read_json_file
-
         source = str(path)
-        data = read_json_file(path, "cameras file", "give the cameras.json written with the views")
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise InputError(f"not a cameras file (format is not {FORMAT!r})", source=source)
-        if data.get("format_version") != FORMAT_VERSION:
-            raise InputError(f"format_version {data.get('format_version')!r} is not supported", source=source,
-                             hint=f"this lenticalib reads version {FORMAT_VERSION}")
+        data = read_document(path, DOCUMENT)
         try:
             views = data["views"]
             fields = dict(K=np.array([v["K"] for v in views], dtype=np.float64),

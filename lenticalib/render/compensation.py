@@ -89,12 +89,12 @@ class Compensator:
         if matrix.ndim != 2 or matrix.shape[0] != matrix.shape[1] or matrix.shape[0] < 2:
             raise InputError(f"a mixing matrix must be N x N, got shape {matrix.shape}", source="crosstalk")
         if not (math.isfinite(regularisation) and 0.0 <= regularisation <= 10.0):
-            raise InputError(f"regularisation {regularisation} is out of range", source="--regularisation",
+            raise InputError(f"regularisation {regularisation} is out of range", source="regularisation",
                              hint="use 0..10 (default 0.02)")
         if not (math.isfinite(black_lift) and 0.0 <= black_lift < 0.5):
-            raise InputError(f"black lift {black_lift} is out of range", source="--black-lift", hint="use 0..0.5")
+            raise InputError(f"black lift {black_lift} is out of range", source="black_lift", hint="use 0..0.5")
         if not 0 <= iterations <= 50:
-            raise InputError(f"{iterations} iterations is out of range", source="--iterations", hint="use 0..50")
+            raise InputError(f"{iterations} iterations is out of range", source="iterations", hint="use 0..50")
         row = circulant_row(matrix)
         n = row.size
         spectrum = np.fft.fft(row)  # eigenvalues of the circulant M (M[i][j] = row[j - i])
@@ -340,3 +340,13 @@ def test_views(views: int, pixels: int = 20000, seed: int = 7) -> np.ndarray:
     phase = rng.uniform(0.0, 2.0 * np.pi, (1, pixels))
     index = np.arange(views)[:, None]
     return np.clip(base + 0.2 * np.sin(2.0 * np.pi * 3.0 * index / views + phase), 0.0, 1.0).astype(np.float32)
+
+
+PREDICTION_BLACK_LIFT = 0.02  # the black lift of the compensation a crosstalk measurement predicts
+
+
+def predict_compensation(matrix: np.ndarray, black_lift: float = PREDICTION_BLACK_LIFT) -> dict:
+    """What pre-compensation with the measured ``matrix`` (N x N mixing) would do if the matrix is
+    right: :func:`compensation_study` of its own compensator on :func:`test_views`."""
+    return compensation_study(Compensator.from_matrix(matrix, black_lift=black_lift), matrix,
+                              test_views(matrix.shape[0]))

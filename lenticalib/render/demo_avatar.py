@@ -53,7 +53,7 @@ from .demo_avatar_parts import (DEMO_BONES, HEAD, NECK, make_brows, make_cavity,
 from .demo_avatar_shapes import eye_centres, frame_quats, gauss, smoothstep
 from .gaussians import SH_C0
 from .rig import DEFAULT_LAYOUT, Rig
-from .rig_file import RIG_FORMAT, RIG_VERSION, rig_from_arrays
+from .rig_file import envelope_arrays, rig_from_arrays
 
 DEMO_EXPRESSIONS = ("smile", "frown", "brows_up", "brows_down", "mouth_wide", "pucker", "cheeks_puff", "sneer",
                     "smile_left", "smile_right")
@@ -202,8 +202,7 @@ def demo_avatar_arrays(seed: int = 0, count: int = 100_000) -> dict[str, np.ndar
                   "count": int(count), "seconds": round(time.perf_counter() - started, 3),
                   "expressions": list(DEMO_EXPRESSIONS), "units": "metres, y up, facing +z"}
     return {
-        "format": np.array(RIG_FORMAT), "version": np.array(RIG_VERSION, dtype=np.int32),
-        "means": p.astype(np.float32), "quats": quats.astype(np.float32),
+        **envelope_arrays(), "means": p.astype(np.float32), "quats": quats.astype(np.float32),
         "log_scales": np.log(scales).astype(np.float32),
         "opacity_logits": np.log(op / (1 - op)).astype(np.float32), "sh": sh.astype(np.float32),
         "control_groups": np.array(layout.names), "control_sizes": np.array([s for _, s in layout.groups], np.int32),

@@ -28,6 +28,7 @@ from collections import deque
 import numpy as np
 
 from ..core.errors import DisplayError, ImageError
+from ..core.sizes import check_raster_size
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0
@@ -76,10 +77,9 @@ def check_raster(raster: np.ndarray, size: tuple[int, int], max_bits: int = 8, s
                          hint="show an 8-bit raster, or set the display to 10-bit colour")
     if arr.dtype not in (np.uint8, np.uint16):
         raise ImageError(f"has sample type {arr.dtype}; the panel takes 8-bit (or 16-bit) integers", source=source)
-    if (arr.shape[1], arr.shape[0]) != tuple(size):
-        raise ImageError(f"is {arr.shape[1]}x{arr.shape[0]} but the display is {size[0]}x{size[1]}; rasters are "
-                         "never scaled", source=source,
-                         hint="encode for this panel's size, or show it on the monitor of that size (--display)")
+    check_raster_size((arr.shape[1], arr.shape[0]), size, source, "the display",
+                      hint="rasters are never scaled: encode for this panel's size, or show it on the monitor "
+                           "of that size (--display)")
 
 
 class Presenter:

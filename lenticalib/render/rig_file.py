@@ -6,8 +6,8 @@ is documented in :mod:`.rig`; this module owns how they are stored and checked.
 No pickled objects; :func:`save_rig` writes the file compressed, atomically.
 G Gaussians, K SH coefficients, D controls, E blendshapes, N blendshape entries, B bones:
 
-    format          ()        str    "lenticalib-rig"
-    version         ()        int    1 (:data:`RIG_VERSION`)
+    format          ()        str    "lenticalib.rig" (:mod:`lenticalib.core.documents`)
+    format_version  ()        int    1
     means           (G, 3)    float  canonical centres, world units
     quats           (G, 4)    float  canonical rotations (w, x, y, z), any non-zero length
     log_scales      (G, 3)    float  log of the standard deviations (raw, as the 3DGS PLY)
@@ -33,10 +33,12 @@ G Gaussians, K SH coefficients, D controls, E blendshapes, N blendshape entries,
     provenance      ()        str    a JSON object: what made the file, with which parameters
 
 Floats may be stored as float16/32/64 and are used as float32; a missing array (other than the
-two optional ones), a wrong shape or index, a non-finite value or another version is one
-InputError naming the file and the array.  The names, shapes and dtypes are checked from the
-headers before any data is inflated (:mod:`lenticalib.core.arrayfile`): arrays claiming more than
-:data:`MAX_RIG_BYTES` (2 GiB) in all, or more than the file holds, are refused unread.
+two optional ones), a wrong shape or index, a non-finite value or another format or version is
+one InputError naming the file and the array.  Rigs written before the envelope was shared
+(``format`` "lenticalib-rig", ``version`` instead of ``format_version``) still read.  The names,
+shapes and dtypes are checked from the headers before any data is inflated
+(:mod:`lenticalib.core.arrayfile`): arrays claiming more than :data:`MAX_RIG_BYTES` (2 GiB) in
+all, or more than the file holds, are refused unread.
 """
 
 from __future__ import annotations
@@ -50,26 +52,31 @@ import numpy as np
 
 from ..core.arrayfile import GIB, load_npz
 from ..core.atomic import write_bytes_atomic
+from ..core.documents import FORMATS, OLD_VERSION_KEY, VERSION_KEY, check_envelope
 from ..core.errors import InputError
 from .gaussians import Gaussians
 
 if TYPE_CHECKING:
     from .rig import Rig
 
-RIG_FORMAT = "lenticalib-rig"
-RIG_VERSION = 1
-
-_REQUIRED = ("format", "version", "means", "quats", "log_scales", "opacity_logits", "sh", "control_groups",
+DOCUMENT = FORMATS["lenticalib.rig"]
+_ENVELOPE = ("format", VERSION_KEY, OLD_VERSION_KEY)  # the version under either key (core.documents)
+_REQUIRED = ("format", "means", "quats", "log_scales", "opacity_logits", "sh", "control_groups",
              "control_sizes", "control_dim", "control_names", "blend_controls", "blend_index", "blend_shape",
              "blend_pos", "bone_names", "bone_parents", "bone_pivots", "bone_controls", "skin_weights",
              "pose_pivot", "pose_controls", "provenance")
-_OPTIONAL = ("blend_rot", "blend_color")
+_OPTIONAL = ("blend_rot", "blend_color", VERSION_KEY, OLD_VERSION_KEY)
 # The most bytes a rig's arrays may claim: over 2 million Gaussians with SH degree 3 and 50 bones.
 MAX_RIG_BYTES = 2 * GIB
 
 
 # --------------------------------------------------------------------------------------------
 # building, loading, saving
+
+def envelope_arrays() -> dict[str, np.ndarray]:
+    """The envelope as the file's arrays: ``format`` (str) and ``format_version`` (int32)."""
+    return {"format": np.array(DOCUMENT.name), VERSION_KEY: np.array(DOCUMENT.version, dtype=np.int32)}
+
 
 def rig_to_arrays(rig: Rig) -> dict[str, np.ndarray]:
     """The rig as the file's arrays (numpy, float32 / int32 / str), raw Gaussian parameters."""
@@ -81,8 +88,7 @@ def rig_to_arrays(rig: Rig) -> dict[str, np.ndarray]:
         return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=dtype)
 
     out = {
-        "format": np.array(RIG_FORMAT), "version": np.array(RIG_VERSION, dtype=np.int32),
-        "means": g.means, "quats": g.quats, "log_scales": np.log(g.scales).astype(np.float32),
+        **envelope_arrays(), "means": g.means, "quats": g.quats, "log_scales": np.log(g.scales).astype(np.float32),
         "opacity_logits": np.log(op / (1 - op)).astype(np.float32), "sh": g.sh,
         "control_groups": np.array(rig.layout.names, dtype=str),
         "control_sizes": np.array([s for _, s in rig.layout.groups], dtype=np.int32),
@@ -157,14 +163,17 @@ def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "
                              f"({'N' if n is None else n},) strings", source=source)
         return tuple(str(s) for s in a)
 
-    fmt = need("format")
-    if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != RIG_FORMAT:
-        raise InputError(f"not a rig file (format {fmt!r})", source=source,
-                         hint=f"expected format {RIG_FORMAT!r}; make one with tools/make_demo_avatar.py")
-    version = need("version")
-    if version.shape != () or version.dtype.kind not in "iu" or int(version) != RIG_VERSION:
-        raise InputError(f"rig format version {version}, this lenticalib reads version {RIG_VERSION}",
-                         source=source, hint="re-export the rig with a matching lenticalib")
+    need("format")
+    envelope = {}
+    for key in _ENVELOPE:
+        if key in arrays:
+            a = np.asarray(arrays[key])
+            if a.shape != () or a.dtype.kind not in ("U" if key == "format" else "iu"):
+                raise InputError(f"array {key!r} has shape {a.shape} dtype {a.dtype}, expected a "
+                                 f"{'string' if key == 'format' else 'whole number'}", source=source,
+                                 hint=DOCUMENT.hint)
+            envelope[key] = a.item()
+    check_envelope(envelope, DOCUMENT, source)
 
     means = need("means")
     if means.ndim != 2 or means.shape[1] != 3 or means.shape[0] < 1:

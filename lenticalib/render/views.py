@@ -105,10 +105,10 @@ def load_view_folder(folder: str | os.PathLike, views: int) -> np.ndarray:
     """
     root = Path(folder)
     if not root.exists():
-        raise ImageError("no such folder", source=str(root), hint="--views takes a folder of images")
+        raise ImageError("no such folder", source=str(root), hint="give the folder of the view images")
     if not root.is_dir():
         raise ImageError("is a file, not a folder of views", source=str(root),
-                         hint="--views takes a folder of images; use --quilt for a quilt image")
+                         hint="give the folder of the view images; a quilt image goes in as `quilt`")
     files = sorted((f for f in root.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES
                     and not f.name.startswith(".")), key=_natural_key)
     if len(files) != views:

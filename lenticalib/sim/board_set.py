@@ -21,7 +21,6 @@ standing ``D + g`` from it.  ``calibrate`` against ``truth.cameramodel`` and the
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import os
 import time
 from pathlib import Path
@@ -29,14 +28,15 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.atomic import write_bytes_atomic, write_text_atomic
+from ..core.atomic import write_bytes_atomic
+from ..core.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
 from .boards import (BoardPose, board_poses, calibration_camera, camera_for_pose, photograph_print_board)
 
 CAPTURE_FOLDER = "captures"
 SIMULATION_NAME = "simulation.json"
 TRUTH_NAME = "truth.cameramodel"
-FORMAT_NAME = "lenticalib.camera-simulation"
+DOCUMENT = FORMATS["lenticalib.camera-simulation"]
 PANEL_SIZE = (3840, 2160)
 CONTENTS = (CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME, "board.json", "board.png")
 
@@ -150,7 +150,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                                                      f"(seed {seed}, {kind} board)")
     from .. import __version__
 
-    document = {"format": FORMAT_NAME, "version": 1, "kind": kind, "seed": int(seed), "conditions": conditions,
+    document = {**DOCUMENT.envelope(), "kind": kind, "seed": int(seed), "conditions": conditions,
                 "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
                 "lenticalib_version": __version__, "resolution": list(resolution), "board": board.to_dict(),
                 "camera": camera.to_dict(), "optics": None if optics is None else optics.to_dict(),
@@ -158,15 +158,11 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                                + (", in the panel's pixel plane z = +g)" if kind == "panel" else ")")),
                 "photos": records, "seconds_per_photo": round(float(np.mean(seconds)), 3),
                 "truth": TRUTH_NAME}
-    write_text_atomic(folder / SIMULATION_NAME, json.dumps(document, indent=2) + "\n")
+    write_document(folder / SIMULATION_NAME, DOCUMENT, document)
     return document
 
 
 def read_truth_poses(directory: str | os.PathLike) -> dict[str, np.ndarray]:
     """``{photo file name: rt_cam_board (6,)}`` from a simulation's ``simulation.json``."""
-    from ..core.profile import read_json_file
-
-    data = read_json_file(Path(directory) / SIMULATION_NAME, "simulation record", "simulate the set first")
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
-        raise InputError("is not a camera simulation record", source=str(Path(directory) / SIMULATION_NAME))
+    data = read_document(Path(directory) / SIMULATION_NAME, DOCUMENT, "simulate the set first")
     return {Path(p["file"]).name: np.asarray(p["rt_cam_board"], np.float64) for p in data["photos"]}

@@ -24,7 +24,6 @@ The per-photo step (:func:`photograph_pattern`, :func:`photo_record`) and the tw
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import os
 import zlib
 from pathlib import Path
@@ -32,11 +31,13 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..core.atomic import write_bytes_atomic, write_text_atomic
-from ..core.errors import ImageError, InputError
+from ..core.atomic import write_bytes_atomic
+from ..core.documents import FORMATS, write_document
+from ..core.errors import InputError
 from ..core.imageio import read_image
 from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.profile import make_provenance, save_profile
+from ..core.sizes import check_raster
 from .scene import Scene
 
 SIMULATION_NAME = "simulation.json"
@@ -104,21 +105,21 @@ def write_crosstalk_truth(path: Path, scene: Scene, profile) -> Path:
     matrix = true_mixing_matrix(scene.optics, scene.eye, profile)
     offsets = np.arange(-4.0, 4.0001, 0.25)
     cone = true_view_cone(scene.optics, scene.eye, profile, offsets)
-    document = {"format": "lenticalib.crosstalk-truth", "format_version": 1, "views": profile.views,
+    document = {"views": profile.views,
                 "definition": "matrix[i][j]: share of the light an eye at the centre of view i's zone receives "
                               "from view j, through the centre region, from the camera's viewing position",
                 "matrix": [[round(float(v), 8) for v in r] for r in matrix],
                 "own_view_share": round(float(matrix[0, 0]), 8),
                 "view_cone": {"offsets_views": offsets.tolist(), "share_of_white": [round(float(v), 8) for v in cone]},
                 "camera_position_mm": list(scene.eye), "seed": scene.seed}
-    return write_text_atomic(path, json.dumps(document, indent=2) + "\n")
+    return write_document(path, FORMATS["lenticalib.crosstalk-truth"], document)
 
 
 def write_simulation_record(directory: str | os.PathLike, scene: Scene, pattern_set, status: str,
                             captures: list[dict[str, Any]], truth: dict[str, Any] | None) -> Path:
     """Write ``DIR/simulation.json`` atomically (status "in progress" or "complete"); returns its path."""
-    return write_text_atomic(Path(directory) / SIMULATION_NAME, json.dumps(
-        _simulation_record(scene, pattern_set, status, captures, truth), indent=2) + "\n")
+    return write_document(Path(directory) / SIMULATION_NAME, FORMATS["lenticalib.simulation-run"],
+                          _simulation_record(scene, pattern_set, status, captures, truth))
 
 
 def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[dict[str, Any]],
@@ -126,7 +127,7 @@ def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[di
     from .. import __version__
 
     record: dict[str, Any] = {
-        "format": "lenticalib.simulation-run", "format_version": 1, "status": status,
+        **FORMATS["lenticalib.simulation-run"].envelope(), "status": status,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "lenticalib_version": __version__, "seed": scene.seed,
         "pattern_set": {"set_id": pattern_set.set_id, "width": pattern_set.width,
@@ -185,10 +186,8 @@ def simulate_capture_set(pattern_dir: str | os.PathLike, scene: Scene, raw: bool
     for pattern in items:
         source = directory / pattern.file
         raster = read_image(source, expected_size=(optics.width, optics.height), what="the simulated panel")
-        if raster.dtype != np.uint8 or raster.shape != (optics.height, optics.width, 3):
-            raise ImageError(f"expected an 8-bit {optics.width}x{optics.height} pattern, got {raster.dtype} "
-                             f"{raster.shape[1]}x{raster.shape[0]}", source=str(source),
-                             hint="write the patterns again with 'lenticalib patterns'")
+        raster = check_raster(raster, optics.width, optics.height, str(source), "the simulated panel",
+                              hint="write the patterns again with 'lenticalib patterns'")
         write_bytes_atomic(captures / f"{pattern.name}.{'png' if raw else 'jpg'}",
                            photograph_pattern(scene, pattern.name, raster, raw=raw))
 

@@ -29,7 +29,6 @@ again.  What else is in ``DIR/captures`` is the caller's business.
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
@@ -37,28 +36,17 @@ import numpy as np
 from ..calib.cameras.base import CaptureCamera
 from ..calib.cameras.files import write_photo
 from ..core.errors import CameraError, InputError
+from ..core.sizes import MIN_CAMERA_SIDE, check_raster, parse_size
 from .scene import DEFAULT_RESOLUTION
 
 DEFAULT_SEED = 1
 DEFAULT_SUBSAMPLES = 3
-MAX_SIDE = 20000  # camera pixels per side
-_RESOLUTION = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 
 def parse_resolution(value) -> tuple[int, int]:
-    """``(w, h)`` or ``"WxH"`` -> (w, h) camera pixels, each 16..20000; InputError naming --camera otherwise."""
-    if isinstance(value, str):
-        match = _RESOLUTION.match(value)
-        pair = (int(match.group(1)), int(match.group(2))) if match else None
-    else:
-        try:
-            pair = tuple(int(v) for v in value)
-        except (TypeError, ValueError):
-            pair = None
-    if pair is None or len(pair) != 2 or not all(16 <= v <= MAX_SIDE for v in pair):
-        raise InputError(f"bad virtual camera resolution {value!r}", source="--camera sim",
-                         hint=f"give WIDTHxHEIGHT in pixels, 16..{MAX_SIDE} per side, e.g. 4000x3000")
-    return pair
+    """``(w, h)`` or ``"WxH"`` -> (w, h) camera pixels, each :data:`~lenticalib.core.sizes.MIN_CAMERA_SIDE`..
+    :data:`~lenticalib.core.sizes.MAX_SIDE`; InputError naming --camera otherwise."""
+    return parse_size(value, "--camera sim", MIN_CAMERA_SIDE, example="4000x3000")
 
 
 class SimCamera(CaptureCamera):
@@ -116,11 +104,9 @@ class SimCamera(CaptureCamera):
         from .scene import random_scene
 
         pattern_set = read_pattern_folder(directory)
+        check_raster(shown, pattern_set.width, pattern_set.height, str(directory / MANIFEST_NAME),
+                     "the pattern set's panel", hint="show the patterns of this folder")
         height, width = shown.shape[:2]
-        if (pattern_set.width, pattern_set.height) != (width, height):
-            raise InputError(f"the shown raster is {width}x{height}, the pattern set is for a "
-                             f"{pattern_set.width}x{pattern_set.height} panel", source=str(directory / MANIFEST_NAME),
-                             hint="show the patterns of this folder")
         self.scene = random_scene(self.seed, width=width, height=height, resolution=self.resolution,
                                   conditions=self.conditions, subsamples=self.subsamples)
         self.directory, self.pattern_set = directory, pattern_set
@@ -129,12 +115,12 @@ class SimCamera(CaptureCamera):
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
         photos are still there (a resumed capture); empty otherwise."""
-        from ..core.profile import read_json_file
+        from ..core.documents import FORMATS, read_document
         from .capture import SIMULATION_NAME
         from .scene import Scene
 
         try:
-            record = read_json_file(self.directory / SIMULATION_NAME, "simulation record", "")
+            record = read_document(self.directory / SIMULATION_NAME, FORMATS["lenticalib.simulation-run"])
             same = (Scene.from_dict(record) == self.scene
                     and record["pattern_set"]["set_id"] == self.pattern_set.set_id)
             entries = [c for c in record["captures"] if isinstance(c, dict)]
@@ -159,9 +145,7 @@ class SimCamera(CaptureCamera):
             raise InputError(f"this virtual camera already photographs {self.directory}", source=str(destination),
                              hint="open another camera for another capture set")
         optics = self.scene.optics
-        if shown.shape[:2] != (optics.height, optics.width):
-            raise InputError(f"the shown raster is {shown.shape[1]}x{shown.shape[0]}, the simulated panel "
-                             f"{optics.width}x{optics.height}", source="shown",
+        shown = check_raster(shown, optics.width, optics.height, "shown", "the simulated panel",
                              hint="show every pattern at the panel size")
         path = write_photo(photograph_pattern(self.scene, name, np.ascontiguousarray(shown)), destination, ".jpg")
         if name in self.pattern_set.names:

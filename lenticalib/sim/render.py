@@ -306,15 +306,10 @@ def _kernel_params(scene: Scene) -> np.ndarray:
 
 def check_raster(raster: np.ndarray, scene: Scene, source: str = "raster") -> np.ndarray:
     """The raster as C-contiguous uint8 ``(H, W, 3)``; ImageError unless it fits the scene's panel."""
-    o = scene.optics
-    if not isinstance(raster, np.ndarray) or raster.dtype != np.uint8:
-        raise ImageError(f"the panel raster must be 8-bit RGB, got {getattr(raster, 'dtype', type(raster))}",
-                         source=source, hint="write the patterns again with 'lenticalib patterns'")
-    if raster.shape != (o.height, o.width, 3):
-        raise ImageError(f"raster of shape {raster.shape} does not fit the simulated panel "
-                         f"({o.height}, {o.width}, 3)", source=source,
-                         hint="simulate a panel of the raster's size")
-    return np.ascontiguousarray(raster)
+    from ..core import sizes
+
+    return sizes.check_raster(raster, scene.optics.width, scene.optics.height, source, "the simulated panel",
+                              hint="write the patterns at the simulated panel's size with 'lenticalib patterns'")
 
 
 def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:

@@ -68,13 +68,13 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..core.documents import FORMATS, check_envelope
 from ..core.errors import InputError
 from ..core.profile import PanelProfile
 from .camera import Camera
 from .optics import PanelOptics, truth_profile
 
-FORMAT_NAME = "lenticalib.simulation"
-FORMAT_VERSION = 1
+DOCUMENT = FORMATS["lenticalib.simulation"]
 DEFAULT_RESOLUTION = (4000, 3000)
 
 RANGES: dict[str, tuple[float, float]] = {  # see the module docstring for units
@@ -126,20 +126,16 @@ class Scene:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping: format, version, seed, optics, camera."""
-        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "seed": self.seed,
+        return {**DOCUMENT.envelope(), "seed": self.seed,
                 "optics": self.optics.to_dict(), "camera": self.camera.to_dict()}
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "scene") -> "Scene":
         """Inverse of :meth:`to_dict`.  Also accepts a ``simulation.json`` (its ``scene`` entry)."""
         if isinstance(data, Mapping) and "scene" in data and "optics" not in data:
+            check_envelope(data, FORMATS["lenticalib.simulation-run"], source)
             data = data["scene"]
-        if not isinstance(data, Mapping) or data.get("format") != FORMAT_NAME:
-            raise InputError("is not a lenticalib simulation scene", source=source,
-                             hint="use a simulation.json or scene file written by 'lenticalib simulate'")
-        if data.get("format_version") != FORMAT_VERSION:
-            raise InputError(f"scene format version {data.get('format_version')!r} is not supported "
-                             f"(this lenticalib reads version {FORMAT_VERSION})", source=source)
+        check_envelope(data, DOCUMENT, source)
         seed = data.get("seed")
         if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
             raise InputError(f"field 'seed' must be a whole number or null, got {seed!r}", source=source)

@@ -148,7 +148,7 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
 
     start = time.perf_counter()
     if photos not in PHOTO_MODES:
-        raise InputError(f"unknown photo encoding {photos!r}", source="--photos", hint="use srgb or linear")
+        raise InputError(f"unknown photo encoding {photos!r}", source="photos", hint="use srgb or linear")
     pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
     warnings: list[str] = []
     luma, clipped, factor, codes = load_all(capture, pattern_set, photos, progress)

@@ -10,6 +10,7 @@ every board pose.  Modules, in the order ``lenticalib camera`` uses them:
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
     quality   residuals, noise, coverage and projection uncertainty of a solve; truth comparison
     report    the figures (residuals.png, coverage.png, uncertainty.png) and summary.json
+    pipeline  the whole calibration, photos to model and report: :func:`~.pipeline.calibrate_camera`
 
 Frames and units.  Camera pixels: OpenCV's and mrcal's convention, (0, 0) is the centre of the
 top-left pixel.  Board frame (mm): origin at inner corner (0, 0), x along a row of corners (to the

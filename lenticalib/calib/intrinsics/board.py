@@ -25,7 +25,7 @@ Board frame (mm): origin at inner corner (0, 0), x along a row of corners, y dow
 z into the board; corner (i, j) at ``(j s, i s, 0)`` (:meth:`Board.object_points`, mrcal's
 ``ref_calibration_object`` layout).
 
-Manifest ``board.json``: ``{"format": "lenticalib.camera-board", "version": 1, "kind", "cols", "rows",
+Manifest ``board.json``: ``{"format": "lenticalib.camera-board", "format_version": 1, "kind", "cols", "rows",
 "square_mm", ...}`` plus, for a panel board, ``panel`` (width, height, pixel_pitch_mm), ``square_px``,
 ``origin_px`` (panel pixel coordinates of inner corner (0, 0), pixel edges at whole numbers) and
 ``edge_px``; for a printed one ``paper`` (name, width_mm, height_mm) and ``origin_mm`` on the sheet.
@@ -35,7 +35,6 @@ Drawing the boards: :mod:`.draw`.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from pathlib import Path
@@ -43,10 +42,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ...core.documents import FORMATS, check_envelope, read_json_file, write_document
 from ...core.errors import InputError
 
-FORMAT_NAME = "lenticalib.camera-board"
-FORMAT_VERSION = 1
+DOCUMENT = FORMATS["lenticalib.camera-board"]
 MANIFEST_NAME = "board.json"
 PANEL_IMAGE = "board.png"
 PRINT_FOLDER = "print"
@@ -115,7 +114,7 @@ class Board:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``board.json`` document."""
-        out: dict[str, Any] = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "kind": self.kind,
+        out: dict[str, Any] = {**DOCUMENT.envelope(), "kind": self.kind,
                                "cols": self.cols, "rows": self.rows, "square_mm": float(self.square_mm),
                                "frame": "origin at inner corner (0,0); x along a row of corners, y down a "
                                         "column, z into the board; mm" + (
@@ -136,12 +135,7 @@ class Board:
     @classmethod
     def from_dict(cls, data: Any, source: str = "board.json") -> "Board":
         """Inverse of :meth:`to_dict`; InputError naming ``source`` for anything that is not a board."""
-        if not isinstance(data, Mapping) or data.get("format") != FORMAT_NAME:
-            raise InputError("is not a lenticalib camera board manifest", source=source,
-                             hint="use the board.json written by 'lenticalib camera patterns'")
-        if data.get("version") != FORMAT_VERSION:
-            raise InputError(f"board manifest version {data.get('version')!r} is not supported (this lenticalib "
-                             f"reads version {FORMAT_VERSION})", source=source)
+        check_envelope(data, DOCUMENT, source)
         try:
             cols, rows, square = data["cols"], data["rows"], data["square_mm"]
             panel = data.get("panel")
@@ -261,16 +255,12 @@ def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, 
 
 def write_manifest(board: Board, folder: str | os.PathLike) -> Path:
     """Write ``folder/board.json`` (atomically)."""
-    from ...core.atomic import write_text_atomic
-
-    return write_text_atomic(Path(folder) / MANIFEST_NAME, json.dumps(board.to_dict(), indent=2) + "\n")
+    return write_document(Path(folder) / MANIFEST_NAME, DOCUMENT, board.to_dict())
 
 
 def read_board(path: str | os.PathLike) -> Board:
     """Load a ``board.json``; InputError naming the file when it is not one."""
-    from ...core.profile import read_json_file
-
-    data = read_json_file(path, "board manifest", "check the path of board.json")
+    data = read_json_file(path, DOCUMENT.what, "check the path of board.json")
     return Board.from_dict(data, source=str(path))
 
 

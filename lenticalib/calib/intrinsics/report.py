@@ -23,13 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.atomic import write_text_atomic
+from ...core.documents import FORMATS, write_document
 from ..report import write_figures
 from .crossval import note_line
 
 FIGURE_SIZES = {"residuals.png": (1800, 1200), "coverage.png": (1800, 1200), "uncertainty.png": (1800, 860)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
-FORMAT_NAME = "lenticalib.camera-calibration"
+DOCUMENT = FORMATS["lenticalib.camera-calibration"]
 _OPENCV_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
 
 
@@ -68,7 +68,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
                         manifest=None, seconds: float = 0.0) -> dict:
     """The summary of a calibration (``summary.json`` and ``--json``), JSON-ready.
 
-    Keys: format, version, output, report, lensmodel, lensmodel_choice, candidates, imagersize,
+    Keys: format, format_version, output, report, lensmodel, lensmodel_choice, candidates, imagersize,
     intrinsics (named), field_of_view_deg, board (+ manifest path), photos {given, used,
     rejected [{photo, reason}], frames (photo of each frame, in order)}, residuals, coverage,
     working_distance_mm, uncertainty, provenance (inputs with SHA-256), seconds, note (the
@@ -92,7 +92,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
     res = qual["residuals"]
     unc = qual["uncertainty"]
     scale = (qual.get("cross_validation") or {}).get("scale", 1.0)
-    summary = {"format": FORMAT_NAME, "version": 1, "output": str(output),
+    summary = {**DOCUMENT.envelope(), "output": str(output),
                "report": None if report is None else str(report), "lensmodel": lens,
                "lensmodel_choice": cal.choice, "candidates": cal.candidates, "imagersize": list(model.imagersize()),
                "intrinsics": intrinsics_named(lens, values), "field_of_view_deg": field_of_view(model),
@@ -250,5 +250,5 @@ def write_report(directory: str | os.PathLike, cal, qual: dict, summary: dict) -
     directory = Path(directory)
     write_figures(directory, [("residuals.png", _residuals_figure), ("coverage.png", _coverage_figure),
                               ("uncertainty.png", _uncertainty_figure)], FIGURE_SIZES, {"cal": cal, "qual": qual})
-    write_text_atomic(directory / "summary.json", json.dumps(summary, indent=2) + "\n")
+    write_document(directory / "summary.json", DOCUMENT, summary)
     return directory

@@ -63,9 +63,9 @@ def import_mrcal():
 
 
 def check_lensmodel(name: str) -> str:
-    """``name`` if it is a lens model this calibration can fit; InputError naming ``--lensmodel`` otherwise."""
+    """``name`` if it is a lens model this calibration can fit; InputError naming ``lensmodel`` otherwise."""
     if not any(re.fullmatch(p, name or "") for p in LENSMODEL_PATTERNS):
-        raise InputError(f"unknown lens model {name!r}", source="--lensmodel",
+        raise InputError(f"unknown lens model {name!r}", source="lensmodel",
                          hint="use LENSMODEL_OPENCV8, LENSMODEL_OPENCV5, LENSMODEL_OPENCV4, LENSMODEL_PINHOLE, "
                               "LENSMODEL_STEREOGRAPHIC or "
                               "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=9_fov_x_deg=70")

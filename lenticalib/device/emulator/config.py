@@ -1,25 +1,26 @@
 """How an emulated controller is configured: its panel and firmware generation, as text.
 
 The same spellings serve ``lenticalib emulate`` (``--panel 3840x2160 --subpixel-order RGB
---views 32 --protocol 1.1``) and ``emu://`` URLs (``emu://bench?panel=1920x1080&views=8,16``);
+--view-counts 32 --protocol 1.1``) and ``emu://`` URLs (``emu://bench?panel=1920x1080&views=8,16``);
 each parser raises ValueError with a message that fits after the option's name.
 """
 
 from __future__ import annotations
 
-import re
-
+from ...core import sizes
+from ...core.errors import InputError
 from ..protocol import MAX_VIEW_COUNTS, PROTOCOL_MINOR, PROTOCOL_VERSION, PanelGeometry
 
 PROTOCOLS = {"1.0": 0, "1.1": 1}  # spelling -> protocol minor version the firmware speaks
 
 
 def parse_size(text: str) -> tuple[int, int]:
-    """``"3840x2160"`` -> (width, height) in pixels, each 1..65535."""
-    match = re.fullmatch(r"\s*(\d{1,5})\s*[xX]\s*(\d{1,5})\s*", text)
-    if not match or not all(1 <= int(v) <= 65535 for v in match.groups()):
-        raise ValueError(f"must be WIDTHxHEIGHT in pixels (1..65535 each), e.g. 3840x2160, got '{text}'")
-    return int(match[1]), int(match[2])
+    """``"3840x2160"`` -> (width, height) in pixels, each 1..:data:`~lenticalib.core.sizes.MAX_SIDE`
+    (:func:`lenticalib.core.sizes.parse_size`)."""
+    try:
+        return sizes.parse_size(text, "panel")
+    except InputError as exc:
+        raise ValueError(f"{exc.message} ({exc.hint})") from None
 
 
 def parse_view_counts(text: str) -> tuple[int, ...]:

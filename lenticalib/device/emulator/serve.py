@@ -24,11 +24,13 @@ import tty
 from pathlib import Path
 
 from ...core.atomic import write_text_atomic
+from ...core.documents import FORMATS, check_envelope, document_text
 from ...core.errors import InputError
 from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 
 EXIT_POWER_CUT = 75
 EXIT_DISCONNECT = 76
+ANNOUNCEMENT = FORMATS["lenticalib.emulator-announcement"]  # RUNTIME/<pid>.json of a running emulator
 
 
 def runtime_dir(*, create: bool = True) -> Path | None:
@@ -92,8 +94,9 @@ def running_emulators() -> list[dict]:
             fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
             with os.fdopen(fd, "rb") as fh:
                 entry = json.loads(fh.read(65536))
+            check_envelope(entry, ANNOUNCEMENT, str(path))
             os.kill(int(entry["pid"]), 0)
-        except (OSError, ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError):  # InputError is a ValueError
             continue
         found.append(entry)
     return found
@@ -103,8 +106,9 @@ class _Announcement:
     def __init__(self, url: str, controller: EmulatedController, transport: str):
         self.path = runtime_dir() / f"{os.getpid()}.json"
         identity = controller.identity
-        text = json.dumps({"url": url, "pid": os.getpid(), "transport": transport,
-                           "flash": str(controller.flash.path), "serial": identity.serial, "model": identity.model})
+        text = document_text(ANNOUNCEMENT, {"url": url, "pid": os.getpid(), "transport": transport,
+                                            "flash": str(controller.flash.path), "serial": identity.serial,
+                                            "model": identity.model}, indent=None)
         # a link planted at the name is replaced, never written through
         write_text_atomic(self.path, text, "emulator announcement", follow_links=False)
 

@@ -1,0 +1,228 @@
+"""``calibrate_camera``: photos of a chessboard -> an mrcal ``.cameramodel`` and a report, in one call.
+
+Order of work: every check first (arguments, photos readable and of one size, board geometry,
+output paths writable, mrcal importable, enough photos), then corner detection (``jobs``
+threads), the count of photos with the board (too few ends here, before the solve), the mrcal
+solve, the cross-validation, the model (written atomically) and the report folder (staged).
+
+Errors name the argument at fault by its parameter name (``source="photos"``, ``"square_mm"``,
+``"jobs"``, ``"lensmodel"``; hints mention ``board_corners`` and ``square_mm``); a command-line
+front end maps them to its flags.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from pathlib import Path
+from typing import Callable
+
+from ...core.errors import ImageError, InputError
+
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
+MIN_VIEWS = 10  # photos with the board found, at least
+MAX_JOBS = 64
+TOO_FEW_HINT = ("photograph the board at least 10 times (15-30 is better): tilt the camera 20-40 degrees "
+                "in varied directions, and let the board reach every corner of the image")
+REPORT_WHAT = "calibration report"
+
+StageFn = Callable[[str, int], Callable[..., None]]
+"""``stage(name, steps)`` is called as each stage starts; it returns the function called once per step."""
+
+
+@dataclasses.dataclass
+class CameraCalibration:
+    """What :func:`calibrate_camera` did: ``summary`` (the report's ``summary.json`` document,
+    :func:`~.report.calibration_summary`), ``output`` (the ``.cameramodel`` written), ``report_dir``
+    (the report folder written, or None), ``model`` (the mrcal cameramodel), ``calibration``
+    (:class:`~.solve.Calibration`), ``quality`` (:func:`~.quality.quality`)."""
+
+    summary: dict
+    output: Path
+    report_dir: Path | None
+    model: object
+    calibration: object
+    quality: dict
+
+
+def collect_photos(items) -> list[Path]:
+    """The photo files named by ``items`` (files, or folders: their .jpg/.jpeg/.png files, sorted, no
+    dotfiles), in order, without repeats; InputError for anything missing or not a photo."""
+    photos, seen = [], set()
+    for item in items:
+        path = Path(item)
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir()
+                           if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in PHOTO_SUFFIXES)
+            if not found:
+                raise InputError("folder holds no photos (.jpg, .jpeg, .png)", source=str(path),
+                                 hint="give the folder the photos of the board are in")
+        elif path.is_file():
+            if path.suffix.lower() not in PHOTO_SUFFIXES:
+                raise InputError("is not a photo (.jpg, .jpeg or .png)", source=str(path),
+                                 hint="give photos or folders")
+            found = [path]
+        else:
+            raise InputError("no such file or folder", source=str(path), hint="check the path of the photos")
+        for p in found:
+            key = p.resolve()
+            if key not in seen:
+                seen.add(key)
+                photos.append(p)
+    return photos
+
+
+def photo_size(path) -> tuple[int, int]:
+    """(width, height) of a photo as read with its EXIF orientation, from its header; ImageError when
+    it is not a readable image or has more pixels than :data:`lenticalib.core.imageio.MAX_IMAGE_PIXELS`."""
+    from ...core.imageio import header_size
+
+    size = header_size(path, camera_orientation=True)
+    if size is None:
+        raise ImageError("not a readable photo (not an image format Pillow knows)", source=str(path),
+                         hint="remove it or give another photo")
+    return size
+
+
+def photos_board(photos: list[Path], board_corners: tuple[int, int] | None = None,
+                 square_mm: float | None = None):
+    """(:class:`~.board.Board`, its board.json or None): a printed board of ``board_corners`` (inner
+    corners, columns x rows) and ``square_mm``, or the ``board.json`` beside the photos or up to two
+    folders above; InputError naming the argument otherwise."""
+    from .board import Board, find_board_manifest, read_board
+
+    if (board_corners is None) != (square_mm is None):
+        raise InputError("needs both board_corners and square_mm",
+                         source="board_corners" if board_corners is not None else "square_mm",
+                         hint="e.g. 11x6 inner corners of 20 mm squares, or neither to use board.json")
+    if board_corners is not None:
+        if not (math.isfinite(square_mm) and 0.1 <= square_mm <= 1000):
+            raise InputError(f"{square_mm} mm squares is out of range", source="square_mm",
+                             hint="give the square size in mm, 0.1..1000")
+        cols, rows = board_corners
+        return Board(cols=cols, rows=rows, square_mm=float(square_mm), kind="print"), None
+    manifest = find_board_manifest(photos)
+    if manifest is None:
+        raise InputError("no board geometry: no board.json beside the photos or up to two folders above",
+                         source="photos", hint="pass board_corners and square_mm, or keep the photos in "
+                         "DIR/captures of the folder 'lenticalib camera patterns' wrote")
+    return read_board(manifest), manifest
+
+
+def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[int, int] | None = None,
+                     square_mm: float | None = None, report_dir: str | os.PathLike | None = None,
+                     lensmodel: str | None = None, jobs: int = 2, stage: StageFn | None = None) -> CameraCalibration:
+    """Calibrate one camera from photos of a chessboard; write the model (and the report).
+
+    ARGUMENTS
+    photos         photo files (.jpg, .jpeg, .png) or folders of them
+    output         the ``.cameramodel`` to write (atomically)
+    board_corners  (columns, rows) of inner corners of a printed board, with ``square_mm`` (its
+                   square size in mm); both None: the ``board.json`` beside the photos
+    report_dir     the report folder (figures and ``summary.json``, staged); None: no report
+    lensmodel      force an mrcal lens model; None: chosen by the data
+    jobs           photos searched for corners in parallel, 1..64
+    stage          progress: ``stage(name, steps)`` as each stage starts returns the per-step
+                   callback (:data:`StageFn`)
+
+    RETURNED VALUE
+    :class:`CameraCalibration`.  Every InputError comes before the corner search, except too few
+    photos with the board found (after it, before the solve).
+    """
+    import numpy as np
+
+    from ...core.outputs import check_output_file, check_output_folder, staged_folder
+    from . import solve as solve_module
+    from .report import REPORT_FILES, calibration_summary, write_report
+
+    start = time.perf_counter()
+    if not 1 <= jobs <= MAX_JOBS:
+        raise InputError(f"{jobs} jobs is out of range", source="jobs", hint=f"use 1..{MAX_JOBS} (the number of cores)")
+    if lensmodel is not None:
+        solve_module.check_lensmodel(lensmodel)
+    output = check_output_file(output, "camera model", example="camera.cameramodel")
+    if report_dir is not None:
+        check_output_folder(report_dir, REPORT_WHAT, REPORT_FILES)
+    photos = collect_photos(photos)
+    board, manifest = photos_board(photos, board_corners, square_mm)
+    if len(photos) < MIN_VIEWS:
+        raise InputError(f"only {len(photos)} photos given; at least {MIN_VIEWS} views of the board are needed",
+                         source="photos", hint=TOO_FEW_HINT)
+    sizes = {p: photo_size(p) for p in photos}
+    size = sizes[photos[0]]
+    for p, s in sizes.items():
+        if s != size:
+            raise InputError(f"is {s[0]}x{s[1]} pixels, the first photo {size[0]}x{size[1]}", source=str(p),
+                             hint="calibrate photos of one camera at one resolution and zoom")
+    solve_module.import_mrcal()
+
+    from .corners import detect_photos
+    from .crossval import cross_validation
+    from .quality import quality
+
+    def steps(name: str, total: int):
+        return stage(name, total) if stage is not None else (lambda *message: None)
+
+    found = detect_photos(photos, board, jobs=jobs, progress=steps("finding corners", len(photos)))
+    used = [f for f in found if f.corners is not None]
+    if len(used) < MIN_VIEWS:
+        raise InputError(f"the board was found in {len(used)} of {len(photos)} photos; at least {MIN_VIEWS} are needed",
+                         source="photos", hint=f"check the board ({board.describe()}) is wholly in the photos and "
+                         f"sharp, and {TOO_FEW_HINT}")
+    corners = np.stack([f.corners for f in used])
+    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", 3))
+    model = cal.cameramodel()
+    step = steps("cross-validating", 1)
+    check = cross_validation(corners, board, size, cal.lensmodel)
+    step()
+    qual = quality(model, cal.solve, [f.path for f in used], cross_validation=check)
+    summary = calibration_summary(cal, qual, board, found, photos, output=output,
+                                  report=None if report_dir is None else str(report_dir),
+                                  manifest=manifest, seconds=time.perf_counter() - start)
+    solve_module.write_cameramodel(model, output, note=summary["note"])
+    if report_dir is not None:
+        with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES) as stage_dir:
+            write_report(stage_dir, cal, qual, summary)
+    return CameraCalibration(summary, output, None if report_dir is None else Path(report_dir), model, cal, qual)
+
+
+def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel_pitch_mm: float, *,
+                       squares: tuple[int, int] | None = None, lens_pitch_mm: float | None = None,
+                       lens_pitch_px: float | None = None, print_square_mm: float = 20.0, paper: str = "A4"):
+    """Write the calibration chessboard of a ``width`` x ``height`` panel of ``pixel_pitch_mm`` into
+    the folder ``output`` (staged, whole or not at all): ``board.png`` (the panel raster),
+    ``board.json``, and ``print/`` (a sheet of ``print_square_mm`` squares on ``paper``, PDF and PNG,
+    with its own ``board.json``).  ``squares``: inner corners (columns, rows) of the panel board
+    (default: 9 squares down the short side); the lens pitch (``lens_pitch_mm`` from a data sheet,
+    or ``lens_pitch_px`` panel pixels from a profile) widens the squares' soft edges to span at
+    least two lenses.  Returns (panel board, printed board); InputError naming the argument first.
+    """
+    from ...core.imageio import write_image
+    from ...core.outputs import check_output_folder, staged_folder
+    from .board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, panel_board, print_board,
+                        write_manifest)
+    from .draw import panel_raster, write_print_sheet
+
+    if not (isinstance(pixel_pitch_mm, (int, float)) and math.isfinite(pixel_pitch_mm)
+            and 0.005 <= pixel_pitch_mm <= 5.0):
+        raise InputError(f"pixel pitch {pixel_pitch_mm!r} mm is out of range", source="pixel_pitch_mm",
+                         hint="give the panel's pixel pitch in mm, 0.005..5 (e.g. 0.1796)")
+    if lens_pitch_mm is not None:
+        if not (math.isfinite(lens_pitch_mm) and 0.005 <= lens_pitch_mm <= 50.0):
+            raise InputError(f"lens pitch {lens_pitch_mm!r} mm is out of range", source="lens_pitch_mm",
+                             hint="give the sheet's horizontal lens pitch in mm, 0.005..50")
+        lens_pitch_px = lens_pitch_mm / pixel_pitch_mm
+    board = panel_board(width, height, float(pixel_pitch_mm), squares, lens_pitch_px=lens_pitch_px)
+    sheet = print_board(print_square_mm, paper)
+    contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER,
+                *(f"{PRINT_FOLDER}/{name}" for name in (PRINT_PDF, PRINT_PNG, MANIFEST_NAME)))
+    check_output_folder(output, "camera board folder", contents)
+    with staged_folder(output, "camera board folder", contents) as stage:
+        write_image(stage / PANEL_IMAGE, panel_raster(board))
+        write_manifest(board, stage)
+        (stage / PRINT_FOLDER).mkdir()
+        write_print_sheet(sheet, stage / PRINT_FOLDER)
+        write_manifest(sheet, stage / PRINT_FOLDER)
+    return board, sheet

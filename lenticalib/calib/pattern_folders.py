@@ -1,0 +1,103 @@
+"""Pattern folders written whole: what ``lenticalib patterns`` and ``lenticalib crosstalk patterns`` run.
+
+Each function checks its arguments and the folder first (:func:`lenticalib.core.outputs.check_output_folder`),
+then designs and writes the patterns and ``patterns.json``; a failed or interrupted run puts an
+earlier pattern set of the folder back as it was (:func:`lenticalib.core.outputs.restored_on_failure`).
+The direction check pattern (:func:`write_direction_pattern`) is one raster in a folder.
+
+Errors name the argument at fault by its parameter name (``source="width"``, ``"views"``,
+``"sweep"``); a command-line front end maps them to its flags.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..core import pattern_sets
+from ..core.errors import InputError
+from ..core.profile import MAX_VIEWS, PanelProfile
+from ..core.sizes import MAX_SIDE, MIN_PANEL_SIDE
+from . import patterns as patterns_module
+
+
+
+def _write(folder: Path, pattern_set, progress: Callable[..., None] | None,
+           progress_total: Callable[[int], None] | None) -> None:
+    from ..core.outputs import restored_on_failure
+
+    if progress_total is not None:
+        progress_total(len(pattern_set.patterns))
+
+    written = ([folder / p.file for p in pattern_set.patterns] + [folder / pattern_sets.MANIFEST_NAME]
+               if folder.exists() else [folder])
+
+    def each(items):
+        for item in items:
+            yield item
+            if progress is not None:
+                progress()
+
+    with restored_on_failure(written, "patterns"):
+        pattern_sets.write_patterns(folder, pattern_set, progress=each(pattern_set.patterns))
+
+
+def write_calibration_patterns(output: str | os.PathLike, width: int = 3840, height: int = 2160, views: int = 32,
+                               progress: Callable[..., None] | None = None,
+                               progress_total: Callable[[int], None] | None = None):
+    """Write the calibration patterns of a ``width`` x ``height`` panel with ``views`` views into the
+    folder ``output`` (``progress`` once per pattern, ``progress_total`` once before); returns the
+    :class:`~.patterns.PatternSet`.  InputError naming the argument or the folder before any work."""
+    from ..core.outputs import check_output_folder
+
+    for field, value in (("width", width), ("height", height)):
+        if not MIN_PANEL_SIDE <= value <= MAX_SIDE:
+            raise InputError(f"{value} pixels is out of range", source=field,
+                             hint=f"give the panel raster size in pixels, {MIN_PANEL_SIDE}..{MAX_SIDE}")
+    if not 2 <= views <= MAX_VIEWS:
+        raise InputError(f"{views} views is out of range", source="views", hint=f"use 2..{MAX_VIEWS}")
+    folder = check_output_folder(output, "patterns")
+    pattern_set = patterns_module.design_patterns(width, height, views)
+    _write(folder, pattern_set, progress, progress_total)
+    return pattern_set
+
+
+def write_crosstalk_pattern_folder(profile: PanelProfile, output: str | os.PathLike, sweep: float | None = None,
+                                   progress: Callable[..., None] | None = None,
+                                   progress_total: Callable[[int], None] | None = None):
+    """Write the crosstalk patterns of ``profile`` (band sweeps over ``sweep`` columns, default
+    :func:`~.crosstalk.patterns.default_sweep`) into the folder ``output``; returns the
+    :class:`~.crosstalk.patterns.CrosstalkPatternSet`."""
+    from ..core.outputs import check_output_folder
+    from .crosstalk.patterns import default_sweep, design_crosstalk_patterns
+
+    if sweep is not None and not (math.isfinite(sweep) and 4 * profile.views <= sweep <= 4 * profile.width):
+        raise InputError(f"sweep {sweep} pixels is out of range", source="sweep",
+                         hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {default_sweep(profile):g})")
+    folder = check_output_folder(output, "crosstalk patterns")
+    pattern_set = design_crosstalk_patterns(profile, sweep)
+    _write(folder, pattern_set, progress, progress_total)
+    return pattern_set
+
+
+def write_direction_pattern(profile: PanelProfile, output: str | os.PathLike, encode: Callable[..., np.ndarray]) -> Path:
+    """Write the LEFT/RIGHT check raster of ``profile`` (:func:`~.direction.direction_raster`, drawn
+    with the encoder entry point ``encode`` the caller passes: the calibration layer does not import
+    the render layer) as ``output/direction.png``; a new folder is made only once the raster is
+    ready.  Returns its path."""
+    from ..core.imageio import check_image_output, write_image
+    from ..core.outputs import check_output_folder
+    from .direction import DIRECTION_PATTERN_NAME, direction_raster
+
+    folder = check_output_folder(output, "direction pattern")
+    target = folder / DIRECTION_PATTERN_NAME
+    if folder.exists():
+        check_image_output(target, what="direction pattern")
+    raster = direction_raster(profile, encode)
+    folder.mkdir(exist_ok=True)
+    write_image(target, raster)
+    return target

@@ -1,0 +1,96 @@
+"""Raster sizes: the one ``WxH`` parser, the one set of size limits, the one raster-size check.
+
+Every size lenticalib takes from a user (a panel raster ``--panel 3840x2160``, a camera
+``--resolution 4000x3000``, a view ``--view-size 960x540``, an emulated panel
+``emu://bench?panel=1920x1080``) is read by :func:`parse_size`; every raster is checked against
+the panel it is meant for by :func:`check_raster`.  Sizes are ``(width, height)`` in pixels;
+arrays are ``(height, width, 3)``.
+
+LIMITS.  :data:`MAX_SIDE` (16384 pixels) is the largest side of any raster lenticalib makes or
+reads: panel rasters and profiles, views, camera photos.  It admits an 8K panel (7680 x 4320),
+every Looking Glass panel (the largest, 65-inch, is 7680 x 4320) and the 16K panels announced,
+and it is the side of :data:`lenticalib.core.imageio.MAX_IMAGE_PIXELS` (16384 x 16384), the
+largest image lenticalib reads, so a raster any command writes is one every command reads.
+The smallest sides are set by what the work needs: :data:`MIN_PANEL_SIDE` (64) pixels hold the
+calibration patterns' coarsest period; :data:`MIN_CAMERA_SIDE` (240) is the smallest camera
+(QVGA) whose photos resolve a pattern at all.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import numpy as np
+
+from .errors import ImageError, InputError
+
+MAX_SIDE = 16384  # pixels per side of any raster, panel, view or photo (module docstring)
+MIN_PANEL_SIDE = 64  # pixels per side of the smallest panel the calibration patterns are drawn for
+MIN_CAMERA_SIDE = 240  # pixels per side of the smallest camera photo
+
+_SIZE = re.compile(r"\s*(\d{1,9})\s*[xX]\s*(\d{1,9})\s*")
+
+
+def size_problem(width: Any, height: Any, low: int = 1, high: int = MAX_SIDE) -> str | None:
+    """Why ``width`` x ``height`` is no size in ``low..high`` pixels per side, else None."""
+    for value in (width, height):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            return f"{value!r} is not a whole number of pixels"
+    if not (low <= width <= high and low <= height <= high):
+        return f"{width}x{height} is out of range"
+    return None
+
+
+def check_sides(width: Any, height: Any, source: str, low: int = 1, high: int = MAX_SIDE) -> tuple[int, int]:
+    """``(width, height)`` as ints when each is a whole number in ``low..high`` pixels; else one
+    InputError naming ``source`` and the allowed range."""
+    problem = size_problem(width, height, low, high)
+    if problem is not None:
+        raise InputError(problem, source=source, hint=f"use {low}..{high} pixels per side")
+    return int(width), int(height)
+
+
+def parse_size(value: Any, source: str, low: int = 1, high: int = MAX_SIDE,
+               example: str = "3840x2160") -> tuple[int, int]:
+    """``"WxH"`` (or a ``(w, h)`` pair) -> ``(width, height)`` in pixels, each ``low..high``.
+
+    Anything else is one InputError naming ``source`` (the option, URL parameter or field the
+    size came from) and the allowed range.
+    """
+    if isinstance(value, str):
+        match = _SIZE.fullmatch(value)
+        if match is None:
+            raise InputError(f"must be WIDTHxHEIGHT in pixels, e.g. {example}, got {value!r}", source=source,
+                             hint=f"use {low}..{high} pixels per side")
+        pair = (int(match[1]), int(match[2]))
+    else:
+        try:
+            pair = tuple(value)
+        except TypeError:
+            pair = ()
+        if len(pair) != 2:
+            raise InputError(f"must be WIDTHxHEIGHT in pixels, e.g. {example}, got {value!r}", source=source,
+                             hint=f"use {low}..{high} pixels per side")
+    return check_sides(pair[0], pair[1], source, low, high)
+
+
+def check_raster(raster: Any, width: int, height: int, source: str, what: str = "the panel",
+                 hint: str | None = None) -> np.ndarray:
+    """``raster`` as C-contiguous uint8 ``(height, width, 3)`` RGB; ImageError naming ``source``
+    unless it is one (``what`` names the panel it must fit, ``hint`` says what to do)."""
+    shape = getattr(raster, "shape", None)
+    dtype = getattr(raster, "dtype", type(raster).__name__)
+    if not isinstance(raster, np.ndarray) or raster.dtype != np.uint8 or raster.ndim != 3 or raster.shape[2] != 3:
+        raise ImageError(f"a raster must be 8-bit RGB (H, W, 3), got {dtype} {shape}", source=source, hint=hint)
+    check_raster_size((raster.shape[1], raster.shape[0]), (width, height), source, what, hint)
+    return np.ascontiguousarray(raster)
+
+
+def check_raster_size(size: tuple[int, int], expected_size: tuple[int, int], source: str, what: str,
+                      hint: str | None = None) -> None:
+    """ImageError naming ``source`` when an image of ``size`` (W, H) is not ``expected_size`` (W, H),
+    the size of ``what`` (e.g. "the simulated panel")."""
+    if tuple(size) != tuple(expected_size):
+        raise ImageError(f"is {size[0]}x{size[1]} pixels, {what} is {expected_size[0]}x{expected_size[1]}",
+                         source=source, hint=hint or f"give a {expected_size[0]}x{expected_size[1]} image")

@@ -1,0 +1,92 @@
+"""``play_avatar``: the live loop drive -> render -> encode -> present, with per-stage timings.
+
+Output: ``"panel"`` (full screen, pixel-exact, through the presenter; the monitor whose mode is
+the profile's size unless ``display`` names one), ``"preview"`` (a normal window showing the
+centre view, for a desk without a panel) or ``"headless"`` (no output: timing only; no present
+stage).  Esc, q or closing the window stops; ``frames`` stops after that many, Ctrl-C too.
+
+Errors name the argument at fault by its parameter name (``source="frames"``); a command-line
+front end maps them to its flags.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from typing import Callable
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.profile import PanelProfile
+from .session import AvatarOptions, AvatarSession, open_avatar_session
+
+OUTPUTS = ("panel", "preview", "headless")
+
+
+@dataclasses.dataclass
+class PlayRun:
+    """What :func:`play_avatar` did: the ``session`` (pipeline, avatar), ``times`` (a
+    :class:`~.loop.StageTimes`), ``presenter_kind`` and ``controls_summary`` (the lines received
+    and bad of live controls, or None)."""
+
+    session: AvatarSession
+    times: object
+    presenter_kind: str
+    controls_summary: str | None
+
+
+def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.PathLike, *,
+                options: AvatarOptions | None = None, output: str = "panel", display: str | None = None,
+                frames: int | None = None, on_warning: Callable[[str], None] | None = None,
+                on_stats: Callable[[dict], None] | None = None) -> PlayRun:
+    """Play ``avatar`` on ``profile``'s panel until Esc/q, Ctrl-C or ``frames`` frames (module
+    docstring).  ``on_warning`` gets the pipeline's warning (before the first frame), ``on_stats``
+    the stage times (ms, by stage) of a frame about once a second.  Returns :class:`PlayRun`."""
+    from .loop import StageTimes
+    from .present import WindowPresenter, open_presenter
+    from .present_offscreen import MemoryPresenter
+
+    if frames is not None and frames < 1:
+        raise InputError(f"{frames} frames", source="frames", hint="give at least 1")
+    if output not in OUTPUTS:
+        raise InputError(f"unknown output {output!r}", source="output", hint=f"use one of {', '.join(OUTPUTS)}")
+    session = open_avatar_session(avatar, profile, options)
+    pipeline = session.pipeline
+    profile, cameras = pipeline.profile, pipeline.cameras
+    if pipeline.warning and on_warning is not None:
+        on_warning(pipeline.warning)
+    if output == "headless":
+        presenter = MemoryPresenter((profile.width, profile.height))
+    elif output == "preview":
+        presenter = WindowPresenter(None, windowed=(cameras.width, cameras.height))
+    else:
+        presenter = open_presenter(display, (profile.width, profile.height))
+    centre = profile.views // 2
+    times = StageTimes()
+    start = last_report = time.perf_counter()
+    with presenter:
+        try:
+            while frames is None or times.frames < frames:
+                raster, views, stages = pipeline.frame(session.controls_at(time.perf_counter() - start))
+                t0 = time.perf_counter()
+                if output == "preview":
+                    view = views[centre]
+                    presenter.show(view if isinstance(view, np.ndarray) else view.cpu().numpy())
+                elif output == "panel":  # headless presents nothing: no present stage
+                    presenter.show(raster)
+                if output != "headless":
+                    stages["present"] = 1e3 * (time.perf_counter() - t0)
+                times.add(**stages)
+                if any(k in ("escape", "q") for k in presenter.keys()):
+                    break
+                if on_stats is not None and time.perf_counter() - last_report >= 1.0:
+                    last_report = time.perf_counter()
+                    on_stats(dict(stages))
+        except KeyboardInterrupt:
+            pass
+        finally:
+            session.close()
+    summary = session.controls.summary() if session.controls is not None else None
+    return PlayRun(session, times, presenter.kind, summary or None)

@@ -1,0 +1,110 @@
+"""The avatar pipeline set up from plain options: what ``lenticalib play`` and ``render`` run.
+
+:func:`open_avatar_session` checks everything a user can get wrong before the first frame, in
+this order: the renderer, encoder and camera model (a name that is unknown or a backend that
+cannot run on this machine is refused before anything is loaded), the profile, the pre-compensation, the
+background, the avatar file and its driver, the controls (files are read in full), the cameras.
+
+Errors name the argument at fault by its parameter name (``source="edge_desaturation"``,
+``"controls"`` ...); a command-line front end maps them to its flags.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from ..core.errors import InputError
+from ..core.profile import PanelProfile
+from .encode_file import CompensationOptions
+
+
+@dataclasses.dataclass(frozen=True)
+class AvatarOptions:
+    """How to drive, render and encode an avatar for a panel.
+
+    ``controls``: 'demo', a file (.npz, .csv, .jsonl), '-' (JSON lines on stdin) or
+    udp://HOST:PORT; ``driver``: 'rig' or module:callable; ``renderer`` (default cpu),
+    ``encoder`` (default torch with gsplat, fast otherwise), ``device`` (default cuda with
+    gsplat, cpu otherwise); ``camera_model`` 'arc', 'shear' or a plug-in's, with ``radius`` (avatar units),
+    ``fov_deg``, ``yaw_range_deg``; ``view_size`` (W, H) pixels; ``background``: 'R,G,B' or an
+    image file; ``compensation``; ``edge_desaturation`` 0..1.
+    """
+
+    controls: str = "demo"
+    driver: str | None = None
+    renderer: str | None = None
+    encoder: str | None = None
+    device: str | None = None
+    camera_model: str = "arc"
+    radius: float | None = None
+    fov_deg: float = 20.0
+    yaw_range_deg: float = 50.0
+    view_size: tuple[int, int] = (960, 540)
+    background: str | None = None
+    compensation: CompensationOptions | None = None
+    edge_desaturation: float = 0.0
+
+
+@dataclasses.dataclass
+class AvatarSession:
+    """An :class:`~.loop.AvatarPipeline` ready for its first frame, its controls source (None for a
+    static avatar) and the loaded avatar.  :meth:`controls_at` gives the control vector at a time;
+    :meth:`close` closes the controls."""
+
+    pipeline: object
+    controls: object | None
+    avatar: object
+
+    @property
+    def warning(self) -> str | None:
+        return self.pipeline.warning
+
+    def controls_at(self, seconds: float):
+        return self.controls.latest(seconds)[1] if self.controls is not None else None
+
+    def close(self) -> None:
+        if self.controls is not None:
+            self.controls.close()
+
+
+def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str | os.PathLike,
+                        options: AvatarOptions | None = None) -> AvatarSession:
+    """Load ``avatar`` (a 3DGS .ply or a rig .npz) for ``profile`` (a profile or its JSON file) as
+    ``options`` say; every user error is an InputError (or BackendUnavailableError) before any frame."""
+    from ..core.profile import load_profile
+    from .avatar import load_avatar
+    from .camera_models import CAMERA_MODELS, make_cameras
+    from .controls import open_controls
+    from .encoders import get_encoder
+    from .loop import AvatarPipeline, parse_background
+    from .renderers import get_renderer
+
+    o = options or AvatarOptions()
+    renderer = o.renderer or "cpu"
+    encoder = o.encoder or ("torch" if renderer == "gsplat" else "fast")
+    device = o.device or ("cuda" if renderer == "gsplat" else "cpu")
+    get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
+    get_encoder(encoder, device=device)
+    CAMERA_MODELS.load(o.camera_model, "camera_model")
+    if not isinstance(profile, PanelProfile):
+        profile = load_profile(profile, "`profile`")
+    if not 0.0 <= o.edge_desaturation <= 1.0:
+        raise InputError(f"{o.edge_desaturation} is out of range", source="edge_desaturation", hint="use 0..1")
+    compensator = (o.compensation or CompensationOptions()).compensator(profile.views)
+    background = parse_background(o.background, o.view_size)
+    loaded = load_avatar(avatar, o.driver)
+    controls = None
+    if loaded.kind == "animated":
+        controls = open_controls(o.controls, loaded.layout)
+    elif o.controls != "demo":
+        raise InputError("a static avatar (.ply) takes no controls", source="controls",
+                         hint="leave the controls out, or give an animated avatar (a rig .npz)")
+    camera_options = {"fov_deg": o.fov_deg, "yaw_range_deg": o.yaw_range_deg, "view_size": o.view_size}
+    if o.radius is not None:
+        camera_options["radius"] = o.radius
+    cameras = make_cameras(o.camera_model, loaded.bounding_box(), profile.views, **camera_options)
+    pipeline = AvatarPipeline(loaded, profile, cameras, renderer=renderer, encoder=encoder, device=device,
+                              background=background, edge_desaturation=o.edge_desaturation,
+                              compensator=compensator)
+    return AvatarSession(pipeline, controls, loaded)
