@@ -51,12 +51,14 @@ from typing import Any
 import numpy as np
 
 from ..core.colour import srgb_encode8
+from ..core.documents import FORMATS, check_envelope
 from ..core.errors import InputError
 from ..core.pattern_sets import MANIFEST_NAME, manifest_matches, read_pattern_folder
-from ..core.profile import MAX_SIDE, MAX_VIEWS
+from ..core.profile import MAX_VIEWS
+from ..core.sizes import MAX_SIDE
 
-FORMAT_NAME = "lenticalib.patterns"
-FORMAT_VERSION = 2  # 2: registration frame
+DOCUMENT = FORMATS["lenticalib.patterns"]  # version 2: the registration frame
+FORMAT_NAME, FORMAT_VERSION = DOCUMENT.name, DOCUMENT.version
 MEAN_LEVEL = 0.5  # linear light
 AMPLITUDE = 0.45  # linear light
 FINE_PERIODS = (16.0, 22.0)  # subpixels
@@ -128,7 +130,7 @@ class PatternSet:
         return render_pattern(pattern, self.width, self.height)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "set_id": self.set_id,
+        return {**DOCUMENT.envelope(), "set_id": self.set_id,
                 "width": self.width, "height": self.height, "views": self.views,
                 "period_range": list(PERIOD_RANGE), "mean_level": MEAN_LEVEL, "amplitude": AMPLITUDE,
                 "frame_pixels": frame_width(self.height), "frame_level": FRAME_LEVEL,
@@ -208,10 +210,7 @@ def pattern_set_from_manifest(data: dict[str, Any], source: str) -> PatternSet:
     """The calibration pattern set a parsed ``patterns.json`` of this format describes (the
     ``lenticalib.patterns`` kind of :mod:`lenticalib.core.pattern_sets`); InputError naming
     ``source`` when it is of another version or edited."""
-    if data.get("format_version") != FORMAT_VERSION:
-        raise InputError(f"pattern format version {data.get('format_version')!r} is not supported "
-                         f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
-                         hint="write the patterns again with this lenticalib and photograph them")
+    check_envelope(data, DOCUMENT, source)
     for key, low, high in (("width", 1, MAX_SIDE), ("height", 1, MAX_SIDE), ("views", 2, MAX_VIEWS)):
         value = data.get(key)
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:

@@ -16,10 +16,11 @@ import numpy as np
 
 from .errors import InputError
 from .fields import is_finite_number
-from .profile import MAX_VIEWS, read_json_file
+from .documents import FORMATS, check_envelope, read_json_file
+from .profile import MAX_VIEWS
 
-FORMAT_NAME = "lenticalib.crosstalk"
-FORMAT_VERSION = 1
+DOCUMENT = FORMATS["lenticalib.crosstalk"]
+FORMAT_NAME, FORMAT_VERSION = DOCUMENT.name, DOCUMENT.version
 
 
 def read_crosstalk_document(path: str | os.PathLike, views: int | None = None,
@@ -29,12 +30,8 @@ def read_crosstalk_document(path: str | os.PathLike, views: int | None = None,
     null.  InputError naming ``source`` (default: the file) otherwise.  The rest of the document
     (the figures among it) is returned as it is in the file."""
     source = source or str(path)
-    data = read_json_file(path, "crosstalk file", "measure it with 'lenticalib crosstalk measure'")
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
-        raise InputError("is not a lenticalib crosstalk file", source=source,
-                         hint="give the crosstalk.json written by 'lenticalib crosstalk measure'")
-    if data.get("format_version") != FORMAT_VERSION:
-        raise InputError(f"crosstalk format version {data.get('format_version')!r} is not supported", source=source)
+    data = read_json_file(path, DOCUMENT.what, DOCUMENT.hint)
+    check_envelope(data, DOCUMENT, source)
     n = data.get("views")
     matrix = data.get("matrix")
     if not (isinstance(n, int) and 2 <= n <= MAX_VIEWS):

@@ -32,7 +32,7 @@ from .atomic import write_text_atomic
 from .errors import InputError
 from .imageio import write_image
 from .plugins import Registry
-from .profile import read_json_file
+from .documents import read_json_file
 
 MANIFEST_NAME = "patterns.json"
 FREE_KEYS = ("created", "lenticalib_version", "note")  # manifest keys a person may add

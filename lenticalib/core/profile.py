@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .atomic import write_text_atomic
-from .documents import FORMATS, check_envelope, read_json_file  # read_json_file: also imported from here
+from .documents import FORMATS, check_envelope, read_json_file
 from .errors import ProfileError
 from .fields import is_finite_number, is_number, short_repr, unknown_key_message
 from .sizes import MAX_SIDE

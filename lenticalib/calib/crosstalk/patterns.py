@@ -35,14 +35,15 @@ from typing import Any
 import numpy as np
 
 from ...core.colour import srgb_encode8
+from ...core.documents import FORMATS, check_envelope
 from ...core.errors import InputError
 from ...core.pattern_sets import manifest_matches
 from ...core.profile import PanelProfile, profile_from_dict
 from ...core.routing import view_coordinate
 from ..patterns import FRAME_LEVEL, frame_width
 
-FORMAT_NAME = "lenticalib.crosstalk-patterns"
-FORMAT_VERSION = 1
+DOCUMENT = FORMATS["lenticalib.crosstalk-patterns"]
+FORMAT_NAME, FORMAT_VERSION = DOCUMENT.name, DOCUMENT.version
 BAND_PATTERNS = 10
 SWEEP_FRACTION = 0.5  # sweep period, at least this share of the panel width ...
 LENSES_PER_VIEW = 16  # ... and long enough that one view spans this many lenses (Delta_r / 3 pixels each) ...
@@ -119,7 +120,7 @@ class CrosstalkPatternSet:
         return hashlib.sha256(body.encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "set_id": self.set_id,
+        return {**DOCUMENT.envelope(), "set_id": self.set_id,
                 "width": self.width, "height": self.height, "views": self.views, "sweep_pixels": self.sweep,
                 "frame_pixels": frame_width(self.height), "frame_level": FRAME_LEVEL, "encoding": "sRGB",
                 "profile": self._profile_dict(), "patterns": [p.to_dict() for p in self.patterns]}
@@ -212,10 +213,7 @@ def render_crosstalk_pattern(pattern_set: CrosstalkPatternSet, pattern: Crosstal
 
 def crosstalk_set_from_manifest(data: dict[str, Any], source: str) -> CrosstalkPatternSet:
     """The crosstalk pattern set a parsed ``patterns.json`` describes; InputError naming ``source``."""
-    if data.get("format_version") != FORMAT_VERSION:
-        raise InputError(f"crosstalk pattern format version {data.get('format_version')!r} is not supported "
-                         f"(this lenticalib reads version {FORMAT_VERSION})", source=source,
-                         hint="write the patterns again with 'lenticalib crosstalk patterns'")
+    check_envelope(data, DOCUMENT, source)
     if not isinstance(data.get("profile"), dict):
         raise InputError("field 'profile' is missing", source=source,
                          hint="write the patterns again with 'lenticalib crosstalk patterns'")

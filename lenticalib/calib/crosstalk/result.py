@@ -29,7 +29,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ...core.atomic import write_text_atomic
-from ...core.crosstalk_document import FORMAT_NAME, FORMAT_VERSION, mixing_matrix, read_crosstalk_document
+from ...core.crosstalk_document import DOCUMENT, mixing_matrix, read_crosstalk_document
 from ...core.fields import is_finite_number
 
 
@@ -139,7 +139,7 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
     per_view = [{"view": i, **{k: _r(v["value"]) for k, v in figures.items()}} for i in range(n)]
     diag = {k: (v.round(6).tolist() if isinstance(v, np.ndarray) else v) for k, v in m.diagnostics.items()}
     return {
-        "format": FORMAT_NAME, "format_version": FORMAT_VERSION,
+        **DOCUMENT.envelope(),
         "views": n, "width": m.profile.width, "height": m.profile.height,
         "definition": "matrix[i][j]: share of the light an eye at the centre of view i's zone receives from view j "
                       "(rows sum to 1, black-corrected), through the panel's centre region",
