@@ -230,7 +230,7 @@ def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
     out = tmp_path / "cam.cameramodel"
     calibrate = ["camera", "calibrate", "--jobs", "1"]
     _expect_error(calibrate + [tmp_path / "nowhere", "-o", out], "no such file or folder", absent=[out])
-    _expect_error(calibrate + [captures, "-o", out, "--board", "11by6", "--square", "20"], "bad board size")
+    _expect_error(calibrate + [captures, "-o", out, "--board", "11by6", "--square", "20"], "must be COLSxROWS in inner corners")
     _expect_error(calibrate + [captures, "-o", out, "--board", "11x6"], "needs both")
     _expect_error(calibrate + [captures, "-o", out, "--board", "11x6", "--square", "-20"], "out of range",
                   "--square")

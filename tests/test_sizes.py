@@ -1,9 +1,13 @@
 """Raster sizes (lenticalib.core.sizes): the one WxH parser, its limits, the one raster-size check,
 and every place a size comes in using them."""
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+import lenticalib
 from lenticalib.cli import main
 from lenticalib.core.errors import ImageError, InputError, ProfileError
 from lenticalib.core.imageio import MAX_IMAGE_PIXELS, read_image, write_image
@@ -135,3 +139,27 @@ def test_the_simulator_and_the_image_reader_use_the_one_check(tmp_path):
     write_image(path, np.zeros((64, 65, 3), np.uint8))
     assert one_line(lambda: read_image(path, expected_size=(64, 64), what="the simulated panel"),
                     ImageError).startswith(f"{path}: is 65x64 pixels, the simulated panel is 64x64")
+
+
+def test_quilt_grids_and_board_corners_parse_through_the_one_parser():
+    from lenticalib.calib.intrinsics.board import parse_squares
+    from lenticalib.core.errors import ImageError
+    from lenticalib.render.views import QuiltGrid, parse_grid
+
+    assert parse_grid(" 8 x 4 ") == QuiltGrid(8, 4)
+    with pytest.raises(ImageError, match=r"^--grid: must be COLSxROWS in tiles, e.g. 8x4, got '8by4'"):
+        parse_grid("8by4", "--grid")
+    with pytest.raises(ImageError, match=r"^--grid: 0x4 is out of range \(use 1\.\.254 tiles per side\)"):
+        parse_grid("0x4", "--grid")
+    assert parse_squares("15X8") == (15, 8)
+    with pytest.raises(InputError, match=r"^--squares: 2x8 is out of range \(use 3\.\.200 inner corners per side\)"):
+        parse_squares("2x8", "--squares")
+
+
+def test_no_other_module_parses_an_AxB_text():
+    """Every ``AxB`` is read by core/sizes.parse_pair: no other regex or split on an ``x``."""
+    package = Path(lenticalib.__file__).parent
+    pattern = re.compile(r"\[xX\]|\.split\(\s*['\"]x['\"]\s*\)|\.partition\(\s*['\"]x['\"]\s*\)")
+    found = [f"{p.relative_to(package)}:{n}" for p in package.rglob("*.py") if p.name != "sizes.py"
+             for n, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]
+    assert found == []

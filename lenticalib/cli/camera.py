@@ -104,7 +104,7 @@ def run_patterns(args: argparse.Namespace) -> int:
     from ._flags import flag_names
 
     width, height, pitch, lens_px = _panel_geometry(args)
-    squares = parse_squares(args.squares) if args.squares else None
+    squares = parse_squares(args.squares, "--squares") if args.squares else None
     with flag_names(FLAGS):
         board, sheet = write_board_folder(args.output, width, height, pitch, squares=squares,
                                           lens_pitch_mm=args.lens_pitch, lens_pitch_px=lens_px,

@@ -51,6 +51,24 @@ def check_sides(width: Any, height: Any, source: str, low: int = 1, high: int = 
     return int(width), int(height)
 
 
+def parse_pair(text: Any, source: str, low: int, high: int, *, form: str, unit: str, example: str,
+               error: type[InputError] = InputError) -> tuple[int, int]:
+    """``"AxB"`` -> ``(A, B)``, each a whole number ``low..high`` of ``unit``: the one parser of every
+    ``AxB`` lenticalib reads (raster sizes in pixels, quilt grids in tiles, boards in inner corners).
+
+    ``form`` (``"WIDTHxHEIGHT"``) and ``example`` (``"3840x2160"``) say how to write it.  Anything
+    else is one ``error`` naming ``source`` and the allowed range.
+    """
+    match = _SIZE.fullmatch(text) if isinstance(text, str) else None
+    if match is None:
+        raise error(f"must be {form} in {unit}, e.g. {example}, got {text!r}", source=source,
+                    hint=f"use {low}..{high} {unit} per side")
+    a, b = int(match[1]), int(match[2])
+    if not (low <= a <= high and low <= b <= high):
+        raise error(f"{a}x{b} is out of range", source=source, hint=f"use {low}..{high} {unit} per side")
+    return a, b
+
+
 def parse_size(value: Any, source: str, low: int = 1, high: int = MAX_SIDE,
                example: str = "3840x2160") -> tuple[int, int]:
     """``"WxH"`` (or a ``(w, h)`` pair) -> ``(width, height)`` in pixels, each ``low..high``.
@@ -59,11 +77,7 @@ def parse_size(value: Any, source: str, low: int = 1, high: int = MAX_SIDE,
     size came from) and the allowed range.
     """
     if isinstance(value, str):
-        match = _SIZE.fullmatch(value)
-        if match is None:
-            raise InputError(f"must be WIDTHxHEIGHT in pixels, e.g. {example}, got {value!r}", source=source,
-                             hint=f"use {low}..{high} pixels per side")
-        pair = (int(match[1]), int(match[2]))
+        return parse_pair(value, source, low, high, form="WIDTHxHEIGHT", unit="pixels", example=example)
     else:
         try:
             pair = tuple(value)

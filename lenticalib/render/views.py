@@ -16,9 +16,10 @@ import numpy as np
 
 from ..core.errors import ImageError
 from ..core.imageio import IMAGE_SUFFIXES, read_image
+from ..core.profile import MAX_VIEWS
+from ..core.sizes import parse_pair
 
 _QUILT_SUFFIX = re.compile(r"_qs(\d+)x(\d+)a(\d+(?:\.\d+)?)", re.IGNORECASE)
-_GRID = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 
 @dataclass(frozen=True)
@@ -45,12 +46,11 @@ def parse_quilt_name(name: str) -> QuiltGrid | None:
     return QuiltGrid(cols, rows, aspect)
 
 
-def parse_grid(text: str) -> QuiltGrid:
-    """``"8x4"`` -> QuiltGrid(8, 4)."""
-    match = _GRID.match(text or "")
-    if not match or int(match.group(1)) < 1 or int(match.group(2)) < 1:
-        raise ImageError(f"bad quilt grid {text!r}", source="--grid", hint="write it as COLSxROWS, e.g. 8x4")
-    return QuiltGrid(int(match.group(1)), int(match.group(2)))
+def parse_grid(text: str, source: str = "grid") -> QuiltGrid:
+    """``"8x4"`` -> QuiltGrid(8, 4); ImageError naming ``source`` otherwise."""
+    cols, rows = parse_pair(text, source, 1, MAX_VIEWS, form="COLSxROWS", unit="tiles", example="8x4",
+                            error=ImageError)
+    return QuiltGrid(cols, rows)
 
 
 def split_quilt(quilt: np.ndarray, grid: QuiltGrid, source: str = "quilt") -> np.ndarray:

@@ -44,6 +44,7 @@ import numpy as np
 
 from ...core.documents import FORMATS, check_envelope, read_json_file, write_document
 from ...core.errors import InputError
+from ...core.sizes import parse_pair
 
 DOCUMENT = FORMATS["lenticalib.camera-board"]
 MANIFEST_NAME = "board.json"
@@ -58,6 +59,7 @@ PANEL_FILL = 0.8  # share of the panel's width or height the squares fill
 MIN_SQUARE_PX = 8  # panel pixels per square
 MIN_EDGE_PX = 2  # panel pixels of an edge ramp, at least
 MIN_CORNERS = 3  # inner corners per side, at least
+MAX_CORNERS = 200  # inner corners per side, at most
 PAGE_MARGIN = 12.0  # mm
 PAGE_FOOTER = 30.0  # mm below the board for the text and the scale bar
 
@@ -155,18 +157,10 @@ class Board:
         return board
 
 
-def parse_squares(text: str, source: str = "--squares") -> tuple[int, int]:
+def parse_squares(text: str, source: str = "squares") -> tuple[int, int]:
     """``"15x8"`` -> (15, 8) inner corners; InputError naming ``source`` otherwise."""
-    parts = (text or "").lower().replace(" ", "").split("x")
-    try:
-        cols, rows = (int(p) for p in parts)
-    except ValueError:
-        raise InputError(f"bad board size {text!r}", source=source,
-                         hint="write the inner corners as COLSxROWS, e.g. 15x8") from None
-    if cols < MIN_CORNERS or rows < MIN_CORNERS or cols > 200 or rows > 200:
-        raise InputError(f"{cols}x{rows} inner corners is out of range", source=source,
-                         hint=f"use {MIN_CORNERS}..200 inner corners per side, e.g. 15x8")
-    return cols, rows
+    return parse_pair(text, source, MIN_CORNERS, MAX_CORNERS, form="COLSxROWS", unit="inner corners",
+                      example="15x8")
 
 
 def _refuse_symmetric(cols: int, rows: int, source: str) -> None:
