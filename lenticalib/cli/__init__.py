@@ -1,8 +1,38 @@
 """The ``lenticalib`` console script: one parser, one small module per subcommand.
 
-Subcommand modules are imported only once their command is chosen, and they import numpy,
-OpenCV and numba lazily, so ``--help`` is instant.  Every :class:`~lenticalib.core.errors.LenticalibError`
-ends as one line on stderr and exit status 2.
+cli sits on top of the layers: it may import every one of them, and no layer imports it (only
+``lenticalib.__main__`` does).  Each subcommand module parses its arguments and calls the
+library; ``print`` is used only here.
+
+Subcommands (one module each)
+    encode     views (a folder or a quilt) + profile -> panel raster image
+    profile    show, validate, import or export (Looking Glass), compare, set-direction,
+               set-physical, retarget panel profiles
+    patterns   write the calibration test patterns (or, ``--direction``, a LEFT/RIGHT check)
+    simulate   photograph the test patterns on a virtual panel (a synthetic capture set)
+    capture    show each calibration pattern on the panel and photograph it
+    fit        fit a panel profile from photos of the test patterns
+    camera     calibrate the camera's lens with mrcal: chessboard patterns, calibrate, simulate
+    crosstalk  verify per-view crosstalk: patterns, measure, check against limits
+    show       show an image, a pattern set or a folder of rasters on the panel, pixel-exact
+    play       the live avatar loop drive -> render -> encode -> present, timed per stage
+    render     the avatar pipeline offline, to PNG rasters or a lossless video
+    device     list panel controllers; info, read, flash and verify their calibration record
+    emulate    run an emulated panel controller on a pseudo-terminal or TCP port
+
+Helpers (not commands)
+    _avatar            the options ``play`` and ``render`` share, as ``AvatarOptions``
+    _camera_calibrate  ``lenticalib camera calibrate``: its arguments and its run
+    _flags             library errors told in the command line's words (argument -> flag)
+    _progress          progress bars (tqdm on stderr, when it is installed and a terminal)
+
+``__main__`` makes ``python -m lenticalib.cli`` the console script.
+
+:func:`build_parser` imports every subcommand module to build the full parser (their
+``add_arguments``); those modules import numpy, OpenCV, numba and the library layers only inside
+their run functions, so building the parser loads no third-party library and, of the library,
+only ``core.errors``: ``--help`` is instant.  Every
+:class:`~lenticalib.core.errors.LenticalibError` ends as one line on stderr and exit status 2.
 """
 
 from __future__ import annotations

@@ -1,1 +1,36 @@
-"""What every layer of lenticalib shares (filled in by the restructure; see docs/architecture.md)."""
+"""The core layer: what every other layer of lenticalib shares.
+
+core imports none of the other layers (calib, render, device, sim, cli); each of them may
+import it.  Importing this package loads nothing; each module imports what it needs.
+
+The panel profile and its routing
+    profile             ``PanelProfile``: the routing constants of one panel, as JSON (load,
+                        save, provenance)
+    physical            the profile's optional physical block: lenses and pixels in millimetres
+    routing             which view each subpixel shows: the LentiAvatar rule (``docs/routing.md``)
+    view_direction      which way the view index runs: said for people, parsed, warned about
+    retarget            routing constants carried to another eye position
+    lkg                 Looking Glass ``visual.json``: import to and export from panel profiles
+
+Errors and user input
+    errors              the one exception tree (``LenticalibError``, ``InputError`` ...)
+    fields              checks every document reader shares: finite numbers, known key names
+    sizes               the one ``WxH`` parser, the size limits and the raster-size check
+
+Files and documents
+    atomic              atomic file output: a reader sees the old file or the new one
+    outputs             output files and folders checked before the work, folders staged whole
+    documents           the one document envelope (format, version), its table and its reader
+    crosstalk_document  ``crosstalk.json``'s format and reader (the mixing matrix)
+    pattern_sets        pattern-set folders: the PNGs and their manifest ``patterns.json``
+    arrayfile           ``.npy`` and ``.npz`` files read with every header checked first
+    imageio             images as RGB numpy arrays ``(H, W, 3)``: read and written (atomically)
+    colour              the sRGB transfer curve (IEC 61966-2-1) and its 8-bit form
+
+Shared machinery
+    plugins             the one loader behind every registry of backends by name (entry points)
+    slides              what ``show`` and ``capture`` step through: an image, a pattern set, a
+                        folder
+
+The layers and their rule: ``docs/architecture.md``.
+"""

@@ -4,11 +4,19 @@
     with PanelController.open("serial:///dev/ttyACM0") as panel:
         profile = panel.read_profile()
 
-Modules: ``url`` (device URLs), ``drivers`` (controller family files in ``drivers/``),
-``framing`` and ``protocol`` (protocol v1.1, ``drivers/protocol-v1.md``), ``record`` (the
-binary calibration record), ``transports`` (serial, HID, USB, emulated, behind a registry),
-``client`` (the protocol engine), ``discovery`` (``device list``), ``emulator`` (the
-controller's firmware, emulated).
+device imports only core (and itself).  Modules:
+
+    url         device URLs: how a controller is named on the command line and in code
+    drivers     controller family descriptions: the TOML files in ``drivers/`` (data, not code)
+    framing     protocol v1 frames (CRC-16) and the stream parser the host and firmware share
+    protocol    protocol v1 (minor 1.1): command and status codes, payload layouts
+                (``drivers/protocol-v1.md``)
+    record      the calibration record: a panel profile's binary form in the controller's flash
+    client      the host's protocol engine (``PanelController``): retries, stale-reply rejection,
+                flash with read-back
+    discovery   ``device list``: asks every transport that can list its devices
+    transports  serial, HID, USB and emulated byte pipes, behind a registry of URL schemes
+    emulator    the controller's firmware and flash, emulated byte for byte, and its servers
 """
 
 from .client import CurrentRecord, FlashResult, PanelController, VerifyResult

@@ -1,12 +1,41 @@
-"""The render layer: from a calibrated profile and N rendered views to the panel raster.
+"""The render layer: from a Gaussian avatar and a calibrated profile to pixels on the panel.
 
-    routing    the LentiAvatar routing rule: which view each subpixel shows (canonical 64-bit fixed point)
-    sampling   sample points and per-profile sampling tables
-    views      view sets: quilts (grid from the file name) and folders of view images
-    encoders   N views -> one panel raster, selected by name through a lazy registry
-    cameras    the N virtual cameras of the avatar renderer: container, projection, view order, cameras.json
-    camera_models  the arc and shear camera models, selected by name (make_cameras)
+render imports only core (and itself).  Importing this package loads nothing; modules import
+numpy, numba, torch, OpenCV, glfw and moderngl themselves, most only when used.
 
-Later the presenter and the avatar renderer join it.  Modules import numpy and numba
-themselves; importing this package loads nothing.
+Views to the panel raster
+    views               view inputs: a folder of N images, or a quilt (tiles, view 0 bottom-left)
+    sampling            where each subpixel samples its view, and which view(s) it shows
+    encoders            N views ``(N, H_v, W_v, 3)`` -> one panel raster, by name (lazy registry)
+    compensation        crosstalk pre-compensation: views sent so that each eye sees what it should
+    encode_file         ``encode_to_file``: views + profile -> a panel raster file, in one call
+
+Cameras and renderers
+    cameras             the N virtual cameras: container, projection, view order, ``cameras.json``
+    camera_models       the arc and shear camera models, selected by name (``make_cameras``)
+    renderers           Gaussians + N cameras -> N RGBA views, by name (lazy registry)
+    torch_devices       whether a named torch device can be used, asked without starting a GPU
+
+The avatar
+    gaussians           a set of 3D Gaussians, as every renderer and deformer takes it
+    ply                 the standard 3DGS PLY file (INRIA 3DGS and gsplat layout)
+    rig                 a rig (Gaussians + blendshapes + bones), its control layout, its deformer
+    rig_file            the rig as a numpy ``.npz``: read, validated, written
+    demo_avatar         the built-in demo head (about 100k Gaussians) as a rig
+    demo_avatar_parts   the demo head's parts: where their Gaussians sit, colours, bones
+    demo_avatar_shapes  the demo head's geometry: surfaces and sampling them with Gaussians
+    avatar              an avatar to render: a PLY, a rig file, or a rig with a plug-in driver
+    drivers             avatar drivers: a control vector -> posed Gaussians, frame by frame
+    controls            control sources: ``latest(now)``, control files, the source for a spec
+    control_records     one JSON control record, as control files and live streams carry it
+    control_streams     live and built-in sources: the demo motion, JSON lines on stdin or UDP
+
+Presenting and the pipeline
+    present             pixel-exact full-screen presentation (glfw + moderngl): ``Presenter``
+    present_offscreen   presenters with no window: an offscreen framebuffer, or no graphics
+    monitors            the monitors a raster can be shown on (glfw), and choosing one
+    loop                the avatar pipeline frame by frame: drive -> render -> encode -> present
+    session             the pipeline set up from plain options: what ``play`` and ``render`` run
+    live                ``play_avatar``: the live loop, with per-stage timings
+    offline             ``render_avatar``: the pipeline offline, to PNG rasters or a lossless video
 """

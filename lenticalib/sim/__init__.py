@@ -1,16 +1,24 @@
 """The virtual panel: a physically based slanted-lenticular panel photographed by a camera.
 
 It turns any raster the panel would show into the photo a camera would take of it, and knows
-the ground-truth profile for the camera position (``docs/optics.md``; overview in ``docs/simulator.md``).
+the ground truth for the camera position: the profile, the crosstalk, the camera itself
+(``docs/optics.md``; overview in ``docs/simulator.md``).  sim may import core, calib and render,
+never device or cli.
 
-    optics    PanelOptics (lens sheet, pixel plane, emission), seen point, w*, truth profile
-    camera    Camera (OpenCV intrinsics + distortion, pose, photometric settings)
-    scene     Scene = optics + camera + seed; random_scene(); JSON form
-    render    numba ray kernel and the camera's photometric chain: photograph()
-    capture   simulate_capture_set(): photograph a pattern folder into DIR/captures
-    capture_camera  SimCamera: the capture camera ``--camera sim`` (registered in lenticalib.calib.cameras)
+    optics           PanelOptics (lens sheet, pixel plane, emission), seen point, w*, truth profile
+    camera           Camera (OpenCV intrinsics + distortion, pose, photometric settings)
+    scene            Scene = optics + camera + seed; random_scene(); JSON form
+    render           numba ray kernel and the camera's photometric chain: photograph()
+    capture          simulate_capture_set(): a pattern folder photographed into DIR/captures
+    simulate_folder  simulate_folder(): what ``lenticalib simulate`` runs (pattern or board folder)
+    capture_camera   SimCamera: the capture camera ``--camera sim`` (registered in
+                     lenticalib.calib.cameras)
+    crosstalk_truth  the true mixing matrix and view cone, by ray tracing from an eye
+    boards           chessboards (on the panel or printed) photographed by a known camera
+    board_set        simulate_board_set(): a synthetic ``lenticalib camera`` set, truth cameramodel
 
-Heavy modules (numba, OpenCV) load on first use of :func:`photograph`.
+Heavy modules (numba, OpenCV) load on first use of :func:`photograph`; importing the package
+loads numpy and ``optics``, ``camera`` and ``scene``.
 """
 
 from __future__ import annotations

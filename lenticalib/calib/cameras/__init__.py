@@ -7,6 +7,11 @@
     sim        the virtual panel of :mod:`lenticalib.sim` photographed by its      sim, sim:SEED
                virtual camera (writes truth.json and simulation.json as well)
 
+Modules: ``base`` (the :class:`~.base.CaptureCamera` contract and the raster and timing checks
+every kind shares), ``files`` (a photo put in place: the destination's suffix, atomic moves,
+copies and writes), ``gphoto2``, ``opencv`` and ``manual`` (one kind each, as above).  Part of
+the calib layer: imports only core and calib.
+
 Every kind is a :class:`~.base.CaptureCamera`: ``open()``, ``settings()`` (what was locked and
 what could not be), ``capture(name, shown, destination)`` (one photo, put in place atomically as
 ``destination`` + suffix), ``close()``; a context manager.  The kinds are a registry of

@@ -2,12 +2,14 @@
 
 A chessboard is shown on the panel (or printed), photographed 15-30 times from varied, tilted
 views, its corners found in every photo, and one camera model solved with mrcal together with
-every board pose.  Modules, in the order ``lenticalib camera`` uses them:
+every board pose.  Part of the calib layer: imports only core and calib.  Modules, in the order
+``lenticalib camera`` uses them:
 
     board     the chessboard: geometry, design (panel or printed), ``board.json``
     draw      the panel raster and the printable sheet (PDF, 300 dpi PNG)
     corners   corner detection (OpenCV's findChessboardCornersSB), in parallel over photos
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
+    crossval  cross-validation: is mrcal's uncertainty as large as the real error?
     quality   residuals, noise, coverage and projection uncertainty of a solve; truth comparison
     report    the figures (residuals.png, coverage.png, uncertainty.png) and summary.json
     pipeline  the whole calibration, photos to model and report: :func:`~.pipeline.calibrate_camera`
@@ -18,5 +20,7 @@ right as the board is drawn), y down the columns, z into the board; corner (i, j
 j) is at ``(j s, i s, 0)``, s the square size.  For a board shown on a panel the corners lie in
 the panel's pixel plane, so board poses refer to that plane (``docs/camera.md``).
 
-mrcal is imported only by ``solve`` and ``quality`` (and the simulator's truth model).
+mrcal is imported only inside the functions that use it (through ``solve.import_mrcal``, which
+``crossval``, ``quality`` and ``pipeline`` call, and in ``report``); importing the package or
+``board``, ``draw`` and ``corners`` does not load it.
 """

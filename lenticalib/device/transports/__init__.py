@@ -1,10 +1,18 @@
 """Transport registry: URL scheme -> ``"module:attribute"``, imported only when used.
 
-As python-can's interface registry, on the package's one loader (:mod:`lenticalib.core.plugins`):
-third parties add schemes through the entry-point group ``lenticalib.transports`` (name = scheme,
-value = ``module:Class``, or a factory ``(url, family) -> Transport``); a registered backend that
-does not import becomes one BackendUnavailableError naming the missing library.  A backend that
-can list its devices (``list_devices``, :mod:`.base`) shows them in ``lenticalib device list``.
+    base      the :class:`~.base.Transport` base class (a byte pipe to one controller, uniform
+              errors and timeouts) and ``FoundDevice``
+    serial    pyserial: USB CDC ports, pseudo-terminals and ``socket://`` TCP links
+    hid       hidapi: the byte stream in 64-byte numbered reports
+    usb       pyusb: the byte stream in vendor control transfers on endpoint 0
+    emulated  ``emu://NAME[?via=serial|hid|usb&faults...]``: the in-process emulated controller
+
+Part of the device layer: imports only core and device.  As python-can's interface registry, on
+the package's one loader (:mod:`lenticalib.core.plugins`): third parties add schemes through the
+entry-point group ``lenticalib.transports`` (name = scheme, value = ``module:Class``, or a
+factory ``(url, family) -> Transport``); a registered backend that does not import becomes one
+BackendUnavailableError naming the missing library.  A backend that can list its devices
+(``list_devices``, :mod:`.base`) shows them in ``lenticalib device list``.
 """
 
 from __future__ import annotations

@@ -6,6 +6,11 @@
     torch       sparse tables on a torch device (CPU or CUDA); numpy in, numpy out through the registry,
                 tensors in and out with ``torch_encoder.TorchEncoder`` (needs PyTorch)
 
+Modules: ``reference``, ``tables`` and ``fast`` (one encoder each, as above), ``_simd`` (the
+explicitly vectorized uint8 block kernel of ``fast``), ``torch_encoder`` (the ``torch`` encoder)
+with ``torch_tables`` (its sparse tables), and ``common`` (what every encoder checks and shares:
+the view stack and the output raster).  Part of the render layer: imports only core and render.
+
 All of them route by :func:`lenticalib.core.routing.view_map` (same view for every subpixel, ties
 included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
 views and is within 1 LSB for uint8 (fixed-point weights).

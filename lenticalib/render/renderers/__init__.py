@@ -3,6 +3,11 @@
     cpu      a tile-based 3DGS rasterizer in numba, gsplat's forward maths (the default)
     gsplat   gsplat's CUDA rasterizer, all views in one batched call (needs torch and a CUDA GPU)
 
+Modules: ``cpu`` (the ``cpu`` renderer) with ``cpu_project`` (its projection, colour and
+binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), and ``common`` (the checks every
+renderer makes at its boundary and the conventions they share).  Part of the render layer:
+imports only core and render.
+
 Every renderer has the signature of :func:`render` without ``renderer`` and returns
 (N, H, W, 4) float32 RGBA (numpy for ``cpu``, a torch tensor on the GPU for ``gsplat``): RGB
 composited over ``background`` (black when None, i.e. premultiplied) and alpha.  Cameras are
