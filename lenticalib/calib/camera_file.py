@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.documents import read_json_file
 from ..core.errors import BackendUnavailableError, InputError
 
 MRCAL_INSTALL = "pip install --no-deps mrcal==2.5.2.post1 (see the README's set-up command)"
@@ -147,7 +148,6 @@ def load_camera_model(path: str | os.PathLike) -> CameraModel:
             return _from_mrcal(path)
         if path.suffix in (".yaml", ".yml", ".xml"):
             return _from_opencv_storage(path)
-        from ..core.documents import read_json_file
 
         try:
             data = read_json_file(path, "camera model", HINT)

@@ -30,8 +30,9 @@ from pathlib import Path
 from typing import Callable
 
 from ..core.errors import InputError
+from ..core.outputs import check_output_file, check_output_folder, staged_folder
 from ..core.physical import LIMITS
-from ..core.profile import MAX_VIEWS, PanelProfile
+from ..core.profile import MAX_VIEWS, PanelProfile, save_profile
 from . import fit as fit_module
 from .camera_file import CameraModel, load_camera_model
 from .captures import open_capture_set
@@ -129,7 +130,6 @@ def check_fit_outputs(output: str | os.PathLike | None,
     """(profile path, report folder) once both can be written (:mod:`lenticalib.core.outputs`: no
     missing folder is created, a folder is not a profile path, a folder holding anything but a
     report is not replaced); the report defaults to ``NAME-report/`` beside the profile."""
-    from ..core.outputs import check_output_file, check_output_folder
     from .report import REPORT_FILES
 
     output = None if output is None else check_output_file(output, "profile", example="profile.json")
@@ -171,8 +171,6 @@ def fit_capture_sets(capture_dir: str | os.PathLike, *, output: str | os.PathLik
     RETURNED VALUE: a :class:`FitRun`.  Raises InputError/CaptureError (naming the argument or
     file) before the first photo is read, CalibrationError when no plane fits.
     """
-    from ..core.outputs import staged_folder
-    from ..core.profile import save_profile
     from .report import REPORT_FILES, fit_summary, write_report
 
     if views is not None and not 2 <= views <= MAX_VIEWS:

@@ -20,6 +20,8 @@ import numpy as np
 
 from ..core import pattern_sets
 from ..core.errors import InputError
+from ..core.imageio import check_image_output, write_image
+from ..core.outputs import check_output_folder, restored_on_failure
 from ..core.profile import MAX_VIEWS, PanelProfile
 from ..core.sizes import MAX_SIDE, MIN_PANEL_SIDE
 from . import patterns as patterns_module
@@ -28,8 +30,6 @@ from . import patterns as patterns_module
 
 def _write(folder: Path, pattern_set, progress: Callable[..., None] | None,
            progress_total: Callable[[int], None] | None) -> None:
-    from ..core.outputs import restored_on_failure
-
     if progress_total is not None:
         progress_total(len(pattern_set.patterns))
 
@@ -52,8 +52,6 @@ def write_calibration_patterns(output: str | os.PathLike, width: int = 3840, hei
     """Write the calibration patterns of a ``width`` x ``height`` panel with ``views`` views into the
     folder ``output`` (``progress`` once per pattern, ``progress_total`` once before); returns the
     :class:`~.patterns.PatternSet`.  InputError naming the argument or the folder before any work."""
-    from ..core.outputs import check_output_folder
-
     for field, value in (("width", width), ("height", height)):
         if not MIN_PANEL_SIDE <= value <= MAX_SIDE:
             raise InputError(f"{value} pixels is out of range", source=field,
@@ -72,7 +70,6 @@ def write_crosstalk_pattern_folder(profile: PanelProfile, output: str | os.PathL
     """Write the crosstalk patterns of ``profile`` (band sweeps over ``sweep`` columns, default
     :func:`~.crosstalk.patterns.default_sweep`) into the folder ``output``; returns the
     :class:`~.crosstalk.patterns.CrosstalkPatternSet`."""
-    from ..core.outputs import check_output_folder
     from .crosstalk.patterns import default_sweep, design_crosstalk_patterns
 
     if sweep is not None and not (math.isfinite(sweep) and 4 * profile.views <= sweep <= 4 * profile.width):
@@ -89,8 +86,6 @@ def write_direction_pattern(profile: PanelProfile, output: str | os.PathLike, en
     with the encoder entry point ``encode`` the caller passes: the calibration layer does not import
     the render layer) as ``output/direction.png``; a new folder is made only once the raster is
     ready.  Returns its path."""
-    from ..core.imageio import check_image_output, write_image
-    from ..core.outputs import check_output_folder
     from .direction import DIRECTION_PATTERN_NAME, direction_raster
 
     folder = check_output_folder(output, "direction pattern")

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..core.atomic import write_bytes_atomic
 from ..core.documents import FORMATS, write_document
+from ..core.routing import view_coordinate
 
 FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
@@ -220,8 +221,6 @@ def _view_map_figure(fig, result) -> dict:
     """The fitted w at every subpixel of a crop with the measured samples on it, the samples'
     residuals, and the fit's residual per panel block (the summary's ``block_residual_*``)."""
     from matplotlib.patches import Rectangle
-
-    from ..core.routing import view_coordinate
 
     maps, profile, quality = result.maps, result.profile, result.quality
     n = profile.views

@@ -45,6 +45,7 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
+from ..core.arrayfile import GIB, load_npz
 from ..core.errors import InputError
 from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
 from .control_streams import DemoControls, open_text_stream, open_udp
@@ -133,7 +134,6 @@ def load_controls(path: str | os.PathLike, layout: ControlLayout = DEFAULT_LAYOU
 
 def _load_npz(p: Path, layout: ControlLayout) -> ControlTrack:
     source = str(p)
-    from ..core.arrayfile import GIB, load_npz
 
     # Headers first: names, shapes, and at most 1 GiB of arrays (an hour of 70 controls at 1 kHz).
     arrays = load_npz(p, wanted=("t", "controls"), required=("t", "controls"), max_bytes=GIB,

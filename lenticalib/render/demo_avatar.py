@@ -48,6 +48,7 @@ import time
 
 import numpy as np
 
+from ..core.errors import InputError
 from .demo_avatar_parts import (DEMO_BONES, HEAD, NECK, make_brows, make_cavity, make_collar, make_ears, make_eyes,
                                 make_hair, make_lids, make_neck, make_skin, make_teeth)
 from .demo_avatar_shapes import eye_centres, frame_quats, gauss, smoothstep
@@ -115,7 +116,6 @@ def _expression_offsets(p, part_names):
 def demo_avatar_arrays(seed: int = 0, count: int = 100_000) -> dict[str, np.ndarray]:
     """The demo avatar as rig-file arrays (see :mod:`.rig_file`); exactly ``count`` Gaussians (>= 2000)."""
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 2000:
-        from ..core.errors import InputError
         raise InputError(f"count {count!r} is too small", source="count", hint="use at least 2000 Gaussians")
     started = time.perf_counter()
     rng = np.random.default_rng(seed)

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import ImageError, InputError
-from ..core.profile import PanelProfile
+from ..core.imageio import check_image_output, write_image
+from ..core.profile import PanelProfile, load_profile
 from .compensation import DEFAULT_ITERATIONS, DEFAULT_REGULARISATION, Compensator, compensator_from_file
 
 
@@ -85,8 +86,6 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
     .npy).  ``allow_stretch``: views of another aspect ratio than the panel's are stretched.
     Returns :class:`EncodedFile`; InputError/ImageError before any work for a bad argument.
     """
-    from ..core.imageio import check_image_output, write_image
-    from ..core.profile import load_profile
     from .encoders import encode, get_encoder
     from .views import load_quilt, load_view_folder
 

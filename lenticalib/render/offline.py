@@ -25,7 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.atomic import PendingFile
 from ..core.errors import InputError
+from ..core.imageio import IMAGE_SUFFIXES, WRITE_FORMATS, cv2_quiet, write_image
+from ..core.outputs import check_output_file, check_output_folder, staged_folder
 from ..core.profile import PanelProfile
 from .session import AvatarOptions, AvatarSession, open_avatar_session
 
@@ -52,9 +55,6 @@ class RenderRun:
 def check_render_outputs(output: str | os.PathLike, frames: int, views_out: str | os.PathLike | None) -> str:
     """Refuse, before any work, outputs that cannot or must not be written; return the kind of
     output: 'image' (one raster file), 'video' (.mkv) or 'folder'."""
-    from ..core.imageio import IMAGE_SUFFIXES, WRITE_FORMATS
-    from ..core.outputs import check_output_file, check_output_folder
-
     output = str(output)
     suffix = os.path.splitext(output)[1].lower()
     single, video = suffix in WRITE_FORMATS, suffix == ".mkv"
@@ -108,9 +108,6 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
 
 
 def _render_frames(session, output, frames, fps, times, targets, writer, single) -> None:
-    from ..core.imageio import write_image
-    from ..core.outputs import staged_folder
-
     pipeline = session.pipeline
     with contextlib.ExitStack() as stack:
         folders = {name: Path(stack.enter_context(staged_folder(path, what, contents)))
@@ -142,9 +139,6 @@ class _VideoFile:
     (an interrupted render leaves no partial video, and an earlier one stays)."""
 
     def __init__(self, path: str, fps: float):
-        from ..core.atomic import PendingFile
-        from ..core.imageio import cv2_quiet
-
         self._cv2 = cv2_quiet()
         self.path = path
         self._pending = PendingFile(path, "video", suffix=".mkv")  # the replaced file's mode, umask's for a new one

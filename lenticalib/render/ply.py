@@ -36,6 +36,7 @@ import re
 
 import numpy as np
 
+from ..core.arrayfile import size_text
 from ..core.atomic import write_bytes_atomic
 from ..core.errors import BackendUnavailableError, InputError
 from .gaussians import Gaussians
@@ -63,8 +64,6 @@ def _check_counts(fh, source: str) -> None:
     character and a separator per property (ASCII).  A header this cannot parse is left to
     plyfile, which reports it.  Leaves ``fh`` at an unspecified position.
     """
-    from ..core.arrayfile import size_text
-
     head = fh.read(_MAX_HEADER)
     end = head.find(b"end_header")
     stop = head.find(b"\n", end) if end >= 0 else -1

@@ -15,7 +15,7 @@ import dataclasses
 import os
 
 from ..core.errors import InputError
-from ..core.profile import PanelProfile
+from ..core.profile import PanelProfile, load_profile
 from .encode_file import CompensationOptions
 
 
@@ -72,7 +72,6 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
                         options: AvatarOptions | None = None) -> AvatarSession:
     """Load ``avatar`` (a 3DGS .ply or a rig .npz) for ``profile`` (a profile or its JSON file) as
     ``options`` say; every user error is an InputError (or BackendUnavailableError) before any frame."""
-    from ..core.profile import load_profile
     from .avatar import load_avatar
     from .camera_models import CAMERA_MODELS, make_cameras
     from .controls import open_controls

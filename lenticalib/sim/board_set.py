@@ -28,9 +28,14 @@ from typing import Callable
 
 import numpy as np
 
+from .. import __version__
+from ..calib.intrinsics.board import PANEL_IMAGE, panel_board, print_board, write_manifest
+from ..calib.intrinsics.draw import panel_raster
+from ..calib.intrinsics.solve import import_mrcal, write_cameramodel
 from ..core.atomic import write_bytes_atomic
 from ..core.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
+from ..core.imageio import write_image
 from .boards import (BoardPose, board_poses, calibration_camera, camera_for_pose, photograph_print_board)
 
 CAPTURE_FOLDER = "captures"
@@ -66,8 +71,6 @@ def panel_scene(seed: int, resolution: tuple[int, int], conditions: str = "stand
 
 def truth_cameramodel(camera):
     """The camera's intrinsics as an ``mrcal.cameramodel`` (LENSMODEL_OPENCV5, identity pose)."""
-    from ..calib.intrinsics.solve import import_mrcal
-
     mrcal = import_mrcal()
     intrinsics = np.array([camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion], np.float64)
     return mrcal.cameramodel(intrinsics=("LENSMODEL_OPENCV5", intrinsics), imagersize=(camera.width, camera.height))
@@ -99,11 +102,6 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     RETURNED VALUE
     the ``simulation.json`` document (also written).
     """
-    from ..calib.intrinsics.board import PANEL_IMAGE, panel_board, print_board, write_manifest
-    from ..calib.intrinsics.draw import panel_raster
-    from ..calib.intrinsics.solve import write_cameramodel
-    from ..core.imageio import write_image
-
     if kind not in ("panel", "print"):
         raise InputError(f"unknown board kind {kind!r}", source="--kind", hint="use panel or print")
     folder = Path(directory)
@@ -148,7 +146,6 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     truth = truth_cameramodel(camera)
     write_cameramodel(truth, folder / TRUTH_NAME, note=f"lenticalib camera simulate: the true intrinsics "
                                                      f"(seed {seed}, {kind} board)")
-    from .. import __version__
 
     document = {**DOCUMENT.envelope(), "kind": kind, "seed": int(seed), "conditions": conditions,
                 "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

@@ -31,6 +31,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from .. import __version__
 from ..core.atomic import write_bytes_atomic
 from ..core.documents import FORMATS, write_document
 from ..core.errors import InputError
@@ -124,8 +125,6 @@ def write_simulation_record(directory: str | os.PathLike, scene: Scene, pattern_
 
 def _simulation_record(scene: Scene, pattern_set, status: str, captures: list[dict[str, Any]],
                        truth: dict[str, Any] | None) -> dict[str, Any]:
-    from .. import __version__
-
     record: dict[str, Any] = {
         **FORMATS["lenticalib.simulation-run"].envelope(), "status": status,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

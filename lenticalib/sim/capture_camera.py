@@ -35,7 +35,10 @@ import numpy as np
 
 from ..calib.cameras.base import CaptureCamera
 from ..calib.cameras.files import write_photo
+from ..calib.captures import MIN_PHOTO_PIXELS
+from ..core.documents import FORMATS, read_document
 from ..core.errors import CameraError, InputError
+from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.sizes import MIN_CAMERA_SIDE, check_raster, parse_size
 from .scene import DEFAULT_RESOLUTION
 
@@ -86,8 +89,6 @@ class SimCamera(CaptureCamera):
         self._truth: dict | None = None
 
     def _open(self) -> list[str]:
-        from ..calib.captures import MIN_PHOTO_PIXELS
-
         width, height = self.resolution
         lines = [f"virtual camera: seed {self.seed}, {width}x{height} pixels, {self.subsamples}x{self.subsamples} "
                  f"rays per pixel, conditions {self.conditions}; the scene is drawn for the panel size of the "
@@ -100,7 +101,6 @@ class SimCamera(CaptureCamera):
 
     def _start(self, shown: np.ndarray, directory: Path) -> None:
         """Read the pattern set of ``directory`` and draw the scene for the shown panel size."""
-        from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
         from .scene import random_scene
 
         pattern_set = read_pattern_folder(directory)
@@ -115,7 +115,6 @@ class SimCamera(CaptureCamera):
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
         photos are still there (a resumed capture); empty otherwise."""
-        from ..core.documents import FORMATS, read_document
         from .capture import SIMULATION_NAME
         from .scene import Scene
 

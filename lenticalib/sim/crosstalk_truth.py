@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from ..core.profile import PanelProfile
+from ..core.routing import view_map
 from .camera import Camera
 from .optics import PanelOptics, view_coordinate_truth
 from .scene import Scene
@@ -85,8 +86,6 @@ def true_mixing_matrix(optics: PanelOptics, camera_eye, profile: PanelProfile) -
     The eye sits at the centre of the zone of view ``c = N/2`` (see the module docstring); the
     light of view ``c + m`` gives ``h[m]`` and ``M[i][j] = h[(j - i) mod N] / sum(h)``.
     """
-    from ..core.routing import view_map
-
     n = profile.views
     eye = zone_centre_eye(optics, camera_eye, profile)
     views_map = view_map(profile)
@@ -106,8 +105,6 @@ def true_view_cone(optics: PanelOptics, camera_eye, profile: PanelProfile, offse
     RETURNED VALUE
     float64 (k,): light of view N/2 over the light of the white panel, at each offset.
     """
-    from ..core.routing import view_map
-
     n = profile.views
     views_map = view_map(profile)
     view = _view_raster(views_map, profile, n // 2)

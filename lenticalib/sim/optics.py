@@ -39,6 +39,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.fields import unknown_key_message
 from ..core.profile import SUBPIXEL_ORDERS, PanelProfile
 
 BACKLIGHT_TERMS = ("x", "y", "xx", "yy", "xy")
@@ -266,8 +267,6 @@ def _fields_from(cls, data: Any, source: str, what: str, tuples: tuple[str, ...]
                 if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
     unknown = set(data) - names
     if unknown:
-        from ..core.fields import unknown_key_message
-
         raise InputError(unknown_key_message(unknown, names, f"{what} field"), source=source,
                          hint="known: " + ", ".join(sorted(names)))
     missing = sorted(required - set(data))

@@ -38,6 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..core import sizes
 from ..core.colour import srgb_decode_lut, srgb_encode
 from ..core.errors import ImageError
 from .camera import Camera
@@ -306,8 +307,6 @@ def _kernel_params(scene: Scene) -> np.ndarray:
 
 def check_raster(raster: np.ndarray, scene: Scene, source: str = "raster") -> np.ndarray:
     """The raster as C-contiguous uint8 ``(H, W, 3)``; ImageError unless it fits the scene's panel."""
-    from ..core import sizes
-
     return sizes.check_raster(raster, scene.optics.width, scene.optics.height, source, "the simulated panel",
                               hint="write the patterns at the simulated panel's size with 'lenticalib patterns'")
 

@@ -25,7 +25,13 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from ..calib.captures import MIN_PHOTO_PIXELS
+from ..calib.intrinsics.board import read_board
+from ..calib.intrinsics.report import REPORT_FILES
+from ..core.documents import read_json_file
 from ..core.errors import InputError
+from ..core.outputs import check_output_file, check_output_folder, restored_on_failure, staged_folder
+from ..core.pattern_sets import read_pattern_folder
 from ..core.sizes import MAX_SIDE, MIN_CAMERA_SIDE, check_sides
 
 MAX_PIXELS = 64_000_000  # camera pixels in all (the simulator holds several float images of this size)
@@ -106,8 +112,6 @@ def check_resolution(width: int, height: int, source: str) -> None:
     The lower limit is the fit's own (:data:`lenticalib.calib.captures.MIN_PHOTO_PIXELS`), so a
     simulated set is never refused by the fit for its size; the upper limits bound memory.
     """
-    from ..calib.captures import MIN_PHOTO_PIXELS
-
     pixels = width * height
     if pixels < MIN_PHOTO_PIXELS:
         raise InputError(f"a {width}x{height} camera ({pixels / 1e6:.2f} megapixels) is below the "
@@ -121,7 +125,6 @@ def check_resolution(width: int, height: int, source: str) -> None:
 
 def build_scene(options: SimulationOptions, pattern_set):
     """The scene ``options`` ask for: loaded from ``options.scene``, else drawn by :func:`~.scene.random_scene`."""
-    from ..core.documents import read_json_file
     from .scene import Scene, random_scene
 
     o = options
@@ -160,7 +163,6 @@ def is_board_folder(directory: str | os.PathLike) -> bool:
 
 def _check_outputs(directory) -> list[Path]:
     """The paths a pattern simulation writes, refused before any work when they cannot (or must not) be written."""
-    from ..core.outputs import check_output_file, check_output_folder
     from .capture import CAPTURE_FOLDER, CROSSTALK_TRUTH_NAME, SIMULATION_NAME, TRUTH_NAME
 
     folder = Path(directory)
@@ -183,8 +185,6 @@ def simulate_folder(directory: str | os.PathLike, options: SimulationOptions | N
     ``progress`` is called once per photo, ``progress_total`` once before with their number.
     Returns :class:`SimulationRun`; every user error comes before the first photo.
     """
-    from ..core.pattern_sets import read_pattern_folder
-    from ..core.outputs import restored_on_failure
     from .capture import simulate_capture_set
 
     o = options or SimulationOptions()
@@ -214,8 +214,6 @@ def simulate_folder(directory: str | os.PathLike, options: SimulationOptions | N
 
 def _simulate_board(folder: Path, o: SimulationOptions, progress, progress_total) -> SimulationRun:
     """Photograph the panel board of a 'camera patterns' folder."""
-    from ..calib.intrinsics.board import read_board
-    from ..core.outputs import check_output_file, check_output_folder, restored_on_failure
     from .board_set import CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME, simulate_board_set
 
     board = read_board(folder / "board.json")
@@ -262,8 +260,6 @@ def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", se
     known camera of ``resolution`` (:data:`~lenticalib.core.sizes.MIN_CAMERA_SIDE`..:data:`~lenticalib.core.sizes.MAX_SIDE` pixels per side), ``DIR/truth.cameramodel`` and the
     board poses in ``DIR/simulation.json`` (:func:`~.board_set.simulate_board_set`).  ``progress``
     once per photo.  InputError naming the argument before any photo."""
-    from ..calib.intrinsics.report import REPORT_FILES
-    from ..core.outputs import check_output_folder, staged_folder
     from .board_set import CAPTURE_FOLDER, CONTENTS, simulate_board_set
 
     check_sides(*resolution, "resolution", MIN_CAMERA_SIDE)

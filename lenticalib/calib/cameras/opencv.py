@@ -19,6 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...core.errors import CameraError, InputError
+from ...core.imageio import cv2_quiet
 from .base import CaptureCamera, positive_seconds
 from .files import write_photo
 
@@ -69,8 +70,6 @@ class OpenCVCamera(CaptureCamera):
         self._capture_device = None
 
     def _open(self) -> list[str]:
-        from ...core.imageio import cv2_quiet
-
         cv2 = cv2_quiet()
         device = cv2.VideoCapture(self.device)
         if not device.isOpened():
@@ -126,8 +125,6 @@ class OpenCVCamera(CaptureCamera):
                 f"reads {back:g}); OpenCV's own limit applies")
 
     def _capture(self, name, shown, destination: Path) -> Path:
-        from ...core.imageio import cv2_quiet
-
         cv2 = cv2_quiet()
         for _ in range(self.discard):
             self._capture_device.grab()

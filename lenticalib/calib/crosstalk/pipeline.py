@@ -21,7 +21,8 @@ from typing import Callable
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.profile import PanelProfile
+from ...core.outputs import check_output_file, check_output_folder, staged_folder
+from ...core.profile import PanelProfile, load_profile, make_provenance
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,8 +113,6 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     :class:`CrosstalkRun`.  Every InputError about the arguments and outputs comes before the
     photos are read.
     """
-    from ...core.outputs import check_output_file, check_output_folder, staged_folder
-    from ...core.profile import load_profile, make_provenance
     from .measure import measure_crosstalk, open_crosstalk_set
     from .report import REPORT_FILES, write_crosstalk_report
     from .result import crosstalk_document, write_crosstalk

@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Callable
 
 from ...core.errors import ImageError, InputError
+from ...core.imageio import header_size, write_image
+from ...core.outputs import check_output_file, check_output_folder, staged_folder
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 MIN_VIEWS = 10  # photos with the board found, at least
@@ -77,8 +79,6 @@ def collect_photos(items) -> list[Path]:
 def photo_size(path) -> tuple[int, int]:
     """(width, height) of a photo as read with its EXIF orientation, from its header; ImageError when
     it is not a readable image or has more pixels than :data:`lenticalib.core.imageio.MAX_IMAGE_PIXELS`."""
-    from ...core.imageio import header_size
-
     size = header_size(path, camera_orientation=True)
     if size is None:
         raise ImageError("not a readable photo (not an image format Pillow knows)", source=str(path),
@@ -133,7 +133,6 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     """
     import numpy as np
 
-    from ...core.outputs import check_output_file, check_output_folder, staged_folder
     from . import solve as solve_module
     from .report import REPORT_FILES, calibration_summary, write_report
 
@@ -199,8 +198,6 @@ def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel
     or ``lens_pitch_px`` panel pixels from a profile) widens the squares' soft edges to span at
     least two lenses.  Returns (panel board, printed board); InputError naming the argument first.
     """
-    from ...core.imageio import write_image
-    from ...core.outputs import check_output_folder, staged_folder
     from .board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, panel_board, print_board,
                         write_manifest)
     from .draw import panel_raster, write_print_sheet

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.documents import FORMATS, write_document
+from ...core.profile import make_provenance
 from ..report import write_figures
 from .crossval import note_line
 
@@ -74,8 +75,6 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
     working_distance_mm, uncertainty, provenance (inputs with SHA-256), seconds, note (the
     text written at the top of the .cameramodel).
     """
-    from ...core.profile import make_provenance
-
     model = cal.cameramodel()
     lens, values = model.intrinsics()
     used = [f for f in found if f.corners is not None]

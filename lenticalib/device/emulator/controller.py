@@ -18,6 +18,7 @@ import threading
 import time
 from pathlib import Path
 
+from ...core.errors import InputError
 from ..framing import FrameParser, encode_frame
 from ..protocol import PROTOCOL_MINOR, PanelGeometry
 from .faults import FaultPlan
@@ -63,8 +64,6 @@ def default_panel() -> PanelGeometry:
 
     family = family_for()
     if family.panel is None:
-        from ...core.errors import InputError
-
         raise InputError("the controller description has no [panel] table", source=family.source,
                          hint="add one as in drivers/lc32.toml, or give the emulator --panel")
     return family.panel
@@ -217,7 +216,6 @@ def controller_for_url(url) -> EmulatedController:
     ``power-cut-after=3``, ``torn=1``, ``babble=1``, ``seed=7``, ...) map onto :class:`FaultPlan` fields.
     Raises InputError naming the URL and the bad parameter.
     """
-    from ...core.errors import InputError
     from . import config
 
     def bad(key: str, message: str):
