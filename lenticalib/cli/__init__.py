@@ -2,7 +2,8 @@
 
 Subcommand modules are imported only once their command is chosen, and they import numpy,
 OpenCV and numba lazily, so ``--help`` is instant.  Every :class:`~lenticalib.core.errors.LenticalibError`
-ends as one line on stderr and exit status 2.
+ends as one line on stderr and exit status 2, told in the command's flags: a subcommand's parser
+may set a default ``flags`` (the library's argument names -> its flags, :mod:`._flags`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import sys
 
 from .. import __version__
 from ..core.errors import LenticalibError
+from ._flags import with_flags
 
 _COMMANDS = {
     "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),
@@ -52,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.run(args) or 0)
     except LenticalibError as exc:
-        print(f"lenticalib: error: {exc}", file=sys.stderr)
+        print(f"lenticalib: error: {with_flags(exc, getattr(args, 'flags', None) or {})}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. head: not an error of ours
         import os

@@ -93,7 +93,9 @@ def _panel_geometry(args: argparse.Namespace):
 
 
 FLAGS = {"pixel_pitch_mm": "--pixel-pitch", "lens_pitch_mm": "--lens-pitch", "resolution": "--resolution",
-         "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed"}  # the library's argument names
+         "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed", "kind": "--kind",
+         "conditions": "--conditions", "squares": "--squares", "paper": "--paper",
+         "square_mm": "--print-square"}  # the library's argument names
 
 
 def run_patterns(args: argparse.Namespace) -> int:
@@ -104,7 +106,7 @@ def run_patterns(args: argparse.Namespace) -> int:
     from ._flags import flag_names
 
     width, height, pitch, lens_px = _panel_geometry(args)
-    squares = parse_squares(args.squares) if args.squares else None
+    squares = parse_squares(args.squares, "--squares") if args.squares else None
     with flag_names(FLAGS):
         board, sheet = write_board_folder(args.output, width, height, pitch, squares=squares,
                                           lens_pitch_mm=args.lens_pitch, lens_pitch_px=lens_px,

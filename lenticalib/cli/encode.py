@@ -35,7 +35,7 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
 
 COMPENSATION_FLAGS = {"crosstalk_file": "--compensate crosstalk.json", "black_lift": "--black-lift",
                       "regularisation": "--regularisation", "iterations": "--iterations"}
-FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE", "allow_stretch": "--stretch"}
+FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE", "allow_stretch": "--stretch", "grid": "--grid"}
 
 
 def compensation_options(args: argparse.Namespace):
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from ..render.views import parse_grid
     from ._flags import flag_names
 
-    grid = parse_grid(args.grid) if args.grid else None
+    grid = parse_grid(args.grid, "--grid") if args.grid else None
     with flag_names(FLAGS):
         done = encode_to_file(args.profile, args.output, views_dir=args.views_dir, quilt=args.quilt, grid=grid,
                               encoder=args.encoder, allow_stretch=args.stretch, compensation=compensation_options(args))
