@@ -248,7 +248,7 @@ def test_camera_errors_are_one_line_before_any_work(tmp_path, printed):
     patterns = ["camera", "patterns", "-o", tmp_path / "b"]
     _expect_error(patterns + ["--panel", "1920x1080"], "pixel pitch", "--pixel-pitch", absent=[tmp_path / "b"])
     _expect_error(patterns + ["--panel", "1920x1080", "--pixel-pitch", "0.3", "--squares", "15x9"],
-                  "half turn")
+                  "--squares: a 15x9 board", "half turn")  # the library's squares, as the flag
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4, "width": 1920,
                "height": 1080, "subpixel_order": "BGR"}
     (tmp_path / "panel.json").write_text(json.dumps(profile))

@@ -160,6 +160,12 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_proce
         (["capture", foreign, "--camera", "sim", "--display", "none"], None, "holds files that are not photos"),
         (["capture", big, "--camera", "sim", "--display", "0"], xvfb.variables(), "is 640x360"),
         (["capture", folder, "--camera", "sim", "--settle", "-1"], None, "--settle"),
+        # the library names its argument (camera, display); the command says its flags
+        (["capture", folder, "--camera", "polaroid"], None, "(e.g. --camera opencv:0)"),
+        (["capture", folder, "--camera", "sim:x"], None, "--camera: bad seed 'x'"),
+        (["capture", folder, "--camera", "manual", "--timeout", "0"], None, "--camera manual: option 'timeout'"),
+        (["capture", folder, "--camera", "sim", "--display", "@x"], xvfb.variables(),
+         "--display: position '@x' is not @X,Y (e.g. --display @3840,0)"),
     ]
     for args, env, message in cases:
         result = cli_process(*args, env=env, timeout=120)

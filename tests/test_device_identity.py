@@ -133,12 +133,12 @@ def test_a_profile_for_another_panel_is_refused_before_anything_is_written(chang
         with pytest.raises(ProfileError, match=message) as err:
             panel.flash(other, source="hd.json")
         assert str(err.value).startswith("hd.json: made for another panel than the panel of emu://panel")
-        assert "--force" in str(err.value) and "\n" not in str(err.value)
+        assert "`force`" in str(err.value) and "\n" not in str(err.value)
         assert (tmp_path / "emu" / "panel.flash").read_bytes() == image  # not even the inactive slot erased
         warnings = []
         result = panel.flash(other, force=True, warn=warnings.append)
     assert same_constants(result.record.to_profile(), other)
-    assert len(warnings) == 1 and message in warnings[0] and "--force" in warnings[0]
+    assert len(warnings) == 1 and message in warnings[0] and "forced" in warnings[0]
 
 
 def test_the_emulator_reports_the_panel_it_is_given():

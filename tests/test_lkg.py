@@ -421,7 +421,7 @@ def test_export_without_dpi_refused(tmp_path):
                            width=10, height=10)
     with pytest.raises(ProfileError) as err:
         lkg.export_visual_json(profile, tmp_path / "v.json")
-    assert "DPI" in str(err.value) and "--dpi" in str(err.value)
+    assert "DPI" in str(err.value) and "`dpi`" in str(err.value)
     assert not (tmp_path / "v.json").exists()
     for bad in (0, -1.0, float("nan"), "300", True):
         with pytest.raises(ProfileError) as err:

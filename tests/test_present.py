@@ -80,14 +80,14 @@ def test_monitor_choice_by_index_position_name_and_size():
     assert choose_monitor(MONITORS, "dell").index == 0
     assert choose_monitor(MONITORS[:2], size=(3840, 2160)).index == 1
     assert choose_monitor(MONITORS).index == 0  # nothing asked: the primary
-    with pytest.raises(DisplayError, match=r"2 monitors show 3840x2160.*--display"):
+    with pytest.raises(DisplayError, match=r"2 monitors show 3840x2160.*`display`"):
         choose_monitor(MONITORS, size=(3840, 2160))
     with pytest.raises(DisplayError, match=r"no monitor shows 1920x1080.*LentiPanel 4K 3840x2160"):
         choose_monitor(MONITORS, size=(1920, 1080))
-    with pytest.raises(DisplayError, match=r"--display: no monitor matches 'Samsung'"):
+    with pytest.raises(DisplayError, match=r"^display: no monitor matches 'Samsung'"):
         choose_monitor(MONITORS, "Samsung")
     twins = [MONITORS[1], Monitor(3, "LentiPanel 4K B", 0, 2160, 3840, 2160)]
-    with pytest.raises(DisplayError, match=r"--display: 2 monitors match 'lentipanel'"):
+    with pytest.raises(DisplayError, match=r"^display: 2 monitors match 'lentipanel'"):
         choose_monitor(twins, "lentipanel")
     assert choose_monitor(twins, "lentipanel 4k").index == 1  # an exact name wins over a part of another
     with pytest.raises(DisplayError, match="is not @X,Y"):

@@ -229,7 +229,7 @@ def test_the_registry_knows_both_renderers_and_refuses_others():
     assert get_renderer("cpu") is render_cpu
     with pytest.raises(InputError, match="unknown renderer 'opengl'") as err:
         get_renderer("opengl")
-    assert err.value.source == "--renderer"
+    assert err.value.source == "renderer"
     np.testing.assert_array_equal(render(random_scene(0, n=20), *CAMERAS, W, H, renderer="cpu"),
                                   render_cpu(random_scene(0, n=20), *CAMERAS, W, H))
 
@@ -243,7 +243,7 @@ def test_the_gsplat_renderer_says_it_needs_a_cuda_gpu():
         return
     with pytest.raises(BackendUnavailableError, match="CUDA GPU") as err:
         render(random_scene(0, n=5), *CAMERAS, W, H, renderer="gsplat")
-    assert err.value.source == "--renderer"
+    assert err.value.source == "renderer"
 
 
 def test_non_finite_gaussians_are_refused_and_huge_ones_do_not_break_the_kernels():

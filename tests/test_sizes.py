@@ -72,7 +72,7 @@ def test_every_size_option_parses_through_the_one_parser():
     from lenticalib.device.emulator.config import parse_size as emulator_panel
 
     for parse, source in ((view_size, "--view-size"), (capture_resolution, "--resolution"),
-                          (sim_camera, "--camera sim")):
+                          (sim_camera, "camera sim")):  # the library names its argument, the CLI its flag
         assert parse("4000x3000") == (4000, 3000)
         for bad in ("16385x3000", "4k"):
             text = one_line(lambda: parse(bad))

@@ -181,14 +181,14 @@ def test_left_right_and_order_for_direction(model):
 
 
 @pytest.mark.parametrize("options, source", [
-    ({"view_size": (960, 0)}, "--view-size"), ({"view_size": (960.5, 540)}, "--view-size"),
-    ({"view_size": 960}, "--view-size"), ({"view_size": (True, 540)}, "--view-size"),
-    ({"fov_deg": 1.0}, "--fov"), ({"fov_deg": 120.0}, "--fov"), ({"fov_deg": float("nan")}, "--fov"),
-    ({"fov_deg": "wide"}, "--fov"), ({"radius": 0.0}, "--radius"), ({"radius": -1.0}, "--radius"),
-    ({"yaw_range_deg": 0.0}, "--yaw-range"), ({"yaw_range_deg": 180.0}, "--yaw-range"),
-    ({"n_views": 0}, "--views"), ({"n_views": 255}, "--views"), ({"n_views": 4.0}, "--views"),
-    ({"up": (0, 0, 0)}, "--up"), ({"forward": (0, 2, 0)}, "--forward"), ({"height": 0.0}, "--height"),
-    ({"centre": (1, 2)}, "--centre"),
+    ({"view_size": (960, 0)}, "view_size"), ({"view_size": (960.5, 540)}, "view_size"),
+    ({"view_size": 960}, "view_size"), ({"view_size": (True, 540)}, "view_size"),
+    ({"fov_deg": 1.0}, "fov_deg"), ({"fov_deg": 120.0}, "fov_deg"), ({"fov_deg": float("nan")}, "fov_deg"),
+    ({"fov_deg": "wide"}, "fov_deg"), ({"radius": 0.0}, "radius"), ({"radius": -1.0}, "radius"),
+    ({"yaw_range_deg": 0.0}, "yaw_range_deg"), ({"yaw_range_deg": 180.0}, "yaw_range_deg"),
+    ({"n_views": 0}, "n_views"), ({"n_views": 255}, "n_views"), ({"n_views": 4.0}, "n_views"),
+    ({"up": (0, 0, 0)}, "up"), ({"forward": (0, 2, 0)}, "forward"), ({"height": 0.0}, "height"),
+    ({"centre": (1, 2)}, "centre"),
 ])
 @pytest.mark.parametrize("model", ["arc", "shear"])
 def test_bad_options_name_the_option(model, options, source):
@@ -202,7 +202,7 @@ def test_bad_options_name_the_option(model, options, source):
 def test_unknown_model_and_bad_inputs():
     with pytest.raises(InputError) as err:
         make_cameras("fisheye", (LO, HI), 8)
-    assert err.value.source == "--camera-model" and "arc" in str(err.value)
+    assert err.value.source == "model" and "arc" in str(err.value)
     for bbox in [(HI, LO), (LO, HI[:2]), 3.0]:
         with pytest.raises(InputError) as err:
             make_cameras("arc", bbox, 8)

@@ -337,7 +337,7 @@ def test_the_rule_refuses_two_different_panels_and_distrusts_two_subpixel_orders
     a, b = _pair(1.0)
     with pytest.raises(InputError, match="different panels") as err:
         direction_from_moved_right(a, b.replace(views=16, reference_view=8.0))
-    assert err.value.source == "--moved-right"
+    assert err.value.source == "moved_right"
     with pytest.raises(InputError):
         direction_from_moved_right(a, b.replace(width=192))
     order = direction_from_moved_right(a, b.replace(subpixel_order="RGB"))

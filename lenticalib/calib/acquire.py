@@ -54,7 +54,7 @@ LEVEL_FLOOR = 0.01  # linear light added before the square root (read noise domi
 EXACT = 1e-12  # change energy of two identical photos (rounding only)
 MIN_SEEN_CHANGE = 0.01  # share of the panel's columns two crosstalk patterns must be seen differently in
 VIRTUAL_HINT = ("the virtual camera photographs what the presenter shows: run the capture again with "
-                "--display none (it resumes here), and report the rejected photos if it happens again")
+                "`display` none (it resumes here), and report the rejected photos if it happens again")
 MAX_CLIPPED = 0.02  # of the bright part of the photo (the fit refuses more than 2 % of the panel)
 CHECK_WIDTH = 800  # photos are checked at this width (fast; the fit works at up to 2560)
 
@@ -184,7 +184,7 @@ def capture_set(directory: str | os.PathLike, presenter, camera, *, settle: floa
     if tuple(presenter.size) != (pattern_set.width, pattern_set.height):
         raise InputError(f"the patterns are for a {pattern_set.width}x{pattern_set.height} panel but the display "
                          f"is {presenter.size[0]}x{presenter.size[1]}", source=str(directory),
-                         hint="capture on the panel's own monitor (--display), at its native mode")
+                         hint="capture on the panel's own monitor (`display`), at its native mode")
     captures = _prepared_folder(directory, pattern_set.names)
     slides = {s.name: s for s in slides_from_path(directory)[0]}
     report = CaptureReport(settings=list(camera.settings()))

@@ -175,7 +175,7 @@ def direction_from_moved_right(first: PanelProfile, second: PanelProfile) -> Dir
     """
     if (first.width, first.height, first.views) != (second.width, second.height, second.views):
         raise InputError(f"the two fits describe different panels ({first.width}x{first.height}, {first.views} "
-                         f"views vs {second.width}x{second.height}, {second.views} views)", source="--moved-right",
+                         f"views vs {second.width}x{second.height}, {second.views} views)", source="moved_right",
                          hint="photograph the same patterns of the same panel from both positions")
     n = first.views
     x_c, y_c = 1.5 * first.width, 0.5 * first.height

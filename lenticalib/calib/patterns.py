@@ -149,10 +149,10 @@ def design_patterns(width: int, height: int, views: int) -> PatternSet:
     of a cycle per lens up to Delta_r = 32, so the lenses do not alias it).
     """
     if not (isinstance(width, int) and isinstance(height, int) and width >= 64 and height >= 64):
-        raise InputError(f"panel size {width}x{height} is too small", source="--width/--height",
+        raise InputError(f"panel size {width}x{height} is too small", source="width/height",
                          hint="give the panel raster in pixels, at least 64x64")
     if not (isinstance(views, int) and 2 <= views <= 254):
-        raise InputError(f"views must be an integer from 2 to 254, got {views}", source="--views")
+        raise InputError(f"views must be an integer from 2 to 254, got {views}", source="views")
     sub = 3 * width
     t1 = sub / 12.0
     t2 = min(96.0, t1 / 2.0)

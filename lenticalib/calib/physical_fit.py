@@ -114,14 +114,14 @@ def _gap_from_sets(profile1: PanelProfile, pose1: PanelPose, profile2: PanelProf
     ratio = max(q1, q2) / min(q1, q2)
     if ratio < MIN_DISTANCE_RATIO:
         raise InputError(f"the two capture sets are {q1:.0f} and {q2:.0f} mm from the panel: too close in distance "
-                         "to tell the gap", source="--second-distance",
+                         "to tell the gap", source="second_distance",
                          hint=f"take the second set at least {100 * (MIN_DISTANCE_RATIO - 1):.0f} % nearer or farther "
                               "(e.g. 450 and 800 mm)")
     d1, d2 = profile1.period, profile2.period
     gap = gap_from_two_distances(d1, q1, d2, q2)
     if not gap > 0:
         raise InputError(f"the periods fitted at {q1:.0f} and {q2:.0f} mm ({d1:.6f}, {d2:.6f} subpixels) give a gap "
-                         f"of {gap:.3g} mm", source="--second-distance",
+                         f"of {gap:.3g} mm", source="second_distance",
                          hint="the period must shrink as the camera moves away; check that both sets show one panel "
                               "and the camera model is the camera's")
     s1 = (profile1.uncertainty or {}).get("period", 0.0)

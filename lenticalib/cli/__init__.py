@@ -32,7 +32,9 @@ Helpers (not commands)
 ``add_arguments``); those modules import numpy, OpenCV, numba and the library layers only inside
 their run functions, so building the parser loads no third-party library and, of the library,
 only ``core.errors``: ``--help`` is instant.  Every
-:class:`~lenticalib.core.errors.LenticalibError` ends as one line on stderr and exit status 2.
+:class:`~lenticalib.core.errors.LenticalibError` ends as one line on stderr and exit status 2,
+told in the command's flags: a subcommand's parser may set a default ``flags`` (the library's
+argument names -> its flags, :mod:`._flags`).
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ import sys
 
 from .. import __version__
 from ..core.errors import LenticalibError
+from ._flags import with_flags
 
 _COMMANDS = {
     "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),
@@ -82,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.run(args) or 0)
     except LenticalibError as exc:
-        print(f"lenticalib: error: {exc}", file=sys.stderr)
+        print(f"lenticalib: error: {with_flags(exc, getattr(args, 'flags', None) or {})}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. head: not an error of ours
         import os

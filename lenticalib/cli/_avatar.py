@@ -39,7 +39,9 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
 
 FLAGS = {"profile": "--profile", "controls": "--controls", "edge_desaturation": "--edge-desaturation",
          "frames": "--frames", "fps": "--fps", "output": "--output", "views_out": "--views-out VDIR",
-         "camera_model": "--camera-model"}
+         "camera_model": "--camera-model", "radius": "--radius", "fov_deg": "--fov", "yaw_range_deg": "--yaw-range",
+         "view_size": "--view-size", "background": "--background", "encoder": "--encoder", "device": "--device",
+         "driver": "--driver", "renderer": "--renderer"}
 """The library's argument names, as the flags of play and render (with those of --compensate)."""
 
 

@@ -6,7 +6,8 @@ MM"}`` turns that source into ``--pixel-pitch`` (the first word) and, in the mes
 hint, every whole-word ``pixel_pitch_mm`` into ``--pixel-pitch MM``.  Inside text, a name is
 replaced where it holds an underscore and stands alone (not in a field path or quotes such as
 ``'physical.gap_mm'``), or where it stands in backquotes (```seed``` -> ``--seed N``); a plain
-word like ``views`` is otherwise left alone (it is mapped as a source only).
+word like ``views`` is otherwise left alone (it is mapped as a source only).  A source whose first
+word is a name keeps the rest: ``"camera sim"`` becomes ``--camera sim``.
 """
 
 from __future__ import annotations
@@ -30,8 +31,9 @@ def with_flags(exc: LenticalibError, flags: Mapping[str, str]) -> LenticalibErro
 
     if flags:
         exc.message, exc.hint = replace(exc.message), replace(exc.hint)
-    if exc.source in flags:
-        exc.source = flags[exc.source].split()[0]
+    name, space, rest = (exc.source or "").partition(" ")
+    if exc.source in flags or (space and name in flags):
+        exc.source = flags[name].split()[0] + space + rest
     return exc
 
 

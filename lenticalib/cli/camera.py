@@ -93,7 +93,9 @@ def _panel_geometry(args: argparse.Namespace):
 
 
 FLAGS = {"pixel_pitch_mm": "--pixel-pitch", "lens_pitch_mm": "--lens-pitch", "resolution": "--resolution",
-         "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed"}  # the library's argument names
+         "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed", "kind": "--kind",
+         "conditions": "--conditions", "squares": "--squares", "paper": "--paper",
+         "square_mm": "--print-square"}  # the library's argument names
 
 
 def run_patterns(args: argparse.Namespace) -> int:

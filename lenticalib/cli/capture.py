@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="sim camera resolution (default the same as 'lenticalib simulate': 4000x3000)")
     parser.add_argument("--conditions", choices=("standard", "hard"), default="standard",
                         help="sim camera behaviour (hard: phone-like tone curve, exposure drift, shake, noise)")
-    parser.set_defaults(run=run)
+    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display"})  # library names -> flags
 
 
 def run(args: argparse.Namespace) -> int:

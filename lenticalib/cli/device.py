@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     flash.add_argument("--force", action="store_true",
                        help="flash a profile made for another panel (size, subpixel order or view count) "
                             "anyway, for panel bring-up")
-    flash.set_defaults(run=run_flash)
+    flash.set_defaults(run=run_flash, flags={"force": "--force"})  # the library's names
     verify = sub.add_parser("verify", help="check that the controller holds a profile; exit 1 if not")
     verify.add_argument("url", metavar="URL")
     verify.add_argument("profile", metavar="PROFILE")

@@ -42,7 +42,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     faults.add_argument("--disconnect-after", type=int, metavar="N",
                         help="the link goes away after N request frames (exit status 76)")
     faults.add_argument("--seed", type=int, default=0, help="random seed of the faults (default 0)")
-    parser.set_defaults(run=run)
+    parser.set_defaults(run=run, flags=FLAGS)
+
+
+FLAGS = {"drop_rate": "--drop", "corrupt_rate": "--corrupt", "duplicate_rate": "--duplicate", "delay_rate": "--delay",
+         "stale_rate": "--stale", "delay_s": "--delay-s", "disconnect_after": "--disconnect-after",
+         "power_cut_after": "--power-cut-after", "serial": "--serial", "port": "--port", "panel": "--panel",
+         "image": "--flash"}  # the library's names
 
 
 def run(args: argparse.Namespace) -> int:

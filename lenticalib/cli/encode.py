@@ -35,7 +35,8 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
 
 COMPENSATION_FLAGS = {"crosstalk_file": "--compensate crosstalk.json", "black_lift": "--black-lift",
                       "regularisation": "--regularisation", "iterations": "--iterations"}
-FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE", "allow_stretch": "--stretch"}
+FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE",
+         "allow_stretch": "--stretch", "grid": "--grid"}
 
 
 def compensation_options(args: argparse.Namespace):

@@ -53,7 +53,8 @@ def check_options(args: argparse.Namespace) -> None:
             setattr(args, key, value)
 
 
-FLAGS = {"width": "--width", "height": "--height", "views": "--views"}  # the library's argument names
+FLAGS = {"width": "--width", "height": "--height", "width/height": "--width/--height",
+         "views": "--views"}  # the library's argument names
 
 
 def run(args: argparse.Namespace) -> int:

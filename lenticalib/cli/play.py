@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
               flush=True)
 
     output = "headless" if args.headless else "preview" if args.preview else "panel"
-    with flag_names(flags()):
+    with flag_names({**flags(), "display": "--display"}):
         done = play_avatar(args.avatar, args.profile, options=avatar_options(args), output=output,
                            display=args.display, frames=args.frames, on_warning=warn,
                            on_stats=stats if args.stats else None)

@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument("profile", metavar="PROFILE")
     exp.add_argument("--dpi", type=float, help="panel pixels per inch (if the profile does not record it)")
     exp.add_argument("-o", "--output", required=True, metavar="VISUAL_JSON")
-    exp.set_defaults(run=run_export)
+    exp.set_defaults(run=run_export, flags={"dpi": "--dpi"})  # the library's names
     cmp_ = sub.add_parser("compare", help="how far profile A is from profile B, in views, over every subpixel")
     cmp_.add_argument("profile", metavar="A")
     cmp_.add_argument("reference", metavar="B", help="the reference (e.g. a simulation's truth.json)")

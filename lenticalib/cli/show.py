@@ -20,7 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="advance every S seconds (keys still work); default: wait for a key")
     parser.add_argument("--loop", action="store_true", help="start again after the last image")
     parser.add_argument("--no-vsync", action="store_true", help="do not wait for the display's refresh")
-    parser.set_defaults(run=run)
+    parser.set_defaults(run=run, flags={"display": "--display"})  # the library's argument names, as flags
 
 
 def run(args: argparse.Namespace) -> int:

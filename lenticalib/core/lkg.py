@@ -323,10 +323,10 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
     if dpi is None:
         if "DPI" not in extras:
             raise ProfileError("no DPI known for the visual.json", source=name,
-                               hint="give the panel's pixels per inch with --dpi")
+                               hint="give the panel's pixels per inch with `dpi`")
         dpi, dpi_source = extras["DPI"], "looking_glass.DPI"
     else:
-        dpi_source = "--dpi"
+        dpi_source = "`dpi`"
     if not is_finite_number(dpi) or not dpi > 0:
         raise ProfileError(f"{dpi_source}: must be a finite number > 0 pixels per inch, got {dpi!r}",
                            source=name)

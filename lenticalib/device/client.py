@@ -344,9 +344,9 @@ class PanelController:
         text = f"made for another panel than {what}: {'; '.join(mismatches)}"
         if not force:
             raise ProfileError(text, source=source, hint="flash a profile calibrated on this panel, or use "
-                                                         "--force for panel bring-up")
+                                                         "`force` for panel bring-up")
         if warn:
-            warn(f"{source}: {text}; flashing anyway (--force)")
+            warn(f"{source}: {text}; flashing anyway (forced)")
 
     def verify(self, profile: PanelProfile) -> VerifyResult:
         """Does the controller hold ``profile``'s routing constants exactly?"""

@@ -61,7 +61,7 @@ def load_avatar(path: str | Path, driver: str | None = None) -> Avatar:
     suffix = p.suffix.lower()
     if suffix == ".ply":
         if driver not in (None, "rig"):
-            raise InputError("a driver needs an animated avatar (a rig .npz), not a static .ply", source="--driver")
+            raise InputError("a driver needs an animated avatar (a rig .npz), not a static .ply", source="driver")
         from .ply import load_ply
 
         return Avatar("static", str(p), static=load_ply(p).validate(str(p)))

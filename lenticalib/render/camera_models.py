@@ -117,10 +117,10 @@ def make_cameras(model: str, gaussians_or_bbox: Gaussians | tuple[Any, Any], n_v
     """N cameras of the named model (``CAMERA_MODELS``) around a Gaussians avatar or a (min, max) box.
 
     ``options`` are the model's keyword options (radius, fov_deg, yaw_range_deg, view_size, up,
-    forward, centre, height).  An unknown model is an InputError naming ``--camera-model`` (before
+    forward, centre, height).  An unknown model is an InputError naming ``model`` (before
     the avatar is looked at).
     """
-    build = CAMERA_MODELS.load(model, "--camera-model")
+    build = CAMERA_MODELS.load(model, "model")
     if isinstance(gaussians_or_bbox, Gaussians):
         if gaussians_or_bbox.count == 0:
             raise InputError("the avatar has no Gaussians", source="avatar")
@@ -149,27 +149,27 @@ def _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size,
          height) -> _Rig:
     """Check every option (InputError naming it) and compute the shared rig."""
     if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 1 <= n_views <= MAX_VIEWS:
-        raise InputError(f"{n_views!r} views is out of range", source="--views", hint=f"use 1..{MAX_VIEWS}")
+        raise InputError(f"{n_views!r} views is out of range", source="n_views", hint=f"use 1..{MAX_VIEWS}")
     width, height_px = _view_size(view_size)
-    fov = _number(fov_deg, "--fov", "give the vertical field of view in degrees, 1 < fov < 120")
+    fov = _number(fov_deg, "fov_deg", "give the vertical field of view in degrees, 1 < fov < 120")
     if not 1.0 < fov < 120.0:
-        raise InputError(f"field of view {fov:g} degrees is out of range", source="--fov",
+        raise InputError(f"field of view {fov:g} degrees is out of range", source="fov_deg",
                          hint="use 1 < fov < 120 degrees (vertical)")
-    span = _number(yaw_range_deg, "--yaw-range", "give the yaw range in degrees, 0 < range < 180")
+    span = _number(yaw_range_deg, "yaw_range_deg", "give the yaw range in degrees, 0 < range < 180")
     if not 0.0 < span < 180.0:
-        raise InputError(f"yaw range {span:g} degrees is out of range", source="--yaw-range",
+        raise InputError(f"yaw range {span:g} degrees is out of range", source="yaw_range_deg",
                          hint="use 0 < range < 180 degrees")
     e_up, e_forward = _frame(up, forward)
     e_side = np.cross(e_up, e_forward)
     lo, hi = _vector(bbox_min, "bbox"), _vector(bbox_max, "bbox")
     if (hi < lo).any():
         raise InputError("the box's max corner is below its min corner", source="bbox")
-    c0 = (lo + hi) / 2 if centre is None else _vector(centre, "--centre")
+    c0 = (lo + hi) / 2 if centre is None else _vector(centre, "centre")
     h = float(np.abs(e_up) @ (hi - lo))
     if height is not None:
-        h = _number(height, "--height", "give the avatar's height in world units")
+        h = _number(height, "height", "give the avatar's height in world units")
         if not 0.0 < h < math.inf:
-            raise InputError(f"height {h:g} is not positive", source="--height")
+            raise InputError(f"height {h:g} is not positive", source="height")
     tan_half = math.tan(math.radians(fov) / 2)
     if radius is None:
         if h <= 0:
@@ -177,9 +177,9 @@ def _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size,
                              hint="pass height or radius")
         r = (h / FILL) / (2 * tan_half) + float(np.abs(e_forward) @ (hi - lo)) / 2
     else:
-        r = _number(radius, "--radius", "give the camera distance in world units")
+        r = _number(radius, "radius", "give the camera distance in world units")
         if not 0.0 < r < math.inf:
-            raise InputError(f"radius {r:g} is not positive", source="--radius", hint="use a radius > 0")
+            raise InputError(f"radius {r:g} is not positive", source="radius", hint="use a radius > 0")
     c = c0 + CENTRE_LIFT * h * e_up
     yaw = np.zeros(1) if n_views == 1 else -span / 2 + span * np.arange(n_views) / (n_views - 1)
     f = height_px / (2 * tan_half)
@@ -192,17 +192,17 @@ def _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size,
 
 def _frame(up: Any, forward: Any) -> tuple[np.ndarray, np.ndarray]:
     """(e_up, e_forward): unit vectors, forward made perpendicular to up."""
-    u = _vector(up, "--up")
+    u = _vector(up, "up")
     if not np.linalg.norm(u) > 0:
-        raise InputError("the up axis is zero", source="--up")
+        raise InputError("the up axis is zero", source="up")
     e_up = u / np.linalg.norm(u)
-    f = _vector(forward, "--forward")
+    f = _vector(forward, "forward")
     if not np.linalg.norm(f) > 0:
-        raise InputError("the forward axis is zero", source="--forward")
+        raise InputError("the forward axis is zero", source="forward")
     f = f / np.linalg.norm(f)
     f = f - (f @ e_up) * e_up
     if np.linalg.norm(f) < 1e-3:
-        raise InputError("the forward axis is parallel to up", source="--forward",
+        raise InputError("the forward axis is parallel to up", source="forward",
                          hint="give the direction the avatar faces, perpendicular to up")
     return e_up, f / np.linalg.norm(f)
 
@@ -212,10 +212,10 @@ def _view_size(value: Any) -> tuple[int, int]:
     try:
         width, height = value
     except (TypeError, ValueError):
-        raise InputError(f"{value!r} is not a (width, height) pair", source="--view-size", hint=hint) from None
+        raise InputError(f"{value!r} is not a (width, height) pair", source="view_size", hint=hint) from None
     for v in (width, height):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-            raise InputError(f"view size {value!r} is not two positive integers", source="--view-size", hint=hint)
+            raise InputError(f"view size {value!r} is not two positive integers", source="view_size", hint=hint)
     return int(width), int(height)
 
 

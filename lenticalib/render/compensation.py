@@ -274,9 +274,10 @@ def _compensate(src, out, decode, encode, so, sw, no, nw, ro, rw, step, lift, it
 
 def compensator_from_file(path, views: int, regularisation: float = DEFAULT_REGULARISATION,
                           black_lift: float = 0.0, iterations: int = DEFAULT_ITERATIONS,
-                          source: str = "--compensate") -> Compensator:
-    """A compensator from a ``crosstalk.json`` for a panel of ``views`` views (InputError naming ``source``)."""
-    data = read_crosstalk_document(path, views=views, source=source if source != "--compensate" else str(path))
+                          source: str | None = None) -> Compensator:
+    """A compensator from a ``crosstalk.json`` for a panel of ``views`` views (InputError naming ``source``,
+    by default ``path``)."""
+    data = read_crosstalk_document(path, views=views, source=str(path) if source is None else source)
     return Compensator.from_matrix(mixing_matrix(data), regularisation, black_lift, iterations)
 
 

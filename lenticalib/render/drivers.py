@@ -102,15 +102,15 @@ def load_driver(spec: str | None = BUILTIN, *, rig: Rig | None = None) -> Driver
     """The driver named by ``spec`` (module docstring), wrapped in a checking :class:`Driver`."""
     if spec is None or spec == BUILTIN:
         if rig is None:
-            raise InputError("the built-in driver needs a rig", source="--driver",
+            raise InputError("the built-in driver needs a rig", source="driver",
                              hint="give a rig file, or a driver as module:callable")
-        return Driver(BUILTIN, DRIVERS.load(BUILTIN, "--driver")(rig), layout=rig.layout)
+        return Driver(BUILTIN, DRIVERS.load(BUILTIN, "driver")(rig), layout=rig.layout)
     if not isinstance(spec, str) or not spec.strip():
-        raise InputError(f"bad driver {spec!r}", source="--driver", hint="use module:callable or 'rig'")
-    target = spec if ":" in spec else DRIVERS.entries()[DRIVERS.check(spec, "--driver")]
+        raise InputError(f"bad driver {spec!r}", source="driver", hint="use module:callable or 'rig'")
+    target = spec if ":" in spec else DRIVERS.entries()[DRIVERS.check(spec, "driver")]
     module_name, _, attr = target.partition(":")
     if not module_name.strip() or not attr.strip() or ":" in attr:
-        raise InputError(f"bad driver {spec!r}", source="--driver", hint="use module:callable, e.g. mypkg.flame:drive")
+        raise InputError(f"bad driver {spec!r}", source="driver", hint="use module:callable, e.g. mypkg.flame:drive")
     obj = import_target(target, f"driver {spec!r}", spec, hint="install it or put its folder on PYTHONPATH")
     if not callable(obj):
         raise InputError(f"{target} is a {type(obj).__name__}, not callable", source=spec,

@@ -95,7 +95,7 @@ def parse_background(text: str | None, view_size: tuple[int, int] | None = None)
     except ValueError:
         values = []
     if len(values) != 3 or not all(np.isfinite(values)) or min(values) < 0 or max(values) > 255:
-        raise InputError(f"{text!r} is not R,G,B or an image file", source="--background",
+        raise InputError(f"{text!r} is not R,G,B or an image file", source="background",
                          hint="e.g. 0.1,0.1,0.12 or 26,26,30, or backdrop.png")
     arr = np.array(values, dtype=np.float32)
     return arr / 255.0 if arr.max() > 1.0 else arr
@@ -157,7 +157,7 @@ class AvatarPipeline:
         from .renderers import get_renderer
 
         if cameras.n_views != profile.views:
-            raise InputError(f"{cameras.n_views} cameras for a profile of {profile.views} views", source="--views",
+            raise InputError(f"{cameras.n_views} cameras for a profile of {profile.views} views", source="cameras",
                              hint="render as many views as the profile has")
         self.avatar, self.profile = avatar, profile
         self.warning = direction_warning(profile)
@@ -172,18 +172,18 @@ class AvatarPipeline:
         view_aspect, panel_aspect = cameras.width / cameras.height, profile.width / profile.height
         if abs(view_aspect / panel_aspect - 1.0) > ASPECT_TOLERANCE:  # checked now, not after the first render
             raise InputError(f"views of {cameras.width}x{cameras.height} (aspect {view_aspect:.3f}) do not fit the "
-                             f"{profile.width}x{profile.height} panel (aspect {panel_aspect:.3f})", source="--view-size",
+                             f"{profile.width}x{profile.height} panel (aspect {panel_aspect:.3f})", source="view_size",
                              hint="render at the panel's aspect ratio, e.g. 960x540 for a 16:9 panel")
         if self.on_gpu and encoder != "torch":
             raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
-                             source="--encoder", hint="--encoder torch")
+                             source="encoder", hint="`encoder` torch")
         self.encode_fn = get_encoder(encoder, device=device)  # (on the GPU the TorchEncoder below is used)
         if device != "cpu":  # the drive runs there too
             from .torch_devices import device_unavailable
 
             reason = device_unavailable(device)
             if reason is not None:
-                raise InputError(reason, source="--device", hint="use --device cpu")
+                raise InputError(reason, source="device", hint="use `device` cpu")
         # the per-session constants, once, where the renderer wants them
         self._mats = (self.cameras.viewmats.astype(np.float32), self.cameras.K.astype(np.float32))
         self._background = background

@@ -101,15 +101,15 @@ def choose_monitor(monitors: list[Monitor], spec: str | None = None,
             try:
                 x, y = (int(v) for v in spec[1:].split(","))
             except ValueError:
-                raise DisplayError(f"position {spec!r} is not @X,Y", source="--display",
-                                   hint="e.g. --display @3840,0") from None
+                raise DisplayError(f"position {spec!r} is not @X,Y", source="display",
+                                   hint="e.g. `display` @3840,0") from None
             matches = [m for m in monitors if (m.x, m.y) == (x, y)]
         else:
             exact = [m for m in monitors if m.name.lower() == spec.lower()]
             matches = exact or [m for m in monitors if spec.lower() in m.name.lower()]
         if len(matches) != 1:
             what = "no monitor matches" if not matches else f"{len(matches)} monitors match"
-            raise DisplayError(f"{what} {spec!r}; the monitors are: {listing}", source="--display",
+            raise DisplayError(f"{what} {spec!r}; the monitors are: {listing}", source="display",
                                hint="give an index, @X,Y or a unique part of a name (lenticalib show --list-displays)")
         return matches[0]
     if size is not None:
@@ -118,8 +118,8 @@ def choose_monitor(monitors: list[Monitor], spec: str | None = None,
             return matches[0]
         if not matches:
             raise DisplayError(f"no monitor shows {size[0]}x{size[1]} (the raster's size); the monitors are: "
-                               f"{listing}", source="--display",
-                               hint="set the panel to its native mode, or name the monitor with --display")
+                               f"{listing}", source="display",
+                               hint="set the panel to its native mode, or name the monitor with `display`")
         raise DisplayError(f"{len(matches)} monitors show {size[0]}x{size[1]}; the monitors are: {listing}",
-                           source="--display", hint="name the panel's monitor with --display")
+                           source="display", hint="name the panel's monitor with `display`")
     return monitors[0]

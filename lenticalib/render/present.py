@@ -79,7 +79,7 @@ def check_raster(raster: np.ndarray, size: tuple[int, int], max_bits: int = 8, s
         raise ImageError(f"has sample type {arr.dtype}; the panel takes 8-bit (or 16-bit) integers", source=source)
     check_raster_size((arr.shape[1], arr.shape[0]), size, source, "the display",
                       hint="rasters are never scaled: encode for this panel's size, or show it on the monitor "
-                           "of that size (--display)")
+                           "of that size (`display`)")
 
 
 class Presenter:
@@ -269,7 +269,7 @@ class WindowPresenter(Presenter):
             x, y = glfw.get_monitor_pos(handle)
             if index == self.monitor.index and (x, y) == (self.monitor.x, self.monitor.y):
                 return handle
-        raise DisplayError(f"monitor {self.monitor.describe()} is gone", source="--display",
+        raise DisplayError(f"monitor {self.monitor.describe()} is gone", source="display",
                            hint="list the monitors again (lenticalib show --list-displays)")
 
     def close(self) -> None:
@@ -355,7 +355,7 @@ def open_presenter(display: str | None = None, size: tuple[int, int] | None = No
         from .present_offscreen import MemoryPresenter, OffscreenPresenter
 
         if size is None:
-            raise DisplayError(f"a display of kind {kind!r} needs a raster size", source="--display")
+            raise DisplayError(f"a display of kind {kind!r} needs a raster size", source="display")
         if kind == "none":
             return MemoryPresenter(size)
         backend = display.split(":", 1)[1] if ":" in display else None

@@ -47,7 +47,7 @@ class OffscreenPresenter(Presenter):
             raise DisplayError(f"no offscreen OpenGL 3.3 context ({backend or 'default'} backend: "
                                f"{str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r})",
                                hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver; or use "
-                                    "--display none") from None
+                                    "`display` none") from None
         colour = self.ctx.renderbuffer(self.size, 4, dtype="f1")
         self._fbo = self.ctx.framebuffer(color_attachments=[colour])
         self._setup_gl()

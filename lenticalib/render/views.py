@@ -58,7 +58,7 @@ def split_quilt(quilt: np.ndarray, grid: QuiltGrid, source: str = "quilt") -> np
     height, width = quilt.shape[:2]
     if width % grid.cols or height % grid.rows:
         raise ImageError(f"a {width}x{height} quilt does not divide into {grid.cols}x{grid.rows} tiles",
-                         source=source, hint="check the grid (file-name suffix _qsCOLSxROWS or --grid)")
+                         source=source, hint="check the grid (file-name suffix _qsCOLSxROWS or `grid`)")
     tw, th = width // grid.cols, height // grid.rows
     tiles = quilt.reshape(grid.rows, th, grid.cols, tw, 3)[::-1]  # tile rows from the bottom
     return np.ascontiguousarray(tiles.transpose(0, 2, 1, 3, 4).reshape(grid.tiles, th, tw, 3))
@@ -85,7 +85,7 @@ def load_quilt(path: str | os.PathLike, views: int, grid: QuiltGrid | None = Non
     grid = grid or named
     if grid is None:
         raise ImageError("quilt grid unknown", source=src,
-                         hint="name the file with a _qsCOLSxROWSaASPECT suffix or pass --grid COLSxROWS")
+                         hint="name the file with a _qsCOLSxROWSaASPECT suffix or pass `grid` COLSxROWS")
     if grid.aspect is None and named is not None:
         grid = QuiltGrid(grid.cols, grid.rows, named.aspect)
     if grid.tiles != views:

@@ -103,7 +103,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     the ``simulation.json`` document (also written).
     """
     if kind not in ("panel", "print"):
-        raise InputError(f"unknown board kind {kind!r}", source="--kind", hint="use panel or print")
+        raise InputError(f"unknown board kind {kind!r}", source="kind", hint="use panel or print")
     folder = Path(directory)
     captures = folder / CAPTURE_FOLDER
     captures.mkdir(exist_ok=True)

@@ -73,7 +73,7 @@ def calibration_camera(seed: int, resolution: tuple[int, int] = (1600, 1200), co
     just another pose).  Pose: at the world origin looking along +z (world = camera frame).
     """
     if conditions not in ("standard", "hard"):
-        raise InputError(f"unknown conditions {conditions!r}", source="--conditions", hint="use standard or hard")
+        raise InputError(f"unknown conditions {conditions!r}", source="conditions", hint="use standard or hard")
     rng = np.random.default_rng([int(seed), 0xB0A2D])
     w, h = resolution
     hfov = math.radians(rng.uniform(50.0, 70.0))

@@ -48,8 +48,8 @@ DEFAULT_SUBSAMPLES = 3
 
 def parse_resolution(value) -> tuple[int, int]:
     """``(w, h)`` or ``"WxH"`` -> (w, h) camera pixels, each :data:`~lenticalib.core.sizes.MIN_CAMERA_SIDE`..
-    :data:`~lenticalib.core.sizes.MAX_SIDE`; InputError naming --camera otherwise."""
-    return parse_size(value, "--camera sim", MIN_CAMERA_SIDE, example="4000x3000")
+    :data:`~lenticalib.core.sizes.MAX_SIDE`; InputError naming the camera otherwise."""
+    return parse_size(value, "camera sim", MIN_CAMERA_SIDE, example="4000x3000")
 
 
 class SimCamera(CaptureCamera):
@@ -65,23 +65,23 @@ class SimCamera(CaptureCamera):
         seed = self.options.get("seed")
         if target is not None:
             if not target.strip().isdigit():
-                raise InputError(f"bad seed {target!r}", source="--camera",
+                raise InputError(f"bad seed {target!r}", source="camera",
                                  hint="give the simulation seed as a whole number, e.g. sim:7")
             if seed is not None and seed != int(target):
-                raise InputError(f"seed {seed!r} contradicts the spec {self.spec!r}", source="--camera")
+                raise InputError(f"seed {seed!r} contradicts the spec {self.spec!r}", source="camera")
             seed = int(target)
         seed = DEFAULT_SEED if seed is None else seed
         if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2 ** 63:
-            raise InputError(f"bad seed {seed!r}", source="--camera sim", hint="use a whole number 0..2^63-1")
+            raise InputError(f"bad seed {seed!r}", source="camera sim", hint="use a whole number 0..2^63-1")
         self.seed = seed
         self.resolution = parse_resolution(self.options.get("resolution", DEFAULT_RESOLUTION))
         self.conditions = self.options.get("conditions", "standard")
         if self.conditions not in CONDITIONS:
-            raise InputError(f"unknown conditions {self.conditions!r}", source="--camera sim",
+            raise InputError(f"unknown conditions {self.conditions!r}", source="camera sim",
                              hint="choose one of " + ", ".join(CONDITIONS))
         self.subsamples = self.options.get("subsamples", DEFAULT_SUBSAMPLES)
         if not isinstance(self.subsamples, int) or isinstance(self.subsamples, bool) or not 1 <= self.subsamples <= 16:
-            raise InputError(f"option 'subsamples' must be 1..16, got {self.subsamples!r}", source="--camera sim")
+            raise InputError(f"option 'subsamples' must be 1..16, got {self.subsamples!r}", source="camera sim")
         self.scene = None
         self.directory: Path | None = None
         self.pattern_set = None

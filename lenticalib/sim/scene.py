@@ -221,10 +221,10 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
         raise InputError(f"unknown range(s): {', '.join(unknown)}", source="random_scene",
                          hint="known: " + ", ".join(RANGES))
     if conditions not in CONDITIONS:
-        raise InputError(f"unknown conditions {conditions!r}", source="--conditions",
+        raise InputError(f"unknown conditions {conditions!r}", source="conditions",
                          hint="known: " + ", ".join(CONDITIONS))
     if order is not None and order not in ("RGB", "BGR"):
-        raise InputError(f"order must be RGB or BGR, got {order!r}", source="--order")
+        raise InputError(f"order must be RGB or BGR, got {order!r}", source="order")
     cam_w, cam_h = resolution or DEFAULT_RESOLUTION
     table = {**RANGES, **CONDITIONS[conditions], **ranges}
     rng = np.random.default_rng(seed)

@@ -38,7 +38,7 @@ CAMERA_KINDS = Registry("camera kind", {
     "opencv": "lenticalib.calib.cameras.opencv:OpenCVCamera",
     "manual": "lenticalib.calib.cameras.manual:ManualCamera",
     "sim": "lenticalib.sim.capture_camera:SimCamera",
-}, "lenticalib.capture_cameras", choices="choose one of {names} (e.g. --camera opencv:0)")
+}, "lenticalib.capture_cameras", choices="choose one of {names} (e.g. `camera` opencv:0)")
 
 __all__ = ["CAMERA_KINDS", "CaptureCamera", "make_camera", "open_camera", "parse_spec"]
 
@@ -46,16 +46,16 @@ __all__ = ["CAMERA_KINDS", "CaptureCamera", "make_camera", "open_camera", "parse
 def parse_spec(spec: str) -> tuple[str, str | None]:
     """``"KIND"`` or ``"KIND:TARGET"`` -> (kind, target or None), split at the first colon.
 
-    InputError naming ``--camera`` for an empty spec, an empty target or an unknown kind.
+    InputError naming ``camera`` for an empty spec, an empty target or an unknown kind.
     """
     if not isinstance(spec, str) or not spec.strip():
-        raise InputError(f"no camera given ({spec!r})", source="--camera",
+        raise InputError(f"no camera given ({spec!r})", source="camera",
                          hint=f"choose one of {', '.join(CAMERA_KINDS.names())}")
     kind, colon, target = spec.strip().partition(":")
     kind = kind.strip().lower()
-    CAMERA_KINDS.check(kind, "--camera")
+    CAMERA_KINDS.check(kind, "camera")
     if colon and not target.strip():
-        raise InputError(f"nothing after the colon in {spec!r}", source="--camera",
+        raise InputError(f"nothing after the colon in {spec!r}", source="camera",
                          hint=f"write {kind} alone, or {kind}:TARGET")
     return kind, (target if colon else None)
 
@@ -67,7 +67,7 @@ def make_camera(spec: str, **options) -> CaptureCamera:
     an option the kind does not take.
     """
     kind, target = parse_spec(spec)
-    return CAMERA_KINDS.load(kind, "--camera")(target, **options)
+    return CAMERA_KINDS.load(kind, "camera")(target, **options)
 
 
 def open_camera(spec: str, **options) -> CaptureCamera:

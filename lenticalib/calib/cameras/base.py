@@ -43,7 +43,7 @@ class CaptureCamera(abc.ABC):
         unknown = sorted(set(options) - set(known))
         if unknown:
             raise InputError(f"camera kind {self.kind!r} takes no option {', '.join(map(repr, unknown))}",
-                             source="--camera", hint="its options: " + ", ".join(known))
+                             source="camera", hint="its options: " + ", ".join(known))
         self.target = target
         self.options = dict(options)
         self.is_open = False
@@ -154,5 +154,5 @@ def positive_seconds(value: Any, option: str, kind: str) -> float:
         seconds = float("nan")
     if isinstance(value, bool) or not (math.isfinite(seconds) and seconds > 0):
         raise InputError(f"option {option!r} must be a positive number of seconds, got {value!r}",
-                         source=f"--camera {kind}")
+                         source=f"camera {kind}")
     return seconds

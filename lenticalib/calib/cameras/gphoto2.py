@@ -99,7 +99,7 @@ class Gphoto2Camera(CaptureCamera):
     def __init__(self, target: str | None = None, **options):
         super().__init__(target, **options)
         if target is not None and (":" not in target or not target.strip()):
-            raise InputError(f"bad gphoto2 port {target!r}", source="--camera",
+            raise InputError(f"bad gphoto2 port {target!r}", source="camera",
                              hint="give the port as 'gphoto2 --auto-detect' lists it, e.g. gphoto2:usb:001,005")
         self.timeout = positive_seconds(self.options.get("timeout", DEFAULT_TIMEOUT), "timeout", self.kind)
         self.executable: str | None = None
@@ -136,7 +136,7 @@ class Gphoto2Camera(CaptureCamera):
         if len(cameras) > 1:
             listed = ", ".join(f"{model} ({port})" for model, port in cameras)
             raise CameraError(f"{len(cameras)} cameras detected: {listed}", source=self.spec,
-                              hint=f"choose one with --camera gphoto2:PORT, e.g. gphoto2:{cameras[0][1]}")
+                              hint=f"choose one with `camera` gphoto2:PORT, e.g. gphoto2:{cameras[0][1]}")
         self.model, self.port = cameras[0]
         lines = [f"camera: {self.model} on {self.port} (through {self.executable})"]
         lines += [self._lock(lock) for lock in LOCKS]

@@ -50,14 +50,14 @@ class ManualCamera(CaptureCamera):
     def _open(self) -> list[str]:
         if self.folder is None:
             if not callable(self.wait_for_user):
-                raise InputError("key mode needs a wait_for_user callable", source="--camera manual",
-                                 hint="give a watched folder instead: --camera manual:/path/the/photos/arrive/in")
+                raise InputError("key mode needs a wait_for_user callable", source="camera manual",
+                                 hint="give a watched folder instead: `camera` manual:/path/the/photos/arrive/in")
             return [NOTHING_LOCKED, f"key mode: copy each photo to the capture folder as PATTERN ({SUFFIX_LIST}) "
                                     "yourself, then press the key"]
         if not self.folder.is_dir():
             state = "is not a folder" if self.folder.exists() else "does not exist"
             raise CameraError(f"the watched folder {state}", source=str(self.folder),
-                              hint="create it, or point --camera manual: at the folder the camera or its app saves to")
+                              hint="create it, or point `camera` manual: at the folder the camera or its app saves to")
         return [NOTHING_LOCKED, f"watched folder: {self.folder} (the next new {SUFFIX_LIST} file is copied, "
                                 f"waiting up to {self.timeout:g} s)"]
 

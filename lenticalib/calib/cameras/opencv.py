@@ -39,7 +39,7 @@ def parse_device(target: str | None) -> int | str:
         return int(text)
     if text.startswith(("/", "./")) or "://" in text:
         return text
-    raise InputError(f"bad webcam {target!r}", source="--camera",
+    raise InputError(f"bad webcam {target!r}", source="camera",
                      hint="give an index (opencv:0), a device path (opencv:/dev/video2) or a stream URL")
 
 
@@ -59,12 +59,12 @@ class OpenCVCamera(CaptureCamera):
             width = height = 0
         if not (width > 0 and height > 0):
             raise InputError(f"option 'resolution' must be (width, height) in pixels, got {resolution!r}",
-                             source="--camera opencv")
+                             source="camera opencv")
         self.resolution = (width, height)
         discard = self.options.get("discard", DEFAULT_DISCARD)
         if not isinstance(discard, int) or isinstance(discard, bool) or not 0 <= discard <= 100:
             raise InputError(f"option 'discard' must be a whole number of frames 0..100, got {discard!r}",
-                             source="--camera opencv")
+                             source="camera opencv")
         self.discard = discard
         self.timeout = positive_seconds(self.options.get("timeout", DEFAULT_TIMEOUT), "timeout", self.kind)
         self._capture_device = None

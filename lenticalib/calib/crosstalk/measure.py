@@ -88,7 +88,7 @@ class Measurement:
 
 
 def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | None = None,
-                       profile_source: str = "--profile"):
+                       profile_source: str = "profile"):
     """(pattern set, capture set) of a crosstalk folder; InputError/CaptureError naming the fault."""
     from ..captures import match_captures
     from ..patterns import PatternSet
@@ -132,7 +132,7 @@ def _row_from(fit, ratios, rows, cols, shifts, views) -> tuple[np.ndarray, np.nd
 
 
 def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None = None, *,
-                      photos: str = "srgb", profile_source: str = "--profile",
+                      photos: str = "srgb", profile_source: str = "profile",
                       progress: Callable[[str], None] | None = None) -> Measurement:
     """Measure the crosstalk of the panel from the photos in ``DIR/captures``.
 

@@ -184,7 +184,7 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
     in panel pixels, a profile's period / 3) is known.
     """
     if not (isinstance(pixel_pitch_mm, (int, float)) and math.isfinite(pixel_pitch_mm) and pixel_pitch_mm > 0):
-        raise InputError(f"pixel pitch must be a number > 0 mm, got {pixel_pitch_mm!r}", source="--pixel-pitch")
+        raise InputError(f"pixel pitch must be a number > 0 mm, got {pixel_pitch_mm!r}", source="pixel_pitch_mm")
     if squares is None:
         short, long_ = sorted((width, height))
         n_long = max(round(9 * long_ / short), 4)
@@ -192,12 +192,12 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
             n_long += 1 if abs(n_long + 1 - 9 * long_ / short) < abs(n_long - 1 - 9 * long_ / short) else -1
         cols_sq, rows_sq = (n_long, 9) if width >= height else (9, n_long)
     else:
-        _refuse_symmetric(*squares, "--squares")
+        _refuse_symmetric(*squares, "squares")
         cols_sq, rows_sq = squares[0] + 1, squares[1] + 1
     square_px = int(math.floor(PANEL_FILL * min(width / cols_sq, height / rows_sq)))
     if square_px < MIN_SQUARE_PX:
         raise InputError(f"{cols_sq - 1}x{rows_sq - 1} inner corners leave squares of {square_px} panel pixels "
-                         f"on a {width}x{height} panel", source="--squares",
+                         f"on a {width}x{height} panel", source="squares",
                          hint=f"use fewer squares (each needs at least {MIN_SQUARE_PX} pixels)")
     ox = (width - cols_sq * square_px) // 2
     oy = (height - rows_sq * square_px) // 2
@@ -218,9 +218,9 @@ def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, 
     the footer, one count odd and one even.
     """
     if paper not in PAPERS:
-        raise InputError(f"unknown paper {paper!r}", source="--paper", hint="use " + " or ".join(PAPERS))
+        raise InputError(f"unknown paper {paper!r}", source="paper", hint="use " + " or ".join(PAPERS))
     if not (math.isfinite(square_mm) and 3.0 <= square_mm <= 200.0):
-        raise InputError(f"{square_mm} mm squares is out of range", source="--print-square",
+        raise InputError(f"{square_mm} mm squares is out of range", source="square_mm",
                          hint="give the printed square size in mm, 3..200 (e.g. 20)")
     pw, ph = PAPERS[paper]
     fit_c = int((pw - 2 * PAGE_MARGIN) // square_mm)
@@ -233,11 +233,11 @@ def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, 
             else:
                 rows_sq -= 1
     else:
-        _refuse_symmetric(*squares, "--squares")
+        _refuse_symmetric(*squares, "squares")
         cols_sq, rows_sq = squares[0] + 1, squares[1] + 1
     if cols_sq > fit_c or rows_sq > fit_r or min(cols_sq, rows_sq) < MIN_CORNERS + 1:
         raise InputError(f"{square_mm:g} mm squares do not make a board of at least {MIN_CORNERS}x{MIN_CORNERS} inner "
-                         f"corners that fits on {paper} paper", source="--print-square",
+                         f"corners that fits on {paper} paper", source="square_mm",
                          hint=f"room for {fit_c - 1}x{fit_r - 1} inner corners at most; use smaller squares")
     bw, bh = cols_sq * square_mm, rows_sq * square_mm
     x0 = (pw - bw) / 2

@@ -65,7 +65,7 @@ def default_panel() -> PanelGeometry:
     family = family_for()
     if family.panel is None:
         raise InputError("the controller description has no [panel] table", source=family.source,
-                         hint="add one as in drivers/lc32.toml, or give the emulator --panel")
+                         hint="add one as in drivers/lc32.toml, or give the emulator `panel`")
     return family.panel
 
 
@@ -244,8 +244,8 @@ def controller_for_url(url) -> EmulatedController:
             raise bad(key, f"must be a number, got '{text}'") from None
     try:
         faults = FaultPlan(**values)
-    except InputError as exc:  # FaultPlan names the emulate option (--drop); here it is a URL parameter
-        raise bad(exc.source.lstrip("-"), exc.message) from None
+    except InputError as exc:  # FaultPlan names its field (drop_rate); here it is a URL parameter
+        raise bad(next((k for k, f in _URL_FAULTS.items() if f == exc.source), exc.source), exc.message) from None
     try:
         minor = config.parse_protocol(setup.get("protocol", config.CURRENT_PROTOCOL))
     except ValueError as exc:

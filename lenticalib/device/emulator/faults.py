@@ -47,13 +47,13 @@ class FaultPlan:
         for name in ("drop_rate", "corrupt_rate", "duplicate_rate", "delay_rate", "stale_rate"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
-                raise InputError(f"must be a probability between 0 and 1, got {value}", source=f"--{_opt(name)}")
+                raise InputError(f"must be a probability between 0 and 1, got {value}", source=name)
         if not 0.0 <= self.delay_s <= 60.0:
-            raise InputError(f"must be 0..60 seconds, got {self.delay_s}", source="--delay-s")
+            raise InputError(f"must be 0..60 seconds, got {self.delay_s}", source="delay_s")
         for name in ("disconnect_after", "power_cut_after"):
             value = getattr(self, name)
             if value is not None and value < 1:
-                raise InputError(f"must be at least 1, got {value}", source=f"--{_opt(name)}")
+                raise InputError(f"must be at least 1, got {value}", source=name)
         self.random = random.Random(self.seed)
 
     def hit(self, rate: float) -> bool:
@@ -68,7 +68,3 @@ class FaultPlan:
     def noise(self, size: int) -> bytes:
         """``size`` bytes the controller sends unasked (``babble``)."""
         return self.random.randbytes(size)
-
-
-def _opt(name: str) -> str:
-    return name.replace("_rate", "").replace("_", "-")

@@ -55,7 +55,7 @@ def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_v
     InputError names the one that is not.
     """
     path = Path(path)
-    fields = {"--serial": (serial, 16), "model": (model, 32), "firmware version": (firmware_version, 16)}
+    fields = {"serial": (serial, 16), "model": (model, 32), "firmware version": (firmware_version, 16)}
     for name, (text, limit) in fields.items():
         if not (text.isascii() and text.isprintable() and 1 <= len(text) <= limit):
             raise InputError(f"must be 1 to {limit} printable ASCII characters, got {text!r}", source=name)
@@ -67,7 +67,7 @@ def create_image(path: str | os.PathLike, *, model: str, serial: str, firmware_v
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError("the folder for the flash image does not exist", source=str(folder),
-                         hint="create it first, or choose another --flash path")
+                         hint="create it first, or choose another `image` path")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)  # a new file: never a link's target
     try:
         os.fchmod(fd, 0o666 & ~current_umask())  # the umask's mode, as every output (mkstemp makes 0600)
@@ -100,13 +100,13 @@ class FlashImage:
                              hint="start 'lenticalib emulate' once to create it") from None
         except OSError as exc:
             raise InputError(f"cannot open the flash image: {exc.strerror}", source=str(self.path),
-                             hint="give --flash a writable file") from None
+                             hint="give `image` a writable file") from None
         try:
             fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             os.close(self._fd)
             raise DeviceError("flash image is in use by another running emulator", source=str(self.path),
-                              hint="stop that emulator or give this one another --flash file") from None
+                              hint="stop that emulator or give this one another `image` file") from None
         size = os.fstat(self._fd).st_size
         head = os.pread(self._fd, FACTORY_SIZE, 0)
         if size != IMAGE_SIZE or head[:4] != FACTORY_MAGIC or \

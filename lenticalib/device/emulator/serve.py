@@ -197,7 +197,7 @@ def serve_tcp(controller: EmulatedController, host: str = "127.0.0.1", port: int
     except OSError as exc:
         server.close()
         controller.close()
-        raise InputError(f"cannot listen on {host}:{port}: {exc.strerror}", source="--port",
+        raise InputError(f"cannot listen on {host}:{port}: {exc.strerror}", source="port",
                          hint="choose another port, or 0 for any free one") from None
     server.listen(1)
     url = f"socket://{host}:{server.getsockname()[1]}"

@@ -38,7 +38,7 @@ def check_views(views, profile: PanelProfile, *, check_aspect: bool = True, sour
                 f"views of {views.shape[2]}x{views.shape[1]} (aspect {view_aspect:.3f}) do not fit the "
                 f"{profile.width}x{profile.height} panel of the profile (aspect {panel_aspect:.3f})",
                 source=source, hint="render views at the panel's aspect ratio, or use the profile of "
-                                    "the panel they were made for (allow_stretch / --stretch to force)")
+                                    "the panel they were made for (allow_stretch to force)")
     return np.ascontiguousarray(views)
 
 

@@ -42,11 +42,11 @@ def available_renderers() -> list[str]:
 def get_renderer(name: str, device: str | None = None) -> Callable:
     """The render function registered as ``name``, able to run here (on torch ``device``, if given).
 
-    Raises InputError (naming ``--renderer``) for an unknown name, BackendUnavailableError when its
+    Raises InputError (naming ``renderer``) for an unknown name, BackendUnavailableError when its
     module fails to import or it cannot run here (``gsplat`` without a CUDA GPU): one line naming
     the renderers that can.
     """
-    return RENDERERS.load(name, "--renderer", device=device)
+    return RENDERERS.load(name, "renderer", device=device)
 
 
 def render(gaussians, viewmats, Ks, width: int, height: int, *, renderer: str = DEFAULT_RENDERER,

@@ -49,8 +49,8 @@ def render_gsplat(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *
     viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
     reason = gsplat_unavailable()
     if reason is not None:
-        raise BackendUnavailableError(f"renderer 'gsplat' cannot run here: {reason}", source="--renderer",
-                                      hint="use --renderer cpu")
+        raise BackendUnavailableError(f"renderer 'gsplat' cannot run here: {reason}", source="renderer",
+                                      hint="use `renderer` cpu")
     import gsplat
     import torch
 
