@@ -70,3 +70,17 @@ def refused(*argv, source: object = None) -> str:
     code, out, err = run_main(*argv)
     assert code == 2, (argv, code, out, err)
     return one_error_line(err, source)
+
+
+def raises_one_line(fn, cls=None) -> str:
+    """The text of the error ``fn()`` raises, which must be a ``cls`` (default: InputError) and one
+    line: what the CLI would print after ``lenticalib: error: ``."""
+    import pytest
+
+    from lenticalib.core.errors import InputError
+
+    with pytest.raises(cls or InputError) as info:
+        fn()
+    text = str(info.value)
+    assert "\n" not in text, text
+    return text

@@ -15,6 +15,7 @@ from lenticalib.core.documents import (FORMATS, DocumentFormat, check_envelope, 
                                        write_document)
 from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.profile import PanelProfile, load_profile, profile_from_dict, save_profile
+from .cli_support import raises_one_line as one_line
 
 PACKAGE = Path(lenticalib.__file__).parent
 SAMPLE = DocumentFormat("lenticalib.sample", 2, "sample file", "write it again", reads=(1, 2),
@@ -22,13 +23,6 @@ SAMPLE = DocumentFormat("lenticalib.sample", 2, "sample file", "write it again",
 PROFILE = PanelProfile(views=8, slant=0.2, period=12.0, offset=1.5, reference_view=0.0, width=64, height=48,
                        subpixel_order="RGB")
 
-
-def one_line(fn, cls=InputError) -> str:
-    with pytest.raises(cls) as info:
-        fn()
-    text = str(info.value)
-    assert "\n" not in text, text
-    return text
 
 
 def write_json(path, data) -> Path:

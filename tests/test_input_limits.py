@@ -39,6 +39,7 @@ from lenticalib.render.camera_models import arc_cameras
 from lenticalib.sim.scene import Scene, random_scene
 
 from .cli_support import refused
+from .cli_support import raises_one_line as _raises_one_line
 
 SMALL = {"views": 8, "slant": -0.2, "period": 9.5, "offset": 1.25, "reference_view": 0.0, "width": 320,
          "height": 180, "subpixel_order": "RGB"}
@@ -59,13 +60,6 @@ def _peak_traced(fn) -> int:
         tracemalloc.stop()
     return peak
 
-
-def _raises_one_line(fn, cls=InputError) -> str:
-    with pytest.raises(cls) as info:
-        fn()
-    text = str(info.value)
-    assert "\n" not in text, text
-    return text
 
 
 # ------------------------------------------------------------------ numbers in every JSON reader

@@ -13,14 +13,8 @@ from lenticalib.core.errors import ImageError, InputError, ProfileError
 from lenticalib.core.imageio import MAX_IMAGE_PIXELS, read_image, write_image
 from lenticalib.core.sizes import (MAX_SIDE, MIN_CAMERA_SIDE, MIN_PANEL_SIDE, check_raster, check_sides,
                                    parse_size)
+from .cli_support import raises_one_line as one_line
 
-
-def one_line(fn, cls=InputError) -> str:
-    with pytest.raises(cls) as info:
-        fn()
-    text = str(info.value)
-    assert "\n" not in text, text
-    return text
 
 
 def test_the_limits_admit_8k_and_looking_glass_panels_and_match_the_image_reader():
