@@ -53,7 +53,7 @@ def estimate_camera(pixels: np.ndarray, panel_points: np.ndarray, image_size: tu
                 "centre_panel_px": centre, "roll_deg": float(math.degrees(math.atan2(rot[1, 0], rot[0, 0]))),
                 "points": int(len(obj)),
                 "note": "without a camera model the focal length, and with it the distance, of a near-frontal view "
-                        "is poorly determined; pass --camera (from 'lenticalib camera calibrate') for a metric pose"}
+                        "is poorly determined; give a camera model ('lenticalib fit --camera M', M from 'lenticalib camera calibrate') for a metric pose"}
     pose = camera_pose(pixels, panel_points, model, pixel_pitch_mm or 1.0)
     return describe_pose(pose, model, pixel_pitch_mm)
 

@@ -49,7 +49,7 @@ def direction_warning(profile: PanelProfile) -> str | None:
     return (f"{what}the profile does not say which way its views run: if they run right to left, "
             "depth looks inverted (run 'lenticalib patterns --direction --profile P -o DIR', show "
             "DIR/direction.png and set it with 'lenticalib profile set-direction P +1|-1', "
-            "or fit with --moved-right)")
+            "or fit with 'lenticalib fit DIR --moved-right DIR2')")
 
 
 def with_direction(profile: PanelProfile, direction: int | None, method: str, **evidence) -> PanelProfile:

@@ -152,5 +152,5 @@ def tone_spread(codes: dict[str, np.ndarray], warnings: list[str], first_photo: 
         warnings.append(f"the photos do not look like plain sRGB (the half patterns add up best after a power "
                         f"{best[0]:.2f} on the decoded light): a tone curve or picture style bends them; the "
                         "uncertainty includes it, but for a precise measurement use a neutral picture style or "
-                        "linear photos from RAW (--photos linear)")
+                        "linear photos from RAW ('lenticalib crosstalk measure --photos linear')")
     return best
