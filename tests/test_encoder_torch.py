@@ -20,12 +20,12 @@ from lenticalib.core.imageio import read_image, write_image  # noqa: E402
 from lenticalib.core.profile import PanelProfile, load_profile  # noqa: E402
 from lenticalib.render.encoders import encode, get_encoder  # noqa: E402
 from lenticalib.render.encoders import torch_encoder as te  # noqa: E402
-from lenticalib.core.routing import tie_mask, view_map  # noqa: E402
+from lenticalib.core.routing import view_map  # noqa: E402
 from lenticalib.render.sampling import NO_VIEW, column_sampling, row_sampling  # noqa: E402
 from lenticalib.render.views import QuiltGrid, load_quilt, make_quilt  # noqa: E402
 
 from .strategies import profiles, tie_profiles  # noqa: E402
-from .test_encoders import FIXTURES, _chosen_views, _in_output_order, _random_views  # noqa: E402
+from .test_encoders import _chosen_views, _in_output_order, _random_views, bundled_4k  # noqa: E402
 
 
 def _profile(n=32, sign=1, period=19.47, order="RGB", width=61, height=19, offset=3.3):
@@ -50,12 +50,10 @@ def _encode_tensor(views, profile, dtype=torch.float64):
 @pytest.mark.slow
 def test_bundled_profile_bit_identical_to_reference_everywhere():
     # the demo profile has ~2,500 subpixels on a view boundary (ties): every one routed canonically
-    profile = load_profile(FIXTURES / "panel-4k-32.json")
-    assert tie_mask(profile).sum() > 1000
-    expected = _in_output_order(profile, view_map(profile)).astype(np.int64)
+    profile, ties, expected, views, reference = bundled_4k()  # shared with test_encoders.py
+    assert ties > 1000
     np.testing.assert_array_equal(_chosen_views("torch", profile, np.uint8), expected)
-    views, _ = load_quilt(FIXTURES / "demo_qs8x4a1.7778.png", profile.views)
-    np.testing.assert_array_equal(encode(views, profile, "torch"), encode(views, profile, "reference"))
+    np.testing.assert_array_equal(encode(views, profile, "torch"), reference)
     wide = views.astype(np.uint16) * 257 + np.arange(3, dtype=np.uint16)  # uint16, odd low bits
     np.testing.assert_array_equal(encode(wide, profile, "torch"), encode(wide, profile, "reference"))
     # the tables of a 4K panel: 5 bytes per subpixel (int32 index, uint8 view) + float64 weights per column/row

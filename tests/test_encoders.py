@@ -1,3 +1,4 @@
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,25 @@ def _in_output_order(profile, per_subpixel):
     """``(H, 3W)`` indexed ``[y, x_s]`` -> ``(H, W, 3)`` indexed ``[y, x, channel]``."""
     xs = 3 * np.arange(profile.width)[:, None] + np.asarray(profile.rho)[None, :]
     return per_subpixel[:, xs.reshape(-1)].reshape(profile.height, profile.width, 3)
+
+
+@functools.lru_cache(maxsize=1)
+def bundled_4k():
+    """The bundled 4K, 32-view profile and what the whole-panel tests compare with, computed once
+    a session (here and in test_encoder_torch.py): ``(profile, ties, expected, views, reference)``
+    -- the count of its tie subpixels, the canonical view of every subpixel in output order
+    (int8 ``(H, W, 3)``, -1 where dark), the demo quilt's views and their reference encoding."""
+    from lenticalib.core.profile import load_profile
+    from lenticalib.render.views import load_quilt
+
+    profile = load_profile(FIXTURES / "panel-4k-32.json")
+    expected = _in_output_order(profile, view_map(profile)).astype(np.int8)
+    views, _ = load_quilt(FIXTURES / "demo_qs8x4a1.7778.png", profile.views)
+    for array in (expected, views):
+        array.flags.writeable = False
+    reference = encode(views, profile, "reference")
+    reference.flags.writeable = False
+    return profile, int(tie_mask(profile).sum()), expected, views, reference
 
 
 def _numbered_views(profile, dtype, hv=3, wv=5):
@@ -59,16 +79,10 @@ def test_every_encoder_chooses_the_canonical_view_everywhere(name, dtype, profil
 def test_encoders_agree_on_the_bundled_profile_everywhere():
     # no tie exclusion: the demo profile has ~2,500 subpixels whose w sits on a view boundary
     # (to float64 precision), where the float64 evaluation of the routing rule used to light two views or the other one
-    from lenticalib.core.profile import load_profile
-    from lenticalib.render.views import load_quilt
-
-    profile = load_profile(FIXTURES / "panel-4k-32.json")
-    assert tie_mask(profile).sum() > 1000
-    expected = _in_output_order(profile, view_map(profile)).astype(np.int64)
+    profile, ties, expected, views, ref = bundled_4k()
+    assert ties > 1000
     for name in ENCODERS:
         np.testing.assert_array_equal(_chosen_views(name, profile, np.uint8), expected, err_msg=name)
-    views, _ = load_quilt(FIXTURES / "demo_qs8x4a1.7778.png", profile.views)
-    ref = encode(views, profile, "reference")
     np.testing.assert_array_equal(encode(views, profile, "tables"), ref)
     assert np.abs(encode(views, profile, "fast").astype(np.int32) - ref).max() <= 1
     wide = views.astype(np.uint16) * 257  # uint16: the scalar kernel, identical to the reference

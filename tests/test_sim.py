@@ -197,9 +197,10 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
     from lenticalib.calib.patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
-    pattern_set = design_patterns(3840, 2160, 32)
-    write_patterns(tmp_path, pattern_set)
+    # a 640x360 panel (nothing here depends on its size; the scene is drawn for the set's size) and
     # the smallest camera the fit takes (captures.MIN_PHOTO_PIXELS), one ray per pixel for speed
+    pattern_set = design_patterns(640, 360, 32)
+    write_patterns(tmp_path, pattern_set)
     code, out, err = simulate_main("simulate", tmp_path, "--seed", "3", "--resolution", "1250x800", "--subsamples", "1",
                                    "--json")
     assert code == 0, err
@@ -208,12 +209,12 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
     assert captures == sorted(f"{name}.jpg" for name in pattern_set.names)  # photos only
     assert summary["photos"] == len(pattern_set.patterns)
     truth = load_profile(tmp_path / "truth.json")
-    expected = random_scene(3, resolution=(1250, 800), subsamples=1).truth_profile(32)
+    expected = random_scene(3, width=640, height=360, resolution=(1250, 800), subsamples=1).truth_profile(32)
     assert truth.routing_key() == expected.routing_key()
     assert truth.provenance["method"] == "simulation"
     record = json.loads((tmp_path / "simulation.json").read_text())
     assert record["status"] == "complete" and record["seed"] == 3 and record["lenticalib_version"]
-    assert Scene.from_dict(record) == random_scene(3, resolution=(1250, 800), subsamples=1)
+    assert Scene.from_dict(record) == random_scene(3, width=640, height=360, resolution=(1250, 800), subsamples=1)
     from lenticalib.core.imageio import read_image
 
     assert read_image(tmp_path / "captures" / "f16-0.jpg").shape == (800, 1250, 3)

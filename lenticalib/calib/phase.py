@@ -109,12 +109,23 @@ def smooth_coordinate(coordinate: np.ndarray, weight: np.ndarray, sigma: float,
 
 
 def _robust_lstsq(terms: np.ndarray, target: np.ndarray, weights: np.ndarray, rounds: int = 4) -> np.ndarray:
-    """Weighted least squares with Tukey reweighting (drops unwrapping outliers)."""
+    """Weighted least squares with Tukey reweighting (drops unwrapping outliers).
+
+    ``terms`` (n, k), ``target`` (n,), ``weights`` (n,) -> coefficients (k,).  Each round solves
+    the k x k normal equations by Cholesky (a few times faster than an SVD of the n x k design for
+    the polynomial maps of :func:`smooth_coordinate`, whose design is well conditioned); a
+    singular or non-finite system falls back to ``numpy.linalg.lstsq`` (minimum norm)."""
+    from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
     w = weights.copy()
     coef = None
     for _ in range(rounds):
-        sw = np.sqrt(w)
-        coef, *_ = np.linalg.lstsq(terms * sw[:, None], target * sw, rcond=None)
+        weighted = terms * w[:, None]
+        try:
+            coef = cho_solve(cho_factor(weighted.T @ terms), weighted.T @ target)
+        except (LinAlgError, ValueError):  # singular, or not finite: as lstsq always did
+            sw = np.sqrt(w)
+            coef, *_ = np.linalg.lstsq(terms * sw[:, None], target * sw, rcond=None)
         r = target - terms @ coef
         scale = 1.4826 * np.median(np.abs(r)) + 1e-9
         c = 4.685 * scale
