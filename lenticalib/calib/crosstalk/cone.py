@@ -57,7 +57,11 @@ def _terms(rows, cols, scale, degree=DEGREE):
     x0, y0, s = scale
     u = (np.asarray(cols, np.float64) - x0) / s
     v = (np.asarray(rows, np.float64) - y0) / s
-    return np.stack([u ** i * v ** j for i in range(degree + 1) for j in range(degree + 1 - i)], axis=-1)
+    pu, pv = [np.ones_like(u)], [np.ones_like(v)]
+    for _ in range(degree):
+        pu.append(pu[-1] * u)
+        pv.append(pv[-1] * v)
+    return np.stack([pu[i] * pv[j] for i in range(degree + 1) for j in range(degree + 1 - i)], axis=-1)
 
 
 def binned_profile(t: np.ndarray, values: np.ndarray, views: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -171,10 +175,10 @@ def _coherence(z, u, values, views):
     return np.abs(a @ b.T).ravel()[:values.size] / z.size
 
 
-def _unwrap_to_plane(rows, cols, wrapped, views, scale, degree):
-    """Fit delta's polynomial to wrapped samples: a plane first (2D FFT-free grid search of the
-    sweep's gradient), then unwrapping against it and the full polynomial."""
-    terms = _terms(rows, cols, scale, degree)
+def _unwrap_to_plane(rows, cols, wrapped, views, scale, terms):
+    """Fit delta's polynomial (``terms``: :func:`_terms` of the samples) to wrapped samples: a plane
+    first (2D FFT-free grid search of the sweep's gradient), then unwrapping against it and the
+    full polynomial."""
     x0, y0, s = scale
     u = (cols - x0) / s
     v = (rows - y0) / s
@@ -230,7 +234,7 @@ def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.
     scale = (float(cc.mean()), float(rr.mean()), max(shape) / 2.0)
     terms = _terms(rr, cc, scale, degree)
     if start is None:
-        coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, degree)
+        coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, terms)
         gains = np.ones(k)
     else:
         coef = _least_squares(terms, start.delta(rr, cc))
