@@ -408,7 +408,6 @@ def test_glare_is_measured_outside_the_panel_and_removed():
     assert np.abs(cleaned - direct)[100:200, 120:280].max() < 0.003
 
 
-@pytest.mark.slow
 def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     from lenticalib.calib.crosstalk import cone
 
@@ -458,7 +457,6 @@ def test_cone_fit_shortcuts_equal_their_direct_forms():
     assert np.allclose(step, full, rtol=1e-8, atol=1e-10)
 
 
-@pytest.mark.slow
 def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     """A close camera resolves which subpixel each lens shows of a one-view band: a moire of lit (full)
     and dark places whose average over its phase is the cone.  The measurement averages it out
