@@ -177,20 +177,21 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_proce
 
 
 @pytest.mark.slow
-def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path, cli_process):
+def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path, cli, cli_process):
     """``crosstalk patterns`` from the fitted profile, then ``capture`` shows and photographs them on the
-    same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set."""
+    same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set (``capture`` runs
+    as a real process like the calibration capture; the other two in this one)."""
     folder, _, fit = captured
     assert fit.returncode == 0, fit.stderr
     xt = tmp_path / "xt"
-    assert cli_process("crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt).returncode == 0
+    assert cli("crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt)[0] == 0
     result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
     assert result.returncode == 0, result.stderr
     names = sorted(p.stem for p in (xt / "captures").iterdir())
     assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)])
     assert (xt / "crosstalk-truth.json").exists()
-    measured = cli_process("crosstalk", "measure", xt, "-o", tmp_path / "crosstalk.json")
-    assert measured.returncode == 0, measured.stderr
+    code, _, stderr = cli("crosstalk", "measure", xt, "-o", tmp_path / "crosstalk.json")
+    assert code == 0, stderr
     truth = np.asarray(json.loads((xt / "crosstalk-truth.json").read_text())["matrix"])
     data = json.loads((tmp_path / "crosstalk.json").read_text())
     assert len(data["matrix"]) == VIEWS

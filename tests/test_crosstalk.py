@@ -409,7 +409,6 @@ def test_glare_is_measured_outside_the_panel_and_removed():
     assert np.abs(cleaned - direct)[100:200, 120:280].max() < 0.003
 
 
-@pytest.mark.slow
 def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     from lenticalib.calib.crosstalk import cone
 
@@ -435,7 +434,30 @@ def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     assert np.abs(row - truth).max() < 0.006
 
 
-@pytest.mark.slow
+def test_cone_fit_shortcuts_equal_their_direct_forms():
+    """The fit's fast forms give what the direct ones give: the gradient search's coherences (split
+    into coarse and fine factors) and the Gauss-Newton step (one row per pixel, normal equations)."""
+    from lenticalib.calib.crosstalk import cone
+
+    rng = np.random.default_rng(5)
+    n, k, views = 1000, 10, 32
+    rows, cols = rng.uniform(0, 480, n), rng.uniform(0, 640, n)
+    scale = (320.0, 240.0, 320.0)
+    u = (cols - scale[0]) / scale[2]
+    z = np.exp(2j * np.pi * (37.0 * u + rng.normal(0, 2.0, n)) / views)
+    gxs = np.linspace(-400, 400, 801)
+    direct = np.array([abs(np.mean(z * np.exp(-2j * np.pi * g * u / views))) for g in gxs])
+    assert np.allclose(cone._coherence(z, u, gxs, views), direct, rtol=0, atol=1e-12)
+    assert gxs[np.argmax(direct)] == 37.0
+    terms = cone._terms(rows, cols, scale)
+    w, resid = rng.normal(0, 1, (n, k)), rng.normal(0, 0.01, (n, k))
+    full, *_ = np.linalg.lstsq((w[:, :, None] * terms[:, None, :]).reshape(-1, terms.shape[1]), resid.ravel(),
+                               rcond=None)
+    norm = np.sqrt(np.sum(w ** 2, axis=1))
+    step = cone._least_squares(terms * norm[:, None], np.sum(w * resid, axis=1) / norm)
+    assert np.allclose(step, full, rtol=1e-8, atol=1e-10)
+
+
 def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     """A close camera resolves which subpixel each lens shows of a one-view band: a moire of lit (full)
     and dark places whose average over its phase is the cone.  The measurement averages it out

@@ -57,7 +57,11 @@ def _terms(rows, cols, scale, degree=DEGREE):
     x0, y0, s = scale
     u = (np.asarray(cols, np.float64) - x0) / s
     v = (np.asarray(rows, np.float64) - y0) / s
-    return np.stack([u ** i * v ** j for i in range(degree + 1) for j in range(degree + 1 - i)], axis=-1)
+    pu, pv = [np.ones_like(u)], [np.ones_like(v)]
+    for _ in range(degree):
+        pu.append(pu[-1] * u)
+        pv.append(pv[-1] * v)
+    return np.stack([pu[i] * pv[j] for i in range(degree + 1) for j in range(degree + 1 - i)], axis=-1)
 
 
 def binned_profile(t: np.ndarray, values: np.ndarray, views: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,6 +140,19 @@ def average_along_columns(image: np.ndarray, inside: np.ndarray, sigma: float, a
     return summed / np.maximum(norm, 1e-6)
 
 
+def _least_squares(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x (T,) minimising ``|a x - b|`` for a tall ``a`` (n, T) with few columns: the normal
+    equations of ``a`` with its columns scaled to unit length, solved as a T x T system (LAPACK's
+    tall least squares runs a hundred times slower when its threads compete for a few busy cores).
+    For delta's polynomial terms over a panel the scaled Gram matrix's condition number is a few
+    thousand: about twelve digits are kept."""
+    norm = np.sqrt(np.einsum("ij,ij->j", a, a))
+    norm[norm == 0] = 1.0
+    scaled = a / norm
+    x, *_ = np.linalg.lstsq(scaled.T @ scaled, scaled.T @ b, rcond=None)
+    return x / norm
+
+
 def _initial_delta(ratios: np.ndarray, shifts: np.ndarray, views: int) -> np.ndarray:
     """Per-sample first-harmonic estimate of delta (views, wrapped to [-N/2, N/2))."""
     phasors = np.exp(-2j * math.pi * shifts / views)
@@ -143,38 +160,53 @@ def _initial_delta(ratios: np.ndarray, shifts: np.ndarray, views: int) -> np.nda
     return np.angle(z) * views / (2 * math.pi)
 
 
-def _unwrap_to_plane(rows, cols, wrapped, views, scale, degree):
-    """Fit delta's polynomial to wrapped samples: a plane first (2D FFT-free grid search of the
-    sweep's gradient), then unwrapping against it and the full polynomial."""
-    terms = _terms(rows, cols, scale, degree)
+def _coherence(z, u, values, views):
+    """``|mean(z exp(-2 pi i g u / N))|`` for each ``g`` of ``values`` (float (G,), evenly spaced).
+
+    ``exp(-2 pi i g u / N)`` splits into a coarse and a fine factor (``g = g_0 + m a + b``), so
+    ``G`` coherences cost ``~2 sqrt(G)`` complex exponentials per sample and one matrix product."""
+    values = np.asarray(values, np.float64)
+    step = values[1] - values[0] if values.size > 1 else 1.0
+    m = max(1, int(math.ceil(math.sqrt(values.size))))
+    coarse = values[0] + step * m * np.arange(-(-values.size // m))
+    fine = step * np.arange(m)
+    a = np.exp(np.outer(coarse, -2j * math.pi * u / views)) * z[None, :]
+    b = np.exp(np.outer(fine, -2j * math.pi * u / views))
+    return np.abs(a @ b.T).ravel()[:values.size] / z.size
+
+
+def _unwrap_to_plane(rows, cols, wrapped, views, scale, terms):
+    """Fit delta's polynomial (``terms``: :func:`_terms` of the samples) to wrapped samples: a plane
+    first (2D FFT-free grid search of the sweep's gradient), then unwrapping against it and the
+    full polynomial."""
     x0, y0, s = scale
     u = (cols - x0) / s
     v = (rows - y0) / s
-    # coarse search for the gradient (views per normalised unit) maximising coherence
-    best = (0.0, 0.0, -1.0)
+    # coarse search for the gradient (views per normalised unit) maximising coherence: along x,
+    # then along y at the best x gradient (the first of equal scores wins)
     z = np.exp(2j * math.pi * wrapped / views)
-    for gx in np.linspace(-400, 400, 801):
-        c = np.abs(np.mean(z * np.exp(-2j * math.pi * gx * u / views)))
-        if c > best[2]:
-            best = (gx, 0.0, c)
-    gx = best[0]
-    for gy in np.linspace(-100, 100, 201):
-        c = np.abs(np.mean(z * np.exp(-2j * math.pi * (gx * u + gy * v) / views)))
-        if c > best[2]:
-            best = (gx, gy, c)
-    gx, gy = best[0], best[1]
-    # refine the gradient finely
+    gxs = np.linspace(-400, 400, 801)
+    scores = _coherence(z, u, gxs, views)
+    gx, gy, best = float(gxs[int(np.argmax(scores))]), 0.0, float(scores.max())
+    gys = np.linspace(-100, 100, 201)
+    scores = _coherence(z * np.exp(-2j * math.pi * gx * u / views), v, gys, views)
+    if scores.max() > best:
+        gy = float(gys[int(np.argmax(scores))])
+    # refine the gradient finely: a 21 x 21 grid around it, separable in x and y
     for span in (1.0, 0.1):
-        cand = [(gx + a, gy + b) for a in np.linspace(-span, span, 21) for b in np.linspace(-span, span, 21)]
-        scores = [np.abs(np.mean(z * np.exp(-2j * math.pi * (a * u + b * v) / views))) for a, b in cand]
-        gx, gy = cand[int(np.argmax(scores))]
+        steps = np.linspace(-span, span, 21)
+        z0 = z * np.exp(-2j * math.pi * (gx * u + gy * v) / views)
+        ex = np.exp(np.outer(steps, -2j * math.pi * u / views)) * z0[None, :]
+        ey = np.exp(np.outer(steps, -2j * math.pi * v / views))
+        a, b = np.unravel_index(int(np.argmax(np.abs(ex @ ey.T))), (steps.size, steps.size))
+        gx, gy = gx + steps[a], gy + steps[b]
     plane = gx * u + gy * v
     offset = np.angle(np.mean(z * np.exp(-2j * math.pi * plane / views))) * views / (2 * math.pi)
     plane = plane + offset
     unwrapped = plane + (np.mod(wrapped - plane + views / 2.0, views) - views / 2.0)
     weights = np.ones_like(unwrapped)
     for _ in range(4):  # robust: the aliasing makes some samples far off
-        coef, *_ = np.linalg.lstsq(terms * weights[:, None], unwrapped * weights, rcond=None)
+        coef = _least_squares(terms * weights[:, None], unwrapped * weights)
         resid = unwrapped - terms @ coef
         scale_r = 1.4826 * np.median(np.abs(resid)) + 1e-6
         weights = 1.0 / np.maximum(1.0, np.abs(resid) / (2.5 * scale_r))
@@ -202,10 +234,10 @@ def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.
     scale = (float(cc.mean()), float(rr.mean()), max(shape) / 2.0)
     terms = _terms(rr, cc, scale, degree)
     if start is None:
-        coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, degree)
+        coef = _unwrap_to_plane(rr, cc, _initial_delta(r, shifts, views), views, scale, terms)
         gains = np.ones(k)
     else:
-        coef, *_ = np.linalg.lstsq(terms, start.delta(rr, cc), rcond=None)
+        coef = _least_squares(terms, start.delta(rr, cc))
         gains = start.gains.copy()
     grid = profile = None
     rms = math.nan
@@ -221,12 +253,16 @@ def fit_cone(ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.
         model = profile_at(grid, profile, t, views)
         gains = np.array([np.sum(r[:, j] * model[:, j]) / max(np.sum(model[:, j] ** 2), 1e-30) for j in range(k)])
         gains /= np.mean(gains)
-        # Gauss-Newton step on delta's coefficients
+        # Gauss-Newton step on delta's coefficients: the Jacobian's row for sample (p, k) is
+        # w_pk terms_p (w = a_k h'), so its normal equations are those of one row per pixel,
+        # sqrt(sum_k w_pk^2) terms_p against sum_k w_pk r_pk / sqrt(sum_k w_pk^2): the same step
+        # from a system K times smaller
         slope = (profile_at(grid, profile, t + 0.05, views) - profile_at(grid, profile, t - 0.05, views)) / 0.1
-        resid = (r - gains[None, :] * model).ravel()
-        jac = (gains[None, :] * slope)[:, :, None] * terms[:, None, :]
-        jac = jac.reshape(-1, terms.shape[1])
-        step, *_ = np.linalg.lstsq(jac, resid, rcond=None)
+        resid = r - gains[None, :] * model
+        w = gains[None, :] * slope
+        norm = np.sqrt(np.sum(w ** 2, axis=1))
+        rhs = np.divide(np.sum(w * resid, axis=1), norm, out=np.zeros_like(norm), where=norm > 0)
+        step = _least_squares(terms * norm[:, None], rhs)
         coef = coef + step
         rms = float(np.sqrt(np.mean(resid ** 2)))
     delta = terms @ coef
