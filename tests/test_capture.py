@@ -182,7 +182,8 @@ def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp
     same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set (``capture`` runs
     as a real process like the calibration capture; the other two in this one)."""
     folder, _, fit = captured
-    assert fit.returncode == 0, fit.stderr
+    code, _, err = fit
+    assert code == 0, err
     xt = tmp_path / "xt"
     assert cli("crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt)[0] == 0
     result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
