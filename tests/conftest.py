@@ -84,3 +84,14 @@ def capture_set(tmp_path_factory):
         return made[key]
 
     return make
+
+
+SLOW_FIXTURES = {"demo_fit", "two_distances"}
+"""Fixtures that fit a whole capture set (15-20 s each on two cores): every test using one is
+``slow``, so ``-m "not slow"`` stays an inner loop of about two minutes."""
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if SLOW_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
