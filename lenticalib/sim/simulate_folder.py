@@ -36,6 +36,18 @@ from ..core.sizes import MAX_SIDE, MIN_CAMERA_SIDE, check_sides
 
 MAX_PIXELS = 64_000_000  # camera pixels in all (the simulator holds several float images of this size)
 MAX_SEED = 2 ** 63 - 1
+
+
+def check_seed(seed: int | None) -> None:
+    """InputError naming ``seed`` unless it is None (draw one) or 0..MAX_SEED."""
+    if seed is not None and not 0 <= seed <= MAX_SEED:
+        raise InputError(f"seed {seed} is out of range", source="seed", hint=f"use 0..{MAX_SEED}")
+
+
+def check_board_photos(photos: int) -> None:
+    """InputError naming ``photos`` unless a board set of that many photos can be simulated (3..500)."""
+    if not 3 <= photos <= 500:
+        raise InputError(f"{photos} photos is out of range", source="photos", hint="use 3..500 (15-30 is typical)")
 DEFAULT_SUBSAMPLES = 3
 BOARD_SUBSAMPLES = 2
 BOARD_RESOLUTION = (1600, 1200)
@@ -81,8 +93,7 @@ class SimulationOptions:
         if self.jpeg_quality is not None and not 1 <= self.jpeg_quality <= 100:
             raise InputError(f"JPEG quality {self.jpeg_quality} is out of range", source="jpeg_quality",
                              hint="use 1..100")
-        if self.seed is not None and not 0 <= self.seed <= MAX_SEED:
-            raise InputError(f"seed {self.seed} is out of range", source="seed", hint=f"use 0..{MAX_SEED}")
+        check_seed(self.seed)
         if self.resolution is not None:
             check_resolution(*self.resolution, "resolution")
         if self.subsamples is not None and not 1 <= self.subsamples <= 16:
@@ -227,8 +238,7 @@ def _simulate_board(folder: Path, o: SimulationOptions, progress, progress_total
     if ignored:
         raise InputError(f"does not apply to a camera board folder: {', '.join(ignored)}", source=str(folder),
                          hint="the board folder fixes the panel; the camera moves around it")
-    if not 3 <= o.photos <= 500:
-        raise InputError(f"{o.photos} photos is out of range", source="photos", hint="use 3..500 (15-30 is typical)")
+    check_board_photos(o.photos)
     resolution = o.resolution or BOARD_RESOLUTION
     captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos")
     written = [captures, check_output_file(folder / SIMULATION_NAME, "simulation record"),
@@ -263,12 +273,10 @@ def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", se
     from .board_set import CAPTURE_FOLDER, CONTENTS, simulate_board_set
 
     check_sides(*resolution, "resolution", MIN_CAMERA_SIDE)
-    if not 3 <= photos <= 500:
-        raise InputError(f"{photos} photos is out of range", source="photos", hint="use 3..500 (15-30 is typical)")
+    check_board_photos(photos)
     if not 1 <= subsamples <= 8:
         raise InputError(f"{subsamples} subsamples is out of range", source="subsamples", hint="use 1..8")
-    if seed is not None and not 0 <= seed < 2 ** 63:
-        raise InputError(f"seed {seed} is out of range", source="seed", hint="use 0..2^63-1")
+    check_seed(seed)
     contents = (CONTENTS + CAMERA_SET_EXTRA + (f"{CAPTURE_FOLDER}/board-[0-9][0-9]*.jpg",)
                 + tuple(f"report/{name}" for name in REPORT_FILES))
     check_output_folder(directory, "camera simulation", contents)
