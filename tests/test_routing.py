@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 
 from lenticalib.core.profile import PanelProfile
-from lenticalib.core.routing import phase_constants, rule_views, tie_mask, view_coordinate, view_map
+from lenticalib.core.routing import routing_plan, rule_views, tie_mask, view_coordinate, view_map
 
 from lenticalib.render.sampling import NO_VIEW, sampling_tables
 
@@ -66,11 +66,12 @@ def test_views_follow_the_optics_convention():
     assert (view_map(p)[ok] == (np.floor(w) % 32)[ok]).all()
 
 
-def test_phase_constants_are_cached_and_read_only():
+def test_routing_plan_is_cached_and_read_only():
     p = PanelProfile(views=8, slant=0.1, period=7.0, offset=0.0, reference_view=0.0, width=10, height=4)
-    z0, k, dark = phase_constants(p)
-    assert phase_constants(p)[0] is z0
-    assert not z0.flags.writeable and dark is None and k == (1 << 64) // 7
+    plan = routing_plan(p)
+    assert routing_plan(p) is plan
+    assert not plan.z0.flags.writeable and plan.dark is None and plan.k == (1 << 64) // 7
+    assert plan.is_stripe and not plan.shift.flags.writeable
 
 
 @given(tie_profiles(max_width=30, max_height=12))

@@ -74,8 +74,9 @@ def _formats(*formats: DocumentFormat) -> dict[str, DocumentFormat]:
 
 # Every format lenticalib writes (docs/README.md lists them with the files they are found in).
 FORMATS: dict[str, DocumentFormat] = _formats(
-    DocumentFormat("lenticalib.profile", 1, "profile",
-                   "is this a Looking Glass visual.json? use 'lenticalib profile import-lkg'", implicit=True),
+    DocumentFormat("lenticalib.profile", 2, "profile",
+                   "is this a Looking Glass visual.json? use 'lenticalib profile import-lkg'", implicit=True,
+                   reads=(1, 2)),
     DocumentFormat("lenticalib.rig", 1, "rig file", "make one with tools/make_demo_avatar.py",
                    aliases=("lenticalib-rig",)),
     DocumentFormat("lenticalib.cameras", 1, "cameras file", "give the cameras.json written with the views"),

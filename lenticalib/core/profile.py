@@ -10,6 +10,16 @@ A profile holds the routing constants (see ``docs/optics.md``; format: ``docs/pr
     width, height    panel raster in pixels (int)
     subpixel_order   "RGB" or "BGR": which colour sits at subpixel position 0, 1, 2
 
+and, for panels that are not a plain RGB/BGR stripe or that Looking Glass software drives with
+flips, the optional routing fields
+
+    subpixel_layout  channel positions per cell and the cell pattern (:mod:`lenticalib.core.layout`);
+                     with it the slots of a pixel are the channels R, G, B (subpixel_order "RGB")
+    views_reversed   true: the view numbers run the other way, view ``N - 1 - v`` where the rule
+                     gives ``v`` (Looking Glass ``invView = 0``; docs/profile-format.md)
+    flip_image_x/y   true: every view image is shown mirrored left-right / top-bottom (Looking
+                     Glass ``flipImageX`` / ``flipImageY``); sampling only, not routing
+
 plus a format version, the optional ``physical`` block (lens pitch, gap, pixel pitch, the eye
 the constants are for: :mod:`lenticalib.core.physical`), the optional ``view_direction`` (+1: the
 view index grows as the viewer moves to the right; -1: it falls; absent: unknown), optional
@@ -35,6 +45,7 @@ from .atomic import write_text_atomic
 from .documents import FORMATS, check_envelope, read_json_file
 from .errors import ProfileError
 from .fields import is_finite_number, is_number, short_repr, unknown_key_message
+from .layout import SubpixelLayout, layout_from_dict
 from .sizes import MAX_SIDE
 
 DOCUMENT = FORMATS["lenticalib.profile"]
@@ -57,8 +68,9 @@ REFERENCE_VIEW_LIMIT = 65535.0  # |i_ref| <= 65535 views
 SUBPIXEL_ORDERS = ("RGB", "BGR")
 CONSTANT_KEYS = ("views", "slant", "period", "offset", "reference_view", "width", "height",
                  "subpixel_order")
+ROUTING_OPTIONAL_KEYS = ("subpixel_layout", "views_reversed", "flip_image_x", "flip_image_y")
 OPTIONAL_KEYS = ("format", "format_version", "view_direction", "uncertainty", "provenance", "looking_glass",
-                 "name", "notes", "physical")
+                 "name", "notes", "physical") + ROUTING_OPTIONAL_KEYS
 VIEW_DIRECTIONS = (1, -1)
 
 
@@ -96,6 +108,10 @@ class PanelProfile:
     name: str | None = dataclasses.field(default=None, compare=False, hash=False)
     view_direction: int | None = dataclasses.field(default=None, compare=False, hash=False)
     physical: Mapping[str, Any] | None = dataclasses.field(default=None, compare=False, hash=False)
+    subpixel_layout: SubpixelLayout | None = None
+    views_reversed: bool = False
+    flip_image_x: bool = False
+    flip_image_y: bool = False
 
     def __post_init__(self):
         _validate_constants(dataclasses.asdict(self), source="profile")
@@ -107,13 +123,36 @@ class PanelProfile:
 
     @property
     def rho(self) -> tuple[int, int, int]:
-        """Subpixel position of the R, G, B channel (see :func:`subpixel_position`)."""
+        """Slot (0, 1, 2 within the pixel) of the R, G, B channel (see :func:`subpixel_position`).
+
+        With a :attr:`subpixel_layout` the slots are the channels: ``(0, 1, 2)``."""
         return subpixel_position(self.subpixel_order)
 
+    @property
+    def is_stripe(self) -> bool:
+        """True for a plain RGB/BGR stripe panel: no cell layout (the slot shifts are all 0)."""
+        return self.subpixel_layout is None
+
+    @property
+    def layout_name(self) -> str:
+        """``"RGB"``, ``"BGR"`` or ``"cells (n cells, pattern RxC)"`` for messages and reports."""
+        if self.subpixel_layout is None:
+            return self.subpixel_order
+        lay = self.subpixel_layout
+        return f"cells ({len(lay.cells)} cells, pattern {lay.pattern_rows}x{lay.pattern_columns})"
+
+    def uses_version_2(self) -> bool:
+        """True when the profile needs format version 2 (a layout, reversed views or flips).
+
+        Profiles without them are written as version 1, so older lenticalib reads them."""
+        return (self.subpixel_layout is not None or self.views_reversed or self.flip_image_x
+                or self.flip_image_y)
+
     def routing_key(self) -> tuple:
-        """The fields that decide routing; equal keys give identical encodings."""
+        """The fields that decide routing and sampling; equal keys give identical encodings."""
         return (self.views, self.slant, self.period, self.offset, self.reference_view,
-                self.width, self.height, self.subpixel_order)
+                self.width, self.height, self.subpixel_order, self.subpixel_layout,
+                self.views_reversed, self.flip_image_x, self.flip_image_y)
 
     def replace(self, **changes) -> "PanelProfile":
         """A copy with some fields changed (validated again)."""
@@ -122,10 +161,17 @@ class PanelProfile:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping in the current format."""
         out: dict[str, Any] = DOCUMENT.envelope()
+        if not self.uses_version_2():  # readable by every lenticalib since the format began
+            out["format_version"] = 1
         if self.name:
             out["name"] = self.name
         for key in CONSTANT_KEYS:
             out[key] = getattr(self, key)
+        if self.subpixel_layout is not None:
+            out["subpixel_layout"] = self.subpixel_layout.to_dict()
+        for key in ("views_reversed", "flip_image_x", "flip_image_y"):
+            if getattr(self, key):
+                out[key] = True
         if self.view_direction is not None:
             out["view_direction"] = self.view_direction
         if self.uncertainty:
@@ -218,6 +264,16 @@ def _validate_constants(data: Mapping[str, Any], source: str) -> None:
         from .physical import validate_physical
 
         validate_physical(data["physical"], source)
+    layout = data.get("subpixel_layout")
+    if layout is not None:
+        if not isinstance(layout, SubpixelLayout):
+            fail("subpixel_layout", "must be a SubpixelLayout")
+        if data["subpixel_order"] != "RGB":
+            fail("subpixel_order", f"must be \"RGB\" with a subpixel_layout (its slots are R, G, B), "
+                                   f"got {data['subpixel_order']!r}")
+    for key in ("views_reversed", "flip_image_x", "flip_image_y"):
+        if key in data and not isinstance(data[key], bool):
+            fail(key, f"must be true or false, got {short_repr(data[key])}")
     direction = data.get("view_direction")
     if direction is not None and not (_is_int(direction) and direction in VIEW_DIRECTIONS):
         fail("view_direction", f"must be 1 or -1 (or absent when unknown), got {direction!r}",
@@ -242,6 +298,10 @@ def profile_from_dict(data: Any, source: str = "profile") -> PanelProfile:
     fields = {k: data[k] for k in CONSTANT_KEYS}
     for key in ("uncertainty", "provenance", "looking_glass", "name", "view_direction", "physical"):
         fields[key] = data.get(key)
+    for key in ("views_reversed", "flip_image_x", "flip_image_y"):
+        fields[key] = data.get(key, False)
+    if data.get("subpixel_layout") is not None:
+        fields["subpixel_layout"] = layout_from_dict(data["subpixel_layout"], source)
     if fields["name"] is not None and not isinstance(fields["name"], str):
         raise ProfileError("field 'name': must be a string", source=source)
     _validate_constants(fields, source)

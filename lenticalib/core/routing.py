@@ -31,6 +31,7 @@ or light two views.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from fractions import Fraction
 
@@ -43,9 +44,40 @@ _MASK32 = np.uint64(0xFFFFFFFF)
 _ROWS_PER_CHUNK = 256
 
 
+@dataclasses.dataclass(frozen=True)
+class RoutingPlan:
+    """The canonical fixed-point routing of one profile (module docstring), per-profile constants.
+
+    The phase of slot ``s`` of pixel ``x`` in row ``y`` (``x_s = 3 x + s``), in units of
+    ``2**-64`` cycles of N views, is
+
+        Z = z0[y] - x_s * k - shift[y % shift.shape[0], 3 (x % (shift.shape[1] // 3)) + s]   (mod 2**64)
+
+    and the slot shows view ``floor(Z * N / 2**64)``, or none when ``dark`` is not None and
+    ``(Z * N) mod 2**64 >= dark``.
+
+    ``z0`` uint64 ``(height,)``, rounded up from the exact phase; ``k`` the step per subpixel,
+    ``floor(2**64 / period)``; ``shift`` uint64 ``(rows, 3 * columns)``: the slot shifts of a
+    :class:`~lenticalib.core.layout.SubpixelLayout` as ``floor(e * 2**64 / period)`` (all zero,
+    shape ``(1, 3)``, on a stripe panel); ``dark`` ``None`` when ``period <= N``.  For a profile
+    with ``views_reversed`` the plan holds the complement (``~z0``, ``-k``, ``-shift``), which gives
+    view ``N - 1 - v`` for the rule's ``v`` (off exact ties), so kernels need not know about it.
+    """
+
+    z0: np.ndarray
+    k: int
+    shift: np.ndarray
+    dark: int | None
+
+    @property
+    def is_stripe(self) -> bool:
+        """True when every slot shift is zero (``shift`` has shape ``(1, 3)`` and holds zeros)."""
+        return self.shift.shape == (1, 3) and not self.shift.any()
+
+
 @functools.lru_cache(maxsize=16)
-def _phase_constants(key: tuple) -> tuple[np.ndarray, int, int | None]:
-    n, slant, period, offset, i_ref, width, height, _order = key
+def _routing_plan(key: tuple) -> RoutingPlan:
+    n, slant, period, offset, i_ref, width, height, _order, layout, reversed_views = key[:10]
     p = Fraction(period)
     base = Fraction(i_ref) / n + Fraction(offset) / p
     step_y = 3 * Fraction(slant) / p
@@ -55,63 +87,93 @@ def _phase_constants(key: tuple) -> tuple[np.ndarray, int, int | None]:
         scaled = (z - (z.numerator // z.denominator)) * _TWO64  # frac(z) in [0, 1), times 2**64
         z0[y] = -((-scaled.numerator) // scaled.denominator) % _TWO64  # ceil, wrapped
     k = (_TWO64 * p.denominator // p.numerator) % _TWO64  # floor(2**64 / period), wrapped
+    if layout is None:
+        shift = np.zeros((1, 3), dtype=np.uint64)
+    else:
+        per_cell = [[(e * _TWO64 / p).__floor__() % _TWO64 for e in cell] for cell in layout.slot_shifts(slant)]
+        shift = np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern],
+                         dtype=np.uint64)
     # lit iff frac(w) < N / period; frac(w) * 2**64 is (Z * N) mod 2**64.
     ratio = Fraction(n) / p
     dark_threshold = None if ratio >= 1 else -((-ratio.numerator * _TWO64) // ratio.denominator)
+    if reversed_views:
+        z0 = ~z0
+        k = (-k) % _TWO64
+        shift = (np.uint64(0) - shift).astype(np.uint64)
     z0.setflags(write=False)
-    return z0, k, dark_threshold
+    shift.setflags(write=False)
+    return RoutingPlan(z0=z0, k=k, shift=shift, dark=dark_threshold)
 
 
-def phase_constants(profile: PanelProfile) -> tuple[np.ndarray, int, int | None]:
-    """Fixed-point phase of the canonical routing.
-
-    RETURNED VALUE
-    ``(z0, k, dark_threshold)``: ``z0`` uint64 array of shape ``(height,)``, the phase of subpixel
-    ``x_s = 0`` of each row in units of ``2**-64`` cycles (one cycle = N views), rounded up;
-    ``k`` the phase step per subpixel to the right, ``floor(2**64 / period) mod 2**64``;
-    ``dark_threshold`` ``None`` when ``period <= N`` (every subpixel lit), else
-    ``ceil(2**64 * N / period)``: a subpixel is lit iff ``(Z * N) mod 2**64 < dark_threshold``.
-    Cached per profile.
-    """
-    return _phase_constants(profile.routing_key())
+def routing_plan(profile: PanelProfile) -> RoutingPlan:
+    """The fixed-point constants every encoder routes by (:class:`RoutingPlan`); cached per profile."""
+    return _routing_plan(profile.routing_key())
 
 
 def view_map(profile: PanelProfile, rows: slice | None = None) -> np.ndarray:
-    """View shown by every subpixel, in the canonical arithmetic.
+    """View shown by every subpixel slot, in the canonical arithmetic.
 
     RETURNED VALUE
-    int16 array of shape ``(rows, 3 * width)``, indexed ``[y, x_s]`` with ``x_s = 3 x + rho(c)``
-    (panel subpixel order, not channel order); ``-1`` where no view lights the subpixel
-    (possible only when ``period > N``).
+    int16 array of shape ``(rows, 3 * width)``, indexed ``[y, 3 x + slot]`` with ``slot = rho(c)``
+    (panel subpixel order on a stripe panel; the channel R, G, B with a subpixel layout), not
+    channel order; ``-1`` where no view lights the slot (possible only when ``period > N``).
     """
-    z0, k, dark = phase_constants(profile)
+    plan = routing_plan(profile)
+    row_index = np.arange(profile.height)
     if rows is not None:
-        z0 = z0[rows]
+        row_index = row_index[rows]
+    z0 = plan.z0[row_index]
     views = np.empty((z0.shape[0], profile.subpixels_per_row), dtype=np.int16)
-    xs_k = np.arange(profile.subpixels_per_row, dtype=np.uint64) * np.uint64(k)  # wraps mod 2**64
+    xs_k = np.arange(profile.subpixels_per_row, dtype=np.uint64) * np.uint64(plan.k)  # wraps mod 2**64
     n = np.uint64(profile.views)
+    shift_rows = plan.shift.shape[0]
+    reps = -(-profile.subpixels_per_row // plan.shift.shape[1])
+    shift_full = np.tile(plan.shift, (1, reps))[:, :profile.subpixels_per_row]  # (rows of pattern, 3W)
     with np.errstate(over="ignore"):
         for start in range(0, z0.shape[0], _ROWS_PER_CHUNK):  # bounded uint64 temporaries
-            z = z0[start:start + _ROWS_PER_CHUNK, None] - xs_k[None, :]
+            stop = start + _ROWS_PER_CHUNK
+            z = z0[start:stop, None] - xs_k[None, :]
+            if not plan.is_stripe:
+                z = z - shift_full[row_index[start:stop] % shift_rows]
             hi = (z >> np.uint64(32)) * n
             lo = (z & _MASK32) * n
-            chunk = views[start:start + _ROWS_PER_CHUNK]
+            chunk = views[start:stop]
             chunk[...] = (hi + (lo >> np.uint64(32))) >> np.uint64(32)
-            if dark is not None:
-                chunk[(z * n) >= np.uint64(dark)] = -1
+            if plan.dark is not None:
+                chunk[(z * n) >= np.uint64(plan.dark)] = -1
     return views
 
 
-def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np.ndarray:
-    """Continuous view coordinate ``w(x_s, y)`` of docs/optics.md, float64, shape ``(rows, 3 * width)``.
+def slot_shift_views(profile: PanelProfile) -> np.ndarray:
+    """Slot shifts of the profile in subpixels, float64 ``(rows, 3 * columns)`` (zeros on a stripe panel).
 
-    ``w`` is evaluated at the integer index ``x_s`` (the subpixel's left edge), as the LentiAvatar routing
-    rule does.  Not reduced modulo N.
+    Indexed like :attr:`RoutingPlan.shift`: ``[y % rows, 3 (x % columns) + slot]``."""
+    layout = profile.subpixel_layout
+    if layout is None:
+        return np.zeros((1, 3))
+    per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(profile.slant)]
+    return np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern])
+
+
+def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np.ndarray:
+    """Continuous view coordinate ``w`` of docs/optics.md per slot, float64, shape ``(rows, 3 * width)``.
+
+    ``w`` is evaluated at the slot's left edge ``x_s + e`` (``e`` the slot shift of a subpixel
+    layout, 0 on a stripe panel), as the LentiAvatar routing rule does.  Not reduced modulo N.
+    With ``views_reversed`` it is ``N - w`` (the view shown is ``floor`` of it, modulo N).
     """
     y = np.arange(profile.height, dtype=np.float64) if rows is None else np.asarray(rows, np.float64)
     xs = np.arange(profile.subpixels_per_row, dtype=np.float64)
     scale = profile.views / profile.period
-    return profile.reference_view + (3.0 * profile.slant * y[:, None] + profile.offset - xs[None, :]) * scale
+    w = profile.reference_view + (3.0 * profile.slant * y[:, None] + profile.offset - xs[None, :]) * scale
+    if not profile.is_stripe:
+        shift = slot_shift_views(profile)
+        reps = -(-profile.subpixels_per_row // shift.shape[1])
+        full = np.tile(shift, (1, reps))[:, :profile.subpixels_per_row]
+        w = w - full[y.astype(np.int64) % shift.shape[0]] * scale
+    if profile.views_reversed:
+        w = profile.views - w
+    return w
 
 
 def rule_views(profile: PanelProfile, max_views: int = 3) -> tuple[np.ndarray, np.ndarray]:

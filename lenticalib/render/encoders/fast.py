@@ -22,7 +22,7 @@ import numpy as np
 from numba import prange
 
 from ...core.profile import PanelProfile
-from ...core.routing import phase_constants
+from ...core.routing import routing_plan
 from ..sampling import column_sampling, row_sampling
 from . import _simd
 
@@ -32,16 +32,19 @@ _ONE = 1 << _simd.WEIGHT_BITS
 
 
 @nb.njit(parallel=True, cache=True, boundscheck=False)
-def _encode_scalar(views, out, z0, k, n_views, has_dark, threshold, rho, x_lo, x_hi, x_w,
+def _encode_scalar(views, out, z0, k, shift, n_views, has_dark, threshold, rho, x_lo, x_hi, x_w,
                    y_lo, y_hi, y_w, is_int, top):  # pragma: no cover - compiled
     height, width = out.shape[0], out.shape[1]
     nv = _U64(n_views)
+    shift_rows, shift_cols = shift.shape[0], shift.shape[1] // 3
     for y in prange(height):
         ya, yb, fy = y_lo[y], y_hi[y], y_w[y]
+        srow = y % shift_rows
         for x in range(width):
+            scol = 3 * (x % shift_cols)
             for c in range(3):
                 xs = 3 * x + rho[c]
-                z = z0[y] - _U64(xs) * k
+                z = z0[y] - _U64(xs) * k - shift[srow, scol + rho[c]]
                 hi = (z >> _U64(32)) * nv
                 lo = (z & _MASK32) * nv
                 v = np.int64((hi + (lo >> _U64(32))) >> _U64(32))
@@ -91,8 +94,9 @@ def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None
     n, hv, wv, _ = views.shape
     if out is None:
         out = np.empty((profile.height, profile.width, 3), dtype=views.dtype)
-    z0, k, dark = phase_constants(profile)
-    if _block_kernel_fits(views, profile.subpixels_per_row):
+    plan = routing_plan(profile)
+    z0, k, dark = plan.z0, plan.k, plan.dark
+    if plan.is_stripe and _block_kernel_fits(views, profile.subpixels_per_row):
         tab, lane_offsets, row0, row_step, fyq = _u8_plan(profile, hv, wv)
         pow2 = (n & (n - 1)) == 0
         mode = 2 if dark is not None else (0 if pow2 else 1)
@@ -105,7 +109,7 @@ def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None
     rows = row_sampling(profile, hv)
     is_int = bool(np.issubdtype(views.dtype, np.integer))
     top = float(np.iinfo(views.dtype).max) if is_int else 0.0
-    _encode_scalar(views, out, z0, _U64(k), n, dark is not None, _U64(dark or 0),
+    _encode_scalar(views, out, z0, _U64(k), plan.shift, n, dark is not None, _U64(dark or 0),
                    np.asarray(profile.rho, dtype=np.int64), cols.lo, cols.hi, cols.weight,
                    rows.lo, rows.hi, rows.weight, is_int, top)
     return out
