@@ -180,7 +180,7 @@ def test_profile_round_trips_with_its_envelope_and_a_hand_written_one_reads(tmp_
     assert load_profile(path) == PROFILE
     constants = {k: v for k, v in PROFILE.to_dict().items() if k not in ("format", "format_version")}
     assert profile_from_dict(constants) == PROFILE  # the envelope may be left out of a hand-written profile
-    for change, words in (({"format_version": 2}, "field 'format_version': unknown version 2"),
+    for change, words in (({"format_version": 3}, "field 'format_version': unknown version 3"),
                           ({"format": "lenticalib.cameras"}, "field 'format': expected \"lenticalib.profile\"")):
         bad = write_json(tmp_path / "bad.json", {**PROFILE.to_dict(), **change})
         text = one_line(lambda: load_profile(bad), ProfileError)

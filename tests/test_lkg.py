@@ -1,9 +1,10 @@
 """Looking Glass visual.json import/export (lenticalib.core.lkg).
 
-The golden model is :func:`lenticalib.core.lkg.lkg_view_map`, a literal float64 transcription of the
+The golden model is :func:`lenticalib.core.lkg_rule.lkg_view_map`, our float64 port of the
 Looking Glass shader's rule; lenticalib's canonical :func:`routing.view_map` of the imported
-profile must agree with it on every subpixel except exact ties (their ``phase * N`` within 1e-6
-of an integer, where float evaluations may legitimately differ).
+profile must agree with it on every colour of every pixel except exact ties (their ``phase * N``
+within 1e-6 of an integer, where float evaluations may legitimately differ).  Cell layouts and
+flips: test_lkg_layouts.py.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lenticalib.core import lkg
+from lenticalib.core import lkg, lkg_rule
 from lenticalib.core.errors import ProfileError
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core import routing
@@ -44,20 +45,20 @@ PORTRAIT = {
 TIE_TOL = 1e-6
 
 
-def _ties(visual, n):
-    """Subpixels where their phase * N is within TIE_TOL of an integer (float64)."""
-    pn = lkg.lkg_phase(visual) * n
-    return np.abs(pn - np.round(pn)) < TIE_TOL
+def channel_views(profile):
+    """lenticalib's view of every colour, int32 ``(H, W, 3)`` ``[y, x, channel]`` (-1 dark)."""
+    slots = routing.view_map(profile).astype(np.int32).reshape(profile.height, profile.width, 3)
+    return slots[:, :, list(profile.rho)]
 
 
 def _compare(visual, n, profile=None):
     """Compare lenticalib's view map with the golden model; returns (ours, theirs, ties, lit)."""
     profile = profile if profile is not None else lkg.profile_from_visual(visual, n)
-    ours = routing.view_map(profile).astype(np.int32)
-    theirs = lkg.lkg_view_map(visual, n)
-    assert ours.shape == theirs.shape == (profile.height, 3 * profile.width)
+    ours = channel_views(profile)
+    theirs = lkg_rule.lkg_view_map(visual, n)
+    assert ours.shape == theirs.shape == (profile.height, profile.width, 3)
     assert theirs.min() >= 0 and theirs.max() <= n
-    ties = _ties(visual, n)
+    ties = lkg_rule.lkg_ties(visual, n, TIE_TOL)
     lit = ours >= 0
     theirs = theirs % n
     # on ties the two may pick either neighbouring view, never anything else
@@ -135,9 +136,9 @@ def test_golden_model_gives_n_on_exact_tie():
     tilt = h / (w * v["slope"])
     # make the phase of pixel (0, bottom row), position 0 exactly 0
     v["center"] = (0.5 / w + 0.5 / h * tilt) * p
-    views = lkg.lkg_view_map(v, n)
-    assert views[h - 1, 0] == n
-    assert lkg.lkg_phase(v)[h - 1, 0] == 0.0
+    views = lkg_rule.lkg_view_map(v, n)
+    assert views[h - 1, 0, 0] == n
+    assert lkg_rule.lkg_phase(v)[h - 1, 0, 0] == 0.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -155,7 +156,9 @@ def visuals(draw):
         "screenW": {"value": float(draw(st.integers(50, 400)))},
         "screenH": {"value": float(draw(st.integers(40, 300)))},
         "flipSubp": {"value": float(draw(st.integers(0, 1)))},
-        "invView": {"value": 1.0},
+        "invView": {"value": float(draw(st.integers(0, 1)))},
+        "flipImageX": {"value": float(draw(st.integers(0, 1)))},
+        "flipImageY": {"value": float(draw(st.integers(0, 1)))},
         "viewCone": {"value": 40.0},
         "serial": "R-" + str(draw(st.integers(0, 999))),
     }
@@ -175,7 +178,7 @@ def test_random_calibrations_match_lkg_rule(visual, n):
     else:
         # The LentiAvatar routing rule darkens frac(w) >= N/Delta where their shader still shows a view;
         # the continuous coordinate agrees with theirs there too.
-        w = routing.view_coordinate(profile)
+        w = routing.view_coordinate(profile).reshape(profile.height, profile.width, 3)[:, :, list(profile.rho)]
         cont = np.floor(w).astype(np.int64) % n
         assert not ((cont != theirs) & ~ties).any()
         assert abs((~lit).mean() - (1 - n / profile.period)) < 0.05
@@ -196,9 +199,12 @@ def profiles(draw, canonical=True):
     else:
         offset = draw(st.floats(-100.0, 100.0))
         i_ref = draw(st.floats(-5.0, 5.0))
+    reversed_views = draw(st.booleans())
     return PanelProfile(views=n, slant=slant, period=period, offset=offset, reference_view=i_ref,
                         width=draw(st.integers(20, 200)), height=draw(st.integers(20, 150)),
-                        subpixel_order=draw(st.sampled_from(["RGB", "BGR"])))
+                        subpixel_order=draw(st.sampled_from(["RGB", "BGR"])),
+                        views_reversed=reversed_views, view_direction=-1 if reversed_views else 1,
+                        flip_image_x=draw(st.booleans()), flip_image_y=draw(st.booleans()))
 
 
 def _close(a, b, scale=None):
@@ -222,6 +228,8 @@ def test_profile_visual_profile_round_trip(profile, dpi):
     assert back.reference_view == 0.0
     assert (back.width, back.height, back.subpixel_order, back.views) == (
         profile.width, profile.height, profile.subpixel_order, profile.views)
+    assert (back.views_reversed, back.flip_image_x, back.flip_image_y) == (
+        profile.views_reversed, profile.flip_image_x, profile.flip_image_y)
     assert back.looking_glass["DPI"] == dpi
     ties = routing.tie_mask(profile, 1e-9)
     a, b = routing.view_map(profile), routing.view_map(back)
@@ -258,12 +266,11 @@ def test_portrait_profile_round_trip_identical_view_map():
 def test_visual_profile_visual_round_trip(visual, n):
     profile = lkg.profile_from_visual(visual, n)
     out = lkg.visual_from_profile(profile)
-    for key in ("pitch", "slope", "DPI", "screenW", "screenH", "flipSubp", "viewCone"):
+    for key in ("pitch", "slope", "DPI", "screenW", "screenH", "flipSubp", "viewCone", "invView",
+                "flipImageX", "flipImageY"):
         assert _close(out[key]["value"], visual[key]["value"]), key
     assert _circular_close(out["center"]["value"], visual["center"]["value"], 1.0)
     assert out["serial"] == visual["serial"]
-    assert out["invView"] == {"value": 1.0}
-    assert out["flipImageX"] == out["flipImageY"] == {"value": 0.0}
 
 
 def test_file_round_trip_keeps_extras(tmp_path):
@@ -378,20 +385,26 @@ def test_bad_values(tmp_path, field, value):
     assert str(path) in str(err.value) and field in str(err.value)
 
 
-@pytest.mark.parametrize("field, value", [("invView", 0.0), ("flipImageX", 1.0),
-                                          ("flipImageY", 1.0)])
-def test_unsupported_modes(tmp_path, field, value):
-    path = _write(tmp_path, dict(PORTRAIT, **{field: {"value": value}}))
-    with pytest.raises(ProfileError) as err:
-        lkg.import_visual_json(path, 45)
-    assert str(path) in str(err.value) and field in str(err.value)
-    assert "invView = 1" in str(err.value) or "unflipped" in str(err.value)
+@pytest.mark.parametrize("field, attribute", [("invView", "views_reversed"), ("flipImageX", "flip_image_x"),
+                                              ("flipImageY", "flip_image_y")])
+def test_inverted_and_flipped_calibrations_import(tmp_path, field, attribute):
+    value = 0.0 if field == "invView" else 1.0
+    path = _write(tmp_path, dict(PORTRAIT, screenW={"value": 120.0}, screenH={"value": 90.0},
+                                 **{field: {"value": value}}))
+    profile = lkg.import_visual_json(path, 45)
+    assert getattr(profile, attribute) is True
+    assert profile.view_direction == (-1 if field == "invView" else 1)
+    ours, theirs, ties, _ = _compare(lkg.read_visual_json(path), 45, profile)
+    assert not ((ours != theirs) & ~ties).any()
 
 
-def test_invview_absent_means_one():
+def test_invview_absent_means_one_and_says_so():
     data = {k: v for k, v in PORTRAIT.items() if k != "invView"}
-    assert lkg.profile_from_visual(data, 45).routing_key() == \
-        lkg.profile_from_visual(PORTRAIT, 45).routing_key()
+    profile = lkg.profile_from_visual(data, 45)
+    assert profile.routing_key() == lkg.profile_from_visual(PORTRAIT, 45).routing_key()
+    (note,) = profile.provenance["assumptions"]
+    assert "no invView" in note and "invView = 1" in note
+    assert lkg.profile_from_visual(PORTRAIT, 45).provenance["assumptions"] == []
 
 
 @pytest.mark.parametrize("views", [1, 255, 45.0, True, "45"])

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lenticalib.core import lkg
+from lenticalib.core import lkg, lkg_rule
 from lenticalib.calib.direction import (DIRECTION_PATTERN_NAME, add_moved_right, direction_from_moved_right,
                                         direction_raster, direction_view, direction_views)
 from lenticalib.core.errors import InputError, ProfileError
@@ -203,7 +203,7 @@ def test_export_of_an_unknown_direction_warns_in_one_line(tmp_path, cli):
 
 def test_inv_view_one_runs_left_to_right_through_the_simulated_lens_sheet():
     """The physics behind +1, independently of lenticalib's w: their shader's view coordinate
-    ``(1 - frac(phase)) N`` (the golden :func:`lkg.lkg_phase`, interpolated: it is linear in the
+    ``(1 - frac(phase)) N`` (the golden :func:`lkg_rule.lkg_phase`, interpolated: it is linear in the
     subpixel and the row) at the pixel-plane point that a simulated eye sees through the panel
     centre grows when the eye moves right, for both slant signs and any phase."""
     from lenticalib.sim.optics import PanelOptics
@@ -211,7 +211,7 @@ def test_inv_view_one_runs_left_to_right_through_the_simulated_lens_sheet():
     for slope, center in ((-7.24467, 0.4017), (6.5, 0.93)):
         visual = dict(PORTRAIT, slope={"value": slope}, center={"value": center})
         profile = lkg.profile_from_visual(visual, 45)
-        phase = lkg.lkg_phase(visual)
+        phase = lkg_rule.lkg_phase(visual).reshape(profile.height, -1)  # [y, 3 x + position] (RGB stripe)
         optics = PanelOptics.from_routing(profile.period, profile.slant, 600.0, width=profile.width,
                                           height=profile.height, pixel_pitch=25.4 / 324.0)
         zone = optics.view_zone_width(600.0, 45)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -80,9 +81,22 @@ def _print_profile(profile) -> None:
             ("period", profile.period, "subpixels"), ("offset", profile.offset, "subpixels"),
             ("reference_view", profile.reference_view, "views"),
             ("panel", f"{profile.width}x{profile.height}", "pixels"), ("subpixel_order", profile.subpixel_order, "")]
+    if profile.subpixel_layout is not None:
+        rows[-1] = ("subpixel_layout", profile.layout_name, "")
     for name, value, unit in rows:
         sigma = f" +- {unc[name]:.3g}" if name in unc else ""
         print(f"{name:>15}  {format_constant(name, value)}{sigma} {unit}".rstrip())
+    if profile.subpixel_layout is not None:
+        for index, cell in enumerate(profile.subpixel_layout.cells):
+            where = ", ".join(f"{ch} ({dx:+.3f}, {dy:+.3f})" for ch, (dx, dy) in zip("RGB", cell))
+            print(f"{'cell ' + str(index):>15}  {where} pixels from the pixel centre (x right, y down)")
+        print(f"{'cell pattern':>15}  " + " / ".join(" ".join(map(str, row)) for row in profile.subpixel_layout.pattern)
+              + "  (rows from the top, cell of column x % columns)")
+    flags = [text for flag, text in ((profile.views_reversed, "view numbers reversed (Looking Glass invView = 0)"),
+                                     (profile.flip_image_x, "views shown mirrored left-right"),
+                                     (profile.flip_image_y, "views shown mirrored top-bottom")) if flag]
+    if flags:
+        print(f"{'routing':>15}  " + "; ".join(flags))
     how = (profile.provenance or {}).get("view_direction")
     how = (f"; {how['method']}" + (f" on {how['set']}" if how.get("set") else "")
            if isinstance(how, dict) and how.get("method") and profile.view_direction is not None else "")
@@ -128,6 +142,8 @@ def run_import(args) -> int:
     check_output_file(args.output, "profile")
     profile = import_visual_json(args.visual, args.views)
     save_profile(profile, args.output)
+    for note in (profile.provenance or {}).get("assumptions", []):
+        print(f"lenticalib: warning: {args.visual}: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps({"output": args.output, "period": profile.period, "slant": profile.slant,
                           "offset": profile.offset, "reference_view": profile.reference_view}))
@@ -146,8 +162,6 @@ def run_export(args) -> int:
     check_output_file(args.output, "visual.json")
     export_visual_json(profile, args.output, dpi=args.dpi)
     if profile.view_direction is None:
-        import sys
-
         print(f"lenticalib: warning: {args.profile}: view_direction is unknown; the visual.json says invView = 1 "
               "(view index growing to the viewer's right, as on every Looking Glass)", file=sys.stderr)
     print(f"wrote {args.output}")

@@ -7,10 +7,13 @@ The panel profile and its routing
     profile             ``PanelProfile``: the routing constants of one panel, as JSON (load,
                         save, provenance)
     physical            the profile's optional physical block: lenses and pixels in millimetres
+    layout              subpixel layouts: each channel's position per cell and the cell pattern
     routing             which view each subpixel shows: the LentiAvatar rule (``docs/routing.md``)
     view_direction      which way the view index runs: said for people, parsed, warned about
     retarget            routing constants carried to another eye position
     lkg                 Looking Glass ``visual.json``: import to and export from panel profiles
+    lkg_file            reading a ``visual.json``: unwrapped and every field validated
+    lkg_rule            our port of the Looking Glass lenticular rule, the oracle for ``lkg``
 
 Errors and user input
     errors              the one exception tree (``LenticalibError``, ``InputError`` ...)

@@ -1,78 +1,54 @@
 """Looking Glass ``visual.json`` calibration files: import to and export from panel profiles.
 
-THE FILE
-A JSON object in which every numeric field is wrapped as ``{"value": x}``:
+THE FILE (docs/looking-glass.md).  A JSON object in which numeric fields are wrapped as
+``{"value": x}``: ``pitch`` (lenticules per inch along the rows), ``slope`` (rows per lenticule
+shift; its sign is the lens direction), ``center`` (phase, lenticules), ``viewCone`` (degrees),
+``invView``, ``verticalAngle``, ``DPI``, ``screenW``/``screenH`` (pixels), ``flipImageX/Y``,
+``flipSubp``, ``fringe``, ``serial`` and ``configVersion`` (strings), and in calibrations of
+``configVersion`` 3.0 ``CellPatternMode`` and ``subpixelCells`` (per cell, ``ROffsetX``,
+``ROffsetY``, ``GOffsetX``, ... in pixels from the pixel centre, **y up**).
 
-    pitch        lenticules per inch, measured along the rows          (> 0)
-    slope        rows per lenticule column shift; its sign is the lens direction   (!= 0)
-    center       phase offset, in lenticules (only its value modulo 1 matters)
-    viewCone     view cone in degrees (metadata for renderers)
-    invView      1 on every shipping device (see below)
-    DPI          panel pixels per inch                                  (> 0)
-    screenW/H    panel raster in pixels
-    flipImageX/Y 0 on every shipping device
-    flipSubp     1 when the panel's subpixels are B, G, R from left to right
-    serial, configVersion   plain strings
+THEIR RULE.  :mod:`lenticalib.core.lkg_rule` is our port of it (nearest view), the test oracle.
+Per pixel ``(x, y_gl)`` (GL rows count from the bottom, ``y_gl = H - 1 - y``), with
+``sigma = -1`` when ``flipImageX`` else ``+1``, ``C_r = sigma / slope`` and
+``Delta = 3 W / P = 3 DPI / (pitch cos(atan(1 / slope)))`` subpixels, the phase of a colour is
 
-plus occasionally ``verticalAngle`` and other fields; those are kept, not interpreted.
+    stripe:  phase = (3 x + c_pos + k0 + 3 (H - 0.5 - y) C_r) / Delta - center,
+             c_pos = sigma * position (0, 1, 2; red reads position 2 when flipSubp), k0 = 1.5
+    cells:   phase = (3 x + 3 dx + 3 C_r dy_up + 1.5 + 3 (H - 0.5 - y) C_r) / Delta - center
 
-THEIR RULE (the open-source shader ports), in GL frames: row ``y_gl`` counts from the bottom
-(``y_gl = H - 1 - y`` for lenticalib's top-down row ``y``), the centre of pixel ``(x, y_gl)`` is
-``uv = ((x + 0.5) / W, (y_gl + 0.5) / H)``, and for the subpixel at physical position ``c`` in
-0..2 of that pixel
+and the colour shows view ``floor((1 - frac(phase)) N)`` (``invView = 1``) or
+``floor(frac(phase) N)`` (``invView = 0``).
 
-    P     = pitch * W / DPI * cos(atan(1 / slope))        lenticules across the panel width
-    tilt  = H / (W * slope)
-    subp  = 1 / (3 W)
-    phase = (uv.x + c * subp + uv.y * tilt) * P - center
-    view  = floor((1 - frac(phase)) * N)                  (invView = 1)
+THE MAPPING.  lenticalib's view is ``floor(w) mod N`` with
+``w = i_ref + (3 C_r y + s_ref - x) N / Delta`` at the slot's continuous index ``x``, which equals
+``-phase N`` (mod N) when
 
-Quilt view 0 is the bottom-left tile, and their view index equals lenticalib's view index.
-``flipSubp`` only decides which colour sits at position ``c`` (red is read from position 2 on
-a BGR panel); the view of a *position* does not depend on it.
+    C_r = sigma / slope,  Delta as above,  i_ref = 0,
+    s_ref = Delta center - k0 - 3 (H - 0.5) C_r   reduced modulo Delta into [0, Delta)
 
-THE MAPPING TO THE ROUTING CONSTANTS (docs/profile-format.md)
-With ``x_s = 3 x + c``:  ``phase = (x_s + 1.5 + 3 (H - 0.5 - y) / slope) / Delta - center`` where
+with ``k0 = 1.5`` for a stripe and ``k0 = 0.5`` for cells (a layout slot's index is
+``3 x + c + e`` with ``e = 1 + 3 dx - 3 C_r dy - c``, :mod:`lenticalib.core.layout`, one
+subpixel more than their cell position).  A flipped stripe (``sigma = -1``) runs its positions
+leftwards: position ``c`` sits at ``3 x - c``, which is a stripe of the opposite order shifted two
+subpixels, so ``k0 = -0.5`` and the order is BGR (RGB with ``flipSubp``).  Cells map to a
+:class:`~lenticalib.core.layout.SubpixelLayout` (``dy = -dy_up``; the pattern of
+``CellPatternMode`` in lenticalib's top-down rows).  ``invView = 0`` gives
+``views_reversed``; ``flipImageX/Y`` also mirror the view images (``flip_image_x/y``).
 
-    Delta = 3 W / P = 3 DPI / (pitch * cos(atan(1 / slope)))      subpixels.
+WHICH WAY THE VIEWS RUN.  A lens focused on the pixel plane inverts, so on an unmirrored panel a
+view index that falls to the right across the subpixels (``invView = 1``) grows as the viewer
+moves right: ``view_direction = +1``, what Looking Glass content assumes (quilt view 0 is the
+leftmost camera); ``invView = 0`` gives ``-1``.  Export writes ``invView`` from
+``views_reversed`` and refuses a profile whose known direction disagrees with it.
 
-Their view is ``floor(frac(-phase) N) = floor(-phase N) mod N`` (``1 - frac`` equals
-``frac(-phase)`` except when ``frac(phase) == 0``, where they get view N, i.e. 0 mod N), and
-lenticalib's is ``floor(w) mod N`` with ``w = i_ref + (3 C_r y + s_ref - x_s) N / Delta``.
-Equating the two for every ``(x_s, y)``:
-
-    C_r   = 1 / slope                                         pixels per row
-    Delta = 3 DPI / (pitch * cos(atan(C_r)))                  subpixels
-    i_ref + s_ref N / Delta = N center - (N / Delta)(1.5 + 3 (H - 0.5) C_r)
-
-CONVENTION.  On import lenticalib sets ``i_ref = 0`` and
-
-    s_ref = (Delta * center - 1.5 - 3 (H - 0.5) C_r)  reduced modulo Delta into [0, Delta)
-
-(reducing by ``k Delta`` shifts ``w`` by ``k N``, so it shows the same views; the reduced value
-is independent of which of the equivalent centres ``center + k`` the file holds).  On export
-``center = i_ref / N + (s_ref + 1.5 + 3 (H - 0.5) C_r) / Delta``, reduced modulo 1 into [0, 1).
-
-WHICH WAY THE VIEWS RUN (``view_direction``).  Along a row, ``phase`` grows with ``x_s``
-(``P > 0``), so with ``invView = 1`` their view ``floor(frac(-phase) N)`` *falls* by ``N / Delta``
-per subpixel to the right inside every lenticule -- exactly lenticalib's ``w``, which falls by
-``N / Delta_r`` per subpixel (``Delta_r > 0``).  A lenticule focused on the pixel plane inverts:
-an eye at ``u_E`` sees ``u_P = u_c + (u_c - u_E) g / D`` (docs/optics.md), so an eye moving right
-(``u_E`` up) sees a point further left (``x_s`` down) under every lens, i.e. a *higher* view.
-Hence ``invView = 1`` on an unmirrored panel means the view index grows as the viewer moves
-right: ``view_direction = +1``, which is also what Looking Glass content assumes (quilt view 0
-is the leftmost camera, so it must reach the leftmost eye for the depth to be right).  With
-``invView = 0`` their view ``floor(frac(phase) N)`` would grow to the right across the
-subpixels, equal to ``N - 1 - `` lenticalib's view (but for ties): the opposite direction,
-which lenticalib's rule (``Delta_r > 0``, view index falling to the right) cannot express with
-their view numbering.  So import sets ``view_direction = +1``; export writes ``invView = 1``
-for ``+1`` (and for an unknown direction, the value every shipping device has; the CLI warns)
-and refuses a profile with ``view_direction = -1``.
-
-LIMITS.  lenticalib models only ``invView = 1`` with unflipped images (every shipping device);
-other files are refused.  Vertical lenses (``C_r = 0``) have no ``slope`` and cannot be exported.
-When ``Delta > N`` the LentiAvatar routing rule leaves the subpixels with ``frac(w) >= N / Delta`` dark, whereas
-the Looking Glass shader shows ``floor(w) mod N`` there as well; on lit subpixels both agree.
+LIMITS.  Refused, in one line naming the field: ``flipSubp`` together with ``subpixelCells``
+(the cells already place each colour), a ``CellPatternMode`` outside 0..4, more than 16 cells,
+vertical lenses (``C_r = 0``) on export, and a layout pattern no ``CellPatternMode`` draws.  When
+``Delta > N`` the LentiAvatar rule leaves the subpixels with ``frac(w) >= N / Delta`` dark,
+whereas their shader shows a view there too; on lit subpixels both agree.  A calibration without
+``invView`` is read as ``invView = 1``, as Looking Glass Bridge's shader does (it has no such
+input); the profile's provenance says so.
 """
 
 from __future__ import annotations
@@ -83,130 +59,79 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
-import numpy as np
-
 from .atomic import write_text_atomic
-from .documents import read_json_file
 from .errors import ProfileError
-from .fields import is_finite_number, is_number, short_repr
+from .fields import is_finite_number
+from .layout import LKG_CELL_PATTERNS, SubpixelLayout, mode_for_pattern, pattern_for_mode
+from .lkg_file import (CELL_KEYS, DEFAULT_SOURCE, FLAG_FIELDS, NUMERIC_FIELDS, REQUIRED_FIELDS, ROUTING_FIELDS,
+                       _normalize, read_visual_json)
 from .profile import MAX_VIEWS, PanelProfile, make_provenance
-from .sizes import MAX_SIDE
 
-REQUIRED_FIELDS = ("pitch", "slope", "center", "DPI", "screenW", "screenH")
-NUMERIC_FIELDS = REQUIRED_FIELDS + ("viewCone", "invView", "verticalAngle", "flipImageX",
-                                    "flipImageY", "flipSubp")
-# Fields that become the profile's routing constants (never stored as extras; recomputed on export).
-ROUTING_FIELDS = ("pitch", "slope", "center", "screenW", "screenH", "flipSubp", "invView",
-                  "flipImageX", "flipImageY")
+__all__ = ["CELL_KEYS", "FLAG_FIELDS", "NUMERIC_FIELDS", "REQUIRED_FIELDS", "ROUTING_FIELDS", "read_visual_json",
+           "routing_constants", "profile_from_visual", "import_visual_json", "visual_from_profile",
+           "export_visual_json", "import_assumptions", "layout_of_visual", "has_cells"]
+
 # Order in which export writes the fields (the order Looking Glass software writes them).
-_EXPORT_ORDER = ("configVersion", "serial", "pitch", "slope", "center", "viewCone", "invView",
+_EXPORT_ORDER = ("configVersion", "serial", "pitch", "slope", "center", "fringe", "viewCone", "invView",
                  "verticalAngle", "DPI", "screenW", "screenH", "flipImageX", "flipImageY",
-                 "flipSubp")
+                 "flipSubp", "CellPatternMode", "subpixelCells")
 DEFAULT_VIEW_CONE = 40.0
-DEFAULT_SOURCE = "visual.json"
+CELLS_CONFIG_VERSION = "3.0"
+STRIPE_K0, FLIPPED_STRIPE_K0, CELLS_K0 = 1.5, -0.5, 0.5
 
 
 # --------------------------------------------------------------------------------------------
-# reading and validation
+# visual.json <-> routing
 
 
-def _unwrap(value):
-    """``{"value": x}`` -> ``x``; anything else unchanged."""
-    if isinstance(value, dict) and len(value) == 1 and "value" in value:
-        return value["value"]
-    return value
+def has_cells(visual: Mapping[str, Any]) -> bool:
+    """True when a normalized visual.json routes by ``subpixelCells`` (their shader's test: any cells)."""
+    return bool(visual.get("subpixelCells"))
 
 
-def _normalize(raw: Any, source: str) -> dict[str, Any]:
-    """Unwrap and validate a visual.json object (wrapped or already plain).
-
-    Returns a new dict: required fields as float (``screenW``/``screenH`` as int), optional
-    numeric fields as float, every other field unwrapped but otherwise as given.
-    """
-    if not isinstance(raw, Mapping):
-        raise ProfileError("must be a JSON object of calibration fields", source=source,
-                           hint="a Looking Glass visual.json looks like {\"pitch\": {\"value\": 52.5}, ...}")
-    out: dict[str, Any] = {}
-    for key, value in raw.items():
-        if not isinstance(key, str):
-            raise ProfileError(f"field name {key!r} is not a string", source=source)
-        out[key] = _unwrap(value)
-    missing = [k for k in REQUIRED_FIELDS if k not in out]
-    if missing:
-        raise ProfileError(f"missing field(s): {', '.join(missing)}", source=source,
-                           hint="a visual.json needs " + ", ".join(REQUIRED_FIELDS))
-    for key in NUMERIC_FIELDS:
-        if key not in out:
-            continue
-        value = out[key]
-        if not is_number(value):
-            raise ProfileError(f"field '{key}': must be a number (or {{\"value\": number}}), "
-                               f"got {raw[key]!r}", source=source)
-        if not is_finite_number(value):
-            raise ProfileError(f"field '{key}': must be finite, got {short_repr(value)}", source=source)
-        out[key] = float(value)
-    if not out["DPI"] > 0:
-        raise ProfileError(f"field 'DPI': must be > 0 pixels per inch, got {out['DPI']!r}",
-                           source=source)
-    if not out["pitch"] > 0:
-        raise ProfileError(f"field 'pitch': must be > 0 lenticules per inch, got {out['pitch']!r}",
-                           source=source)
-    if out["slope"] == 0:
-        raise ProfileError("field 'slope': must not be 0", source=source,
-                           hint="slope is rows per lenticule shift; 0 is not a lens sheet")
-    for key in ("screenW", "screenH"):
-        value = out[key]
-        if value != math.floor(value) or not 1 <= value <= MAX_SIDE:
-            raise ProfileError(f"field '{key}': must be a whole number of pixels between 1 and "
-                               f"{MAX_SIDE}, got {value!r}", source=source)
-        out[key] = int(value)
-    for key in ("serial", "configVersion"):
-        if key in out and not isinstance(out[key], str):
-            raise ProfileError(f"field '{key}': must be a string, got {out[key]!r}", source=source)
-    return out
+def layout_of_visual(v: Mapping[str, Any]) -> SubpixelLayout:
+    """The :class:`SubpixelLayout` of a normalized visual.json with cells (``dy`` turned to y down)."""
+    cells = tuple(tuple((c[f"{ch}OffsetX"], -c[f"{ch}OffsetY"] + 0.0) for ch in "RGB") for c in v["subpixelCells"])
+    mode = v.get("CellPatternMode", 0)
+    return SubpixelLayout(cells=cells, pattern=pattern_for_mode(mode, len(cells), v["screenH"]))
 
 
-def read_visual_json(path: str | os.PathLike) -> dict[str, Any]:
-    """Read a Looking Glass ``visual.json`` and return its fields with the wrappers removed.
-
-    ARGUMENTS
-    ``path``: the file.
+def routing_constants(visual: Mapping[str, Any], source: str = DEFAULT_SOURCE) -> dict[str, Any]:
+    """The routing fields of a visual.json under the module's mapping.
 
     RETURNED VALUE
-    dict of plain values: ``pitch`` (lenticules per inch), ``slope``, ``center`` (lenticules),
-    ``DPI`` (pixels per inch) as float; ``screenW``, ``screenH`` (pixels) as int; the optional
-    numeric fields (``viewCone`` degrees, ``invView``, ``verticalAngle``, ``flipImageX/Y``,
-    ``flipSubp``) as float when present; strings (``serial``, ``configVersion``) and unknown
-    fields as found (unknown ``{"value": x}`` wrappers removed).
-
-    Raises ProfileError naming the file (and the field) for a missing or unreadable file,
-    invalid JSON, a missing required field, a non-numeric or non-finite number, DPI <= 0,
-    pitch <= 0, slope == 0 or a screen size that is not a positive whole number.
-    """
-    src = str(path)
-    raw = read_json_file(path, "visual.json", "give the path of the Looking Glass visual.json", ProfileError)
-    return _normalize(raw, src)
-
-
-# --------------------------------------------------------------------------------------------
-# visual.json -> profile
-
-
-def routing_constants(visual: Mapping[str, Any], source: str = DEFAULT_SOURCE) -> dict[str, float]:
-    """The routing constants of a visual.json under the module's convention.
-
-    RETURNED VALUE
-    ``{"slant": C_r (pixels per row), "period": Delta (subpixels), "offset": s_ref (subpixels,
-    in [0, Delta)), "reference_view": i_ref (= 0.0)}``.  ``visual`` may be wrapped or plain.
+    ``{"slant": C_r (pixels per row), "period": Delta (subpixels), "offset": s_ref (subpixels, in
+    [0, Delta)), "reference_view": 0.0, "subpixel_order": "RGB" | "BGR", "subpixel_layout":
+    SubpixelLayout | None, "views_reversed": bool, "flip_image_x": bool, "flip_image_y": bool}``.
+    ``visual`` may be wrapped or plain.
     """
     v = _normalize(visual, source)
     slope, pitch, dpi, center, height = v["slope"], v["pitch"], v["DPI"], v["center"], v["screenH"]
-    slant = 1.0 / slope
+    flip_x = v.get("flipImageX", 0.0) == 1.0
+    sigma = -1.0 if flip_x else 1.0
+    slant = sigma / slope
     period = 3.0 * dpi / (pitch * math.cos(math.atan(slant)))
     if not (math.isfinite(slant) and math.isfinite(period) and period > 0):
         raise ProfileError(f"pitch {pitch!r}, slope {slope!r}, DPI {dpi!r} give no usable lens "
                            f"period (slant {slant!r}, period {period!r} subpixels)", source=source)
-    offset = period * center - 1.5 - 3.0 * (height - 0.5) * slant
+    flip_subp = v.get("flipSubp", 0.0) == 1.0
+    layout = None
+    if has_cells(v):
+        if flip_subp:
+            raise ProfileError("field 'flipSubp': is 1 in a calibration with subpixelCells, whose offsets already "
+                               "place each colour", source=source,
+                               hint="lenticalib cannot tell which of the two the panel needs; set flipSubp to 0")
+        try:
+            layout = layout_of_visual(v)
+        except ProfileError as exc:
+            raise ProfileError(exc.message.replace("subpixel_layout.cells", "subpixelCells"), source=source,
+                               hint=exc.hint) from None
+        k0, order = CELLS_K0, "RGB"
+    elif flip_x:
+        k0, order = FLIPPED_STRIPE_K0, "RGB" if flip_subp else "BGR"
+    else:
+        k0, order = STRIPE_K0, "BGR" if flip_subp else "RGB"
+    offset = period * center - k0 - 3.0 * (height - 0.5) * slant
     if not math.isfinite(offset):  # a centre near 1e308 overflows here; fmod would raise
         raise ProfileError(f"field 'center': gives a non-finite offset ({center!r})", source=source)
     offset = math.fmod(offset, period)  # exact
@@ -214,7 +139,20 @@ def routing_constants(visual: Mapping[str, Any], source: str = DEFAULT_SOURCE) -
         offset += period
         if offset >= period:  # a tiny negative remainder rounds up to period
             offset = 0.0
-    return {"slant": slant, "period": period, "offset": offset, "reference_view": 0.0}
+    return {"slant": slant, "period": period, "offset": offset, "reference_view": 0.0,
+            "subpixel_order": order, "subpixel_layout": layout,
+            "views_reversed": v.get("invView", 1.0) == 0.0, "flip_image_x": flip_x,
+            "flip_image_y": v.get("flipImageY", 0.0) == 1.0}
+
+
+def import_assumptions(visual: Mapping[str, Any]) -> list[str]:
+    """What import had to assume about a normalized visual.json (shown to the user, kept in provenance)."""
+    notes = []
+    if "invView" not in visual:
+        notes.append("the calibration has no invView: read as invView = 1, as Looking Glass Bridge's shader does")
+    if has_cells(visual) and "CellPatternMode" not in visual:
+        notes.append("the calibration has subpixelCells but no CellPatternMode: read as mode 0 (one cell)")
+    return notes
 
 
 def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEFAULT_SOURCE, *,
@@ -228,46 +166,32 @@ def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEF
     recorded (with its SHA-256) in the provenance.
 
     RETURNED VALUE
-    The profile: ``slant = 1 / slope`` (pixels per row), ``period = Delta`` (subpixels),
-    ``reference_view = 0``, ``offset = s_ref`` in [0, Delta) (subpixels; see the module
-    docstring), ``width``/``height`` = ``screenW``/``screenH``, ``subpixel_order`` ``"BGR"`` when
-    ``flipSubp`` else ``"RGB"``, ``view_direction = +1`` (``invView = 1``: module docstring).
-    ``looking_glass`` keeps ``DPI``, ``viewCone``, ``serial``,
-    ``configVersion`` and every other field that is not a routing constant, so that
-    :func:`visual_from_profile` can write them back.
+    The profile of :func:`routing_constants` with ``width``/``height`` = ``screenW``/``screenH``
+    and ``view_direction`` +1 (``invView = 1``) or -1 (``invView = 0``); ``looking_glass`` keeps
+    ``DPI``, ``viewCone``, ``serial``, ``configVersion``, ``fringe`` and every other field that
+    is not routing, so that :func:`visual_from_profile` can write them back.  The provenance
+    lists :func:`import_assumptions` under ``assumptions``.
 
-    Raises ProfileError (naming ``source``) for invalid fields, ``invView != 1``, flipped images
-    or an invalid ``views``.
+    Raises ProfileError (naming ``source`` and the field) for invalid or unrepresentable fields
+    (module docstring, LIMITS) or an invalid ``views``.
     """
     if not isinstance(views, int) or isinstance(views, bool) or not 2 <= views <= MAX_VIEWS:
         raise ProfileError(f"views: must be a whole number between 2 and {MAX_VIEWS}, got {views!r}",
                            source=source, hint="give the number of views of the quilts (45 or 48 on a Portrait)")
     v = _normalize(visual, source)
-    inv_view = v.get("invView", 1.0)
-    if inv_view != 1.0:
-        raise ProfileError(f"field 'invView': is {inv_view!r}; lenticalib supports only invView = 1 "
-                           "(the view order of every shipping Looking Glass)", source=source,
-                           hint="invView = 0 runs the views the other way, which lenticalib's routing rule "
-                                "cannot express with the quilt's view numbers")
-    for key in ("flipImageX", "flipImageY"):
-        if v.get(key, 0.0) != 0.0:
-            raise ProfileError(f"field '{key}': is {v[key]!r}; lenticalib supports only unflipped "
-                               "panels (flipImageX = flipImageY = 0)", source=source)
-    flip_subp = v.get("flipSubp", 0.0)
-    if flip_subp not in (0.0, 1.0):
-        raise ProfileError(f"field 'flipSubp': must be 0 or 1, got {flip_subp!r}", source=source)
-    constants = routing_constants(v, source)
+    routing = routing_constants(v, source)
+    direction = -1 if routing["views_reversed"] else 1
     extras = {k: val for k, val in v.items() if k not in ROUTING_FIELDS}
     provenance = make_provenance("import-lkg", inputs=[path] if path is not None else [],
-                                 views=views,
+                                 views=views, assumptions=import_assumptions(v),
                                  convention="i_ref = 0, s_ref reduced modulo Delta into [0, Delta)",
-                                 view_direction={"value": 1, "method": "import-lkg",
-                                                 "evidence": "invView = 1: the view index grows as the viewer "
+                                 view_direction={"value": direction, "method": "import-lkg",
+                                                 "evidence": f"invView = {1 if direction == 1 else 0}: the view index "
+                                                             f"{'grows' if direction == 1 else 'falls'} as the viewer "
                                                              "moves right (module docstring of lenticalib.core.lkg)"})
     try:
-        return PanelProfile(views=views, width=v["screenW"], height=v["screenH"],
-                            subpixel_order="BGR" if flip_subp else "RGB", view_direction=1,
-                            looking_glass=extras, provenance=provenance, **constants)
+        return PanelProfile(views=views, width=v["screenW"], height=v["screenH"], view_direction=direction,
+                            looking_glass=extras, provenance=provenance, **routing)
     except ProfileError as exc:  # re-attribute to the visual.json
         raise ProfileError(exc.message, source=source, hint=exc.hint) from None
 
@@ -280,15 +204,16 @@ def import_visual_json(path: str | os.PathLike, views: int) -> PanelProfile:
     return profile_from_visual(read_visual_json(path), views, source=str(path), path=path)
 
 
-# --------------------------------------------------------------------------------------------
-# profile -> visual.json
-
-
 def _wrap(value):
     """Numbers (and booleans) are written as ``{"value": x}``; everything else as is."""
     if isinstance(value, (int, float)):
         return {"value": value}
     return value
+
+
+def _cells_of_layout(layout: SubpixelLayout) -> list[dict[str, float]]:
+    return [{f"{ch}Offset{axis}": (dx if axis == "X" else -dy + 0.0)
+             for ch, (dx, dy) in zip("RGB", cell) for axis in "XY"} for cell in layout.cells]
 
 
 def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict[str, Any]:
@@ -300,22 +225,26 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
 
     RETURNED VALUE
     dict with ``pitch`` (lenticules per inch) ``= 3 DPI / (Delta cos(atan(C_r)))``,
-    ``slope = 1 / C_r``, ``center`` in [0, 1) (module docstring), ``DPI``, ``screenW``,
-    ``screenH``, ``flipSubp`` (1 for BGR), ``invView = 1``, ``flipImageX = flipImageY = 0``,
-    ``viewCone`` (stored value, else 40 degrees), ``serial`` (stored value, else ``""``) and every
-    other field stored in ``profile.looking_glass``.  Numeric fields are wrapped ``{"value": x}``.
-    Re-importing it with the profile's ``views`` gives the same routing.
+    ``slope = sigma / C_r``, ``center`` in [0, 1) (module docstring), ``DPI``, ``screenW``,
+    ``screenH``, ``flipSubp``, ``invView`` (0 for ``views_reversed``), ``flipImageX/Y`` (the
+    profile's image flips), ``CellPatternMode`` and ``subpixelCells`` (a layout; also written,
+    empty, when the stored ``configVersion`` is 3 or later), ``viewCone`` (stored value, else 40
+    degrees), ``serial`` (stored value, else ``""``) and every other field stored in
+    ``profile.looking_glass``.  Numeric fields are wrapped ``{"value": x}``.  Re-importing it
+    with the profile's ``views`` gives the same routing.
 
-    Raises ProfileError when the slant is 0 (vertical lenses have no slope), no DPI is known, or
-    ``profile.view_direction`` is -1 (only ``invView = 1``, direction +1, is modelled; module
-    docstring).  An unknown direction is written as ``invView = 1``.
+    Raises ProfileError naming the field when the profile cannot be written: slant 0, no DPI,
+    a known ``view_direction`` that disagrees with ``views_reversed`` (module docstring), a
+    layout pattern no ``CellPatternMode`` draws.
     """
     name = profile.name or "profile"
     extras = dict(profile.looking_glass or {})
-    if profile.view_direction == -1:
-        raise ProfileError("view_direction is -1 (the view index falls as the viewer moves right), which a "
-                           "visual.json with invView = 1 cannot express", source=name,
-                           hint="lenticalib writes only invView = 1, where the view index grows to the right; "
+    want = -1 if profile.views_reversed else 1
+    if profile.view_direction is not None and profile.view_direction != want:
+        raise ProfileError(f"view_direction is {profile.view_direction:+d} but a visual.json with "
+                           f"invView = {0 if profile.views_reversed else 1} runs its views the other way",
+                           source=name,
+                           hint="Looking Glass content needs the view index to grow as the viewer moves right; "
                                 "check the direction with 'lenticalib patterns --direction'")
     if profile.slant == 0:
         raise ProfileError("slant is 0 (vertical lenses), which a visual.json cannot express",
@@ -331,11 +260,30 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
         raise ProfileError(f"{dpi_source}: must be a finite number > 0 pixels per inch, got {dpi!r}",
                            source=name)
     dpi = float(dpi)
+    sigma = -1.0 if profile.flip_image_x else 1.0
+    layout = profile.subpixel_layout
+    config_version = extras.get("configVersion")
+    cell_fields: dict[str, Any] = {}
+    if layout is not None:
+        mode = mode_for_pattern(layout.pattern, len(layout.cells), profile.height)
+        if mode is None:
+            raise ProfileError(f"field 'subpixel_layout.pattern': {layout.pattern!r} is not drawn by any Looking "
+                               f"Glass CellPatternMode on a {profile.height}-row panel", source=name,
+                               hint="Looking Glass software knows modes " + ", ".join(map(str, sorted(LKG_CELL_PATTERNS))))
+        k0, flip_subp = CELLS_K0, 0.0
+        cell_fields = {"CellPatternMode": mode, "subpixelCells": _cells_of_layout(layout)}
+        if not isinstance(config_version, str) or _major(config_version) < 3:
+            config_version = CELLS_CONFIG_VERSION
+    else:
+        k0 = FLIPPED_STRIPE_K0 if profile.flip_image_x else STRIPE_K0
+        bgr = profile.subpixel_order == "BGR"
+        flip_subp = 1.0 if bgr != profile.flip_image_x else 0.0
+        if isinstance(config_version, str) and _major(config_version) >= 3:
+            cell_fields = {"CellPatternMode": 0, "subpixelCells": []}
     slant, period, n = profile.slant, profile.period, profile.views
-    slope = 1.0 / slant
+    slope = sigma / slant
     pitch = 3.0 * dpi / (period * math.cos(math.atan(slant)))
-    center = profile.reference_view / n + (profile.offset + 1.5
-                                           + 3.0 * (profile.height - 0.5) * slant) / period
+    center = profile.reference_view / n + (profile.offset + k0 + 3.0 * (profile.height - 0.5) * slant) / period
     center = center - math.floor(center)
     if center >= 1.0:  # a tiny negative value rounds up to 1
         center = 0.0
@@ -348,14 +296,17 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
         "slope": slope,
         "center": center,
         "viewCone": extras.get("viewCone", DEFAULT_VIEW_CONE),
-        "invView": 1.0,
+        "invView": 0.0 if profile.views_reversed else 1.0,
         "DPI": dpi,
         "screenW": float(profile.width),
         "screenH": float(profile.height),
-        "flipImageX": 0.0,
-        "flipImageY": 0.0,
-        "flipSubp": 1.0 if profile.subpixel_order == "BGR" else 0.0,
+        "flipImageX": 1.0 if profile.flip_image_x else 0.0,
+        "flipImageY": 1.0 if profile.flip_image_y else 0.0,
+        "flipSubp": flip_subp,
+        **cell_fields,
     }
+    if config_version is not None:
+        fields["configVersion"] = config_version
     for key, value in extras.items():
         if key not in fields and key not in ROUTING_FIELDS:
             fields[key] = value
@@ -364,60 +315,14 @@ def visual_from_profile(profile: PanelProfile, dpi: float | None = None) -> dict
     return {k: _wrap(val) for k, val in ordered.items()}
 
 
+def _major(version: str) -> int:
+    """The major number of a ``configVersion`` string (``"3.0"`` -> 3; unreadable -> 0)."""
+    head = version.strip().split(".")[0]
+    return int(head) if head.isdigit() else 0
+
+
 def export_visual_json(profile: PanelProfile, path: str | os.PathLike,
                        dpi: float | None = None) -> Path:
     """Write :func:`visual_from_profile` of ``profile`` to ``path`` atomically; returns the path."""
     text = json.dumps(visual_from_profile(profile, dpi=dpi), indent=4) + "\n"
     return write_text_atomic(path, text)
-
-
-# --------------------------------------------------------------------------------------------
-# the golden model: their rule, literally
-
-
-def lkg_phase(visual: Mapping[str, Any]) -> np.ndarray:
-    """Their per-subpixel ``phase``, float64, literally as the shader computes it.
-
-    RETURNED VALUE
-    float64 array ``(screenH, 3 * screenW)`` indexed ``[y, x_s]`` with ``y`` counted from the
-    top (lenticalib's row) and ``x_s = 3 x + c`` (``c`` the physical position in the pixel):
-    ``phase = (uv.x + c * subp + uv.y * tilt) * P - center`` in lenticules, with the GL row
-    ``y_gl = H - 1 - y`` in ``uv.y``.  Not reduced.
-    """
-    v = _normalize(visual, DEFAULT_SOURCE)
-    for key in ("flipImageX", "flipImageY"):
-        if v.get(key, 0.0) != 0.0:
-            raise ProfileError(f"field '{key}': flipped images are not modelled", source=DEFAULT_SOURCE)
-    w, h = v["screenW"], v["screenH"]
-    pitch, slope, center, dpi = v["pitch"], v["slope"], v["center"], v["DPI"]
-    p = pitch * w / dpi * math.cos(math.atan(1.0 / slope))
-    tilt = h / (w * slope)
-    subp = 1.0 / (3.0 * w)
-    x = np.arange(w, dtype=np.float64)
-    y_gl = (h - 1) - np.arange(h, dtype=np.float64)
-    uv_x = (x + 0.5) / w
-    uv_y = (y_gl + 0.5) / h
-    c = np.arange(3, dtype=np.float64)
-    phase = ((uv_x[None, :, None] + c[None, None, :] * subp + uv_y[:, None, None] * tilt) * p
-             - center)
-    return phase.reshape(h, 3 * w)
-
-
-def lkg_view_map(visual: Mapping[str, Any], views: int) -> np.ndarray:
-    """View of every subpixel by the Looking Glass shader's rule: the independent golden model.
-
-    ARGUMENTS
-    ``visual``: visual.json fields (wrapped or plain).  ``views``: N.
-
-    RETURNED VALUE
-    int32 array ``(screenH, 3 * screenW)`` indexed ``[y, x_s]`` (``y`` from the top,
-    ``x_s = 3 x + c`` with ``c`` the physical subpixel position), values in ``0..N``:
-    ``floor(((1 - invView) frac(phase) + invView (1 - frac(phase))) * N)`` evaluated in float64
-    (N occurs for invView = 1 on exact ties ``frac(phase) == 0``; it is view 0 modulo N).
-    """
-    v = _normalize(visual, DEFAULT_SOURCE)
-    inv_view = v.get("invView", 1.0)
-    phase = lkg_phase(v)
-    frac = phase - np.floor(phase)
-    z = (1.0 - inv_view) * frac + inv_view * (1.0 - frac)
-    return np.floor(z * views).astype(np.int32)

@@ -114,7 +114,7 @@ class PanelProfile:
     flip_image_y: bool = False
 
     def __post_init__(self):
-        _validate_constants(dataclasses.asdict(self), source="profile")
+        _validate_constants({f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, source="profile")
 
     @property
     def subpixels_per_row(self) -> int:
