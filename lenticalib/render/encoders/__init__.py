@@ -12,7 +12,8 @@ with ``torch_tables`` (its sparse tables), and ``common`` (what every encoder ch
 the view stack and the output raster).  Part of the render layer: imports only core and render.
 
 All of them route by :func:`lenticalib.core.routing.view_map` (same view for every subpixel, ties
-included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
+included; subpixel layouts and reversed views included) and sample where
+:mod:`lenticalib.render.sampling` says (the image flips included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
 views and is within 1 LSB for uint8 (fixed-point weights).
 
 Modules are imported only when an encoder is asked for, so ``lenticalib --help`` stays instant.

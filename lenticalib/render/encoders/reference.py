@@ -4,9 +4,11 @@
 
 ``v(p)`` is the view of subpixel ``p`` by the canonical routing,
 :func:`lenticalib.core.routing.view_map` (the LentiAvatar routing rule in exact-tie-safe fixed point; the tests check
-it against exact rational arithmetic); ``V_v(u_p)`` is view ``v`` bilinearly sampled in float64 at
-the subpixel's sample point (see :mod:`lenticalib.render.sampling`), in the subpixel's colour channel,
-then rounded half up (integer views).  Slow (a few seconds for a 4K panel).
+it against exact rational arithmetic), which routes a subpixel layout's slots by their true
+positions and reverses the views where the profile says so; ``V_v(u_p)`` is view ``v`` bilinearly
+sampled in float64 at the subpixel's sample point (see :mod:`lenticalib.render.sampling`; mirrored
+by the profile's image flips), in the subpixel's colour channel (slot ``s`` is channel ``s`` with a
+subpixel layout), then rounded half up (integer views).  Slow (a few seconds for a 4K panel).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ def encode_reference(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
     width, height = profile.width, profile.height
     cols = column_sampling(profile, wv)
     rows = row_sampling(profile, hv)
-    channel_at = np.empty(3, dtype=np.int64)  # colour channel at subpixel position 0, 1, 2
+    channel_at = np.empty(3, dtype=np.int64)  # colour channel at slot 0, 1, 2 (R, G, B with a layout)
     for channel, position in enumerate(profile.rho):
         channel_at[position] = channel
     x_all, position = np.divmod(np.arange(3 * width), 3)  # pixel and position of every x_s

@@ -23,7 +23,7 @@ def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
     n, hv, wv, _ = views.shape
     tables = sampling_tables(profile, hv, wv)
     width, height = profile.width, profile.height
-    # panel subpixel x_s = 3x + rho(c) holds channel c of pixel x
+    # panel subpixel x_s = 3x + rho(c) holds channel c of pixel x (rho = (0, 1, 2) with a subpixel layout)
     x = np.arange(width)[:, None]
     rho = np.asarray(profile.rho)[None, :]
     xs = (3 * x + rho).reshape(-1)  # per (x, c) in output order

@@ -4,7 +4,9 @@
     encoder = TorchEncoder(profile, (H_v, W_v), device="cuda", tables=tables)
 
 Tables (:class:`TorchTables`, built by :func:`build_tables` with numpy on the host, then moved to
-the device), per panel subpixel in output order ``[y, 3 x + c]`` (``c`` the colour channel):
+the device), per panel subpixel in output order ``[y, 3 x + c]`` (``c`` the colour channel; the
+routing of a subpixel layout, reversed views and the image flips come with ``view_map`` and the
+sample points of :mod:`lenticalib.render.sampling`):
 
 * ``primary_view`` uint8: the view the canonical routing (:func:`lenticalib.core.routing.view_map`)
   gives it, 255 where none (dark);
