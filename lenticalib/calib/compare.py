@@ -1,8 +1,10 @@
 """How far one profile is from another, in views, in the docs/optics.md convention.
 
-Over every subpixel (x_s, y) of the panel, ``d = w_a(x_s, y) - w_b(x_s, y)`` taken as a
-circular difference modulo N.  Reported: centring (the circular mean of d), non-uniformity
-(RMS and worst |d - mean|), and whether the subpixel orders agree.
+Over every subpixel slot (x_s, y) of the panel, ``d = w_a(x_s, y) - w_b(x_s, y)`` taken as a
+circular difference modulo N, with ``w`` the view coordinate each profile routes the slot by
+(:func:`lenticalib.core.routing.view_coordinate`: a subpixel layout's slot shift and reversed
+views included).  Reported: centring (the circular mean of d), non-uniformity (RMS and worst
+|d - mean|), and whether the subpixel orders (or the cell structures) agree.
 """
 
 from __future__ import annotations
@@ -14,11 +16,17 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.profile import PanelProfile
+from ..core.routing import view_coordinate
+
+_ROWS_PER_CHUNK = 64
 
 
 @dataclasses.dataclass(frozen=True)
 class ProfileDifference:
-    """Statistics of w_a - w_b over all subpixels (views)."""
+    """Statistics of w_a - w_b over all subpixels (views).
+
+    ``order_match``: both are stripes of one subpixel order, or both have cell layouts of the same
+    number of cells and pattern (how well the cells' positions agree is in the statistics)."""
 
     centring: float
     rms: float
@@ -30,11 +38,6 @@ class ProfileDifference:
         return dataclasses.asdict(self)
 
 
-def _w(profile: PanelProfile, xs: np.ndarray, y: float) -> np.ndarray:
-    n, d = profile.views, profile.period
-    return profile.reference_view + (3.0 * profile.slant * y + profile.offset - xs) * n / d
-
-
 def compare_profiles(a: PanelProfile, b: PanelProfile) -> ProfileDifference:
     """w_a - w_b over every subpixel; InputError if the panels differ in size or views."""
     if (a.width, a.height, a.views) != (b.width, b.height, b.views):
@@ -42,16 +45,17 @@ def compare_profiles(a: PanelProfile, b: PanelProfile) -> ProfileDifference:
                          f"{b.width}x{b.height}, {b.views} views)", source="profiles",
                          hint="compare profiles of the same panel")
     n = a.views
-    xs = np.arange(3 * a.width, dtype=np.float64)
     # circular mean first, from a coarse subset, then exact sums over every subpixel
-    probe = np.concatenate([_w(a, xs[::97], y) - _w(b, xs[::97], y) for y in range(0, a.height, 37)])
+    coarse = np.arange(0, a.height, 37)
+    probe = (view_coordinate(a, coarse)[:, ::97] - view_coordinate(b, coarse)[:, ::97]).ravel()
     ang = 2 * math.pi * probe / n
     centre = math.atan2(np.sin(ang).mean(), np.cos(ang).mean()) * n / (2 * math.pi)
     total = total2 = 0.0
     lo, hi = math.inf, -math.inf
     count = 0
-    for y in range(a.height):
-        d = _w(a, xs, y) - _w(b, xs, y) - centre
+    for start in range(0, a.height, _ROWS_PER_CHUNK):
+        rows = np.arange(start, min(a.height, start + _ROWS_PER_CHUNK))
+        d = view_coordinate(a, rows) - view_coordinate(b, rows) - centre
         d = (d + n / 2) % n - n / 2
         total += d.sum()
         total2 += np.square(d).sum()
@@ -61,4 +65,4 @@ def compare_profiles(a: PanelProfile, b: PanelProfile) -> ProfileDifference:
     rms = math.sqrt(max(total2 / count - mean * mean, 0.0))
     worst = max(abs(lo - mean), abs(hi - mean))
     centring = (centre + mean + n / 2) % n - n / 2
-    return ProfileDifference(float(centring), float(rms), float(worst), a.subpixel_order == b.subpixel_order, count)
+    return ProfileDifference(float(centring), float(rms), float(worst), a.layout_name == b.layout_name, count)

@@ -1,14 +1,17 @@
 """The crosstalk patterns: view bands swept across the panel, drawn from a fitted profile.
 
-Frames and units: panel raster pixels ``(x, y)``, subpixel index ``x_s = 3 x + rho(c)``; view
-coordinates ``w`` in views (``docs/optics.md``): subpixel ``(x_s, y)`` shows view
-``floor(w(x_s, y)) mod N`` and, with a calibrated profile, the camera of the fit sits at
-``w = N/2``.
+Frames and units: panel raster pixels ``(x, y)``, subpixel index ``x_s = 3 x + rho(c)`` (with a
+subpixel layout slot ``c`` of a pixel is channel ``c``); view coordinates ``w`` in views
+(``docs/optics.md``, :func:`lenticalib.core.routing.view_coordinate`: a layout's slot shift and
+reversed views included): subpixel ``(x_s, y)`` shows view ``floor(w(x_s, y)) mod N``, the view
+:func:`~lenticalib.core.routing.view_map` gives it, and, with a calibrated profile, the camera of
+the fit sits at ``w = N/2``.  Positions on the panel are the slots' continuous indices
+``x_s + e`` (``e`` the slot shift of a subpixel layout, 0 on a stripe panel).
 
 A *band* pattern lights (every colour, full white) the subpixels whose ``w`` lies within half a
 view of a centre ``b`` that moves slowly across the panel:
 
-    b(x_s) = N/2 + shift + N (x_s + 0.5) / (3 sweep)        (views; sweep in pixels)
+    b(x) = N/2 + shift + N (x + 0.5) / (3 sweep)        (views; sweep in pixels; x = x_s + e)
 
 so the camera, which sees ``w = N/2`` everywhere, sees at panel column ``x`` a one-view band
 centred ``delta = b - N/2`` views away from it: one photo samples the whole view cone across the
@@ -39,7 +42,7 @@ from ...core.documents import FORMATS, check_envelope
 from ...core.errors import InputError
 from ...core.pattern_sets import manifest_matches
 from ...core.profile import PanelProfile, profile_from_dict
-from ...core.routing import view_coordinate
+from ...core.routing import slot_shift_views, view_coordinate
 from ..patterns import FRAME_LEVEL, frame_width
 
 DOCUMENT = FORMATS["lenticalib.crosstalk-patterns"]
@@ -153,7 +156,7 @@ def default_sweep(profile: PanelProfile) -> float:
 
 
 def band_centre(pattern_set: CrosstalkPatternSet, xs: np.ndarray, shift: float) -> np.ndarray:
-    """Band centre ``b`` (views) at subpixel indices ``xs`` for a pattern of ``shift`` views."""
+    """Band centre ``b`` (views) at continuous subpixel indices ``xs`` for a pattern of ``shift`` views."""
     n = pattern_set.views
     return n / 2.0 + shift + n * (np.asarray(xs, np.float64) + 0.5) / (3.0 * pattern_set.sweep)
 
@@ -167,7 +170,19 @@ def lit_subpixels(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, r
     if pattern.kind == "white":
         return np.ones((len(rows), nsub), dtype=bool)
     w = view_coordinate(profile, rows)
-    return _lit(pattern_set, pattern, w - band_centre(pattern_set, np.arange(nsub), pattern.shift)[None, :])
+    return _lit(pattern_set, pattern, w - band_centre(pattern_set, _slot_positions(profile, rows), pattern.shift))
+
+
+def _slot_positions(profile: PanelProfile, rows: np.ndarray) -> np.ndarray:
+    """Continuous index ``x_s + e`` of every slot of ``rows``, float64 ``(len(rows), 3 W)`` (``(1, 3 W)``
+    on a stripe panel, where ``e = 0``)."""
+    nsub = profile.subpixels_per_row
+    positions = np.arange(nsub, dtype=np.float64)[None, :]
+    if profile.is_stripe:
+        return positions
+    shift = slot_shift_views(profile)  # [y % rows, 3 (x % columns) + slot]
+    full = np.tile(shift, (1, -(-nsub // shift.shape[1])))[:, :nsub]
+    return positions + full[np.asarray(rows) % shift.shape[0]]
 
 
 def _lit(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, relative: np.ndarray) -> np.ndarray:

@@ -1,0 +1,82 @@
+"""Calibration tools on panels that are not a plain stripe: crosstalk patterns and profile comparison
+with cell layouts and reversed views."""
+
+import numpy as np
+import pytest
+
+from lenticalib.calib.compare import compare_profiles
+from lenticalib.calib.crosstalk.patterns import band_centre, design_crosstalk_patterns
+from lenticalib.calib.patterns import frame_width
+from lenticalib.core.layout import SubpixelLayout, pattern_for_mode
+from lenticalib.core.profile import PanelProfile
+from lenticalib.core.routing import view_map
+
+# gen3-like cells (pixels, y down): R and G on one row, B on the other, mirrored between columns
+GEN3 = (((-0.25, 0.31), (-0.25, -0.28), (0.25, 0.0)), ((0.25, 0.31), (0.25, -0.28), (-0.25, 0.0)))
+
+
+def _cell_panel(reversed_views=False, n=8, period=7.7, width=150, height=48):
+    stripe = PanelProfile(views=n, slant=-0.19, period=period, offset=1.9, reference_view=0.6, width=width,
+                          height=height)
+    layout = SubpixelLayout(cells=GEN3, pattern=pattern_for_mode(4, 2, height))
+    return stripe, stripe.replace(subpixel_layout=layout, views_reversed=reversed_views)
+
+
+def _circular(a, n):
+    return np.abs(np.mod(a + n / 2.0, n) - n / 2.0)
+
+
+@pytest.mark.parametrize("reversed_views", [False, True])
+def test_crosstalk_patterns_light_the_slots_the_routing_gives_each_view(reversed_views):
+    stripe, profile = _cell_panel(reversed_views)
+    n = profile.views
+    views = view_map(profile).astype(np.float64)  # [y, 3 x + slot], slot = channel with a layout
+    assert np.mean(views != view_map(stripe)) > 0.5  # read as a stripe, most slots show another view
+    pattern_set = design_crosstalk_patterns(profile)
+    f = frame_width(profile.height)
+    inner = (slice(f, profile.height - f), slice(3 * f, 3 * (profile.width - f)))
+    xs = np.arange(profile.subpixels_per_row)
+    for pattern in pattern_set.patterns:
+        image = pattern_set.render(pattern)  # (H, W, 3): channel c of pixel x is slot 3 x + c
+        lit = (image.reshape(profile.height, -1) == 255)[inner]
+        if pattern.kind in ("black", "white"):
+            assert lit.all() == (pattern.kind == "white") and lit.any() == (pattern.kind == "white")
+            continue
+        # the band (half) is one view (N/2 views) wide about b (b + N/2 for the complement): a lit
+        # slot's view holds a point within half a view (N/4 views) of it; a layout's slot shift
+        # moves b by far less than 0.1 view
+        centre = band_centre(pattern_set, xs, pattern.shift)[inner[1]] + (n / 2.0 if pattern.complement else 0.0)
+        distance = _circular(views[inner] + 0.5 - centre, n)
+        width = 0.5 if pattern.kind == "band" else n / 4.0
+        assert distance[lit].max() < width + 0.5 + 0.1
+        assert np.mean(lit) > 0.5 / n
+        if pattern.kind == "half":
+            assert distance[~lit].min() > width - 0.5 - 0.1
+
+
+def test_comparison_routes_each_slot_by_its_layout():
+    stripe, profile = _cell_panel()
+    same = compare_profiles(profile, profile)
+    assert (same.centring, same.rms, same.worst, same.order_match) == (0.0, 0.0, 0.0, True)
+    # every channel one subpixel right of its stripe place: every slot's w is N / period lower
+    shifted = stripe.replace(subpixel_layout=SubpixelLayout(cells=(((0.0, 0.0), (1 / 3, 0.0), (2 / 3, 0.0)),)))
+    moved = compare_profiles(shifted, stripe)
+    assert moved.centring == pytest.approx(-stripe.views / stripe.period, abs=1e-9)
+    assert moved.rms < 1e-9 and moved.worst < 1e-9 and not moved.order_match
+    # the gen3 cells: per channel and per cell another shift, e = 1 + 3 dx - 3 C_r dy - c
+    slant = stripe.slant
+    shifts = np.array([[1 + 3 * dx - 3 * slant * dy - c for c, (dx, dy) in enumerate(cell)] for cell in GEN3])
+    d = -shifts.ravel() * stripe.views / stripe.period  # equal shares of slots (an even width)
+    cells = compare_profiles(profile, stripe)
+    assert cells.centring == pytest.approx(d.mean(), abs=1e-9)
+    assert cells.rms == pytest.approx(d.std(), abs=1e-9)
+    assert cells.worst == pytest.approx(np.abs(d - d.mean()).max(), abs=1e-9)
+
+
+def test_comparison_sees_reversed_views():
+    stripe, _ = _cell_panel()
+    reversed_stripe = stripe.replace(views_reversed=True)
+    diff = compare_profiles(reversed_stripe, stripe)
+    # shown w' = N - w: d = N - 2 w, which runs over the whole cycle across the panel
+    assert diff.rms > 1.0 and diff.order_match
+    assert compare_profiles(reversed_stripe, reversed_stripe).rms == 0.0
