@@ -187,3 +187,45 @@ def test_set_physical_from_a_data_sheet_then_retarget(tmp_path, cli):
     assert np.abs(routing_error(optics, (0.0, 0.0, -450.0), moved)).max() < 1e-6
     code, out, err = cli("profile", "set-physical", tmp_path / "p.json", "--gap", -1)
     assert code == 2 and "physical.gap_mm" in err
+
+
+@pytest.mark.parametrize("reversed_views", [False, True])
+def test_retargeting_a_cell_layout_routes_every_channel_from_its_true_position(reversed_views, tmp_path):
+    from lenticalib.core.layout import SubpixelLayout, pattern_for_mode
+    from lenticalib.core.routing import view_coordinate
+    from lenticalib.sim.optics import view_coordinate_truth
+
+    optics = random_scene(6, distance=600).optics
+    cells = (((-0.25, 0.31), (-0.25, -0.28), (0.25, 0.0)), ((0.25, 0.31), (0.25, -0.28), (-0.25, 0.0)))
+    layout = SubpixelLayout(cells=cells, pattern=pattern_for_mode(1, 2, optics.height))  # checkerboard
+    source = _exact(optics, (12.0, -30.0, -600.0)).replace(
+        subpixel_order="RGB", subpixel_layout=layout, views_reversed=reversed_views, flip_image_x=True,
+        flip_image_y=True)
+    target = (-60.0, 20.0, 820.0)
+    moved = retarget_profile(source, target)
+    assert (moved.subpixel_layout, moved.views_reversed, moved.flip_image_x, moved.flip_image_y) == \
+        (layout, reversed_views, True, True)
+    save_profile(moved, tmp_path / "moved.json")
+    assert load_profile(tmp_path / "moved.json").routing_key() == moved.routing_key()
+    # ground truth: ray-traced w* at each channel's own centre (pixel centre + (dx, dy) pixels)
+    n = moved.views
+    ys = np.linspace(0, optics.height - 1, 23).astype(np.int64)
+    xs = np.linspace(0, optics.width - 1, 57).astype(np.int64)
+    yy, xx = np.meshgrid(ys, xs, indexing="ij")
+    eye = (target[0], target[1], -target[2])
+
+    def worst_error(profile):
+        w = view_coordinate(profile, ys)
+        worst = 0.0
+        for c in range(3):
+            offsets = np.array(cells)[layout.cell_of(xx, yy), c]  # (rows, cols, 2)
+            truth = view_coordinate_truth(optics, eye, 3 * xx + 1.5 + 3 * offsets[..., 0],
+                                          yy + 0.5 + offsets[..., 1], n)
+            shown = n - truth if reversed_views else truth
+            got = w[np.arange(ys.size)[:, None], 3 * xx + c]
+            worst = max(worst, float(np.abs(np.mod(got - shown + n / 2, n) - n / 2).max()))
+        return worst
+
+    assert worst_error(moved) < 1e-6
+    assert worst_error(source) > 0.5  # not retargeted, the routing is views off
+    assert worst_error(moved.replace(subpixel_layout=None)) > 0.2  # read as a stripe, channels are off

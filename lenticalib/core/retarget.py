@@ -14,6 +14,11 @@ which keeps the slant, multiplies the period by ``k`` and shifts the phase.  Onl
 the pixel pitch ``p`` and where ``E1`` was are needed, not the lens pitch: the profile's own
 period already holds ``P_h m1``.
 
+A subpixel layout, reversed views and image flips are carried over unchanged: a layout's slot
+shift ``e = 1 + 3 dx - 3 C_r dy - c`` (subpixels, :mod:`lenticalib.core.layout`) places each slot
+at the panel position ``x_s + e``, which no eye moves, and depends only on the slant, which
+retargeting keeps; the new period and offset route every slot from that same position.
+
 Frames and units: world millimetres with the origin at the panel centre on the lens surface,
 x right along the rows, y down the columns, the viewer at z = -D; raster coordinates as in
 ``docs/optics.md`` (subpixel ``x_s`` covers ``[x_s, x_s + 1)``, the profile's ``w`` at the left
@@ -129,8 +134,9 @@ def retarget_profile(profile: PanelProfile, eye: Any, *, source: str = "profile"
     """``profile`` carried to ``eye`` (an :class:`Eye` or ``(x, y, D)`` mm): new period and offset,
     the physical block's ``eye_mm`` set to the new eye, 1-sigmas of period and offset propagated
     from the profile's and the physical block's (gap, calibration eye), and, with ``record``, a
-    provenance record naming the source profile's.  ProfileError naming ``source`` when the
-    profile has no physical block with a gap and a calibration eye.
+    provenance record naming the source profile's.  The subpixel layout, ``views_reversed`` and
+    the image flips are kept as they are (module docstring).  ProfileError naming ``source`` when
+    the profile has no physical block with a gap and a calibration eye.
     """
     target = Eye.parse(eye, "eye")
     pixel_pitch, gap = _needs(profile, source)
@@ -214,7 +220,9 @@ class Retargeter:
 def routing_difference(a: PanelProfile, b: PanelProfile) -> float:
     """Largest |w_a - w_b| (views, circular) over the panel's four corners and centre: the
     routing of two profiles of one panel differs by an affine function of (x_s, y), so its
-    extremes lie at the corners."""
+    extremes lie at the corners.  Reversed views change only its sign; a subpixel layout moves
+    the slots by a few subpixels, which changes the difference by that few subpixels' share of
+    it (negligible against any useful tolerance)."""
     n = a.views
     xs = np.array([0.0, 3 * a.width - 1, 0.0, 3 * a.width - 1, 1.5 * a.width])
     ys = np.array([0.0, 0.0, a.height - 1, a.height - 1, a.height / 2])
