@@ -7,6 +7,8 @@ import pytest
 from lenticalib.calib.compare import compare_profiles
 from lenticalib.calib.crosstalk.patterns import band_centre, design_crosstalk_patterns
 from lenticalib.calib.patterns import frame_width
+from lenticalib.core.errors import InputError
+from lenticalib.core.imageio import read_image
 from lenticalib.core.layout import SubpixelLayout, pattern_for_mode
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import view_map
@@ -80,3 +82,20 @@ def test_comparison_sees_reversed_views():
     # shown w' = N - w: d = N - 2 w, which runs over the whole cycle across the panel
     assert diff.rms > 1.0 and diff.order_match
     assert compare_profiles(reversed_stripe, reversed_stripe).rms == 0.0
+
+
+def test_crosstalk_pattern_folder_of_a_cell_panel_reads_back_with_its_layout(tmp_path):
+    from lenticalib.calib.crosstalk.measure import open_crosstalk_set
+    from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
+
+    stripe, profile = _cell_panel(reversed_views=True)
+    profile = profile.replace(flip_image_x=True)
+    written = design_crosstalk_patterns(profile)
+    write_patterns(tmp_path / "xt", written)
+    again = read_pattern_folder(tmp_path / "xt")
+    assert again.profile.routing_key() == profile.routing_key() and again.set_id == written.set_id
+    for pattern in again.patterns:
+        np.testing.assert_array_equal(read_image(tmp_path / "xt" / pattern.file), again.render(pattern))
+    # the measurement refuses the stripe reading of the same panel: another routing
+    with pytest.raises(InputError, match="not the profile the crosstalk patterns were drawn from"):
+        open_crosstalk_set(tmp_path / "xt", stripe)
