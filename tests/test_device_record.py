@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, strategies as st
 
 from lenticalib.device.drivers import families, family_for, load_family
+from lenticalib.device.looking_glass.hid import PRODUCT_ID, VENDOR_ID
 from lenticalib.device.framing import FrameParser, crc16, encode_frame
 from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record,
                                       record_from_profile)
@@ -120,6 +121,9 @@ def test_udev_rules_cover_every_controller_and_use_uaccess():
     for family in families():
         for t in family.transports:
             assert (f"{t.vid:04x}", f"{t.pid:04x}") in covered, f"{family.name} {t.kind} has no udev rule"
+    hidraw = [line for line in rules if 'SUBSYSTEM=="hidraw"' in line]
+    assert any(f'idVendor}}=="{VENDOR_ID:04x}"' in line and f'idProduct}}=="{PRODUCT_ID:04x}"' in line
+               for line in hidraw), "the Looking Glass HID unit has no hidraw rule"
 
 
 def _cell_layout_profile() -> PanelProfile:
