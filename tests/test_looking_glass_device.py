@@ -141,6 +141,7 @@ def test_a_calibration_import_refuses_is_one_line_naming_the_unit(tmp_path, cli)
     ("lkg-emu://u?explode=1", InputError, "unknown URL parameter 'explode'"),
     ("lkg-emu://u?timeout=0", InputError, "'timeout' must be 0.01..60"),
     ("lkg-hid://04d8:ef7e?retries=9", InputError, "unknown URL parameter 'retries'"),
+    ("lkg-drive:///media?x=1", InputError, "unknown URL parameter 'x'"),
 ])
 def test_bad_urls_and_missing_units_are_one_line(url, error, words, tmp_path, cli):
     create_unit("u", visual_bytes(STRIPE))
@@ -229,3 +230,15 @@ def test_only_looking_glass_schemes_are_units():
     assert is_looking_glass("lkg-hid://04d8:ef7e") and is_looking_glass("lkg-drive:///media/u/LKG")
     assert is_looking_glass(parse_device_url("lkg-emu://x"))
     assert not any(map(is_looking_glass, ("emu://x", "hid://04d8:ef7e", "/dev/hidraw0", "serial:///dev/ttyACM0")))
+
+
+def test_listing_drives_reads_their_serial(tmp_path, monkeypatch):
+    from lenticalib.device.looking_glass import drive
+
+    good = make_drive(tmp_path / "LKG-A", visual_bytes(STRIPE))
+    bad = make_drive(tmp_path / "LKG-B", b"not json")
+    monkeypatch.setattr(drive, "find_drives", lambda: [good, bad])
+    found, notes = drive.DriveUnit.list_devices()
+    assert [(d.url, d.serial) for d in found] == [(f"lkg-drive://{good}", STRIPE["serial"]),
+                                                  (f"lkg-drive://{bad}", None)]
+    assert len(notes) == 1 and notes[0].startswith(f"lkg-drive://{bad}: ") and "not valid JSON" in notes[0]

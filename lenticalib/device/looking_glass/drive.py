@@ -16,8 +16,9 @@ import os
 from pathlib import Path
 from typing import Iterable
 
-from ...core.errors import DeviceNotFoundError
+from ...core.errors import DeviceNotFoundError, InputError, LenticalibError
 from ..transports.base import FoundDevice
+from ..url import parse_device_url
 from .unit import FAMILY, MAX_CALIBRATION_BYTES, LookingGlassUnit
 
 CALIBRATION_FOLDER = "LKG_calibration"
@@ -97,14 +98,26 @@ class DriveUnit(LookingGlassUnit):
 
     def __init__(self, url):
         super().__init__(url)
+        if url.options:
+            raise InputError(f"unknown URL parameter '{url.options[0][0]}'", source=str(url),
+                             hint="lkg-drive:// takes no parameters")
         self.file: Path | None = None
 
     @classmethod
     def list_devices(cls) -> tuple[list[FoundDevice], list[str]]:
         """The mounted Looking Glass drives (``device list``)."""
-        return [FoundDevice(drive_url(folder), "lkg-drive", FAMILY,
-                            f"Looking Glass drive ({CALIBRATION_FOLDER}/{CALIBRATION_FILE})")
-                for folder in find_drives()], []
+        found, notes = [], []
+        for folder in find_drives():
+            url = drive_url(folder)
+            try:
+                with cls(parse_device_url(url)) as unit:
+                    serial = unit.read_calibration().serial
+            except LenticalibError as exc:  # listed all the same: reading it says what is wrong
+                serial = None
+                notes.append(f"{url}: {exc.message}")
+            found.append(FoundDevice(url, "lkg-drive", FAMILY,
+                                     f"Looking Glass drive ({CALIBRATION_FOLDER}/{CALIBRATION_FILE})", serial))
+        return found, notes
 
     def open_hint(self) -> str:
         return (f"give the mount point of the unit's drive (it holds {CALIBRATION_FOLDER}/{CALIBRATION_FILE}); "
