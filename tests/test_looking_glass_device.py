@@ -224,6 +224,8 @@ def test_emulate_saves_a_unit_from_a_visual_json(tmp_path, cli):
     assert read_calibration("lkg-emu://bench").visual == STRIPE
     code, _, err = cli("emulate", "--looking-glass", tmp_path / "missing.json")
     assert code == 2 and "missing.json" in one_error_line(err)
+    code, _, err = cli("emulate", "--name", "bench")
+    assert code == 2 and "--looking-glass" in one_error_line(err, "--name")
 
 
 def test_only_looking_glass_schemes_are_units():

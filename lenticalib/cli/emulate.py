@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     lkg.add_argument("--looking-glass", metavar="VISUAL_JSON",
                      help="save a unit whose EEPROM holds this visual.json (stored as given), print its URL "
                           "lkg-emu://NAME and exit; faults go in the URL: ?drop=P&short=P&wrong-page=P&seed=S")
-    lkg.add_argument("--name", default="lkg", help="the unit's name in its URL (default: lkg)")
+    lkg.add_argument("--name", help="with --looking-glass: the unit's name in its URL (default: lkg)")
     faults = parser.add_argument_group("fault injection (rates are probabilities per frame)")
     faults.add_argument("--power-cut-after", type=int, metavar="K",
                         help="the power fails after the K-th flash operation (erase or program): the process "
@@ -72,6 +72,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.looking_glass is not None:
         return run_looking_glass(args)
+    if args.name is not None:
+        raise InputError("names an emulated Looking Glass unit: it needs --looking-glass VISUAL_JSON", source="--name")
     if args.torn and args.power_cut_after is None:
         raise InputError("--torn needs --power-cut-after K", source="--torn")
     if not 0 <= args.port <= 65535:
@@ -131,5 +133,5 @@ def run_looking_glass(args: argparse.Namespace) -> int:
     if len(text) > MAX_CALIBRATION_BYTES:
         raise InputError(f"is {len(text)} bytes; a unit's EEPROM holds at most {MAX_CALIBRATION_BYTES}",
                          source=str(source))
-    print(create_unit(args.name, text), flush=True)
+    print(create_unit("lkg" if args.name is None else args.name, text), flush=True)
     return 0
