@@ -189,7 +189,7 @@ def run_compare(args) -> int:
     print(f"  centring        {diff.centring:+.4f} views")
     print(f"  period          {a.period:.6f} vs {b.period:.6f} subpixels ({a.period - b.period:+.2e})")
     print(f"  slant           {a.slant:.7f} vs {b.slant:.7f} pixels/row ({a.slant - b.slant:+.2e})")
-    print(f"  subpixel order  {a.subpixel_order} vs {b.subpixel_order}"
+    print(f"  subpixel order  {a.layout_name} vs {b.layout_name}"
           f"{'' if diff.order_match else '  MISMATCH'}")
     note = {True: "", False: "  MISMATCH (one of them shows inverted depth)",
             None: "  (not compared: unknown)"}[direction_match]
