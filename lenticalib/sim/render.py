@@ -96,12 +96,19 @@ def _corner_ray(gx, gy, grid_step, jc, ic, rot, cam, plane):
 
 
 @njit(cache=True, inline="always")
-def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, bmh, bmv, big_h, nsub):
+def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, bmh, bmv, big_h, nsub,
+                shifts, reach):
     """Add the light seen around raster point (sx, sy) to ``acc`` (per panel primary).
 
     The seen point sweeps a stretch ``h_y`` rows long along the lens axis (dX = slope dY); each
     row's open aperture is cut out of it exactly, and its X-extent is folded into the Gaussian
     blur (variance ``sig2``, subpixels^2) as a box of equal variance.
+
+    ``reach`` 0: a stripe panel (slot ``pos`` of a pixel shows channel ``chan_of_pos[pos]``).
+    Otherwise a subpixel layout: slot ``c`` of pixel ``px`` in row ``r`` is channel ``c`` and its
+    aperture is moved by the slot shift ``shifts[r % rows, 3 (px % columns) + c]`` subpixels
+    (at most ``reach`` - 1 in size) along the row: the position, across the lenses, of the
+    channel's true centre (an aperture off its row is moved along the lens line into it).
     """
     half_bmh = 0.5 * bmh
     open_w = 1.0 - bmh
@@ -123,6 +130,9 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
         # subpixels whose aperture meets [xm - 4 s, xm + 4 s]
         c_lo = max(int(math.floor(xm - 4.0 * s - 1.0 + half_bmh)) + 1, 0)
         c_hi = min(int(math.ceil(xm + 4.0 * s - half_bmh)) - 1, nsub - 1)
+        if reach > 0.0:
+            _layout_light(xm, s, wr, r, acc, raster, lut, table, half_bmh, open_w, nsub, shifts, reach)
+            continue
         if c_hi < c_lo:
             continue
         px = c_lo // 3
@@ -140,14 +150,35 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
                 px += 1
 
 
+@njit(cache=True, inline="always")
+def _layout_light(xm, s, wr, r, acc, raster, lut, table, half_bmh, open_w, nsub, shifts, reach):
+    """The light of row ``r`` around ``xm`` (blur ``s``, weight ``wr``) on a panel with a subpixel
+    layout: every slot's aperture moved by its slot shift (see :func:`_seen_light`)."""
+    inv_s = 1.0 / s
+    q_lo = max(int(math.floor(xm - 4.0 * s - reach)), 0)
+    q_hi = min(int(math.ceil(xm + 4.0 * s + reach)), nsub - 1)
+    srow = r % shifts.shape[0]
+    scols = shifts.shape[1] // 3
+    for q in range(q_lo, q_hi + 1):
+        px = q // 3
+        c = q - 3 * px
+        left = q + shifts[srow, 3 * (px % scols) + c] + half_bmh
+        e = (left - xm) * inv_s
+        cov = _phi(e + open_w * inv_s, table) - _phi(e, table)
+        if cov > 0.0:
+            acc[c] += wr * cov * lut[raster[r, px, c]]
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, table, scatter_map, out):
+def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, table, scatter_map, shifts, reach,
+                   out):
     """Linear light per panel primary for every sensor pixel into ``out`` (h, w, 3) float32.
 
     ``prm`` (float64): cos phi, sin phi, P_u, x0 cos phi, g, p, W, H, black matrix h, v,
     sigma0 (subpixel widths, across u), blur growth, sheet half-width, half-height, bezel
     half-width, half-height, bezel level, background level, angular falloff, scatter,
-    5 backlight coefficients, subsamples n.
+    5 backlight coefficients, subsamples n.  ``shifts``/``reach``: the slot shifts of a subpixel
+    layout (reach 0 on a stripe panel, see :func:`_seen_light`).
     """
     h, w = out.shape[0], out.shape[1]
     dist = -cam[2]
@@ -167,11 +198,12 @@ def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, t
             for jc in range(w + 1):
                 bot_x[jc], bot_y[jc] = _corner_ray(gx, gy, grid_step, jc, i + 1, rot, cam, dist)
             _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table,
-                        scatter_map, out)
+                        scatter_map, shifts, reach, out)
 
 
 @njit(cache=True, error_model="numpy")
-def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table, scatter_map, out):
+def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table, scatter_map, shifts,
+                reach, out):
     """Sensor row ``i`` given the lens-plane points of its top and bottom pixel corners."""
     w = out.shape[1]
     cphi, sphi, pu, x0u, gap, pitch = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5]
@@ -247,7 +279,7 @@ def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, ca
                 sum_x += sx
                 sum_y += sy
                 _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope,
-                            bmh, bmv, big_h, nsub)
+                            bmh, bmv, big_h, nsub, shifts, reach)
         if on_panel > 0 and scatter > 0.0:
             # scattered light: the raster around the mean seen point, wide and dim
             mx = min(max(sum_x / on_panel / (3.0 * SCATTER_BLOCK) - 0.5, 0.0), sc_w - 1.0)
@@ -332,9 +364,11 @@ def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:
     position = np.asarray(cam.position, np.float64)
     chan_of_pos = np.array([scene.optics.rho.index(pos) for pos in range(3)], dtype=np.int64)
     scatter = _scatter_map(raster, lut) if scene.optics.scatter > 0 else np.zeros((1, 1, 3))
+    shifts = np.ascontiguousarray(scene.optics.slot_shifts(), dtype=np.float64)
+    reach = 0.0 if scene.optics.subpixel_layout is None else float(np.abs(shifts).max()) + 1.0
     out = np.empty((cam.height, cam.width, 3), dtype=np.float32)
     _render_kernel(raster, lut, chan_of_pos, gx, gy, float(GRID_STEP), rot, position,
-                   _kernel_params(scene), _PHI_TABLE, scatter, out)
+                   _kernel_params(scene), _PHI_TABLE, scatter, shifts, reach, out)
     return out
 
 
