@@ -18,7 +18,8 @@ part that matters for routing.
 Per photo the phase offset against the plane's prediction is fitted block by block
 (``A + Re(m exp(2 pi i predicted))`` in blocks of ``BLOCK`` pixels); its 1-sigma comes from a
 delete-one-tile jackknife over ``TILES`` tiles of the panel, so spatially correlated errors count
-(moire of the sparse lit pixels, glare, JPEG).  The offsets of the eight green photos give the
+(moire of the sparse lit pixels, glare, JPEG); a cell's sigma has a systematic floor
+(``SHIFT_FLOOR``).  The offsets of the eight green photos give the
 reference (their mean is the plane's own green), which also cancels what all single photos share
 (the tone curve's harmonics, the camera's colour mixing into the luminance).
 
@@ -46,6 +47,12 @@ TILES = (6, 4)  # jackknife tiles of the panel (across, down)
 AGREE_SIGMAS = 3.0  # shifts agree when within this many combined sigma ...
 AGREE_FLOOR = 0.06  # ... or this many subpixels (a systematic floor of the method)
 MAX_SHIFT_SIGMA_VIEWS = 0.08  # a shift known worse than this (1 sigma, in views) is not resolved
+# Systematic floor of a cell's shift (1 sigma, subpixels), added to the statistical sigma of the
+# merged classes (which shrinks with their number, while the errors are common to the classes):
+# simulated sets (tools/bench_layouts.py) show per-channel biases of about 0.01-0.02 subpixel,
+# the same in every class (R and B opposite: the camera's lateral chromatic aberration is the
+# likely cause).
+SHIFT_FLOOR = 0.015
 STRIPE_SHIFTS = {"RGB": (0.0, 0.0, 0.0), "BGR": (2.0, 0.0, -2.0)}
 
 
@@ -187,6 +194,7 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecisi
         target = np.array(stripe)[None, :]
         if _agree(r, s, target, 0.0):
             mean, sig = _weighted_mean(r, s)
+            sig = np.hypot(sig, SHIFT_FLOOR)
             table = [[0] * CELL_COLUMNS for _ in range(CELL_ROWS)]
             decision = LayoutDecision(order, None, shifts, mean[None, :], sig[None, :], table,
                                       views_per_subpixel=views_per_subpixel)
@@ -216,7 +224,7 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecisi
     table = [[class_cell[2 * y + x] for x in range(CELL_COLUMNS)] for y in range(CELL_ROWS)]
     means = [_weighted_mean(r[members], s[members]) for members in cells]
     cell_shift = np.array([m for m, _ in means])
-    cell_sigma = np.array([ms for _, ms in means])
+    cell_sigma = np.hypot(np.array([ms for _, ms in means]), SHIFT_FLOOR)
     layout = None
     if len(cells) <= 16:
         pairs = tuple(tuple((float((cell_shift[i, c] - 1 + c) / 3.0), 0.0) for c in range(3))
@@ -250,3 +258,38 @@ def refuse_if_unresolved(decision: LayoutDecision, source: str) -> None:
     if decision.problem:
         raise CalibrationError(decision.problem, source=source,
                                hint="retake the cell photos in focus with the camera still, closer to the panel")
+
+
+def class_shifts(profile) -> np.ndarray:
+    """The slot shifts ``e`` (subpixels) a profile gives each cell class and channel, float64
+    ``(CELL_CLASSES, 3)`` (R, G, B): zeros for RGB, ``(2, 0, -2)`` for BGR (the channels' slots
+    relative to RGB's), the layout's :meth:`~lenticalib.core.layout.SubpixelLayout.slot_shifts`."""
+    out = np.zeros((CELL_CLASSES, 3))
+    layout = profile.subpixel_layout
+    if layout is None:
+        out[:] = STRIPE_SHIFTS[profile.subpixel_order]
+        return out
+    per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(profile.slant)]
+    for k in range(CELL_CLASSES):
+        out[k] = per_cell[int(layout.cell_of(k % CELL_COLUMNS, k // CELL_COLUMNS))]
+    return out
+
+
+def same_cells(a, b) -> bool:
+    """Whether two profiles group the cell classes into cells alike (up to the cells' numbering; a
+    stripe is one cell)."""
+    def partition(profile):
+        layout = profile.subpixel_layout
+        if layout is None:
+            return {frozenset(range(CELL_CLASSES))}
+        cell = [int(layout.cell_of(k % CELL_COLUMNS, k // CELL_COLUMNS)) for k in range(CELL_CLASSES)]
+        return {frozenset(k for k in range(CELL_CLASSES) if cell[k] == c) for c in set(cell)}
+
+    return partition(a) == partition(b)
+
+
+def shift_error(fitted, truth) -> float:
+    """Largest error (subpixels) of ``fitted``'s slot shifts against ``truth``'s over every class and
+    channel, in the layout's gauge (the mean green shift taken out of both: :mod:`.layout_fit`)."""
+    d = class_shifts(fitted) - class_shifts(truth)
+    return float(np.max(np.abs(d - d[:, 1].mean())))

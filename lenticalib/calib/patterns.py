@@ -34,8 +34,15 @@ Why these patterns (the physics is in ``docs/optics.md``; the method in ``docs/c
   without bias (an edge lit by the photo's own fringe is weighted by that fringe) and undone
   (:mod:`.register`).  The fringes fill the panel inside the frame.
 
-23 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
-fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
+* With ``cells`` (``lenticalib patterns --cells``) 24 *cell patterns* follow: ``cell-<c><k>``
+  draws the fine sinusoid of ``f16`` in channel ``c`` (r, g or b, at its RGB slot) only in the
+  pixels of cell class ``k = 2 (y % 4) + x % 2``.  On a panel whose subpixels are not a stripe
+  each channel of each cell sits elsewhere across the lenses; the phase of these photos against
+  the fitted model measures where (:mod:`.layout_fit`).  Every cell pattern public calibrations
+  use (1, 2 or 4 rows; 1 or 2 columns) is a function of the class.
+
+23 photos in all (47 with the cell patterns).  Periods scale with the panel so any raster size
+works; the fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
 """
 
 from __future__ import annotations
