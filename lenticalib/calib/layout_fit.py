@@ -39,7 +39,7 @@ import math
 import numpy as np
 
 from ..core.errors import CalibrationError
-from ..core.layout import CHANNELS, SubpixelLayout
+from ..core.layout import CHANNELS, SubpixelLayout, stripe_layout
 from .patterns import CELL_CLASSES, CELL_COLUMNS, CELL_ROWS
 
 BLOCK = 32  # working pixels per side of a block of the phase fit
@@ -265,10 +265,7 @@ def class_shifts(profile) -> np.ndarray:
     ``(CELL_CLASSES, 3)`` (R, G, B): zeros for RGB, ``(2, 0, -2)`` for BGR (the channels' slots
     relative to RGB's), the layout's :meth:`~lenticalib.core.layout.SubpixelLayout.slot_shifts`."""
     out = np.zeros((CELL_CLASSES, 3))
-    layout = profile.subpixel_layout
-    if layout is None:
-        out[:] = STRIPE_SHIFTS[profile.subpixel_order]
-        return out
+    layout = profile.subpixel_layout or stripe_layout(profile.subpixel_order)
     per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(profile.slant)]
     for k in range(CELL_CLASSES):
         out[k] = per_cell[int(layout.cell_of(k % CELL_COLUMNS, k // CELL_COLUMNS))]
