@@ -72,14 +72,21 @@ def test_a_cell_layout_is_recovered_with_its_pattern(name, slant):
     truth = _profile(NAMED_LAYOUTS[name], slant=slant)
     decision = layout_fit.decide_layout(_measured(truth), 32 / 19.5)
     assert decision.problem is None and decision.layout is not None
-    fitted = truth.replace(subpixel_layout=decision.layout)
+    # the fit's plane sits at the green light's mean position (offset s - mean e_G), then regauged
+    green_offset = truth.offset - layout_fit.class_shifts(truth)[:, 1].mean()
+    fitted = truth.replace(subpixel_layout=decision.layout,
+                           offset=layout_fit.regauged_offset(green_offset, truth.period, decision))
     assert layout_fit.same_cells(fitted, truth)
     assert len(decision.layout.cells) == len(NAMED_LAYOUTS[name].cells)
     assert layout_fit.shift_error(fitted, truth) < 0.03
     assert all(dy == 0.0 for cell in decision.layout.cells for _, dy in cell)  # only dx is measurable
     # the layout routes like the truth up to a common shift, which the fitted offset carries
     diff = compare_profiles(fitted, truth)
-    assert diff.rms < 0.03 and diff.worst < 0.08
+    assert diff.rms < 0.03 and diff.worst < 0.08 and abs(diff.centring) < 0.03
+    # written in the stripe's gauge: the channel centres average to the pixel centre
+    dx = np.array([[dx for dx, _ in cell] for cell in decision.layout.cells])
+    cell = [int(decision.layout.cell_of(k % 2, k // 2)) for k in range(CELL_CLASSES)]
+    assert abs(dx[cell].mean()) < 0.01
 
 
 def test_a_layout_that_cannot_be_told_is_refused_in_one_line():

@@ -260,6 +260,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     reg_var = registration_variance(groups, registration.shifts, x_sm, y_sm, valid, fit, used)
     quality, cov = quality_and_covariance(fit, samples, final_weights, cov, ps, n_views, reg_var)
     constants, sigmas = constants_with_uncertainty(fit, cov)
+    if layout is not None and layout.layout is not None:  # the offset in the gauge of the layout written
+        constants["offset"] = layout_fit.regauged_offset(constants["offset"], constants["period"], layout)
     quality.update({
         "fine_groups": [{"period": p, "alias": round(al, 4), "coherence": round(g.coherence, 4),
                          "used": i in used, "period_estimate": -1.0 / g.a} for i, (p, al, g) in enumerate(group_fits)],

@@ -27,7 +27,8 @@ THE DECISION.  The stripe ``RGB`` (``r = 0, 0, 0`` in every class) or ``BGR`` (`
 when every shift agrees with it within ``AGREE_SIGMAS`` sigma (or ``AGREE_FLOOR`` subpixels);
 else a :class:`~lenticalib.core.layout.SubpixelLayout`: classes whose shifts agree are merged
 into cells, which gives the cell pattern, and each cell's channel offsets are
-``dx = (r - 1 + c) / 3`` pixels with ``dy = 0``.  The fit cannot tell (one-line refusal) when a
+``dx = (r + g - 1 + c) / 3`` pixels with ``dy = 0``, the common ``g`` chosen so that the channel
+centres average to the pixel centre over the panel (the offset moves by ``g`` too).  The fit cannot tell (one-line refusal) when a
 shift's 1-sigma exceeds ``MAX_SHIFT_SIGMA_VIEWS`` views or a class agrees with no cell.
 """
 
@@ -92,6 +93,7 @@ class LayoutDecision:
     problem: str | None = None
 
     views_per_subpixel: float = 0.0
+    gauge: float = 0.0  # subpixels added to every measured shift (and to the offset) for the layout written
 
     def to_dict(self) -> dict:
         out = {"result": "stripe " + self.order if self.layout is None else "cells",
@@ -99,6 +101,7 @@ class LayoutDecision:
                "measured": self.shifts.to_dict(),
                "cell_of_class": self.class_cells,
                "cell_shift_subpixels": np.round(self.cell_shift, 4).tolist(),
+               "gauge_subpixels": round(self.gauge, 4),
                "cell_sigma_subpixels": np.round(self.cell_sigma, 4).tolist(),
                "note": "only the component across the lenses is measurable: dy = 0, dx carries it"}
         if self.layout is not None:
@@ -225,12 +228,25 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecisi
     means = [_weighted_mean(r[members], s[members]) for members in cells]
     cell_shift = np.array([m for m, _ in means])
     cell_sigma = np.hypot(np.array([ms for _, ms in means]), SHIFT_FLOOR)
+    # The gauge of the layout written: every slot's shift moved by the same ``gauge`` so that the
+    # channel centres average to the pixel centre over the panel (mean dx 0, as in a stripe), and
+    # the offset moved by as much (:func:`regauged_offset`), which routes every slot as before.
+    gauge = -float(np.mean([cell_shift[class_cell[k]] for k in range(CELL_CLASSES)]))
+    cell_shift = cell_shift + gauge
     layout = None
     if len(cells) <= 16:
         pairs = tuple(tuple((float((cell_shift[i, c] - 1 + c) / 3.0), 0.0) for c in range(3))
                       for i in range(len(cells)))
         layout = SubpixelLayout(cells=pairs, pattern=_compress(table))
-    return LayoutDecision("RGB", layout, shifts, cell_shift, cell_sigma, table, problem, views_per_subpixel)
+    return LayoutDecision("RGB", layout, shifts, cell_shift, cell_sigma, table, problem, views_per_subpixel, gauge)
+
+
+def regauged_offset(offset: float, period: float, decision: LayoutDecision) -> float:
+    """The profile offset (subpixels) that goes with the decision's layout: ``offset + gauge``
+    reduced into ``[0, period)`` (a common shift ``e -> e + g`` of every slot routes like
+    ``s_ref -> s_ref - g``, so the two together leave every slot's ``w`` unchanged)."""
+    value = math.fmod(offset + decision.gauge, period)
+    return value + period if value < 0 else value
 
 
 def _weighted_mean(r: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
