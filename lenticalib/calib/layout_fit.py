@@ -81,8 +81,9 @@ class CellShifts:
 @dataclasses.dataclass
 class LayoutDecision:
     """What the cell photos say: ``order`` ("RGB" or "BGR") and ``layout`` (None for a stripe), the
-    measured ``shifts``, each cell's shift and 1-sigma (``cell_shift``/``cell_sigma``, ``(cells, 3)``
-    subpixels), the 4 x 2 ``class_cells`` table and ``problem`` (a sentence) when it cannot tell."""
+    measured ``shifts``, each cell's shift (in the layout's gauge) and 1-sigma
+    (``cell_shift``/``cell_sigma``, ``(cells, 3)`` subpixels), the 4 x 2 ``class_cells`` table and
+    ``problem`` (a sentence) when it cannot tell."""
 
     order: str
     layout: SubpixelLayout | None
@@ -233,11 +234,8 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecisi
     # the offset moved by as much (:func:`regauged_offset`), which routes every slot as before.
     gauge = -float(np.mean([cell_shift[class_cell[k]] for k in range(CELL_CLASSES)]))
     cell_shift = cell_shift + gauge
-    layout = None
-    if len(cells) <= 16:
-        pairs = tuple(tuple((float((cell_shift[i, c] - 1 + c) / 3.0), 0.0) for c in range(3))
-                      for i in range(len(cells)))
-        layout = SubpixelLayout(cells=pairs, pattern=_compress(table))
+    pairs = tuple(tuple((float((cell_shift[i, c] - 1 + c) / 3.0), 0.0) for c in range(3)) for i in range(len(cells)))
+    layout = SubpixelLayout(cells=pairs, pattern=_compress(table))
     return LayoutDecision("RGB", layout, shifts, cell_shift, cell_sigma, table, problem, views_per_subpixel, gauge)
 
 
