@@ -1,7 +1,8 @@
 """One contract suite over every transport: in-process serial (pyserial URL handler), HID
 (hidapi-style device), USB (pyusb with the emulator backend), and real emulator processes on a
 pseudo-terminal and on TCP.  Set LENTICALIB_TEST_DEVICE to a device URL to run the same cases
-against real hardware (its record is read first and flashed back at the end)."""
+against real hardware (its record is read first and flashed back at the end); a Looking Glass
+unit's URL there runs tests/test_looking_glass_contract.py instead."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import zlib
 import pytest
 
 from lenticalib.device import PanelController
+from lenticalib.device.looking_glass import is_looking_glass
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, Command, Status
 from lenticalib.device.record import RECORD_SIZE, encode_record, record_crc, record_from_profile
 from lenticalib.core.errors import DeviceProtocolError, ProfileError
@@ -20,7 +22,7 @@ from .device_support import emulator_process, profile_a, profile_b, same_constan
 
 TRANSPORTS = ["emu-serial", "emu-hid", "emu-usb", "pty", "tcp"]
 HARDWARE = os.environ.get("LENTICALIB_TEST_DEVICE")
-if HARDWARE:
+if HARDWARE and not is_looking_glass(HARDWARE):  # a Looking Glass unit: tests/test_looking_glass_contract.py
     TRANSPORTS.append("hardware")
 
 

@@ -10,12 +10,16 @@ import pytest
 from hypothesis import given, strategies as st
 
 from lenticalib.device.drivers import families, family_for, load_family
+from lenticalib.device.looking_glass.hid import PRODUCT_ID, VENDOR_ID
 from lenticalib.device.framing import FrameParser, crc16, encode_frame
 from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record,
                                       record_from_profile)
 from lenticalib.core.errors import InputError, ProfileError
-from lenticalib.core.profile import PanelProfile
+from lenticalib.core.layout import SubpixelLayout
+from lenticalib.core.profile import PanelProfile, save_profile
+from lenticalib.device import PanelController
 
+from .cli_support import one_error_line
 from .device_support import REPO, profile_b
 
 
@@ -117,3 +121,41 @@ def test_udev_rules_cover_every_controller_and_use_uaccess():
     for family in families():
         for t in family.transports:
             assert (f"{t.vid:04x}", f"{t.pid:04x}") in covered, f"{family.name} {t.kind} has no udev rule"
+    hidraw = [line for line in rules if 'SUBSYSTEM=="hidraw"' in line]
+    assert any(f'idVendor}}=="{VENDOR_ID:04x}"' in line and f'idProduct}}=="{PRODUCT_ID:04x}"' in line
+               for line in hidraw), "the Looking Glass HID unit has no hidraw rule"
+
+
+def _cell_layout_profile() -> PanelProfile:
+    third = 1.0 / 3.0
+    cells = (((-third, 0.0), (0.0, 0.0), (third, 0.0)), ((-third, 0.5), (0.0, 0.0), (third, -0.5)))
+    return profile_b().replace(subpixel_layout=SubpixelLayout(cells=cells, pattern=((0, 1),)))
+
+
+@pytest.mark.parametrize("field", ["subpixel_layout", "views_reversed", "flip_image_x", "flip_image_y"])
+def test_a_field_the_record_cannot_hold_is_refused_before_anything_is_sent(field, tmp_path, monkeypatch):
+    monkeypatch.setenv("LENTICALIB_EMULATOR_DIR", str(tmp_path))
+    profile = _cell_layout_profile() if field == "subpixel_layout" else profile_b().replace(**{field: True})
+    with pytest.raises(ProfileError, match=f"field '{field}'"):
+        record_from_profile(profile, serial="S", sequence=1)
+    with PanelController.open("emu://held?via=serial") as panel:
+        panel.flash(profile_b())
+        before = panel.verify_crc()
+        sent = []  # the frames sent: none may follow the refusal
+        write = panel.transport.write
+        monkeypatch.setattr(panel.transport, "write", lambda data: (sent.append(data), write(data)))
+        with pytest.raises(ProfileError, match=f"field '{field}'") as info:
+            panel.flash(profile, source="cells.json", force=True)
+        assert sent == [] and info.value.source == "cells.json"
+        assert panel.verify_crc() == before
+        result = panel.verify(profile)
+        assert not result.matches and any(d.startswith(f"{field}: device none") for d in result.differences)
+
+
+def test_device_flash_of_a_cell_layout_is_one_line(tmp_path, cli, monkeypatch):
+    monkeypatch.setenv("LENTICALIB_EMULATOR_DIR", str(tmp_path))
+    path = tmp_path / "cells.json"
+    save_profile(_cell_layout_profile(), path)
+    code, out, err = cli("device", "flash", "emu://cells", path)
+    line = one_error_line(err, path)
+    assert code == 2 and "subpixel_layout" in line and "cells (2 cells" in line

@@ -1,4 +1,5 @@
-"""``lenticalib device list|info|read|flash|verify``: the calibration record in a panel controller."""
+"""``lenticalib device list|info|read|flash|verify``: the calibration record in a panel controller,
+and the factory calibration of a Looking Glass unit (list, info and read only: units are read-only)."""
 
 from __future__ import annotations
 
@@ -9,17 +10,22 @@ import json
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="device_command", metavar="ACTION")
     sub.required = True
-    lst = sub.add_parser("list", help="list connected controllers and emulators")
+    lst = sub.add_parser("list", help="list connected controllers, Looking Glass units and emulators")
     lst.add_argument("--json", action="store_true", help="print JSON")
     lst.set_defaults(run=run_list)
-    info = sub.add_parser("info", help="identify a controller and show its current record")
+    info = sub.add_parser("info", help="identify a controller and show its current record (a Looking Glass "
+                                       "unit: its serial and calibration version)")
     info.add_argument("url", metavar="URL")
     info.add_argument("--json", action="store_true", help="print JSON")
     info.set_defaults(run=run_info)
-    read = sub.add_parser("read", help="read the calibration record into a profile file")
+    read = sub.add_parser("read", help="read the calibration record (or a Looking Glass unit's calibration) into "
+                                       "a profile file")
     read.add_argument("url", metavar="URL")
     read.add_argument("-o", "--output", required=True, metavar="PROFILE")
-    read.set_defaults(run=run_read)
+    read.add_argument("--views", type=int, metavar="N",
+                      help="number of quilt views (required for a Looking Glass unit, e.g. 45 or 48 on a Portrait; "
+                           "a controller's record holds its own)")
+    read.set_defaults(run=run_read, flags={"views": "--views N"})
     flash = sub.add_parser("flash", help="write a profile into the controller (verified by read-back)")
     flash.add_argument("url", metavar="URL")
     flash.add_argument("profile", metavar="PROFILE")
@@ -33,7 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     verify.set_defaults(run=run_verify)
     for p in (lst, info, read, flash, verify):
         p.epilog = ("URLs: serial:///dev/ttyACM0, socket://HOST:PORT, hid://VID:PID[/SERIAL], "
-                    "usb://VID:PID[/SERIAL], emu://NAME[?via=serial|hid|usb]")
+                    "usb://VID:PID[/SERIAL], emu://NAME[?via=serial|hid|usb]; Looking Glass units (read-only): "
+                    "lkg-hid://04d8:ef7e[/SERIAL], lkg-drive:///MOUNT/POINT, lkg-emu://NAME")
 
 
 def run_list(args) -> int:
@@ -49,9 +56,48 @@ def run_list(args) -> int:
         serial = f"  serial {d.serial}" if d.serial else ""
         print(f"{d.url:<40} {d.family:<6} {d.description}{serial}")
     if not found:
-        print("no controllers found (start one with 'lenticalib emulate')")
+        print("no controllers or Looking Glass units found (start an emulated one with 'lenticalib emulate')")
     for note in notes:
         print(f"note: {note}")
+    return 0
+
+
+def _looking_glass(url: str) -> bool:
+    from ..device.looking_glass import is_looking_glass
+
+    return is_looking_glass(url)
+
+
+def _refuse_looking_glass(url: str, message: str, then: str = "") -> None:
+    """One line: a Looking Glass unit is read-only to lenticalib."""
+    from ..core.errors import InputError
+
+    raise InputError(f"is a Looking Glass unit: {message}", source=url,
+                     hint=f"read its calibration with 'lenticalib device read {url} -o profile.json --views N'{then}")
+
+
+def run_info_looking_glass(args) -> int:
+    from ..device.looking_glass import read_calibration
+
+    calibration = read_calibration(args.url)
+    fields = ("screenW", "screenH", "pitch", "slope", "center", "viewCone", "DPI", "invView", "flipImageX",
+              "flipImageY", "flipSubp")
+    out = {"url": args.url, "kind": f"Looking Glass ({calibration.kind})", "serial": calibration.serial,
+           "usb_serial": calibration.usb_serial, "config_version": calibration.config_version,
+           "calibration_bytes": calibration.size, "calibration_sha256": calibration.sha256,
+           "calibration": {key: calibration.field(key) for key in fields if calibration.field(key) is not None}}
+    if args.json:
+        print(json.dumps(out, indent=2))
+        return 0
+    usb = (f", USB serial {calibration.usb_serial}"
+           if calibration.usb_serial and calibration.usb_serial != calibration.serial else "")
+    print(f"Looking Glass unit ({calibration.kind}), serial {calibration.serial or '?'}{usb}")
+    print(f"calibration version {calibration.config_version or '? (no configVersion)'}, "
+          f"visual.json of {calibration.size} bytes")
+    cal = out["calibration"]
+    if cal:
+        print(", ".join(f"{key} {value}" for key, value in cal.items()))
+    print(f"read it into a profile with 'lenticalib device read {args.url} -o profile.json --views N'")
     return 0
 
 
@@ -59,6 +105,8 @@ def run_info(args) -> int:
     from ..device import PanelController
     from ..core.profile import format_constant
 
+    if _looking_glass(args.url):
+        return run_info_looking_glass(args)
     with PanelController.open(args.url) as panel:
         identity = panel.identify()
         current = panel.current(identity)
@@ -99,11 +147,41 @@ def run_info(args) -> int:
     return 0
 
 
+def run_read_looking_glass(args) -> int:
+    from ..core.errors import InputError
+    from ..core.outputs import check_output_file
+    from ..core.profile import MAX_VIEWS, save_profile
+    from ..device.looking_glass import read_calibration
+
+    if args.views is None:
+        raise InputError("a Looking Glass unit's calibration does not say how many views the quilts have",
+                         source="--views", hint=f"give it, e.g. 'lenticalib device read {args.url} -o "
+                                                f"{args.output} --views 45'; 48 on a Portrait")
+    if not 2 <= args.views <= MAX_VIEWS:
+        raise InputError(f"must be 2..{MAX_VIEWS}, got {args.views}", source="--views")
+    check_output_file(args.output, "profile")  # before talking to the device
+    calibration = read_calibration(args.url)
+    profile = calibration.to_profile(args.views)
+    for note in (profile.provenance or {}).get("assumptions", []):
+        _warn(f"{args.url}: {note}")
+    save_profile(profile, args.output)
+    print(f"read the Looking Glass calibration of {args.url} (serial {calibration.serial or '?'}, calibration "
+          f"version {calibration.config_version or '?'}) into {args.output}: {profile.views} views, "
+          f"{profile.width}x{profile.height} {profile.layout_name}")
+    return 0
+
+
 def run_read(args) -> int:
     from ..device import PanelController
+    from ..core.errors import InputError
     from ..core.outputs import check_output_file
     from ..core.profile import save_profile
 
+    if _looking_glass(args.url):
+        return run_read_looking_glass(args)
+    if args.views is not None:
+        raise InputError("applies to Looking Glass units only; a controller's record holds its view count",
+                         source="--views", hint=f"leave it out: 'lenticalib device read {args.url} -o {args.output}'")
     check_output_file(args.output, "profile")  # before talking to the device
     with PanelController.open(args.url) as panel:
         profile = panel.read_profile()
@@ -126,6 +204,8 @@ def run_flash(args) -> int:
     from ..core.profile import load_profile
     from ._progress import progress_bar
 
+    if _looking_glass(args.url):
+        _refuse_looking_glass(args.url, "lenticalib only reads it and never writes its factory calibration")
     profile = load_profile(args.profile)  # validated before anything is sent
     if profile.view_direction is not None:
         _warn(f"{args.profile}: the calibration record has no room for view_direction "
@@ -145,6 +225,9 @@ def run_verify(args) -> int:
     from ..device import PanelController
     from ..core.profile import load_profile
 
+    if _looking_glass(args.url):
+        _refuse_looking_glass(args.url, "it holds its factory calibration, not a lenticalib record to verify",
+                              f" and compare it with 'lenticalib profile compare profile.json {args.profile}'")
     profile = load_profile(args.profile)
     with PanelController.open(args.url) as panel:
         result = panel.verify(profile)

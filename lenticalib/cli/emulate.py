@@ -1,6 +1,9 @@
 """``lenticalib emulate``: run an emulated panel controller on a pseudo-terminal or TCP port.
 
-Prints the device URL on the first line of stdout and serves until stopped (Ctrl-C).
+Prints the device URL on the first line of stdout and serves until stopped (Ctrl-C).  With
+``--looking-glass VISUAL.json`` it instead saves an emulated Looking Glass HID unit holding that
+calibration (``lkg-emu://NAME``, opened inside the process that reads it), prints its URL and
+exits.
 """
 
 from __future__ import annotations
@@ -25,6 +28,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--protocol", default=None, metavar="1.0|1.1",
                         help="firmware generation to emulate (default 1.1; 1.0: CRCs over all 128 record bytes, "
                              "no panel in IDENTIFY)")
+    lkg = parser.add_argument_group("an emulated Looking Glass unit (HID, calibration in its EEPROM) instead of a "
+                                    "controller")
+    lkg.add_argument("--looking-glass", metavar="VISUAL_JSON",
+                     help="save a unit whose EEPROM holds this visual.json (stored as given), print its URL "
+                          "lkg-emu://NAME and exit; faults go in the URL: ?drop=P&short=P&wrong-page=P&seed=S")
+    lkg.add_argument("--name", help="with --looking-glass: the unit's name in its URL (default: lkg)")
     faults = parser.add_argument_group("fault injection (rates are probabilities per frame)")
     faults.add_argument("--power-cut-after", type=int, metavar="K",
                         help="the power fails after the K-th flash operation (erase or program): the process "
@@ -48,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 FLAGS = {"drop_rate": "--drop", "corrupt_rate": "--corrupt", "duplicate_rate": "--duplicate", "delay_rate": "--delay",
          "stale_rate": "--stale", "delay_s": "--delay-s", "disconnect_after": "--disconnect-after",
          "power_cut_after": "--power-cut-after", "serial": "--serial", "port": "--port", "panel": "--panel",
-         "image": "--flash"}  # the library's names
+         "image": "--flash", "name": "--name"}  # the library's names
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,6 +70,10 @@ def run(args: argparse.Namespace) -> int:
     from ..core.errors import InputError
     from ..core.outputs import check_output_file
 
+    if args.looking_glass is not None:
+        return run_looking_glass(args)
+    if args.name is not None:
+        raise InputError("names an emulated Looking Glass unit: it needs --looking-glass VISUAL_JSON", source="--name")
     if args.torn and args.power_cut_after is None:
         raise InputError("--torn needs --power-cut-after K", source="--torn")
     if not 0 <= args.port <= 65535:
@@ -99,4 +112,26 @@ def run(args: argparse.Namespace) -> int:
         serve_pty(controller)
     else:
         serve_tcp(controller, port=args.port)
+    return 0
+
+
+def run_looking_glass(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..core.errors import InputError
+    from ..device.emulator.looking_glass import create_unit
+    from ..device.looking_glass.unit import MAX_CALIBRATION_BYTES
+
+    source = Path(args.looking_glass)
+    try:
+        text = source.read_bytes()
+    except IsADirectoryError:
+        raise InputError("is a folder, not a visual.json", source=str(source)) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", source=str(source),
+                         hint="give the path of a Looking Glass visual.json") from None
+    if len(text) > MAX_CALIBRATION_BYTES:
+        raise InputError(f"is {len(text)} bytes; a unit's EEPROM holds at most {MAX_CALIBRATION_BYTES}",
+                         source=str(source))
+    print(create_unit("lkg" if args.name is None else args.name, text), flush=True)
     return 0

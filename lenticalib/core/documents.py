@@ -182,6 +182,14 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str,
         raise error(f"is a folder, not a {what} file", source=src, hint=hint_missing) from None
     except OSError as exc:
         raise error(f"cannot read: {exc.strerror or exc}", source=src) from None
+    return json_from_bytes(raw, src, what, hint_missing, error)
+
+
+def json_from_bytes(raw: bytes, source: str, what: str, hint_missing: str,
+                    error: type[InputError] = InputError) -> Any:
+    """:func:`read_json_file` for bytes already read (from a device, say): the same checks, and
+    errors of class ``error`` naming ``source``."""
+    src = source
     if not raw.strip():
         raise error(f"is empty, not a JSON {what}", source=src, hint=hint_missing)
     kind = _binary_kind(raw)

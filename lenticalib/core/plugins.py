@@ -8,6 +8,7 @@ backend).  Third parties add backends through the group; a built-in name cannot 
     encoders          lenticalib.encoders             module:function        lenticalib.render.encoders
     renderers         lenticalib.renderers            module:function        lenticalib.render.renderers
     transports        lenticalib.transports           module:Class           lenticalib.device.transports
+    Looking Glass     lenticalib.looking_glass_units  module:Class           lenticalib.device.looking_glass
     capture cameras   lenticalib.capture_cameras      module:Class           lenticalib.calib.cameras
     camera models     lenticalib.camera_models        module:function        lenticalib.render.camera_models
     avatar drivers    lenticalib.avatar_drivers       module:callable        lenticalib.render.drivers

@@ -186,7 +186,12 @@ def rule_views(profile: PanelProfile, max_views: int = 3) -> tuple[np.ndarray, n
     ``(count, views)``: ``count`` uint8 ``(height, 3 * width)``, how many views light each
     subpixel; ``views`` uint8 ``(max_views, height, 3 * width)``, the lit views in increasing
     order, 255 in unused slots (views beyond ``max_views`` are counted but not stored).
+
+    The rule knows stripes only: ValueError for a profile with a subpixel layout or reversed views.
     """
+    if not profile.is_stripe or profile.views_reversed:
+        raise ValueError("rule_views evaluates the LentiAvatar rule of a stripe panel; "
+                         "use view_map for subpixel layouts and reversed views")
     n, h, nsub = profile.views, profile.height, profile.subpixels_per_row
     delta = profile.period
     count = np.zeros((h, nsub), dtype=np.uint8)

@@ -1,4 +1,5 @@
-"""The device layer: read, flash and verify the calibration record in a panel controller.
+"""The device layer: read, flash and verify the calibration record in a panel controller, and
+read the factory calibration of a Looking Glass unit.
 
     from lenticalib.device import PanelController
     with PanelController.open("serial:///dev/ttyACM0") as panel:
@@ -14,9 +15,12 @@ device imports only core (and itself).  Modules:
     record      the calibration record: a panel profile's binary form in the controller's flash
     client      the host's protocol engine (``PanelController``): retries, stale-reply rejection,
                 flash with read-back
-    discovery   ``device list``: asks every transport that can list its devices
+    discovery   ``device list``: asks every transport and Looking Glass reader that can list its devices
     transports  serial, HID, USB and emulated byte pipes, behind a registry of URL schemes
-    emulator    the controller's firmware and flash, emulated byte for byte, and its servers
+    looking_glass  Looking Glass units (read-only): the EEPROM over HID, the USB drive's
+                visual.json, the emulated unit; a registry of ``lkg-*`` URL schemes
+    emulator    the controller's firmware and flash, emulated byte for byte, and its servers; an
+                emulated Looking Glass HID unit
 """
 
 from .client import CurrentRecord, FlashResult, PanelController, VerifyResult

@@ -30,7 +30,8 @@ from .framing import MAX_FRAME, REPLY_BIT, FrameParser, encode_frame
 from .protocol import (BEGIN_WRITE, CHUNK_HEADER, STATUS_HELP, VERIFY_REPLY, Command,
                        Identity, PanelGeometry, Status, panel_mismatches, status_name)
 from .record import (LAST_SEQUENCE, LAYOUT_VERSION, LEGACY_CRC_RESIDUE, RECORD_SIZE, CalibrationRecord,
-                     decode_record, encode_record, next_sequence, record_crc, record_from_profile, wire_crc)
+                     check_storable, decode_record, encode_record, next_sequence, record_crc, record_from_profile,
+                     unstorable_field, wire_crc)
 from .transports import open_transport
 from .transports.base import Transport
 
@@ -235,11 +236,15 @@ class PanelController:
         (firmware checks and activates), READ_RECORD and VERIFY (the host compares).
         ``progress(done, total)`` after each write step.
 
+        A profile with a field the record cannot hold (a cell layout, reversed views, flipped
+        images: :func:`~.record.check_storable`) is refused with a ProfileError naming ``source``
+        and the field before anything is sent, ``force`` or not.
         A profile made for another panel (size, subpixel order, view count) is refused with a
         ProfileError naming ``source`` and both values before anything is written; ``force``
         flashes it anyway (panel bring-up) and says so through ``warn(line)``, which also hears
         when a 1.0 controller gives nothing to check against.
         """
+        check_storable(profile, source)  # a field the record cannot hold: refused before anything is sent
         resends_before = self.resends
         identity = self.identify()
         self._check_identity(identity)
@@ -356,5 +361,9 @@ class PanelController:
                             for key in ("views", "slant", "period", "offset", "reference_view", "width",
                                         "height", "subpixel_order")
                             if getattr(held, key) != getattr(profile, key))
+        field = unstorable_field(profile)  # the record cannot hold it, so the device does not
+        if field is not None:
+            shown = profile.layout_name if field == "subpixel_layout" else getattr(profile, field)
+            differences += (f"{field}: device none (the record cannot hold it), file {shown}",)
         return VerifyResult(not differences, differences, record)
 

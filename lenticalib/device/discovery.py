@@ -1,14 +1,17 @@
-"""Find panel controllers: every registered transport (built-in and plug-in) that can list its
-devices is asked (``list_devices``, :mod:`.transports.base`).
+"""Find panel controllers and Looking Glass units: every registered transport and Looking Glass
+reader (built-in and plug-in) that can list its devices is asked (``list_devices``,
+:mod:`.transports.base`, :mod:`.looking_glass`).
 
 The built-ins list USB serial ports, HID devices and USB devices whose VID/PID appear in a
-controller family file, then running and saved emulators.  A transport whose module does not
-import, or whose listing fails, adds a note instead of failing the whole listing.
+controller family file, then running and saved emulators, then Looking Glass units (HID, mounted
+drives) and saved emulated ones.  A backend whose module does not import, or whose listing
+fails, adds a note instead of failing the whole listing.
 """
 
 from __future__ import annotations
 
 from ..core.errors import LenticalibError
+from .looking_glass import UNITS
 from .transports import TRANSPORTS
 from .transports.base import FoundDevice
 
@@ -16,18 +19,20 @@ __all__ = ["FoundDevice", "list_devices"]
 
 
 def list_devices(*, emulators: bool = True) -> tuple[list[FoundDevice], list[str]]:
-    """(devices found, notes about transports that could not be searched), in registry order;
-    ``emulators=False`` leaves out the ``emu`` transport's running and saved emulators."""
+    """(devices found, notes about backends that could not be searched), in registry order
+    (transports, then Looking Glass readers); ``emulators=False`` leaves out the emulated
+    controllers and Looking Glass units (schemes ``emu`` and ``lkg-emu``)."""
     found: list[FoundDevice] = []
     notes: list[str] = []
     asked: set[str] = set()
-    entries = TRANSPORTS.entries()
-    for scheme, target in entries.items():
-        if target in asked or (scheme == "emu" and not emulators):
+    entries = [(registry, scheme, target) for registry in (TRANSPORTS, UNITS)
+               for scheme, target in registry.entries().items()]
+    for registry, scheme, target in entries:
+        if target in asked or (scheme in ("emu", "lkg-emu") and not emulators):
             continue  # a backend serving several schemes (serial, socket) lists its devices once
         asked.add(target)
         try:
-            lister = getattr(TRANSPORTS[scheme], "list_devices", None)
+            lister = getattr(registry[scheme], "list_devices", None)
         except LenticalibError as exc:  # its module does not import: the message and the hint, no source
             notes.append(f"{scheme} devices not searched: {exc.message}" + (f" ({exc.hint})" if exc.hint else ""))
             continue

@@ -34,6 +34,12 @@ profile read from a panel therefore has ``view_direction`` None (unknown).  The 
 (views, width, height, slant, period, offset, reference view) are those of every profile,
 :func:`lenticalib.core.profile.constants_problem`; this module adds only what the encoding itself
 needs (16-bit sizes, f32 sigmas, the serial's 16 ASCII bytes, 32/64-bit counters).
+
+Nor can layout 1 hold a profile's subpixel cell layout (``subpixel_layout``), reversed views
+(``views_reversed``) or mirrored view images (``flip_image_x``, ``flip_image_y``), for the same
+reason: a controller would route such a panel as a plain stripe.  The host refuses to flash such
+a profile, in one line naming the field, before it talks to the controller
+(:func:`check_storable`).
 """
 
 from __future__ import annotations
@@ -122,6 +128,32 @@ class CalibrationRecord:
                             subpixel_order=self.subpixel_order, uncertainty=uncertainty, provenance=prov)
 
 
+# Profile fields record layout 1 has no room for, and what each means (module docstring).
+UNSTORABLE_FIELDS = {"subpixel_layout": "a subpixel cell layout", "views_reversed": "reversed views",
+                     "flip_image_x": "mirrored view images", "flip_image_y": "mirrored view images"}
+
+
+def unstorable_field(profile: PanelProfile) -> str | None:
+    """The first field of ``profile`` that record layout 1 cannot hold (:data:`UNSTORABLE_FIELDS`), else None."""
+    if profile.subpixel_layout is not None:
+        return "subpixel_layout"
+    return next((key for key in ("views_reversed", "flip_image_x", "flip_image_y") if getattr(profile, key)), None)
+
+
+def check_storable(profile: PanelProfile, source: str = "profile") -> None:
+    """ProfileError naming ``source`` and the field when ``profile`` uses one that record layout 1
+    cannot hold: a controller would route the panel as a plain stripe."""
+    field = unstorable_field(profile)
+    if field is None:
+        return
+    layout = f" ({profile.layout_name})" if field == "subpixel_layout" else ""
+    raise ProfileError(f"field '{field}': the controller's calibration record (layout {LAYOUT_VERSION}) has no room "
+                       f"for {UNSTORABLE_FIELDS[field]}{layout}, so the controller would route this panel as a plain "
+                       f"{profile.subpixel_order} stripe", source=source,
+                       hint="drive the panel with the profile file itself (encode, show, play) instead of "
+                            "flashing it")
+
+
 def profile_digest(profile: PanelProfile) -> bytes:
     """First 8 bytes of SHA-256 over the routing constants (repr of each, in a fixed order)."""
     text = "|".join(repr(v) for v in profile.routing_key())
@@ -131,6 +163,7 @@ def profile_digest(profile: PanelProfile) -> bytes:
 def record_from_profile(profile: PanelProfile, *, serial: str, sequence: int,
                         written: int | None = None) -> CalibrationRecord:
     """A record carrying ``profile``; raises ProfileError naming the field if it cannot be stored."""
+    check_storable(profile)
     sigmas = None
     if profile.uncertainty and all(k in profile.uncertainty for k in _SIGMA_KEYS):
         sigmas = tuple(float(profile.uncertainty[k]) for k in _SIGMA_KEYS)

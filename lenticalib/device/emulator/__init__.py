@@ -14,4 +14,6 @@ only core and device.
     usb_backend   the controller as a pyusb backend
     serve         serving a controller on a pseudo-terminal or loopback TCP port (``lenticalib
                   emulate``)
+    looking_glass a first-generation Looking Glass unit (its EEPROM page protocol) behind hidapi's
+                  ``hid.device`` API, ``lkg-emu://NAME``
 """

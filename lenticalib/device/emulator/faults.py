@@ -29,6 +29,11 @@ class FaultPlan:
     torn              the power cut interrupts the operation halfway instead of after it
     babble            the controller talks unasked: whenever no reply is ready, noise is (a
                       device streaming reports of its own, so the host's input never drains)
+    short_rate        (Looking Glass unit) an answer is cut short
+    wrong_page_rate   (Looking Glass unit) an answer echoes and carries another page than asked
+
+    For the emulated Looking Glass unit (:mod:`.looking_glass`) ``drop_rate`` is the chance that
+    a page request gets no answer.
     """
 
     drop_rate: float = 0.0
@@ -41,10 +46,13 @@ class FaultPlan:
     power_cut_after: int | None = None
     torn: bool = False
     babble: bool = False
+    short_rate: float = 0.0
+    wrong_page_rate: float = 0.0
     seed: int = 0
 
     def __post_init__(self):
-        for name in ("drop_rate", "corrupt_rate", "duplicate_rate", "delay_rate", "stale_rate"):
+        for name in ("drop_rate", "corrupt_rate", "duplicate_rate", "delay_rate", "stale_rate", "short_rate",
+                     "wrong_page_rate"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise InputError(f"must be a probability between 0 and 1, got {value}", source=name)
