@@ -401,7 +401,8 @@ def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, regis
                                "the fine green group)", source=str(photo.path),
                                hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
     shifts = layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
-    decision = layout_fit.decide_layout(shifts, views / (-1.0 / fit.a))
+    lens_period = -1.0 / fit.a
+    decision = layout_fit.decide_layout(shifts, views / lens_period, layout_fit.shift_floor(lens_period, period))
     layout_fit.refuse_if_unresolved(decision, str(capture.directory / "captures"))
     return decision
 

@@ -19,7 +19,7 @@ Per photo the phase offset against the plane's prediction is fitted block by blo
 (``A + Re(m exp(2 pi i predicted))`` in blocks of ``BLOCK`` pixels); its 1-sigma comes from a
 delete-one-tile jackknife over ``TILES`` tiles of the panel, so spatially correlated errors count
 (moire of the sparse lit pixels, glare, JPEG); a cell's sigma has a systematic floor
-(``SHIFT_FLOOR``).  The offsets of the eight green photos give the
+(:func:`shift_floor`).  The offsets of the eight green photos give the
 reference (their mean is the plane's own green), which also cancels what all single photos share
 (the tone curve's harmonics, the camera's colour mixing into the luminance).
 
@@ -50,10 +50,20 @@ AGREE_FLOOR = 0.06  # ... or this many subpixels (a systematic floor of the meth
 MAX_SHIFT_SIGMA_VIEWS = 0.08  # a shift known worse than this (1 sigma, in views) is not resolved
 # Systematic floor of a cell's shift (1 sigma, subpixels), added to the statistical sigma of the
 # merged classes (which shrinks with their number, while the errors are common to the classes):
-# simulated sets (tools/bench_layouts.py) show per-channel biases of about 0.01-0.02 subpixel,
-# the same in every class (R and B opposite: the camera's lateral chromatic aberration is the
-# likely cause).
+# SHIFT_FLOOR + ALIAS_FLOOR |Delta_r / T - 1| (:func:`shift_floor`).  Simulated sets
+# (tools/bench_layouts.py) show per-channel biases, the same in every class and of opposite sign
+# for R and B (on stripe panels too), that grow with the photos' alias: 0.01-0.02 subpixel at
+# |Delta_r / T - 1| < 0.2, up to 0.06 at 0.46.  A colour plane of the camera displaced by a
+# fraction of a pixel (demosaicing) moves a fringe's phase in proportion to its frequency, which
+# is the alias; the fit cannot tell that from a shift.
 SHIFT_FLOOR = 0.015
+ALIAS_FLOOR = 0.1
+
+
+def shift_floor(lens_period: float, period: float) -> float:
+    """The systematic 1-sigma floor (subpixels) of a cell's shift measured with photos of ``period``
+    on a panel of ``lens_period`` (both subpixels)."""
+    return SHIFT_FLOOR + ALIAS_FLOOR * abs(lens_period / period - 1.0)
 STRIPE_SHIFTS = {"RGB": (0.0, 0.0, 0.0), "BGR": (2.0, 0.0, -2.0)}
 
 
@@ -187,10 +197,11 @@ def _compress(table: list[list[int]]) -> tuple[tuple[int, ...], ...]:
     return tuple(tuple(table[y][x] for x in range(cols)) for y in range(rows))
 
 
-def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecision:
+def decide_layout(shifts: CellShifts, views_per_subpixel: float, floor: float = SHIFT_FLOOR) -> LayoutDecision:
     """The stripe or the cell layout the shifts show (module docstring).
 
-    ``views_per_subpixel``: ``N / Delta_r``, to judge the shifts' uncertainty in views.
+    ``views_per_subpixel``: ``N / Delta_r``, to judge the shifts' uncertainty in views;
+    ``floor``: the systematic 1-sigma of a cell's shift (:func:`shift_floor`), subpixels.
     """
     r, s = shifts.shift, shifts.sigma
     worst = float(np.max(s)) * views_per_subpixel
@@ -198,7 +209,7 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecisi
         target = np.array(stripe)[None, :]
         if _agree(r, s, target, 0.0):
             mean, sig = _weighted_mean(r, s)
-            sig = np.hypot(sig, SHIFT_FLOOR)
+            sig = np.hypot(sig, floor)
             table = [[0] * CELL_COLUMNS for _ in range(CELL_ROWS)]
             decision = LayoutDecision(order, None, shifts, mean[None, :], sig[None, :], table,
                                       views_per_subpixel=views_per_subpixel)
@@ -228,7 +239,7 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float) -> LayoutDecisi
     table = [[class_cell[2 * y + x] for x in range(CELL_COLUMNS)] for y in range(CELL_ROWS)]
     means = [_weighted_mean(r[members], s[members]) for members in cells]
     cell_shift = np.array([m for m, _ in means])
-    cell_sigma = np.hypot(np.array([ms for _, ms in means]), SHIFT_FLOOR)
+    cell_sigma = np.hypot(np.array([ms for _, ms in means]), floor)
     # The gauge of the layout written: every slot's shift moved by the same ``gauge`` so that the
     # channel centres average to the pixel centre over the panel (mean dx 0, as in a stripe), and
     # the offset moved by as much (:func:`regauged_offset`), which routes every slot as before.
