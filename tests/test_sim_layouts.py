@@ -156,3 +156,20 @@ def test_simulate_cli_photographs_a_cell_panel(tmp_path, simulate_main):
     record = json.loads((tmp_path / "simulation.json").read_text())
     assert record["truth"]["subpixel_layout"] == NAMED_LAYOUTS["lkg-columns"].to_dict()
     assert Scene.from_dict(record).optics.subpixel_layout == NAMED_LAYOUTS["lkg-columns"]
+
+
+def test_the_sim_capture_camera_takes_a_layout(tmp_path):
+    from lenticalib.calib.cameras import make_camera
+    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.core.pattern_sets import write_patterns
+
+    from .cli_support import refused
+
+    camera = make_camera("sim:3", layout="lkg-checker")
+    assert (camera.order, camera.layout) == ("RGB", NAMED_LAYOUTS["lkg-checker"])
+    assert make_camera("sim:3").layout is None
+    with pytest.raises(InputError, match="unknown layout"):
+        make_camera("sim:3", layout="pentile")
+    write_patterns(tmp_path, design_patterns(64, 64, 8))
+    assert "sim" in refused("capture", str(tmp_path), "--camera", "opencv:0", "--layout", "lkg-columns",
+                            source="--layout")
