@@ -163,15 +163,30 @@ class PanelOptics:
 
         Channel ``c`` of pixel ``x`` lies, across the lenses, where a stripe subpixel at
         ``x_s = 3 x + c + e`` lies (``e = 1 + 3 dx_c - 3 C_r dy_c - c``,
-        :meth:`~lenticalib.core.layout.SubpixelLayout.slot_shifts`): its centre is at
-        ``X = x_s + e + 0.5`` in the row ``y`` (moving a point down by ``dy`` rows and left by
-        ``3 C_r dy`` subpixels keeps it on the same lens line).
+        :meth:`~lenticalib.core.layout.SubpixelLayout.slot_shifts`): its centre
+        ``(x_s + 1 + 3 dx_c - c + 0.5, y + 0.5 + dy_c)`` is on the same lens line as
+        ``(x_s + e + 0.5, y + 0.5)`` (moving a point down by ``dy`` rows and left by ``3 C_r dy``
+        subpixels keeps it on the same lens line).  The truth routes by this; the renderer puts
+        the apertures at the true centres (:meth:`channel_offsets`).
         """
         layout = self.subpixel_layout
         if layout is None:
             return np.zeros((1, 3))
         per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(self.slant)]
         return np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern])
+
+    def channel_offsets(self) -> np.ndarray:
+        """Where each slot's channel sits relative to the stripe RGB slot, float64
+        ``(2, rows, 3 * columns)`` indexed ``[:, y % rows, 3 (x % columns) + slot]``: along the row in
+        subpixels, ``1 + 3 dx_c - c``, and down in rows, ``dy_c`` (zeros ``(2, 1, 3)`` on a stripe
+        panel).  The renderer puts each channel's aperture there (its true centre)."""
+        layout = self.subpixel_layout
+        if layout is None:
+            return np.zeros((2, 1, 3))
+        along = [[1.0 + 3.0 * dx - c for c, (dx, _) in enumerate(cell)] for cell in layout.cells]
+        down = [[float(dy) for _, dy in cell] for cell in layout.cells]
+        return np.array([[[table[cell][s] for cell in row for s in range(3)] for row in layout.pattern]
+                         for table in (along, down)])
 
     def slot_shift_at(self, xs, y) -> np.ndarray:
         """The slot shift ``e`` (subpixels) of slots ``xs`` (``3 x + slot``) in rows ``y`` (integer

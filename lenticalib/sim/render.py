@@ -105,11 +105,12 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
     blur (variance ``sig2``, subpixels^2) as a box of equal variance.
 
     ``reach`` 0: a stripe panel (slot ``pos`` of a pixel shows channel ``chan_of_pos[pos]``).
-    Otherwise a subpixel layout: slot ``c`` of pixel ``px`` in row ``r`` is channel ``c`` and its
-    aperture is moved by the slot shift ``shifts[r % rows, 3 (px % columns) + c]`` subpixels
-    (at most ``reach`` - 1 in size) along the row: the position, across the lenses, of the
-    channel's true centre (an aperture off its row is moved along the lens line into it).
+    Otherwise a subpixel layout (:func:`_layout_seen`): every slot's aperture at its channel's
+    true centre.
     """
+    if reach > 0.0:
+        _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach)
+        return
     half_bmh = 0.5 * bmh
     open_w = 1.0 - bmh
     y0 = sy - 0.5 * h_y
@@ -130,9 +131,6 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
         # subpixels whose aperture meets [xm - 4 s, xm + 4 s]
         c_lo = max(int(math.floor(xm - 4.0 * s - 1.0 + half_bmh)) + 1, 0)
         c_hi = min(int(math.ceil(xm + 4.0 * s - half_bmh)) - 1, nsub - 1)
-        if reach > 0.0:
-            _layout_light(xm, s, wr, r, acc, raster, lut, table, half_bmh, open_w, nsub, shifts, reach)
-            continue
         if c_hi < c_lo:
             continue
         px = c_lo // 3
@@ -151,22 +149,55 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
 
 
 @njit(cache=True, inline="always")
-def _layout_light(xm, s, wr, r, acc, raster, lut, table, half_bmh, open_w, nsub, shifts, reach):
-    """The light of row ``r`` around ``xm`` (blur ``s``, weight ``wr``) on a panel with a subpixel
-    layout: every slot's aperture moved by its slot shift (see :func:`_seen_light`)."""
-    inv_s = 1.0 / s
-    q_lo = max(int(math.floor(xm - 4.0 * s - reach)), 0)
-    q_hi = min(int(math.ceil(xm + 4.0 * s + reach)), nsub - 1)
-    srow = r % shifts.shape[0]
-    scols = shifts.shape[1] // 3
-    for q in range(q_lo, q_hi + 1):
-        px = q // 3
-        c = q - 3 * px
-        left = q + shifts[srow, 3 * (px % scols) + c] + half_bmh
-        e = (left - xm) * inv_s
-        cov = _phi(e + open_w * inv_s, table) - _phi(e, table)
-        if cov > 0.0:
-            acc[c] += wr * cov * lut[raster[r, px, c]]
+def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach):
+    """:func:`_seen_light` on a panel with a subpixel layout.
+
+    ``shifts`` float64 ``(2, rows, 3 columns)``: for slot ``c`` of pixel ``px`` in row ``r``, at
+    ``[:, r % rows, 3 (px % columns) + c]``, its channel's centre relative to the stripe RGB
+    slot's: along the row in subpixels (``1 + 3 dx - c``) and down in rows (``dy``).  The slot's
+    open aperture (the stripe subpixel's, black matrix included) is centred there: it spans
+    ``X`` in ``[3 px + c + shift + bmh/2, ... + 1 - bmh/2)`` and ``Y`` in
+    ``[r + dy + bmv/2, r + 1 + dy - bmv/2)``; the seen stretch is cut by it exactly, as for a
+    stripe.  ``reach``: the largest ``|shift|`` plus 1 (subpixels); the largest ``|dy|`` is
+    found from the table.
+    """
+    half_bmh = 0.5 * bmh
+    open_w = 1.0 - bmh
+    y0 = sy - 0.5 * h_y
+    y1 = sy + 0.5 * h_y
+    srows = shifts.shape[1]
+    scols = shifts.shape[2] // 3
+    yreach = 0.0
+    for i in range(srows):
+        for j in range(shifts.shape[2]):
+            yreach = max(yreach, abs(shifts[1, i, j]))
+    seg_max = min(h_y, 1.0)
+    s_max = math.sqrt(sig2 + seg_max * seg_max * slope * slope / 12.0)
+    r_lo = max(int(math.floor(y0 - yreach)), 0)
+    r_hi = min(int(math.floor(y1 + yreach)), big_h - 1)
+    for r in range(r_lo, r_hi + 1):
+        srow = r % srows
+        xr = sx + (r + 0.5 - sy) * slope  # the seen line at the row's centre
+        spread = 4.0 * s_max + reach + (yreach + 0.5) * abs(slope)
+        q_lo = max(int(math.floor(xr - spread)), 0)
+        q_hi = min(int(math.ceil(xr + spread)), nsub - 1)
+        for q in range(q_lo, q_hi + 1):
+            px = q // 3
+            c = q - 3 * px
+            col = 3 * (px % scols) + c
+            dy = shifts[1, srow, col]
+            a0 = max(y0, r + dy + 0.5 * bmv)
+            a1 = min(y1, r + 1.0 + dy - 0.5 * bmv)
+            seg = a1 - a0
+            if seg <= 0.0:
+                continue
+            xm = sx + (0.5 * (a0 + a1) - sy) * slope
+            ext = seg * slope
+            s = math.sqrt(sig2 + ext * ext / 12.0)
+            e = (q + shifts[0, srow, col] + half_bmh - xm) / s
+            cov = _phi(e + open_w / s, table) - _phi(e, table)
+            if cov > 0.0:
+                acc[c] += seg / h_y * cov * lut[raster[r, px, c]]
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -177,8 +208,8 @@ def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, t
     ``prm`` (float64): cos phi, sin phi, P_u, x0 cos phi, g, p, W, H, black matrix h, v,
     sigma0 (subpixel widths, across u), blur growth, sheet half-width, half-height, bezel
     half-width, half-height, bezel level, background level, angular falloff, scatter,
-    5 backlight coefficients, subsamples n.  ``shifts``/``reach``: the slot shifts of a subpixel
-    layout (reach 0 on a stripe panel, see :func:`_seen_light`).
+    5 backlight coefficients, subsamples n.  ``shifts``/``reach``: the channel offsets of a
+    subpixel layout (reach 0 on a stripe panel, see :func:`_layout_seen`).
     """
     h, w = out.shape[0], out.shape[1]
     dist = -cam[2]
@@ -364,8 +395,8 @@ def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:
     position = np.asarray(cam.position, np.float64)
     chan_of_pos = np.array([scene.optics.rho.index(pos) for pos in range(3)], dtype=np.int64)
     scatter = _scatter_map(raster, lut) if scene.optics.scatter > 0 else np.zeros((1, 1, 3))
-    shifts = np.ascontiguousarray(scene.optics.slot_shifts(), dtype=np.float64)
-    reach = 0.0 if scene.optics.subpixel_layout is None else float(np.abs(shifts).max()) + 1.0
+    shifts = np.ascontiguousarray(scene.optics.channel_offsets(), dtype=np.float64)
+    reach = 0.0 if scene.optics.subpixel_layout is None else float(np.abs(shifts[0]).max()) + 1.0
     out = np.empty((cam.height, cam.width, 3), dtype=np.float32)
     _render_kernel(raster, lut, chan_of_pos, gx, gy, float(GRID_STEP), rot, position,
                    _kernel_params(scene), _PHI_TABLE, scatter, shifts, reach, out)
