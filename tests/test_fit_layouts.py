@@ -9,8 +9,9 @@ import pytest
 
 from lenticalib.calib import layout_fit
 from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, cell_class_of, design_patterns, read_manifest,
-                                       render_pattern)
+from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, CELL_Y_GROUPS, cell_class_of, design_patterns,
+                                       read_manifest, render_pattern)
+from lenticalib.core.colour import srgb_encode8
 from lenticalib.core.errors import CalibrationError
 from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.profile import PanelProfile, load_profile
@@ -27,7 +28,8 @@ def _profile(layout=None, order="RGB", slant=0.21, period=19.5):
 # 1. The cell patterns ------------------------------------------------------------------------------
 def test_cell_patterns_light_one_channel_in_one_class(tmp_path):
     plain, cells = design_patterns(64, 64, 8), design_patterns(64, 64, 8, cells=True)
-    assert cells.names == plain.names + list(CELL_GROUPS) and len(CELL_GROUPS) == 3 * CELL_CLASSES
+    assert cells.names == plain.names + list(CELL_GROUPS) + list(CELL_Y_GROUPS)
+    assert len(CELL_GROUPS) == len(CELL_Y_GROUPS) == 3 * CELL_CLASSES
     assert cells.set_id != plain.set_id and "cells" not in plain.to_dict()
     reference = render_pattern(plain.group("f16")[0], 64, 64)  # the fine sinusoid, step 0, green
     classes = cell_class_of(np.arange(64)[None, :], np.arange(64)[:, None])
@@ -42,6 +44,11 @@ def test_cell_patterns_light_one_channel_in_one_class(tmp_path):
             np.testing.assert_array_equal(image[..., 1][lit], reference[inner][..., 1][lit])
         else:
             assert image[..., channel][lit].min() > 0
+    image = render_pattern(cells.group("celly-b5")[0], 64, 64)[inner]  # along y, blue, class 5
+    lit = classes[inner] == 5
+    assert not image[..., :2].any() and not image[..., 2][~lit].any()
+    column = srgb_encode8(0.5 + 0.45 * np.cos(2 * np.pi * (np.arange(64)[inner[0]] + 0.5) / 16.0))[:, None]
+    np.testing.assert_array_equal(image[..., 2][lit], np.broadcast_to(column, image.shape[:2])[lit])
     write_patterns(tmp_path / "set", cells)
     assert read_manifest(tmp_path / "set") == cells
     manifest = json.loads((tmp_path / "set" / "patterns.json").read_text())

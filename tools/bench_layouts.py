@@ -13,11 +13,11 @@ to the reported 1-sigma, and the routing error in views: non-uniformity RMS and 
 Targets: RMS <= 0.05, worst <= 0.15, |centring| <= 0.25 view, layout recovered.
 
     python tools/bench_layouts.py [--seeds 1-4] [--layouts lkg-columns,lkg-checker,lkg-rows4,RGB,BGR]
-                                  [--signs +,-] [--panel 1920x1080] [--resolution 1500x1000]
+                                  [--signs +,-] [--panel 1280x720] [--resolution 1250x800]
                                   [--subsamples 1] [--keep DIR [--reuse]]
 
-The defaults keep a run of the 5 x 4 x 2 sets near half an hour on two cores: a 1920x1080 panel
-(the simulated panel's size does not change the method) photographed at 1.5 megapixels with one
+The defaults keep a run of the 5 x 4 x 2 sets near half an hour on two cores: a 1280x720 panel
+(the simulated panel's size does not change the method) photographed at 1 megapixel with one
 ray per camera pixel, as the test suite's simulated sets are.
 """
 
@@ -117,8 +117,8 @@ def main() -> int:
     parser.add_argument("--layouts", default="lkg-columns,lkg-checker,lkg-rows4,RGB,BGR",
                         help="comma-separated layouts: RGB, BGR, names of lenticalib.sim.layouts or JSON files")
     parser.add_argument("--signs", default="+,-", help="slant signs to run: +, - or both")
-    parser.add_argument("--panel", default="1920x1080", help="panel raster WxH")
-    parser.add_argument("--resolution", default="1500x1000", help="camera WxH")
+    parser.add_argument("--panel", default="1280x720", help="panel raster WxH")
+    parser.add_argument("--resolution", default="1250x800", help="camera WxH")
     parser.add_argument("--subsamples", type=int, default=1, help="rays per camera pixel side")
     parser.add_argument("--keep", metavar="DIR", help="keep the capture sets in DIR")
     parser.add_argument("--reuse", action="store_true", help="with --keep: fit sets already simulated there")

@@ -34,7 +34,7 @@ from .camera import CameraModel, describe_pose, estimate_camera, load_camera_mod
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
 from .groups import Group, Registration, demodulate_group, group_photos
-from .patterns import CELL_GROUPS, FINE_PERIODS, PERIOD_RANGE
+from .patterns import CELL_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD, FINE_PERIODS, PERIOD_RANGE
 from .pose import PanelPose, camera_pose
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
@@ -53,7 +53,7 @@ def progress_steps(pattern_set) -> int:
     """How many times :func:`fit_capture_set` calls ``progress`` for a capture set of ``pattern_set``
     (a :class:`~.patterns.PatternSet`): once per photo it reads, once per stage."""
     cells = getattr(pattern_set, "cells", False)
-    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_GROUPS if cells else ())
+    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_GROUPS + CELL_Y_GROUPS if cells else ())
     photos = sum(len(pattern_set.group(name)) for name in names)
     return photos + len(STAGES) + (1 if cells else 0)
 
@@ -379,13 +379,26 @@ def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, regis
     naming a photo that does not show its channel's fringes, CalibrationError (one line) when the
     shifts cannot tell the layout."""
     period = capture.patterns.group(CELL_GROUPS[0])[0].period
-    pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
-    f_ref = groups[f"f{period:g}"]
-    ref_amp = float(np.median(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
-    classes = len(CELL_GROUPS) // 3
+    lens_period = -1.0 / fit.a
+    slant = fit.b * lens_period / 3.0
+    along_row = _cell_shifts(capture, CELL_GROUPS, period, _predicted_fine_cycles(fit, x_sm, y_sm, valid, period),
+                             groups[f"f{period:g}"], valid, shape, progress, registration)
+    along_column = _cell_shifts(capture, CELL_Y_GROUPS, CELL_Y_PERIOD, np.where(valid, y_sm / CELL_Y_PERIOD, 0.0),
+                                groups["y1"], valid, shape, progress, registration)
+    shifts = layout_fit.route_shifts(along_row, along_column, slant)
+    decision = layout_fit.decide_layout(shifts, views / lens_period, layout_fit.shift_floor(lens_period, period))
+    layout_fit.refuse_if_unresolved(decision, str(capture.directory / "captures"))
+    return decision
+
+
+def _cell_shifts(capture, names, period, pred, reference, valid, shape, progress, registration) -> layout_fit.CellShifts:
+    """The shifts (in units of the pattern coordinate) one kind of cell photo measures, against the
+    phase ``pred`` (cycles, per working pixel); contrast judged against the green group ``reference``."""
+    ref_amp = float(np.median(np.abs(reference.z[valid]) / np.maximum(reference.dc[valid], 1e-6)))
+    classes = len(names) // 3
     offset, sigma, amplitude = (np.zeros((classes, 3)) for _ in range(3))
-    for name in CELL_GROUPS:
-        channel, k = "rgb".index(name[5]), int(name[6:])
+    for name in names:
+        channel, k = "rgb".index(name[-2]), int(name[-1])
         photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
         registration.undo_shake([photo], capture)
         rgb_mean = photo.rgb[valid].mean(axis=0)
@@ -398,13 +411,9 @@ def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, regis
         amplitude[k, channel] = amp / max(ref_amp, 1e-9)
         if amplitude[k, channel] < MIN_CELL_CONTRAST:
             raise CaptureError(f"shows almost no fringes of pattern {name} (contrast {amplitude[k, channel]:.2f} of "
-                               "the fine green group)", source=str(photo.path),
+                               "the green group's)", source=str(photo.path),
                                hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
-    shifts = layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
-    lens_period = -1.0 / fit.a
-    decision = layout_fit.decide_layout(shifts, views / lens_period, layout_fit.shift_floor(lens_period, period))
-    layout_fit.refuse_if_unresolved(decision, str(capture.directory / "captures"))
-    return decision
+    return layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
 
 
 def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:

@@ -79,13 +79,28 @@ class CellShifts:
     sigma: np.ndarray
     amplitude: np.ndarray
     period: float
+    parts: dict | None = None  # the measurements it was made of (:func:`route_shifts`)
 
     def to_dict(self) -> dict:
-        return {"definition": "r = slot shift across the lenses minus the mean green shift, subpixels; "
-                              "rows: cell classes 2 (y % 4) + x % 2, columns R, G, B",
-                "shift_subpixels": np.round(self.shift, 4).tolist(),
-                "sigma_subpixels": np.round(self.sigma, 4).tolist(),
-                "amplitude": np.round(self.amplitude, 3).tolist()}
+        out = {"definition": "r = slot shift across the lenses minus the mean green shift, subpixels; "
+                             "rows: cell classes 2 (y % 4) + x % 2, columns R, G, B",
+               "shift_subpixels": np.round(self.shift, 4).tolist(),
+               "sigma_subpixels": np.round(self.sigma, 4).tolist(),
+               "amplitude": np.round(self.amplitude, 3).tolist()}
+        for name, part in (self.parts or {}).items():
+            out[name] = part.to_dict()
+        return out
+
+
+def route_shifts(along_row: CellShifts, along_column: CellShifts, slant: float) -> CellShifts:
+    """The shifts across the lenses (what routing needs, subpixels) from the shifts along the row
+    (subpixels, the ``cell`` photos) and along the column (rows, the ``celly`` photos):
+    ``r = r_x - 3 C_r dy`` (a point ``dy`` rows lower lies on the lens line ``3 C_r dy``
+    subpixels further right), with the two sigmas combined."""
+    shift = along_row.shift - 3.0 * slant * along_column.shift
+    sigma = np.hypot(along_row.sigma, 3.0 * abs(slant) * along_column.sigma)
+    return CellShifts(shift, sigma, np.minimum(along_row.amplitude, along_column.amplitude), along_row.period,
+                      {"along_row": along_row, "along_column_rows": along_column})
 
 
 @dataclasses.dataclass
@@ -205,11 +220,16 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float, floor: float = 
     """
     r, s = shifts.shift, shifts.sigma
     worst = float(np.max(s)) * views_per_subpixel
+    sa = np.hypot(s, floor)  # agreement is judged with the systematic floor too
+
+    def merged(members):
+        """(mean, 1-sigma with the floor) of some classes' shifts, (3,) each."""
+        mean, sig = _weighted_mean(r[members], s[members])
+        return mean, np.hypot(sig, floor)
+
     for order, stripe in STRIPE_SHIFTS.items():
-        target = np.array(stripe)[None, :]
-        if _agree(r, s, target, 0.0):
-            mean, sig = _weighted_mean(r, s)
-            sig = np.hypot(sig, floor)
+        if _agree(r, sa, np.array(stripe)[None, :], 0.0):
+            mean, sig = merged(list(range(CELL_CLASSES)))
             table = [[0] * CELL_COLUMNS for _ in range(CELL_ROWS)]
             decision = LayoutDecision(order, None, shifts, mean[None, :], sig[None, :], table,
                                       views_per_subpixel=views_per_subpixel)
@@ -220,8 +240,8 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float, floor: float = 
     cells: list[list[int]] = []  # classes per cell
     for k in range(CELL_CLASSES):
         for members in cells:
-            m, ms = _weighted_mean(r[members], s[members])
-            if _agree(r[k], s[k], m, ms):
+            m, _ = _weighted_mean(r[members], s[members])
+            if _agree(r[k], sa[k], m, 0.0):
                 members.append(k)
                 break
         else:
@@ -232,14 +252,14 @@ def decide_layout(shifts: CellShifts, views_per_subpixel: float, floor: float = 
                    f"(limit {MAX_SHIFT_SIGMA_VIEWS})")
     else:
         for members in cells:
-            m, ms = _weighted_mean(r[members], s[members])
-            if not all(_agree(r[k], s[k], m, 0.0) for k in members):
+            m, _ = _weighted_mean(r[members], s[members])
+            if not all(_agree(r[k], sa[k], m, 0.0) for k in members):
                 problem = "the cell classes' shifts are inconsistent (a class agrees with no cell)"
     class_cell = {k: i for i, members in enumerate(cells) for k in members}
     table = [[class_cell[2 * y + x] for x in range(CELL_COLUMNS)] for y in range(CELL_ROWS)]
-    means = [_weighted_mean(r[members], s[members]) for members in cells]
+    means = [merged(members) for members in cells]
     cell_shift = np.array([m for m, _ in means])
-    cell_sigma = np.hypot(np.array([ms for _, ms in means]), floor)
+    cell_sigma = np.array([ms for _, ms in means])
     # The gauge of the layout written: every slot's shift moved by the same ``gauge`` so that the
     # channel centres average to the pixel centre over the panel (mean dx 0, as in a stripe), and
     # the offset moved by as much (:func:`regauged_offset`), which routes every slot as before.

@@ -34,14 +34,16 @@ Why these patterns (the physics is in ``docs/optics.md``; the method in ``docs/c
   without bias (an edge lit by the photo's own fringe is weighted by that fringe) and undone
   (:mod:`.register`).  The fringes fill the panel inside the frame.
 
-* With ``cells`` (``lenticalib patterns --cells``) 24 *cell patterns* follow: ``cell-<c><k>``
+* With ``cells`` (``lenticalib patterns --cells``) 48 *cell patterns* follow: ``cell-<c><k>``
   draws the fine sinusoid of ``f16`` in channel ``c`` (r, g or b, at its RGB slot) only in the
-  pixels of cell class ``k = 2 (y % 4) + x % 2``.  On a panel whose subpixels are not a stripe
-  each channel of each cell sits elsewhere across the lenses; the phase of these photos against
-  the fitted model measures where (:mod:`.layout_fit`).  Every cell pattern public calibrations
+  pixels of cell class ``k = 2 (y % 4) + x % 2``, and ``celly-<c><k>`` a sinusoid of 16 rows
+  along y the same way.  On a panel whose subpixels are not a stripe
+  each channel of each cell sits elsewhere in the pixel; the phase of these photos against the
+  fitted model measures where, along the row and along the column, and the lens routes by the
+  combination across the lenses (:mod:`.layout_fit`).  Every cell pattern public calibrations
   use (1, 2 or 4 rows; 1 or 2 columns) is a function of the class.
 
-23 photos in all (47 with the cell patterns).  Periods scale with the panel so any raster size
+23 photos in all (71 with the cell patterns).  Periods scale with the panel so any raster size
 works; the fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
 """
 
@@ -79,6 +81,11 @@ CELL_CLASS_RULE = "2 (y % 4) + x % 2"
 # The cell patterns: "cell-<channel><class>", the fine sinusoid of period FINE_PERIODS[0] in one
 # channel (at its RGB slot), lit only in the pixels of one class; one photo each.
 CELL_GROUPS = tuple(f"cell-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
+# ... and "celly-<channel><class>": a sinusoid along y of CELL_Y_PERIOD rows, the same way: where
+# each channel sits along the column (the x patterns see where it sits along the row; the lens
+# routes by the combination across the lenses).
+CELL_Y_GROUPS = tuple(f"celly-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
+CELL_Y_PERIOD = 16.0  # rows
 
 
 def frame_width(height: int) -> int:
@@ -197,6 +204,10 @@ def design_patterns(width: int, height: int, views: int, cells: bool = False) ->
             for k in range(CELL_CLASSES):
                 name = f"cell-{channel.lower()}{k}"
                 patterns.append(Pattern(name, name, "x", FINE_PERIODS[0], 0, 1, channel, k))
+        for channel in "RGB":
+            for k in range(CELL_CLASSES):
+                name = f"celly-{channel.lower()}{k}"
+                patterns.append(Pattern(name, name, "y", CELL_Y_PERIOD, 0, 1, channel, k))
     return PatternSet(width, height, views, tuple(patterns), cells=bool(cells))
 
 
@@ -216,12 +227,12 @@ def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
             coordinate = 3 * np.arange(width) + CHANNEL_SLOT_RGB[channel]
             values = srgb_encode8(pattern_linear(pattern, coordinate))
             image[:, :, ci] = values[None, :]
-            if pattern.cell_class is not None:
-                lit = cell_class_of(np.arange(width)[None, :], np.arange(height)[:, None]) == pattern.cell_class
-                image[:, :, ci] *= lit.astype(np.uint8)
         else:
             values = srgb_encode8(pattern_linear(pattern, np.arange(height)))
             image[:, :, ci] = values[:, None]
+        if pattern.cell_class is not None:
+            lit = cell_class_of(np.arange(width)[None, :], np.arange(height)[:, None]) == pattern.cell_class
+            image[:, :, ci] *= lit.astype(np.uint8)
     f = frame_width(height)
     frame = srgb_encode8(np.float64(FRAME_LEVEL))
     for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
