@@ -5,15 +5,17 @@ and ``Y`` (rows); shifts in subpixels along a row.
 
 THE MEASUREMENT.  A cell photo (``cell-<c><k>``, :data:`.patterns.CELL_GROUPS`) shows the fine
 sinusoid of period ``T`` in channel ``c`` only, evaluated at the channel's stripe-RGB slot
-``x_s = 3 x + c``, and only in the pixels of cell class ``k`` (``2 (y % 4) + x % 2``).  If that
-channel's light really lies, across the lenses, at ``x_s + e + 0.5`` (``e`` the slot shift of
-``docs/optics.md``: 0 on an RGB stripe), the lens sheet shows the camera the fringe of the fitted
-plane moved by ``-e / T`` cycles.  The coordinate maps and the fitted plane themselves come from
-patterns lit in green in every pixel, so they sit at the green light's mean position: what a
-photo measures is ``r = e - mean over classes of e(G)``.  A shift common to every slot is a
-change of the offset and cannot be told from it, so that is the layout's gauge (the fitted
-offset carries the rest).  Only the component across the lenses is visible; it is also the only
-part that matters for routing.
+``x_s = 3 x + c``, and only in the pixels of cell class ``k`` (``2 (y % 4) + x % 2``); a
+``celly-<c><k>`` photo (:data:`.patterns.CELL_Y_GROUPS`) a sinusoid of ``CELL_Y_PERIOD`` rows
+along y.  The camera sees the light of a subpixel where it is: if channel ``c`` sits ``a``
+subpixels along the row from its stripe slot (``a = 1 + 3 dx - c``) and ``dy`` rows down, the
+x photo's fringe is moved by ``-a / T`` cycles against the fitted plane and the y photo's by
+``-dy / T_y`` against the measured row coordinate.  The lenses route by the position across
+them only, ``e = a - 3 C_r dy`` (``docs/optics.md``): :func:`route_shifts`.  The coordinate
+maps and the fitted plane come from patterns lit in green in every pixel, so they sit at the
+green light's mean position: what the photos measure is ``r = e - mean over classes of e(G)``.
+A shift common to every slot is a change of the offset and cannot be told from it, so that is
+the layout's gauge (the fitted offset carries the rest).
 
 Per photo the phase offset against the plane's prediction is fitted block by block
 (``A + Re(m exp(2 pi i predicted))`` in blocks of ``BLOCK`` pixels); its 1-sigma comes from a

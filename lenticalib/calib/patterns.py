@@ -179,7 +179,8 @@ def design_patterns(width: int, height: int, views: int, cells: bool = False) ->
     Coarse periods: 1.25 panel widths/heights (one unambiguous phase over the panel), then
     a twelfth of the width (a sixteenth of the height), then 96 subpixels (at most a third
     of a cycle per lens up to Delta_r = 32, so the lenses do not alias it).  ``cells``: also the
-    24 cell patterns (:data:`CELL_GROUPS`), for panels whose subpixels are not a stripe.
+    48 cell patterns (:data:`CELL_GROUPS`, :data:`CELL_Y_GROUPS`), for panels whose subpixels are
+    not a stripe.
     """
     if not (isinstance(width, int) and isinstance(height, int) and width >= 64 and height >= 64):
         raise InputError(f"panel size {width}x{height} is too small", source="width/height",
