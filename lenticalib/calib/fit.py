@@ -67,6 +67,7 @@ MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
 MAX_ALIAS = 0.42  # |T/Delta_r - 1| ... a fine group aliasing beyond this is not used
 MIN_CELL_CONTRAST = 0.1  # a cell photo's fringe contrast, of the fine green group's
+MAX_LAYOUT_SIGMA = 0.05  # views: 1-sigma of a cell layout's shifts (a stripe found is exact)
 
 
 @dataclasses.dataclass
@@ -288,6 +289,12 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
                         f"views (limit {MAX_PREDICTED_CENTRING})")
     if quality["coherence"] < MIN_COHERENCE:
         problems.append(f"fine fringes are weak (coherence {quality['coherence']:.2f}, limit {MIN_COHERENCE})")
+    if layout is not None and layout.layout is not None:
+        layout_sigma = float(np.max(layout.cell_sigma)) * n_views / constants["period"]
+        if layout_sigma > MAX_LAYOUT_SIGMA:
+            problems.append(f"1-sigma uncertainty of the subpixel layout reaches {layout_sigma:.3f} views (limit "
+                            f"{MAX_LAYOUT_SIGMA}; the cell photos measure best at lens periods near 16 subpixels, "
+                            f"this panel's is {constants['period']:.2f})")
     if layout is None and order.margin < MIN_ORDER_MARGIN:
         problems.append(f"subpixel order is ambiguous (margin {order.margin:.2f}, limit {MIN_ORDER_MARGIN}; a panel "
                         "whose subpixels are not a stripe? photograph the cell patterns too: 'lenticalib patterns "

@@ -52,20 +52,20 @@ AGREE_FLOOR = 0.06  # ... or this many subpixels (a systematic floor of the meth
 MAX_SHIFT_SIGMA_VIEWS = 0.08  # a shift known worse than this (1 sigma, in views) is not resolved
 # Systematic floor of a cell's shift (1 sigma, subpixels), added to the statistical sigma of the
 # merged classes (which shrinks with their number, while the errors are common to the classes):
-# SHIFT_FLOOR + ALIAS_FLOOR |Delta_r / T - 1| (:func:`shift_floor`).  Simulated sets
-# (tools/bench_layouts.py) show per-channel biases, the same in every class and of opposite sign
-# for R and B (on stripe panels too), that grow with the photos' alias: 0.01-0.02 subpixel at
-# |Delta_r / T - 1| < 0.2, up to 0.06 at 0.46.  A colour plane of the camera displaced by a
-# fraction of a pixel (demosaicing) moves a fringe's phase in proportion to its frequency, which
-# is the alias; the fit cannot tell that from a shift.
+# SHIFT_FLOOR + ALIAS_FLOOR (Delta_r / T - 1)^2 (:func:`shift_floor`).  Simulated sets
+# (tools/bench_layouts.py) show per-channel errors, the same in every class (stripe panels too:
+# R and B opposite), that grow with the photos' alias: up to 0.016 subpixel at
+# |Delta_r / T - 1| < 0.1, 0.025 at 0.19 and 0.073 at 0.46.  A colour plane of the camera
+# displaced by a fraction of a pixel (lateral chromatic aberration, demosaicing) moves a fringe's
+# phase in proportion to its frequency, the alias; the fit cannot tell that from a shift.
 SHIFT_FLOOR = 0.015
-ALIAS_FLOOR = 0.1
+ALIAS_FLOOR = 0.25
 
 
 def shift_floor(lens_period: float, period: float) -> float:
     """The systematic 1-sigma floor (subpixels) of a cell's shift measured with photos of ``period``
     on a panel of ``lens_period`` (both subpixels)."""
-    return SHIFT_FLOOR + ALIAS_FLOOR * abs(lens_period / period - 1.0)
+    return SHIFT_FLOOR + ALIAS_FLOOR * (lens_period / period - 1.0) ** 2
 STRIPE_SHIFTS = {"RGB": (0.0, 0.0, 0.0), "BGR": (2.0, 0.0, -2.0)}
 
 
