@@ -67,7 +67,7 @@ MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
 MAX_ALIAS = 0.42  # |T/Delta_r - 1| ... a fine group aliasing beyond this is not used
 MIN_CELL_CONTRAST = 0.1  # a cell photo's fringe contrast, of the fine green group's
-MAX_LAYOUT_SIGMA = 0.05  # views: 1-sigma of a cell layout's shifts (a stripe found is exact)
+MAX_LAYOUT_SIGMA = 0.08  # views: 1-sigma of a cell layout's shifts (a stripe found is exact)
 
 
 @dataclasses.dataclass
