@@ -120,7 +120,8 @@ def test_simulated_cell_panel_fit_recovers_the_layout_and_meets_the_targets(tmp_
     layout = NAMED_LAYOUTS["lkg-columns"]
     directory = tmp_path / "sim"
     write_patterns(directory, design_patterns(1280, 720, 32, cells=True))
-    scene = random_scene(5, width=1280, height=720, resolution=(1250, 800), slant=-0.27, layout=layout,
+    # a lens period where the cell photos measure well (docs/calibration.md: about 14.5 to 21 subpixels)
+    scene = random_scene(5, width=1280, height=720, resolution=(1250, 800), slant=-0.27, period=18.5, layout=layout,
                          subsamples=1, jpeg_quality=90)
     simulate_capture_set(directory, scene)
     fit_dir = tmp_path / "fit"  # what a user has: the manifest and the photos
