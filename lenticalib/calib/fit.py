@@ -293,8 +293,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         layout_sigma = float(np.max(layout.cell_sigma)) * n_views / constants["period"]
         if layout_sigma > MAX_LAYOUT_SIGMA:
             problems.append(f"1-sigma uncertainty of the subpixel layout reaches {layout_sigma:.3f} views (limit "
-                            f"{MAX_LAYOUT_SIGMA}; the cell photos measure best at lens periods near 16 subpixels, "
-                            f"this panel's is {constants['period']:.2f})")
+                            f"{MAX_LAYOUT_SIGMA}; the cell photos measure well at lens periods of about 14.5 to 21 "
+                            f"subpixels, this panel's is {constants['period']:.2f})")
     if layout is None and order.margin < MIN_ORDER_MARGIN:
         problems.append(f"subpixel order is ambiguous (margin {order.margin:.2f}, limit {MIN_ORDER_MARGIN}; a panel "
                         "whose subpixels are not a stripe? photograph the cell patterns too: 'lenticalib patterns "
