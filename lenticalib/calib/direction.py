@@ -197,9 +197,9 @@ def direction_from_moved_right(first: PanelProfile, second: PanelProfile) -> Dir
         return DirectionEvidence(None, float(dw), None, "a fit has no offset uncertainty", details)
     sigma = n / first.period * math.hypot(sig1, sig2)
     reason = None
-    if first.subpixel_order != second.subpixel_order:
-        reason = (f"the two fits disagree on the subpixel order ({first.subpixel_order} vs "
-                  f"{second.subpixel_order}), so one of them is wrong")
+    if (first.is_stripe, first.subpixel_order) != (second.is_stripe, second.subpixel_order):
+        reason = (f"the two fits disagree on the subpixel order ({first.layout_name} vs "
+                  f"{second.layout_name}), so one of them is wrong")
     elif abs(dw) < MIN_SIGMAS * sigma:
         reason = (f"the moved camera sees {dw:+.3f} +- {sigma:.3f} views from the first, less than "
                   f"{MIN_SIGMAS:g} sigma: move the camera further to the right")

@@ -8,7 +8,9 @@ Steps (each checks its photos and fails with a message naming them):
    coarse to fine and smoothed (``phase``) -- no camera model is needed for this;
 4. the lens alias of the fine groups gives psi = (w* - N/2)/N per pixel; one plane fits
    them all (``model``), with block-jackknife uncertainties;
-5. red-only and blue-only photos against that plane give the subpixel order;
+5. red-only and blue-only photos against that plane give the subpixel order; with the cell
+   photos (``lenticalib patterns --cells``) each channel's shift per cell class gives the stripe
+   order or the cell layout instead (``layout_fit``);
 6. quality gates: coherence, residual, uncertainty; then the profile and its provenance.
 
 The fit reads only the photos and ``patterns.json``: nothing the simulator knows.
@@ -27,12 +29,12 @@ import numpy as np
 
 from ..core.errors import CalibrationError, CaptureError, InputError
 from ..core.profile import PanelProfile, make_provenance
-from . import model, phase, photometric
+from . import layout_fit, model, phase, photometric
 from .camera import CameraModel, describe_pose, estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
 from .groups import Group, Registration, demodulate_group, group_photos
-from .patterns import FINE_PERIODS, PERIOD_RANGE
+from .patterns import CELL_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD, FINE_PERIODS, PERIOD_RANGE
 from .pose import PanelPose, camera_pose
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
@@ -44,13 +46,16 @@ DEMODULATED_GROUPS = ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in F
 ORDER_CHANNELS = {"order-r": 0, "order-b": 2}  # the order photos, and the channel each lights
 STAGE_PANEL, STAGE_COORDINATES, STAGE_PLANE, STAGE_ORDER = STAGES = (
     "finding the panel", "measuring seen panel coordinates", "fitting the view-coordinate plane", "subpixel order")
+STAGE_LAYOUT = "subpixel layout"  # only for a set with the cell photos
 
 
 def progress_steps(pattern_set) -> int:
     """How many times :func:`fit_capture_set` calls ``progress`` for a capture set of ``pattern_set``
     (a :class:`~.patterns.PatternSet`): once per photo it reads, once per stage."""
-    photos = sum(len(pattern_set.group(name)) for name in DEMODULATED_GROUPS + tuple(ORDER_CHANNELS))
-    return photos + len(STAGES)
+    cells = getattr(pattern_set, "cells", False)
+    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_GROUPS + CELL_Y_GROUPS if cells else ())
+    photos = sum(len(pattern_set.group(name)) for name in names)
+    return photos + len(STAGES) + (1 if cells else 0)
 
 # Quality gates (views unless stated).  A fit failing one is reported as untrustworthy.
 MAX_BLOCK_RESIDUAL_RMS = 0.12  # systematic misfit of the plane, RMS over panel blocks
@@ -61,6 +66,8 @@ MAX_PREDICTED_CENTRING = 0.5
 MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
 MAX_ALIAS = 0.42  # |T/Delta_r - 1| ... a fine group aliasing beyond this is not used
+MIN_CELL_CONTRAST = 0.1  # a cell photo's fringe contrast, of the fine green group's
+MAX_LAYOUT_SIGMA = 0.08  # views: 1-sigma of a cell layout's shifts (a stripe found is exact)
 
 
 @dataclasses.dataclass
@@ -76,6 +83,7 @@ class FitResult:
     warnings: list[str] = dataclasses.field(default_factory=list)
     direction: dict | None = None  # evidence of --moved-right (calib/direction.py), when given
     pose: PanelPose | None = None  # the camera's pose in mm (a camera model and the pixel pitch given)
+    layout: layout_fit.LayoutDecision | None = None  # from the cell photos, when the set has them
 
 
 def _correct_photometry(groups: dict[str, "Group"], mask: np.ndarray) -> dict[str, bool]:
@@ -243,15 +251,23 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         progress(STAGE_ORDER)
     order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration)
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
+    layout = None
+    if ps.cells:
+        if progress:
+            progress(STAGE_LAYOUT)
+        layout = _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration, n_views)
 
     camera, pose = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera, pixel_pitch_mm)
     reg_var = registration_variance(groups, registration.shifts, x_sm, y_sm, valid, fit, used)
     quality, cov = quality_and_covariance(fit, samples, final_weights, cov, ps, n_views, reg_var)
     constants, sigmas = constants_with_uncertainty(fit, cov)
+    if layout is not None and layout.layout is not None:  # the offset in the gauge of the layout written
+        constants["offset"] = layout_fit.regauged_offset(constants["offset"], constants["period"], layout)
     quality.update({
         "fine_groups": [{"period": p, "alias": round(al, 4), "coherence": round(g.coherence, 4),
                          "used": i in used, "period_estimate": -1.0 / g.a} for i, (p, al, g) in enumerate(group_fits)],
         "subpixel_order": dataclasses.asdict(order),
+        **({"subpixel_layout": layout.to_dict()} if layout is not None else {}),
         "panel_fraction_of_frame": float(mask.mean()),
         "working_resolution": [w, h],
         "photo_resolution": [shape[1], shape[0]],
@@ -273,8 +289,16 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
                         f"views (limit {MAX_PREDICTED_CENTRING})")
     if quality["coherence"] < MIN_COHERENCE:
         problems.append(f"fine fringes are weak (coherence {quality['coherence']:.2f}, limit {MIN_COHERENCE})")
-    if order.margin < MIN_ORDER_MARGIN:
-        problems.append(f"subpixel order is ambiguous (margin {order.margin:.2f}, limit {MIN_ORDER_MARGIN})")
+    if layout is not None and layout.layout is not None:
+        layout_sigma = float(np.max(layout.cell_sigma)) * n_views / constants["period"]
+        if layout_sigma > MAX_LAYOUT_SIGMA:
+            problems.append(f"1-sigma uncertainty of the subpixel layout reaches {layout_sigma:.3f} views (limit "
+                            f"{MAX_LAYOUT_SIGMA}; the cell photos measure well at lens periods of about 14.5 to 21 "
+                            f"subpixels, this panel's is {constants['period']:.2f})")
+    if layout is None and order.margin < MIN_ORDER_MARGIN:
+        problems.append(f"subpixel order is ambiguous (margin {order.margin:.2f}, limit {MIN_ORDER_MARGIN}; a panel "
+                        "whose subpixels are not a stripe? photograph the cell patterns too: 'lenticalib patterns "
+                        "--cells')")
 
     seconds = time.perf_counter() - start
     provenance = make_provenance(
@@ -283,11 +307,13 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         convention="w(x_s, y) = w*(x_s + 0.5, y + 0.5); calibration camera at w* = N/2")
     profile = PanelProfile(views=n_views, slant=constants["slant"], period=constants["period"],
                            offset=constants["offset"], reference_view=n_views / 2.0,
-                           width=ps.width, height=ps.height, subpixel_order=order.order,
+                           width=ps.width, height=ps.height,
+                           subpixel_order=order.order if layout is None else layout.order,
+                           subpixel_layout=None if layout is None else layout.layout,
                            uncertainty=sigmas, provenance=provenance)
     maps = {"block_residual_map": block_map, "mask": mask, "x": x_sm, "y": y_sm, "valid": valid, "fit": fit,
             "dc": groups["y1"].dc, "samples": samples, "weights": final_weights, "sample_pixels": take}
-    return FitResult(profile, not problems, problems, quality, maps, seconds, warnings, pose=pose)
+    return FitResult(profile, not problems, problems, quality, maps, seconds, warnings, pose=pose, layout=layout)
 
 
 def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
@@ -352,6 +378,49 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
                                "green group)", source=str(photo.path),
                                hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
     return model.decide_order(offsets["order-r"], offsets["order-b"], period, amps["order-r"], amps["order-b"])
+
+
+def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration,
+                 views: int) -> layout_fit.LayoutDecision:
+    """The stripe order or the cell layout from the cell photos (:mod:`.layout_fit`); CaptureError
+    naming a photo that does not show its channel's fringes, CalibrationError (one line) when the
+    shifts cannot tell the layout."""
+    period = capture.patterns.group(CELL_GROUPS[0])[0].period
+    lens_period = -1.0 / fit.a
+    slant = fit.b * lens_period / 3.0
+    along_row = _cell_shifts(capture, CELL_GROUPS, period, _predicted_fine_cycles(fit, x_sm, y_sm, valid, period),
+                             groups[f"f{period:g}"], valid, shape, progress, registration)
+    along_column = _cell_shifts(capture, CELL_Y_GROUPS, CELL_Y_PERIOD, np.where(valid, y_sm / CELL_Y_PERIOD, 0.0),
+                                groups["y1"], valid, shape, progress, registration)
+    shifts = layout_fit.route_shifts(along_row, along_column, slant)
+    decision = layout_fit.decide_layout(shifts, views / lens_period, layout_fit.shift_floor(lens_period, period))
+    layout_fit.refuse_if_unresolved(decision, str(capture.directory / "captures"))
+    return decision
+
+
+def _cell_shifts(capture, names, period, pred, reference, valid, shape, progress, registration) -> layout_fit.CellShifts:
+    """The shifts (in units of the pattern coordinate) one kind of cell photo measures, against the
+    phase ``pred`` (cycles, per working pixel); contrast judged against the green group ``reference``."""
+    ref_amp = float(np.median(np.abs(reference.z[valid]) / np.maximum(reference.dc[valid], 1e-6)))
+    classes = len(names) // 3
+    offset, sigma, amplitude = (np.zeros((classes, 3)) for _ in range(3))
+    for name in names:
+        channel, k = "rgb".index(name[-2]), int(name[-1])
+        photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
+        registration.undo_shake([photo], capture)
+        rgb_mean = photo.rgb[valid].mean(axis=0)
+        if int(np.argmax(rgb_mean)) != channel:
+            colour = ("red", "green", "blue")[channel]
+            raise CaptureError(f"should show a {colour} pattern but its panel is not {colour}",
+                               source=str(photo.path), hint=f"photograph {name}.png (swapped with another cell photo?)")
+        q, rows, cols = layout_fit.block_phases(photo.luma, pred, valid)
+        offset[k, channel], sigma[k, channel], amp = layout_fit.phase_offset(q, rows, cols, photo.luma.shape)
+        amplitude[k, channel] = amp / max(ref_amp, 1e-9)
+        if amplitude[k, channel] < MIN_CELL_CONTRAST:
+            raise CaptureError(f"shows almost no fringes of pattern {name} (contrast {amplitude[k, channel]:.2f} of "
+                               "the green group's)", source=str(photo.path),
+                               hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
+    return layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
 
 
 def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:

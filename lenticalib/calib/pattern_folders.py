@@ -48,10 +48,11 @@ def _write(folder: Path, pattern_set, progress: Callable[..., None] | None,
 
 def write_calibration_patterns(output: str | os.PathLike, width: int = 3840, height: int = 2160, views: int = 32,
                                progress: Callable[..., None] | None = None,
-                               progress_total: Callable[[int], None] | None = None):
+                               progress_total: Callable[[int], None] | None = None, cells: bool = False):
     """Write the calibration patterns of a ``width`` x ``height`` panel with ``views`` views into the
-    folder ``output`` (``progress`` once per pattern, ``progress_total`` once before); returns the
-    :class:`~.patterns.PatternSet`.  InputError naming the argument or the folder before any work."""
+    folder ``output`` (``progress`` once per pattern, ``progress_total`` once before; ``cells``: with
+    the cell patterns, :data:`~.patterns.CELL_GROUPS`); returns the :class:`~.patterns.PatternSet`.
+    InputError naming the argument or the folder before any work."""
     for field, value in (("width", width), ("height", height)):
         if not MIN_PANEL_SIDE <= value <= MAX_SIDE:
             raise InputError(f"{value} pixels is out of range", source=field,
@@ -59,7 +60,7 @@ def write_calibration_patterns(output: str | os.PathLike, width: int = 3840, hei
     if not 2 <= views <= MAX_VIEWS:
         raise InputError(f"{views} views is out of range", source="views", hint=f"use 2..{MAX_VIEWS}")
     folder = check_output_folder(output, "patterns")
-    pattern_set = patterns_module.design_patterns(width, height, views)
+    pattern_set = patterns_module.design_patterns(width, height, views, cells=cells)
     _write(folder, pattern_set, progress, progress_total)
     return pattern_set
 

@@ -34,8 +34,17 @@ Why these patterns (the physics is in ``docs/optics.md``; the method in ``docs/c
   without bias (an edge lit by the photo's own fringe is weighted by that fringe) and undone
   (:mod:`.register`).  The fringes fill the panel inside the frame.
 
-23 photos in all (limit: 24).  Periods scale with the panel so any raster size works; the
-fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
+* With ``cells`` (``lenticalib patterns --cells``) 48 *cell patterns* follow: ``cell-<c><k>``
+  draws the fine sinusoid of ``f16`` in channel ``c`` (r, g or b, at its RGB slot) only in the
+  pixels of cell class ``k = 2 (y % 4) + x % 2``, and ``celly-<c><k>`` a sinusoid of 16 rows
+  along y the same way.  On a panel whose subpixels are not a stripe
+  each channel of each cell sits elsewhere in the pixel; the phase of these photos against the
+  fitted model measures where, along the row and along the column, and the lens routes by the
+  combination across the lenses (:mod:`.layout_fit`).  Every cell pattern public calibrations
+  use (1, 2 or 4 rows; 1 or 2 columns) is a function of the class.
+
+23 photos in all (71 with the cell patterns).  Periods scale with the panel so any raster size
+works; the fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
 """
 
 from __future__ import annotations
@@ -66,6 +75,17 @@ PERIOD_RANGE = (9.5, 31.0)  # lens periods Delta_r (subpixels) the fine groups m
 CHANNEL_SLOT_RGB = {"R": 0, "G": 1, "B": 2}
 FRAME_FRACTION = 1.0 / 40.0  # registration frame width, of the panel height (pixels on every side)
 FRAME_LEVEL = 0.3  # linear light, all three subpixels (their sum about the green fringe peak)
+CELL_ROWS, CELL_COLUMNS = 4, 2  # cell classes: pixel (x, y) is of class 2 (y % 4) + x % 2
+CELL_CLASSES = CELL_ROWS * CELL_COLUMNS
+CELL_CLASS_RULE = "2 (y % 4) + x % 2"
+# The cell patterns: "cell-<channel><class>", the fine sinusoid of period FINE_PERIODS[0] in one
+# channel (at its RGB slot), lit only in the pixels of one class; one photo each.
+CELL_GROUPS = tuple(f"cell-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
+# ... and "celly-<channel><class>": a sinusoid along y of CELL_Y_PERIOD rows, the same way: where
+# each channel sits along the column (the x patterns see where it sits along the row; the lens
+# routes by the combination across the lenses).
+CELL_Y_GROUPS = tuple(f"celly-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
+CELL_Y_PERIOD = 16.0  # rows
 
 
 def frame_width(height: int) -> int:
@@ -79,6 +99,7 @@ class Pattern:
 
     ``channels`` lists the lit channels ("G", "RGB", "R", "B"); for axis "x" each lit
     channel is evaluated at its RGB-order slot.  ``theta`` (radians) = 2 pi step / steps.
+    ``cell_class``: the pattern lights only the pixels of that class (the cell patterns).
     """
 
     name: str
@@ -88,6 +109,7 @@ class Pattern:
     step: int
     steps: int
     channels: str
+    cell_class: int | None = None  # lit only in pixels of this class (:func:`cell_class_of`); None: all
 
     @property
     def file(self) -> str:
@@ -99,6 +121,8 @@ class Pattern:
 
     def to_dict(self) -> dict[str, Any]:
         data = dataclasses.asdict(self)
+        if self.cell_class is None:  # the sets without cell patterns read (and hash) as before
+            del data["cell_class"]
         data["file"] = self.file
         return data
 
@@ -111,6 +135,7 @@ class PatternSet:
     height: int
     views: int
     patterns: tuple[Pattern, ...]
+    cells: bool = False  # with the cell patterns (:data:`CELL_GROUPS`)
 
     @property
     def set_id(self) -> str:
@@ -130,8 +155,9 @@ class PatternSet:
         return render_pattern(pattern, self.width, self.height)
 
     def to_dict(self) -> dict[str, Any]:
+        cells = {"cells": True, "cell_classes": CELL_CLASS_RULE} if self.cells else {}
         return {**DOCUMENT.envelope(), "set_id": self.set_id,
-                "width": self.width, "height": self.height, "views": self.views,
+                "width": self.width, "height": self.height, "views": self.views, **cells,
                 "period_range": list(PERIOD_RANGE), "mean_level": MEAN_LEVEL, "amplitude": AMPLITUDE,
                 "frame_pixels": frame_width(self.height), "frame_level": FRAME_LEVEL,
                 "encoding": "sRGB", "patterns": [p.to_dict() for p in self.patterns]}
@@ -141,12 +167,20 @@ def _group(name: str, axis: str, period: float, steps: int, channels: str) -> li
     return [Pattern(f"{name}-{k}", name, axis, float(period), k, steps, channels) for k in range(steps)]
 
 
-def design_patterns(width: int, height: int, views: int) -> PatternSet:
+def cell_class_of(x, y):
+    """The cell class of pixel ``(x, y)`` (ints or integer arrays, y from the top): ``2 (y % 4) + x % 2``,
+    0..7.  Every cell pattern a layout can have (1, 2 or 4 rows; 1 or 2 columns) is a function of it."""
+    return 2 * (y % CELL_ROWS) + x % CELL_COLUMNS
+
+
+def design_patterns(width: int, height: int, views: int, cells: bool = False) -> PatternSet:
     """The pattern set for a ``width`` x ``height`` panel with ``views`` views.
 
     Coarse periods: 1.25 panel widths/heights (one unambiguous phase over the panel), then
     a twelfth of the width (a sixteenth of the height), then 96 subpixels (at most a third
-    of a cycle per lens up to Delta_r = 32, so the lenses do not alias it).
+    of a cycle per lens up to Delta_r = 32, so the lenses do not alias it).  ``cells``: also the
+    48 cell patterns (:data:`CELL_GROUPS`, :data:`CELL_Y_GROUPS`), for panels whose subpixels are
+    not a stripe.
     """
     if not (isinstance(width, int) and isinstance(height, int) and width >= 64 and height >= 64):
         raise InputError(f"panel size {width}x{height} is too small", source="width/height",
@@ -166,7 +200,16 @@ def design_patterns(width: int, height: int, views: int) -> PatternSet:
         patterns += _group(f"f{period:g}", "x", period, 3, "G")
     patterns.append(Pattern("order-r", "order-r", "x", FINE_PERIODS[0], 0, 1, "R"))
     patterns.append(Pattern("order-b", "order-b", "x", FINE_PERIODS[0], 0, 1, "B"))
-    return PatternSet(width, height, views, tuple(patterns))
+    if cells:
+        for channel in "RGB":
+            for k in range(CELL_CLASSES):
+                name = f"cell-{channel.lower()}{k}"
+                patterns.append(Pattern(name, name, "x", FINE_PERIODS[0], 0, 1, channel, k))
+        for channel in "RGB":
+            for k in range(CELL_CLASSES):
+                name = f"celly-{channel.lower()}{k}"
+                patterns.append(Pattern(name, name, "y", CELL_Y_PERIOD, 0, 1, channel, k))
+    return PatternSet(width, height, views, tuple(patterns), cells=bool(cells))
 
 
 def pattern_linear(pattern: Pattern, coordinate: np.ndarray) -> np.ndarray:
@@ -188,6 +231,9 @@ def render_pattern(pattern: Pattern, width: int, height: int) -> np.ndarray:
         else:
             values = srgb_encode8(pattern_linear(pattern, np.arange(height)))
             image[:, :, ci] = values[:, None]
+        if pattern.cell_class is not None:
+            lit = cell_class_of(np.arange(width)[None, :], np.arange(height)[:, None]) == pattern.cell_class
+            image[:, :, ci] *= lit.astype(np.uint8)
     f = frame_width(height)
     frame = srgb_encode8(np.float64(FRAME_LEVEL))
     for part in (image[:f], image[-f:], image[:, :f], image[:, -f:]):
@@ -216,8 +262,12 @@ def pattern_set_from_manifest(data: dict[str, Any], source: str) -> PatternSet:
         if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
             raise InputError(f"field '{key}' is missing or not a whole number {low}..{high}", source=source,
                              hint="write the patterns again with 'lenticalib patterns'")
+    cells = data.get("cells", False)
+    if not isinstance(cells, bool):
+        raise InputError("field 'cells' must be true or false", source=source,
+                         hint="write the patterns again with 'lenticalib patterns'")
     try:
-        expected = design_patterns(data["width"], data["height"], data["views"])
+        expected = design_patterns(data["width"], data["height"], data["views"], cells=cells)
     except (TypeError, ValueError) as exc:
         raise InputError(f"describes no pattern set this lenticalib can draw ({exc})", source=source,
                          hint="write the patterns again with 'lenticalib patterns'") from None

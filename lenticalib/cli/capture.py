@@ -31,7 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="sim camera resolution (default the same as 'lenticalib simulate': 4000x3000)")
     parser.add_argument("--conditions", choices=("standard", "hard"), default="standard",
                         help="sim camera behaviour (hard: phone-like tone curve, exposure drift, shake, noise)")
-    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display"})  # library names -> flags
+    parser.add_argument("--layout", metavar="NAME|FILE",
+                        help="sim panel's subpixel layout: RGB, BGR, lkg-columns, lkg-checker, lkg-rows4 or a JSON "
+                             "layout file (default: the seed's RGB or BGR stripe)")
+    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout"})  # library names -> flags
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,6 +62,11 @@ def run(args: argparse.Namespace) -> int:
     if kind == "sim":
         options.update(resolution=None if args.resolution is None else _resolution(args.resolution),
                        conditions=args.conditions)
+        if args.layout is not None:
+            options["layout"] = args.layout
+    elif args.layout is not None:
+        raise InputError("applies only to --camera sim", source="--layout",
+                         hint="a real panel's layout is what it is; drop --layout")
     if kind == "manual" and ":" not in args.camera:
         options["wait_for_user"] = lambda name: wait_for_key(presenter, name)
     camera = make_camera(args.camera, **options)  # the spec and options checked; no hardware touched yet

@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from ..calib.fit_pipeline import PhysicalOptions, fit_capture_sets
+    from ..calib.layout_fit import describe as describe_layout
     from ..core.view_direction import describe_direction
     from ._flags import flag_names
     from ._progress import progress_bar
@@ -108,7 +109,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"period {profile.period:.6f} +- {unc.get('period', 0):.2g} subpixels, "
               f"slant {profile.slant:.7f} +- {unc.get('slant', 0):.2g} pixels/row, "
               f"offset {profile.offset:.4f} +- {unc.get('offset', 0):.2g} subpixels, "
-              f"reference view {profile.reference_view:g}, order {profile.subpixel_order}")
+              f"reference view {profile.reference_view:g}, "
+              + (f"order {profile.subpixel_order}" if profile.is_stripe else "cell layout"))
+        if result.layout is not None:
+            print(f"subpixel layout from the cell photos: {describe_layout(result.layout)}")
         if result.direction is not None:
             d = result.direction
             sigma = "?" if d["sigma_views"] is None else f"{d['sigma_views']:.3f}"

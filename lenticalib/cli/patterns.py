@@ -25,6 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write DIR/direction.png instead: views saying LEFT / RIGHT, encoded with --profile, "
                              "to see which way the views run")
     parser.add_argument("--profile", metavar="P", help="the panel profile (with --direction)")
+    parser.add_argument("--cells", action="store_true",
+                        help="also the 48 cell patterns (one colour in one of 8 pixel classes each, along x and y), "
+                             "from which 'fit' finds a subpixel layout that is not a stripe (Looking Glass panels with "
+                             "subpixel cells)")
     parser.set_defaults(run=run)
 
 
@@ -37,6 +41,8 @@ def check_options(args: argparse.Namespace) -> None:
     from ..core.errors import InputError
 
     if args.direction:
+        if args.cells:
+            raise InputError("is for the calibration patterns, not --direction", source="--cells", hint="leave it out")
         if args.profile is None:
             raise InputError("needs the panel's profile", source="--direction",
                              hint="e.g. lenticalib patterns --direction --profile profile.json -o check")
@@ -70,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         return run_direction(args)
     with progress_bar(0, "writing patterns") as bar, flag_names(FLAGS):
         pattern_set = write_calibration_patterns(args.output, args.width, args.height, args.views, progress=bar.update,
-                                                 progress_total=bar.set_total)
+                                                 progress_total=bar.set_total, cells=args.cells)
     manifest = Path(args.output) / MANIFEST_NAME
     print(f"wrote {len(pattern_set.patterns)} patterns and {manifest} (set {pattern_set.set_id})")
     print("next: show each PNG full screen on the panel, photograph it from the viewing position with the "

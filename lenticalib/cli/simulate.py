@@ -42,6 +42,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--period", type=float, metavar="D", help="lens period Delta_r in subpixels at the "
                         "camera distance")
     parser.add_argument("--order", choices=("RGB", "BGR"), help="subpixel order of the panel")
+    parser.add_argument("--layout", metavar="NAME|FILE",
+                        help="subpixel layout of the panel: RGB, BGR, lkg-columns (two cells alternating by "
+                             "column), lkg-checker (checkerboard), lkg-rows4 (four cells by row), or a JSON layout "
+                             "file {\"cells\": [{\"R\": [dx, dy], ...}], \"pattern\": [[0, 1]]} (pixels, y down); "
+                             "not with --order")
     parser.add_argument("--distance", type=float, metavar="MM", help="camera distance to the panel in mm")
     parser.add_argument("--jpeg-quality", type=int, metavar="Q", help="JPEG quality 1..100 (default: random "
                         "80..95)")
@@ -57,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 FLAGS = {"seed": "--seed", "resolution": "--resolution", "scene": "--scene", "slant": "--slant", "period": "--period",
          "order": "--order", "distance_mm": "--distance", "jpeg_quality": "--jpeg-quality",
-         "subsamples": "--subsamples", "conditions": "--conditions", "raw": "--raw", "photos": "--photos"}
+         "subsamples": "--subsamples", "conditions": "--conditions", "raw": "--raw", "photos": "--photos",
+         "layout": "--layout"}
 """The library's argument names (:class:`lenticalib.sim.simulate_folder.SimulationOptions`), as this command's flags."""
 
 
@@ -70,6 +76,7 @@ def parse_resolution(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..sim.layouts import layout_label
     from ..sim.simulate_folder import SimulationOptions, simulate_folder
     from ._flags import flag_names
     from ._progress import progress_bar
@@ -77,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     options = SimulationOptions(seed=args.seed, resolution=parse_resolution(args.resolution) if args.resolution else None,
                                 scene=args.scene, slant=args.slant, period=args.period, order=args.order,
                                 distance_mm=args.distance, jpeg_quality=args.jpeg_quality, subsamples=args.subsamples,
-                                conditions=args.conditions, raw=args.raw, photos=args.photos)
+                                conditions=args.conditions, raw=args.raw, photos=args.photos, layout=args.layout)
     with progress_bar(0, "photographing") as bar, flag_names(FLAGS):
         done = simulate_folder(args.directory, options, progress=bar.update, progress_total=bar.set_total)
     if done.kind == "board":
@@ -88,11 +95,14 @@ def run(args: argparse.Namespace) -> int:
         return 0
     p = summary["profile"]
     cam = done.scene.camera
+    optics = done.scene.optics
+    label = layout_label(optics.subpixel_order, optics.subpixel_layout)
     print(f"wrote {summary['photos']} photos to {summary['captures']} ({cam.width}x{cam.height}, seed "
           f"{done.seed}, camera at x={cam.position[0]:.1f} y={cam.position[1]:.1f} mm, "
           f"{cam.distance:.1f} mm away; {summary['seconds']:.1f} s)")
     print(f"truth: {summary['truth']}: slant {p['slant']:.6f}, period {p['period']:.6f}, "
-          f"offset {p['offset']:.6f}, reference view {p['reference_view']:g}, order {p['subpixel_order']}, "
+          f"offset {p['offset']:.6f}, reference view {p['reference_view']:g}, "
+          f"{'order' if optics.subpixel_layout is None else 'layout'} {label}, "
           f"{p['views']} views")
     print(f"scene: {summary['simulation']} (reproduce with: lenticalib simulate DIR --scene {summary['simulation']})")
     return 0

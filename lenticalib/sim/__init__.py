@@ -8,6 +8,7 @@ never device or cli.
     optics           PanelOptics (lens sheet, pixel plane, emission), seen point, w*, truth profile
     camera           Camera (OpenCV intrinsics + distortion, pose, photometric settings)
     scene            Scene = optics + camera + seed; random_scene(); JSON form
+    layouts          subpixel layouts of the virtual panel: RGB, BGR, named cell layouts, JSON files
     render           numba ray kernel and the camera's photometric chain: photograph()
     capture          simulate_capture_set(): a pattern folder photographed into DIR/captures
     simulate_folder  simulate_folder(): what ``lenticalib simulate`` runs (pattern or board folder)

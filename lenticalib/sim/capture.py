@@ -85,7 +85,8 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
     """Write ``DIR/truth.json``, the ideal profile for the camera position of ``scene``.
 
     Returns (its path, the constants recorded in ``simulation.json``: views, slant, period, offset,
-    reference_view, width, height, subpixel_order, view_direction).
+    reference_view, width, height, subpixel_order, view_direction, and ``subpixel_layout`` (its
+    JSON form), ``views_reversed``, ``flip_image_x``/``_y`` when the truth has them).
     """
     directory = Path(directory)
     provenance = make_provenance("simulation", inputs=[directory / MANIFEST_NAME], seed=scene.seed,
@@ -96,6 +97,11 @@ def write_truth(directory: str | os.PathLike, scene: Scene, pattern_set) -> tupl
         write_crosstalk_truth(directory / CROSSTALK_TRUTH_NAME, scene, pattern_set.profile)
     constants = {k: getattr(profile, k) for k in ("views", "slant", "period", "offset", "reference_view",
                                                    "width", "height", "subpixel_order", "view_direction")}
+    if profile.subpixel_layout is not None:
+        constants["subpixel_layout"] = profile.subpixel_layout.to_dict()
+    for key in ("views_reversed", "flip_image_x", "flip_image_y"):
+        if getattr(profile, key):
+            constants[key] = True
     return truth_path, constants
 
 

@@ -6,7 +6,8 @@ Spec: ``sim`` or ``sim:SEED``.  Options: ``seed`` (default the spec's, else 1), 
 camera (w, h) in pixels or ``"WxH"`` (default :data:`lenticalib.sim.scene.DEFAULT_RESOLUTION`, as for
 ``lenticalib simulate``; the fit needs at least 1 megapixel),
 ``conditions`` ("standard" or "hard", see :data:`lenticalib.sim.scene.CONDITIONS`),
-``subsamples`` (rays per pixel side, default 3).  ``timeout`` is accepted like every kind's and
+``subsamples`` (rays per pixel side, default 3), ``layout`` (the panel's subpixel layout: RGB, BGR, a
+name of :data:`lenticalib.sim.layouts.NAMED_LAYOUTS` or a JSON layout file; default the seed's stripe).  ``timeout`` is accepted like every kind's and
 has nothing to bound: the virtual camera never waits.
 
 Each :meth:`capture` photographs the raster the panel shows (``shown``) with the simulator
@@ -40,6 +41,7 @@ from ..core.documents import FORMATS, read_document
 from ..core.errors import CameraError, InputError
 from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.sizes import MIN_CAMERA_SIDE, check_raster, parse_size
+from .layouts import resolve_layout
 from .scene import DEFAULT_RESOLUTION
 
 DEFAULT_SEED = 1
@@ -56,7 +58,7 @@ class SimCamera(CaptureCamera):
     """A simulated camera in front of a simulated panel (see the module docstring)."""
 
     kind = "sim"
-    OPTIONS = ("seed", "resolution", "conditions", "subsamples")
+    OPTIONS = ("seed", "resolution", "conditions", "subsamples", "layout")
 
     def __init__(self, target: str | None = None, **options):
         super().__init__(target, **options)
@@ -82,6 +84,11 @@ class SimCamera(CaptureCamera):
         self.subsamples = self.options.get("subsamples", DEFAULT_SUBSAMPLES)
         if not isinstance(self.subsamples, int) or isinstance(self.subsamples, bool) or not 1 <= self.subsamples <= 16:
             raise InputError(f"option 'subsamples' must be 1..16, got {self.subsamples!r}", source="camera sim")
+        layout = self.options.get("layout")
+        if layout is not None and not isinstance(layout, str):
+            raise InputError(f"option 'layout' must be a name or a JSON file, got {layout!r}", source="camera sim")
+        self.layout_spec = layout
+        self.order, self.layout = (None, None) if layout is None else resolve_layout(layout, "layout")
         self.scene = None
         self.directory: Path | None = None
         self.pattern_set = None
@@ -108,7 +115,8 @@ class SimCamera(CaptureCamera):
                      "the pattern set's panel", hint="show the patterns of this folder")
         height, width = shown.shape[:2]
         self.scene = random_scene(self.seed, width=width, height=height, resolution=self.resolution,
-                                  conditions=self.conditions, subsamples=self.subsamples)
+                                  conditions=self.conditions, subsamples=self.subsamples, order=self.order,
+                                  layout=self.layout)
         self.directory, self.pattern_set = directory, pattern_set
         self._records = self._earlier_records()
 

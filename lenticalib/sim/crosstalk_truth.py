@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from ..core.profile import PanelProfile
-from ..core.routing import view_map
+from ..core.routing import view_coordinate, view_map
 from .camera import Camera
 from .optics import PanelOptics, view_coordinate_truth
 from .scene import Scene
@@ -33,14 +33,15 @@ EYE_SUBSAMPLES = 4
 
 def profile_error(optics: PanelOptics, eye, profile: PanelProfile, fraction: float = CENTRE_FRACTION,
                   samples: int = 64) -> float:
-    """Mean circular difference ``w - w*`` (views) over subpixel centres of the centre region."""
+    """Mean circular difference ``w - w*`` (views) over subpixel centres of the centre region (each
+    slot's true centre, slot shifts of a subpixel layout included)."""
     n = profile.views
     h, w = optics.height, optics.width
     ys = np.linspace(h * (0.5 - fraction / 2), h * (0.5 + fraction / 2), samples).astype(np.int64)
     xs = np.linspace(3 * w * (0.5 - fraction / 2), 3 * w * (0.5 + fraction / 2), 4 * samples).astype(np.int64)
     yy, xx = np.meshgrid(ys, xs, indexing="ij")
-    w_profile = profile.reference_view + (3.0 * profile.slant * yy + profile.offset - xx) * n / profile.period
-    w_true = view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n)
+    w_profile = view_coordinate(profile, ys)[:, xs]
+    w_true = view_coordinate_truth(optics, eye, xx + optics.slot_shift_at(xx, yy) + 0.5, yy + 0.5, n)
     d = np.mod(w_profile - w_true + n / 2.0, n) - n / 2.0
     return float(np.angle(np.mean(np.exp(2j * math.pi * d / n))) * n / (2 * math.pi))
 

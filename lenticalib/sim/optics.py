@@ -40,7 +40,9 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.fields import unknown_key_message
+from ..core.layout import SubpixelLayout, layout_from_dict
 from ..core.profile import SUBPIXEL_ORDERS, PanelProfile
+from ..core.routing import view_coordinate
 
 BACKLIGHT_TERMS = ("x", "y", "xx", "yy", "xy")
 
@@ -58,6 +60,7 @@ class PanelOptics:
     gap                 g, effective optical gap lens surface -> pixel plane (thickness / index)
     x0                  lens boundary position at y = 0 (world x, mm), in [0, P_h)
     subpixel_order      "RGB" or "BGR": colour of subpixel positions 0, 1, 2 in a pixel
+                        ("RGB" with a subpixel_layout)
     black_matrix_h      dark fraction of each subpixel cell across x (the open aperture is
                         centred: [x_s + b/2, x_s + 1 - b/2))
     black_matrix_v      dark fraction of each cell along y (aperture [y + b/2, y + 1 - b/2))
@@ -71,6 +74,9 @@ class PanelOptics:
                         1 + bx xn + by yn + bxx xn^2 + byy yn^2 + bxy xn yn with
                         xn = x / (W p / 2), yn = y / (H p / 2); tuple in BACKLIGHT_TERMS order
     sheet_margin        the lens sheet reaches this far beyond the raster on every side
+    subpixel_layout     None (a stripe panel by ``subpixel_order``) or a cell layout: channel c
+                        of pixel (x, y) has its centre at (x + 0.5 + dx_c, y + 0.5 + dy_c) pixels,
+                        (dx_c, dy_c) of the pixel's cell (:mod:`lenticalib.core.layout`)
     bezel_width         dark frame around the sheet (mm on every side)
     bezel_level         bezel radiance, relative to a fully open white subpixel
     background_level    radiance of everything outside the bezel (a dim room), same unit
@@ -95,6 +101,7 @@ class PanelOptics:
     bezel_width: float = 8.0
     bezel_level: float = 0.005
     background_level: float = 0.03
+    subpixel_layout: SubpixelLayout | None = None
 
     def __post_init__(self):
         def fail(field, message):
@@ -111,6 +118,11 @@ class PanelOptics:
             fail("slant_angle", f"must be within +-60 degrees (radians), got {self.slant_angle!r}")
         if self.subpixel_order not in SUBPIXEL_ORDERS:
             fail("subpixel_order", f"must be \"RGB\" or \"BGR\", got {self.subpixel_order!r}")
+        if self.subpixel_layout is not None:
+            if not isinstance(self.subpixel_layout, SubpixelLayout):
+                fail("subpixel_layout", "must be a SubpixelLayout")
+            if self.subpixel_order != "RGB":
+                fail("subpixel_order", "must be \"RGB\" with a subpixel_layout (its slots are R, G, B)")
         for key in ("black_matrix_h", "black_matrix_v"):
             if not 0.0 <= getattr(self, key) < 0.9:
                 fail(key, f"must be a fraction in [0, 0.9), got {getattr(self, key)!r}")
@@ -144,6 +156,45 @@ class PanelOptics:
     def rho(self) -> tuple[int, int, int]:
         """Subpixel position (0, 1, 2) of the R, G, B channels."""
         return (0, 1, 2) if self.subpixel_order == "RGB" else (2, 1, 0)
+
+    def slot_shifts(self) -> np.ndarray:
+        """Slot shift ``e`` (subpixels) of every slot, float64 ``(rows, 3 * columns)`` indexed
+        ``[y % rows, 3 (x % columns) + slot]``: zeros ``(1, 3)`` on a stripe panel.
+
+        Channel ``c`` of pixel ``x`` lies, across the lenses, where a stripe subpixel at
+        ``x_s = 3 x + c + e`` lies (``e = 1 + 3 dx_c - 3 C_r dy_c - c``,
+        :meth:`~lenticalib.core.layout.SubpixelLayout.slot_shifts`): its centre
+        ``(x_s + 1 + 3 dx_c - c + 0.5, y + 0.5 + dy_c)`` is on the same lens line as
+        ``(x_s + e + 0.5, y + 0.5)`` (moving a point down by ``dy`` rows and left by ``3 C_r dy``
+        subpixels keeps it on the same lens line).  The truth routes by this; the renderer puts
+        the apertures at the true centres (:meth:`channel_offsets`).
+        """
+        layout = self.subpixel_layout
+        if layout is None:
+            return np.zeros((1, 3))
+        per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(self.slant)]
+        return np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern])
+
+    def channel_offsets(self) -> np.ndarray:
+        """Where each slot's channel sits relative to the stripe RGB slot, float64
+        ``(2, rows, 3 * columns)`` indexed ``[:, y % rows, 3 (x % columns) + slot]``: along the row in
+        subpixels, ``1 + 3 dx_c - c``, and down in rows, ``dy_c`` (zeros ``(2, 1, 3)`` on a stripe
+        panel).  The renderer puts each channel's aperture there (its true centre)."""
+        layout = self.subpixel_layout
+        if layout is None:
+            return np.zeros((2, 1, 3))
+        along = [[1.0 + 3.0 * dx - c for c, (dx, _) in enumerate(cell)] for cell in layout.cells]
+        down = [[float(dy) for _, dy in cell] for cell in layout.cells]
+        return np.array([[[table[cell][s] for cell in row for s in range(3)] for row in layout.pattern]
+                         for table in (along, down)])
+
+    def slot_shift_at(self, xs, y) -> np.ndarray:
+        """The slot shift ``e`` (subpixels) of slots ``xs`` (``3 x + slot``) in rows ``y`` (integer
+        arrays, broadcast); float64, zeros on a stripe panel."""
+        shifts = self.slot_shifts()
+        xs, y = np.asarray(xs, np.int64), np.asarray(y, np.int64)
+        cols3 = shifts.shape[1]
+        return shifts[y % shifts.shape[0], (3 * ((xs // 3) % (cols3 // 3))) + xs % 3]
 
     def period_at(self, distance: float) -> float:
         """Delta_r = 3 P_h (1 + g / D) / p: the routing period (subpixels) for eyes at ``distance`` mm."""
@@ -250,12 +301,23 @@ class PanelOptics:
         """JSON-ready mapping of every field."""
         data = dataclasses.asdict(self)
         data["backlight"] = list(self.backlight)
+        if self.subpixel_layout is None:  # a stripe panel's scene reads as before layouts existed
+            del data["subpixel_layout"]
+        else:
+            data["subpixel_layout"] = self.subpixel_layout.to_dict()
         return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "scene") -> "PanelOptics":
         """Inverse of :meth:`to_dict`; InputError naming ``source`` for unknown or missing fields."""
-        return cls(**_fields_from(cls, data, source, "optics", tuples=("backlight",)))
+        fields = _fields_from(cls, data, source, "optics", tuples=("backlight",))
+        if fields.get("subpixel_layout") is not None:
+            try:
+                fields["subpixel_layout"] = layout_from_dict(fields["subpixel_layout"], source)
+            except InputError as exc:
+                raise InputError(exc.message.replace("field 'subpixel_layout", "optics field 'subpixel_layout"),
+                                 source=source, hint=exc.hint) from None
+        return cls(**fields)
 
 
 def _fields_from(cls, data: Any, source: str, what: str, tuples: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -315,13 +377,16 @@ def view_coordinate_truth(optics: PanelOptics, eye, X, Y, views: int) -> np.ndar
 def routing_error(optics: PanelOptics, eye, profile: PanelProfile, rows: int = 40, cols: int = 160) -> np.ndarray:
     """w - w* (views, circular, in [-N/2, N/2)) of ``profile`` for an eye at ``eye`` (world mm,
     z < 0) on a ``rows`` x ``cols`` grid of subpixels spread over the whole panel: the profile's
-    ``w`` at each subpixel's index against :func:`view_coordinate_truth` at its centre."""
+    ``w`` at each subpixel's index (:func:`lenticalib.core.routing.view_coordinate`, slot shifts
+    included) against :func:`view_coordinate_truth` at the subpixel's true centre (across the
+    lenses: ``x_s + e + 0.5``, ``e`` of :meth:`PanelOptics.slot_shifts`)."""
     n = profile.views
     ys = np.linspace(0, optics.height - 1, rows).astype(np.int64)
     xs = np.linspace(0, 3 * optics.width - 1, cols).astype(np.int64)
     yy, xx = np.meshgrid(ys, xs, indexing="ij")
-    w = profile.reference_view + (3 * profile.slant * yy + profile.offset - xx) * n / profile.period
-    return np.mod(w - view_coordinate_truth(optics, eye, xx + 0.5, yy + 0.5, n) + n / 2, n) - n / 2
+    w = view_coordinate(profile, ys)[:, xs]
+    true_x = xx + optics.slot_shift_at(xx, yy) + 0.5
+    return np.mod(w - view_coordinate_truth(optics, eye, true_x, yy + 0.5, n) + n / 2, n) - n / 2
 
 
 def truth_constants(optics: PanelOptics, eye, views: int) -> dict[str, float]:
@@ -386,12 +451,15 @@ def truth_profile(optics: PanelOptics, eye, views: int, *, name: str | None = No
     """The ideal profile of ``optics`` for a calibration camera at ``eye`` (world mm, z < 0).
 
     Its ``w(x_s, y)`` equals :func:`view_coordinate_truth` at every subpixel centre
-    ``(x_s + 0.5, y + 0.5)`` modulo N, with the camera at ``w* = N/2``:
+    ``(x_s + 0.5, y + 0.5)`` modulo N, with the camera at ``w* = N/2``; on a panel with a
+    subpixel layout the profile carries it, so that the slot shifts ``e`` put ``w`` at the true
+    centre ``(x_s + e + 0.5, y + 0.5)`` of every slot (:meth:`PanelOptics.slot_shifts`):
     ``C_r = tan(phi)``, ``Delta_r = 3 P_h (1 + g/D) / p``, ``i_ref = N/2`` and ``s_ref``
     reduced into ``[0, Delta_r)``; ``view_direction`` from :func:`truth_view_direction`.
     """
     constants = truth_constants(optics, eye, views)
     return PanelProfile(views=int(views), width=optics.width, height=optics.height,
-                        subpixel_order=optics.subpixel_order, name=name,
+                        subpixel_order=optics.subpixel_order, subpixel_layout=optics.subpixel_layout,
+                        name=name,
                         view_direction=truth_view_direction(optics, eye, constants, int(views)),
                         provenance=dict(provenance) if provenance else None, **constants)

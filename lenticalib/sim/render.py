@@ -96,13 +96,21 @@ def _corner_ray(gx, gy, grid_step, jc, ic, rot, cam, plane):
 
 
 @njit(cache=True, inline="always")
-def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, bmh, bmv, big_h, nsub):
+def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, bmh, bmv, big_h, nsub,
+                shifts, reach):
     """Add the light seen around raster point (sx, sy) to ``acc`` (per panel primary).
 
     The seen point sweeps a stretch ``h_y`` rows long along the lens axis (dX = slope dY); each
     row's open aperture is cut out of it exactly, and its X-extent is folded into the Gaussian
     blur (variance ``sig2``, subpixels^2) as a box of equal variance.
+
+    ``reach`` 0: a stripe panel (slot ``pos`` of a pixel shows channel ``chan_of_pos[pos]``).
+    Otherwise a subpixel layout (:func:`_layout_seen`): every slot's aperture at its channel's
+    true centre.
     """
+    if reach > 0.0:
+        _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach)
+        return
     half_bmh = 0.5 * bmh
     open_w = 1.0 - bmh
     y0 = sy - 0.5 * h_y
@@ -140,14 +148,68 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
                 px += 1
 
 
+@njit(cache=True, inline="always")
+def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach):
+    """:func:`_seen_light` on a panel with a subpixel layout.
+
+    ``shifts`` float64 ``(2, rows, 3 columns)``: for slot ``c`` of pixel ``px`` in row ``r``, at
+    ``[:, r % rows, 3 (px % columns) + c]``, its channel's centre relative to the stripe RGB
+    slot's: along the row in subpixels (``1 + 3 dx - c``) and down in rows (``dy``).  The slot's
+    open aperture (the stripe subpixel's, black matrix included) is centred there: it spans
+    ``X`` in ``[3 px + c + shift + bmh/2, ... + 1 - bmh/2)`` and ``Y`` in
+    ``[r + dy + bmv/2, r + 1 + dy - bmv/2)``; the seen stretch is cut by it exactly, as for a
+    stripe.  ``reach``: the largest ``|shift|`` plus 1 (subpixels); the largest ``|dy|`` is
+    found from the table.
+    """
+    half_bmh = 0.5 * bmh
+    open_w = 1.0 - bmh
+    y0 = sy - 0.5 * h_y
+    y1 = sy + 0.5 * h_y
+    srows = shifts.shape[1]
+    scols = shifts.shape[2] // 3
+    yreach = 0.0
+    for i in range(srows):
+        for j in range(shifts.shape[2]):
+            yreach = max(yreach, abs(shifts[1, i, j]))
+    seg_max = min(h_y, 1.0)
+    s_max = math.sqrt(sig2 + seg_max * seg_max * slope * slope / 12.0)
+    r_lo = max(int(math.floor(y0 - yreach)), 0)
+    r_hi = min(int(math.floor(y1 + yreach)), big_h - 1)
+    for r in range(r_lo, r_hi + 1):
+        srow = r % srows
+        xr = sx + (r + 0.5 - sy) * slope  # the seen line at the row's centre
+        spread = 4.0 * s_max + reach + (yreach + 0.5) * abs(slope)
+        q_lo = max(int(math.floor(xr - spread)), 0)
+        q_hi = min(int(math.ceil(xr + spread)), nsub - 1)
+        for q in range(q_lo, q_hi + 1):
+            px = q // 3
+            c = q - 3 * px
+            col = 3 * (px % scols) + c
+            dy = shifts[1, srow, col]
+            a0 = max(y0, r + dy + 0.5 * bmv)
+            a1 = min(y1, r + 1.0 + dy - 0.5 * bmv)
+            seg = a1 - a0
+            if seg <= 0.0:
+                continue
+            xm = sx + (0.5 * (a0 + a1) - sy) * slope
+            ext = seg * slope
+            s = math.sqrt(sig2 + ext * ext / 12.0)
+            e = (q + shifts[0, srow, col] + half_bmh - xm) / s
+            cov = _phi(e + open_w / s, table) - _phi(e, table)
+            if cov > 0.0:
+                acc[c] += seg / h_y * cov * lut[raster[r, px, c]]
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, table, scatter_map, out):
+def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, table, scatter_map, shifts, reach,
+                   out):
     """Linear light per panel primary for every sensor pixel into ``out`` (h, w, 3) float32.
 
     ``prm`` (float64): cos phi, sin phi, P_u, x0 cos phi, g, p, W, H, black matrix h, v,
     sigma0 (subpixel widths, across u), blur growth, sheet half-width, half-height, bezel
     half-width, half-height, bezel level, background level, angular falloff, scatter,
-    5 backlight coefficients, subsamples n.
+    5 backlight coefficients, subsamples n.  ``shifts``/``reach``: the channel offsets of a
+    subpixel layout (reach 0 on a stripe panel, see :func:`_layout_seen`).
     """
     h, w = out.shape[0], out.shape[1]
     dist = -cam[2]
@@ -167,11 +229,12 @@ def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, t
             for jc in range(w + 1):
                 bot_x[jc], bot_y[jc] = _corner_ray(gx, gy, grid_step, jc, i + 1, rot, cam, dist)
             _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table,
-                        scatter_map, out)
+                        scatter_map, shifts, reach, out)
 
 
 @njit(cache=True, error_model="numpy")
-def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table, scatter_map, out):
+def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table, scatter_map, shifts,
+                reach, out):
     """Sensor row ``i`` given the lens-plane points of its top and bottom pixel corners."""
     w = out.shape[1]
     cphi, sphi, pu, x0u, gap, pitch = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5]
@@ -247,7 +310,7 @@ def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, ca
                 sum_x += sx
                 sum_y += sy
                 _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope,
-                            bmh, bmv, big_h, nsub)
+                            bmh, bmv, big_h, nsub, shifts, reach)
         if on_panel > 0 and scatter > 0.0:
             # scattered light: the raster around the mean seen point, wide and dim
             mx = min(max(sum_x / on_panel / (3.0 * SCATTER_BLOCK) - 0.5, 0.0), sc_w - 1.0)
@@ -332,9 +395,11 @@ def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:
     position = np.asarray(cam.position, np.float64)
     chan_of_pos = np.array([scene.optics.rho.index(pos) for pos in range(3)], dtype=np.int64)
     scatter = _scatter_map(raster, lut) if scene.optics.scatter > 0 else np.zeros((1, 1, 3))
+    shifts = np.ascontiguousarray(scene.optics.channel_offsets(), dtype=np.float64)
+    reach = 0.0 if scene.optics.subpixel_layout is None else float(np.abs(shifts[0]).max()) + 1.0
     out = np.empty((cam.height, cam.width, 3), dtype=np.float32)
     _render_kernel(raster, lut, chan_of_pos, gx, gy, float(GRID_STEP), rot, position,
-                   _kernel_params(scene), _PHI_TABLE, scatter, out)
+                   _kernel_params(scene), _PHI_TABLE, scatter, shifts, reach, out)
     return out
 
 

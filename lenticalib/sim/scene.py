@@ -7,6 +7,7 @@ RANGES (uniform unless noted)
     period            Delta_r at the camera distance, subpixels            [14, 24]
     slant             |C_r|, pixels per row; the sign is drawn +-           [0.10, 0.35]
     order             subpixel order, drawn from                            RGB, BGR
+                      (a ``layout`` argument replaces the drawn order; see :mod:`.layouts`)
     panel_width       raster width in mm; p = panel_width / W               [650, 740]
                       (a 3840-wide raster: p in [0.169, 0.193] mm)
     kappa             gap in lens pitches, g = kappa P_u                    [1.0, 1.6]
@@ -70,6 +71,7 @@ import numpy as np
 
 from ..core.documents import FORMATS, check_envelope
 from ..core.errors import InputError
+from ..core.layout import SubpixelLayout
 from ..core.profile import PanelProfile
 from .camera import Camera
 from .optics import PanelOptics, truth_profile
@@ -196,7 +198,7 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
                  resolution: tuple[int, int] | None = None, period: float | None = None,
                  slant: float | None = None, order: str | None = None, distance: float | None = None,
                  jpeg_quality: int | None = None, subsamples: int = 3, conditions: str = "standard",
-                 **ranges: Any) -> Scene:
+                 layout: SubpixelLayout | None = None, **ranges: Any) -> Scene:
     """A random but plausible scene, fully determined by ``seed``.
 
     ARGUMENTS
@@ -206,6 +208,9 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
     period         fixed Delta_r (subpixels, at the camera distance) instead of a draw
     slant          fixed C_r (signed) instead of a draw
     order          fixed "RGB" or "BGR"
+    layout         a subpixel layout for the panel (:class:`~lenticalib.core.layout.SubpixelLayout`,
+                   e.g. from :data:`.layouts.NAMED_LAYOUTS`) instead of a stripe; its order is RGB
+                   (the slots are R, G, B).  Drawn nothing: every other draw stays the seed's
     distance       fixed camera distance D (mm)
     jpeg_quality   fixed JPEG quality (1..100)
     subsamples     rays per pixel side (n x n per sensor pixel)
@@ -225,6 +230,11 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
                          hint="known: " + ", ".join(CONDITIONS))
     if order is not None and order not in ("RGB", "BGR"):
         raise InputError(f"order must be RGB or BGR, got {order!r}", source="order")
+    if layout is not None and not isinstance(layout, SubpixelLayout):
+        raise InputError(f"must be a SubpixelLayout, got {type(layout).__name__}", source="layout")
+    if layout is not None and order not in (None, "RGB"):
+        raise InputError(f"order {order} cannot be combined with a subpixel layout", source="order",
+                         hint="a layout fixes where every channel sits; give one or the other")
     cam_w, cam_h = resolution or DEFAULT_RESOLUTION
     table = {**RANGES, **CONDITIONS[conditions], **ranges}
     rng = np.random.default_rng(seed)
@@ -243,7 +253,7 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
     x0_fraction = float(rng.random())
     period = d_period if period is None else float(period)
     slant = sign * d_slant if slant is None else float(slant)
-    order = order or d_order
+    order = "RGB" if layout is not None else (order or d_order)
     distance = d_distance if distance is None else float(distance)
     if not abs(slant) < 1.5 or not period > 0 or not distance > 0:
         raise InputError(f"need |slant| < 1.5, period > 0 and distance > 0 (got slant {slant}, "
@@ -254,7 +264,7 @@ def random_scene(seed: int, *, width: int = 3840, height: int = 2160,
         blur_sigma=draw("blur") * pixel_pitch / 3.0, blur_growth=draw("blur_growth"), scatter=draw("scatter"),
         angular_falloff=draw("angular_falloff"), backlight=tuple(draw("backlight") for _ in range(5)),
         bezel_width=draw("bezel_width"), bezel_level=draw("bezel_level"),
-        background_level=draw("background_level"))
+        background_level=draw("background_level"), subpixel_layout=layout)
     optics = PanelOptics.from_routing(period, slant, distance, width=width, height=height,
                                       pixel_pitch=pixel_pitch, kappa=kappa, x0_fraction=x0_fraction,
                                       **optics_extras)

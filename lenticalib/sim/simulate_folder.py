@@ -63,7 +63,9 @@ class SimulationOptions:
     conditions); ``slant`` C_r (pixels per row), ``period`` Delta_r (subpixels), ``order`` 'RGB' or
     'BGR', ``distance_mm``; ``jpeg_quality`` 1..100; ``subsamples`` rays per pixel side 1..16;
     ``conditions`` 'standard' or 'hard'; ``raw``: 16-bit linear PNG photos; ``photos``: the number of
-    board photos for a camera board folder, 3..500.
+    board photos for a camera board folder, 3..500; ``layout``: the panel's subpixel layout, 'RGB',
+    'BGR', a name of :data:`~.layouts.NAMED_LAYOUTS` or a JSON layout file (:func:`~.layouts.resolve_layout`;
+    not combinable with ``order``).
     """
 
     seed: int | None = None
@@ -78,6 +80,7 @@ class SimulationOptions:
     conditions: str = "standard"
     raw: bool = False
     photos: int = 24
+    layout: str | None = None
 
     def check(self) -> None:
         """InputError naming the field of any option out of range."""
@@ -94,10 +97,25 @@ class SimulationOptions:
             raise InputError(f"JPEG quality {self.jpeg_quality} is out of range", source="jpeg_quality",
                              hint="use 1..100")
         check_seed(self.seed)
+        if self.layout is not None:
+            if self.order is not None:
+                raise InputError("cannot be combined with `order`", source="layout",
+                                 hint="a layout fixes where every channel sits (RGB and BGR are layouts too)")
+            self.resolved_layout()
         if self.resolution is not None:
             check_resolution(*self.resolution, "resolution")
         if self.subsamples is not None and not 1 <= self.subsamples <= 16:
             raise InputError(f"{self.subsamples} subsamples is out of range", source="subsamples", hint="use 1..16")
+
+
+    def resolved_layout(self):
+        """``(order, SubpixelLayout or None)`` of ``layout`` (InputError naming ``layout``), or
+        ``(order, None)`` without one."""
+        from .layouts import resolve_layout
+
+        if self.layout is None:
+            return self.order, None
+        return resolve_layout(self.layout, "layout")
 
 
 @dataclasses.dataclass
@@ -142,7 +160,7 @@ def build_scene(options: SimulationOptions, pattern_set):
     if o.scene:
         clashing = [f"`{name}`" for name, value in (("seed", o.seed), ("resolution", o.resolution),
                                                     ("slant", o.slant), ("period", o.period), ("order", o.order),
-                                                    ("distance_mm", o.distance_mm),
+                                                    ("distance_mm", o.distance_mm), ("layout", o.layout),
                                                     ("conditions", None if o.conditions == "standard" else o.conditions))
                     if value is not None]
         if clashing:
@@ -160,8 +178,9 @@ def build_scene(options: SimulationOptions, pattern_set):
             changes["subsamples"] = o.subsamples
         return scene.replace_camera(**changes) if changes else scene
     seed = o.seed if o.seed is not None else secrets.randbelow(2 ** 31)
+    order, layout = o.resolved_layout()
     return random_scene(seed, width=pattern_set.width, height=pattern_set.height, resolution=o.resolution,
-                        period=o.period, slant=o.slant, order=o.order, distance=o.distance_mm,
+                        period=o.period, slant=o.slant, order=order, layout=layout, distance=o.distance_mm,
                         jpeg_quality=o.jpeg_quality, conditions=o.conditions,
                         subsamples=DEFAULT_SUBSAMPLES if o.subsamples is None else o.subsamples)
 
@@ -233,7 +252,7 @@ def _simulate_board(folder: Path, o: SimulationOptions, progress, progress_total
                          hint="simulate the panel board folder (the one with board.png); a printed board is "
                               "simulated as a set of its own (simulate_camera_set, kind 'print')")
     ignored = [f"`{name}`" for name, value in (("scene", o.scene), ("slant", o.slant), ("period", o.period),
-                                               ("order", o.order), ("distance_mm", o.distance_mm),
+                                               ("order", o.order), ("layout", o.layout), ("distance_mm", o.distance_mm),
                                                ("raw", o.raw or None)) if value is not None]
     if ignored:
         raise InputError(f"does not apply to a camera board folder: {', '.join(ignored)}", source=str(folder),
