@@ -99,3 +99,36 @@ def test_crosstalk_pattern_folder_of_a_cell_panel_reads_back_with_its_layout(tmp
     # the measurement refuses the stripe reading of the same panel: another routing
     with pytest.raises(InputError, match="not the profile the crosstalk patterns were drawn from"):
         open_crosstalk_set(tmp_path / "xt", stripe)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["lkg-columns", "lkg-checker"])
+def test_crosstalk_of_a_cell_panel_is_measured_as_its_truth(name, capture_set):
+    # the virtual panel with gen3-like cells, its crosstalk patterns drawn from a slightly imperfect
+    # profile with the panel's layout, photographed (16-bit linear) and measured against the truth
+    import json
+
+    from lenticalib.calib.crosstalk.measure import measure_crosstalk
+    from lenticalib.sim.layouts import NAMED_LAYOUTS
+    from lenticalib.sim.scene import random_scene
+
+    views = 32
+    scene = random_scene(31, width=1280, height=720, resolution=(1500, 1000), subsamples=2, distance=620.0,
+                         layout=NAMED_LAYOUTS[name])
+    truth = scene.truth_profile(views)
+    assert truth.subpixel_layout == NAMED_LAYOUTS[name]
+    profile = truth.replace(offset=truth.offset + 0.05 * truth.period / views, period=truth.period * (1 + 2e-6))
+    folder = capture_set(scene, design_crosstalk_patterns(profile), raw=True)
+    measured = measure_crosstalk(folder, photos="linear")
+    true_matrix = np.asarray(json.loads((folder / "crosstalk-truth.json").read_text())["matrix"])
+    sigma = measured.row_sigma[(np.arange(views)[None, :] - np.arange(views)[:, None]) % views]
+    error = measured.matrix - true_matrix
+    assert np.abs(error).max() < 0.015 and abs(error[0, 0]) < 0.012
+    assert np.all(np.abs(error) <= 3 * sigma + 1e-6)
+    # the patterns drawn as a stripe would light other subpixels: the layout is what was measured
+    drawn = design_crosstalk_patterns(profile)
+    as_stripe = design_crosstalk_patterns(profile.replace(subpixel_layout=None))
+    band = drawn.bands[0]
+    mine, stripes = drawn.render(band), as_stripe.render(band)
+    lit = (mine == 255) | (stripes == 255)
+    assert np.mean(mine[lit] != stripes[lit]) > 0.3
