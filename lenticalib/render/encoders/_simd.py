@@ -4,10 +4,12 @@ LLVM does not auto-vectorize byte gathers, and a scalar loop spends most of its 
 four dependent loads per subpixel.  This intrinsic processes ``LANES`` consecutive output values
 of one panel row at once:
 
-1. subpixel positions ``x_s = o0 + lane_offset[lane]`` (the offsets fold in the subpixel order);
-2. phase ``Z = Z0[y] - x_s * K`` (uint64, wrapping) and view ``floor(Z * N / 2**64)``, exactly as
-   :mod:`lenticalib.core.routing` defines it (a shift when N is a power of two, else a 64x32 split
-   multiply); optional dark test ``(Z * N mod 2**64) >= threshold``;
+1. phase ``Z = (Z0[y] - o0 * K) - D[lane]`` (uint64, wrapping): ``D`` is the per-profile lane
+   table of the row's class ``y % rows`` and the block's start ``o0 % (3 * columns)`` of the cell
+   pattern, ``(x_s - o0) * K`` plus the slot shift, so ``Z = Z0[y] - x_s * K - shift`` exactly as
+   :mod:`lenticalib.core.routing` defines it, without a vector multiply;
+2. view ``floor(Z * N / 2**64)`` (a shift when N is a power of two, else a 64x32 split multiply);
+   optional dark test ``(Z * N mod 2**64) >= threshold``;
 3. two ``llvm.masked.gather`` of 32-bit words, one per source row: the word at the left
    neighbour's byte holds that byte and, 3 bytes on, the right neighbour of the same channel
    (views are interleaved RGB), so one gather fetches both horizontal taps;
@@ -57,11 +59,10 @@ def _view_index(builder, z, n_or_shift, pow2):
 
 def _make_codegen(pow2: bool, dark: bool):
     def codegen(context, builder, signature, args):
-        (base, tab_ptr, lane_ptr, o0, out_ptr, z0, k, n_or_shift, n_views, threshold,
+        (base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, n_views, threshold,
          plane, r0, dr, fy) = args
         lane = builder.load(builder.inttoptr(lane_ptr, _V64.as_pointer()), align=8)
-        xs = builder.add(_splat(builder, o0, _V64), lane)
-        z = builder.sub(_splat(builder, z0, _V64), builder.mul(xs, _splat(builder, k, _V64)))
+        z = builder.sub(_splat(builder, z_block, _V64), lane)
         view = builder.trunc(_view_index(builder, z, n_or_shift, pow2), _V32)
         tab = builder.load(builder.inttoptr(tab_ptr, _V32.as_pointer()), align=4)
         col = builder.and_(tab, _const(_V32, (1 << COLUMN_BITS) - 1))
@@ -71,11 +72,11 @@ def _make_codegen(pow2: bool, dark: bool):
         gather = cgutils.get_or_insert_function(
             builder.module, ir.FunctionType(_V32, [_VPTR, _I32, _V1, _V32]),
             f"llvm.masked.gather.v{LANES}i32.v{LANES}p0")
-        base_v = _splat(builder, base, _V64)
+        base_v = _splat(builder, builder.inttoptr(base, ir.PointerType()), _VPTR)
         mask = _const(_V1, 1)
 
-        def load_words(offsets):
-            ptrs = builder.inttoptr(builder.add(base_v, builder.sext(offsets, _V64)), _VPTR)
+        def load_words(offsets):  # base + 32-bit offsets: vpgatherdd, not the 64-bit-index form
+            ptrs = builder.gep(base_v, [offsets], source_etype=_I8)
             return builder.call(gather, [ptrs, ir.Constant(_I32, 1), mask, ir.Constant(_V32, ir.Undefined)])
 
         top_words = load_words(addr0)
@@ -104,12 +105,12 @@ def _make_codegen(pow2: bool, dark: bool):
     return codegen
 
 
-_SIG = types.void(types.intp, types.intp, types.intp, types.uint64, types.intp, types.uint64, types.uint64,
+_SIG = types.void(types.intp, types.intp, types.intp, types.intp, types.uint64,
                   types.uint64, types.uint64, types.uint64, types.int64, types.int64, types.int64, types.int64)
 
 
 def _declare(pow2: bool, dark: bool):
-    def block(typingctx, base, tab_ptr, lane_ptr, o0, out_ptr, z0, k, n_or_shift, n_views, threshold,
+    def block(typingctx, base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, n_views, threshold,
               plane, r0, dr, fy):
         return _SIG, _make_codegen(pow2, dark)
 
@@ -128,15 +129,15 @@ _U64 = np.uint64
 
 
 @nb.njit(parallel=True, cache=True, boundscheck=False)
-def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_offsets,
+def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_table,
                       row0, row_step, fyq, plane, n_chunks):  # pragma: no cover - compiled
     height = out2d.shape[0]
     length = out2d.shape[1]
-    lanes = lane_offsets.shape[1]
+    classes, starts, lanes = lane_table.shape
     n_blocks = (length + lanes - 1) // lanes
     base = flat.ctypes.data
     ptab = tab.ctypes.data
-    plane_ptr = lane_offsets.ctypes.data
+    lane_ptr = lane_table.ctypes.data
     per_chunk = (height + n_chunks - 1) // n_chunks
     nv = _U64(n_views)
     for chunk in prange(n_chunks):
@@ -146,17 +147,16 @@ def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, l
             dr = row_step[y]
             fy = fyq[y]
             po = out2d[y].ctypes.data
+            row_lanes = lane_ptr + 8 * lanes * starts * (y % classes)
             for blk in range(n_blocks):
                 o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
-                lp = plane_ptr + 8 * lanes * (o0 % 3)
+                lp = row_lanes + 8 * lanes * (o0 % starts)
+                zb = z - _U64(o0) * k
                 if mode == 0:
-                    block_pow2(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, _U64(shift), nv,
-                                     _U64(0), plane, r0, dr, fy)
+                    block_pow2(base, ptab + 4 * o0, lp, po + o0, zb, _U64(shift), nv, _U64(0), plane, r0, dr, fy)
                 elif mode == 1:
-                    block_general(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
-                                        _U64(0), plane, r0, dr, fy)
+                    block_general(base, ptab + 4 * o0, lp, po + o0, zb, nv, nv, _U64(0), plane, r0, dr, fy)
                 else:
-                    block_general_dark(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
-                                             threshold, plane, r0, dr, fy)
+                    block_general_dark(base, ptab + 4 * o0, lp, po + o0, zb, nv, nv, threshold, plane, r0, dr, fy)
 
 
