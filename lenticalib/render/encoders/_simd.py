@@ -47,56 +47,64 @@ def _const(vty, value):
     return ir.Constant(vty, [value] * vty.count)
 
 
-def _view_index(builder, z, n_or_shift, pow2):
+def _view_index(builder, z, n_or_shift, pow2, dark):
+    """``(view, frac)``: ``floor(Z * N / 2**64)`` as i32 lanes and, when ``dark``, ``Z * N mod 2**64``.
+
+    N a power of two from 2 to 2**32 (``n_or_shift = 64 - log2 N``, 32 to 63): the view is the top
+    bits of the high 32-bit half of Z.  Otherwise Z is split in 32-bit halves and multiplied
+    by N (< 2**32) in 32x32->64 products, which also give the fraction without a 64x64 multiply."""
     if pow2:
-        return builder.lshr(z, _splat(builder, n_or_shift, _V64))
-    n = _splat(builder, n_or_shift, _V64)
+        halves = builder.bitcast(z, ir.VectorType(_I32, 2 * LANES))
+        high = builder.shuffle_vector(halves, ir.Constant(halves.type, ir.Undefined),
+                                      ir.Constant(_V32, [2 * lane + 1 for lane in range(LANES)]))
+        return builder.lshr(high, _splat(builder, builder.trunc(builder.sub(n_or_shift, ir.Constant(_I64, 32)), _I32), _V32)), None
+    n = _splat(builder, builder.zext(builder.trunc(n_or_shift, _I32), _I64), _V64)
     c32 = _const(_V64, 32)
     hi = builder.mul(builder.lshr(z, c32), n)
     lo = builder.mul(builder.and_(z, _const(_V64, 0xFFFFFFFF)), n)
-    return builder.lshr(builder.add(hi, builder.lshr(lo, c32)), c32)
+    view = builder.trunc(builder.lshr(builder.add(hi, builder.lshr(lo, c32)), c32), _V32)
+    return view, (builder.add(lo, builder.shl(hi, c32)) if dark else None)
 
 
 def _make_codegen(pow2: bool, dark: bool):
     def codegen(context, builder, signature, args):
-        (base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, n_views, threshold,
-         plane, r0, dr, fy) = args
+        base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, threshold, stride, fy = args
         lane = builder.load(builder.inttoptr(lane_ptr, _V64.as_pointer()), align=8)
         z = builder.sub(_splat(builder, z_block, _V64), lane)
-        view = builder.trunc(_view_index(builder, z, n_or_shift, pow2), _V32)
+        view, frac = _view_index(builder, z, n_or_shift, pow2, dark)
         tab = builder.load(builder.inttoptr(tab_ptr, _V32.as_pointer()), align=4)
         col = builder.and_(tab, _const(_V32, (1 << COLUMN_BITS) - 1))
         fx = builder.lshr(tab, _const(_V32, COLUMN_BITS))
-        addr0 = builder.add(builder.add(builder.mul(view, _splat(builder, builder.trunc(plane, _I32), _V32)), col),
-                            _splat(builder, builder.trunc(r0, _I32), _V32))
+        offsets = builder.add(builder.mul(view, _splat(builder, builder.trunc(stride, _I32), _V32)), col)
         gather = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(_V32, [_VPTR, _I32, _V1, _V32]),
-            f"llvm.masked.gather.v{LANES}i32.v{LANES}p0")
-        base_v = _splat(builder, builder.inttoptr(base, ir.PointerType()), _VPTR)
-        mask = _const(_V1, 1)
-
-        def load_words(offsets):  # base + 32-bit offsets: vpgatherdd, not the 64-bit-index form
-            ptrs = builder.gep(base_v, [offsets], source_etype=_I8)
-            return builder.call(gather, [ptrs, ir.Constant(_I32, 1), mask, ir.Constant(_V32, ir.Undefined)])
-
-        top_words = load_words(addr0)
-        bottom_words = load_words(builder.add(addr0, _splat(builder, builder.trunc(dr, _I32), _V32)))
+            builder.module, ir.FunctionType(_V64, [_VPTR, _I32, _V1, _V64]),
+            f"llvm.masked.gather.v{LANES}i64.v{LANES}p0")
+        # base + 32-bit offsets: LLVM emits the 32-bit-index gather, not the 64-bit-index form
+        ptrs = builder.gep(_splat(builder, builder.inttoptr(base, ir.PointerType()), _VPTR), [offsets],
+                           source_etype=_I8)
+        taps = builder.call(gather, [ptrs, ir.Constant(_I32, 1), _const(_V1, 1), ir.Constant(_V64, ir.Undefined)])
+        # the 8 bytes hold (top, bottom) of the left tap and, 6 bytes on, of the right tap: keep
+        # bytes 0, 6 (top row) and 1, 7 (bottom row) of each, one byte shuffle per output register
+        as_bytes = builder.bitcast(taps, ir.VectorType(_I8, 8 * LANES))
+        picks = [8 * lane + b for lane in range(LANES) for b in (0, 6, 1, 7)]
+        words = builder.bitcast(builder.shuffle_vector(as_bytes, ir.Constant(as_bytes.type, ir.Undefined),
+                                                       ir.Constant(ir.VectorType(_I32, 4 * LANES), picks)), _V32)
         one = 1 << WEIGHT_BITS
         gx = builder.sub(_const(_V32, one), fx)
-        low_byte, shift24 = _const(_V32, 255), _const(_V32, 24)
+        low_byte = _const(_V32, 255)
 
-        def blend_row(words):
-            return builder.add(builder.mul(builder.and_(words, low_byte), gx),
-                               builder.mul(builder.lshr(words, shift24), fx))
+        def blend_row(shift):
+            left = builder.and_(builder.lshr(words, _const(_V32, shift)) if shift else words, low_byte)
+            right = builder.and_(builder.lshr(words, _const(_V32, shift + 8)), low_byte)
+            return builder.add(builder.mul(left, gx), builder.mul(right, fx))
 
         fy32 = builder.trunc(fy, _I32)
         acc = builder.add(
-            builder.add(builder.mul(blend_row(top_words), _splat(builder, builder.sub(ir.Constant(_I32, one), fy32), _V32)),
-                        builder.mul(blend_row(bottom_words), _splat(builder, fy32, _V32))),
+            builder.add(builder.mul(blend_row(0), _splat(builder, builder.sub(ir.Constant(_I32, one), fy32), _V32)),
+                        builder.mul(blend_row(16), _splat(builder, fy32, _V32))),
             _const(_V32, 1 << (2 * WEIGHT_BITS - 1)))
         value = builder.lshr(acc, _const(_V32, 2 * WEIGHT_BITS))
         if dark:
-            frac = builder.mul(z, _splat(builder, n_views, _V64))
             lit = builder.icmp_unsigned("<", frac, _splat(builder, threshold, _V64))
             value = builder.select(lit, value, _const(_V32, 0))
         builder.store(builder.trunc(value, _V8), builder.inttoptr(out_ptr, _V8.as_pointer()), align=1)
@@ -106,12 +114,11 @@ def _make_codegen(pow2: bool, dark: bool):
 
 
 _SIG = types.void(types.intp, types.intp, types.intp, types.intp, types.uint64,
-                  types.uint64, types.uint64, types.uint64, types.int64, types.int64, types.int64, types.int64)
+                  types.uint64, types.uint64, types.int64, types.int64)
 
 
 def _declare(pow2: bool, dark: bool):
-    def block(typingctx, base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, n_views, threshold,
-              plane, r0, dr, fy):
+    def block(typingctx, base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, threshold, stride, fy):
         return _SIG, _make_codegen(pow2, dark)
 
     block.__name__ = f"block_{'pow2' if pow2 else 'general'}{'_dark' if dark else ''}"
@@ -123,40 +130,76 @@ block_general = _declare(False, False)
 block_general_dark = _declare(False, True)
 
 
+@intrinsic
+def prefetch(typingctx, address):
+    """Hint the CPU to bring the cache line at ``address`` (an integer) into the cache (no fault)."""
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ir.PointerType(), _I32, _I32, _I32]),
+                                            "llvm.prefetch.p0")
+        builder.call(fn, [builder.inttoptr(args[0], ir.PointerType()), ir.Constant(_I32, 0), ir.Constant(_I32, 3),
+                          ir.Constant(_I32, 1)])
+        return context.get_dummy_value()
+
+    return types.void(types.intp), codegen
+
+
 # The row kernel lives here, next to the intrinsics it inlines: numba's on-disk cache is keyed on
 # the file that defines a jitted function, so keeping both in one file invalidates them together.
 _U64 = np.uint64
 
 
+@nb.njit(cache=True, boundscheck=False)
+def interleave_rows(pair, flat, n_views, plane, top, bottom, ahead, row_bytes, stride):  # pragma: no cover - compiled
+    """Fill ``pair`` (uint16, ``n_views * stride // 2``): per view, byte ``i`` of source row ``top``
+    and of ``bottom`` side by side (``pair[v * stride // 2 + i] = top_i | bottom_i << 8``)."""
+    half = stride // 2
+    for v in range(n_views):
+        upper = flat[v * plane + top:v * plane + top + row_bytes]  # slices: the loop index is >= 0, no
+        lower = flat[v * plane + bottom:v * plane + bottom + row_bytes]  # wraparound test, so it vectorizes
+        dest = pair[v * half:v * half + row_bytes]
+        for i in range(row_bytes):
+            dest[i] = np.uint16(upper[i]) | (np.uint16(lower[i]) << np.uint16(8))
+        if ahead >= 0:
+            start = flat.ctypes.data + v * plane + ahead
+            for line in range(0, row_bytes + 63, 64):
+                prefetch(start + line)
+
+
 @nb.njit(parallel=True, cache=True, boundscheck=False)
 def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_table,
-                      row0, row_step, fyq, plane, n_chunks):  # pragma: no cover - compiled
+                     row_lo, row_hi, fyq, plane, row_bytes, stride, n_chunks):  # pragma: no cover - compiled
     height = out2d.shape[0]
     length = out2d.shape[1]
+    rows = plane // row_bytes
     classes, starts, lanes = lane_table.shape
     n_blocks = (length + lanes - 1) // lanes
-    base = flat.ctypes.data
+    block_lanes = np.empty(n_blocks, dtype=np.int64)  # byte offset of each block's start in a lane-table row
+    for blk in range(n_blocks):
+        block_lanes[blk] = 8 * lanes * (min(blk * lanes, length - lanes) % starts)
     ptab = tab.ctypes.data
     lane_ptr = lane_table.ctypes.data
     per_chunk = (height + n_chunks - 1) // n_chunks
     nv = _U64(n_views)
     for chunk in prange(n_chunks):
+        pair = np.empty(n_views * stride // 2 + 4, dtype=np.uint16)  # this thread's row pair
+        base = pair.ctypes.data
+        have_top, have_bottom = -1, -1
         for y in range(chunk * per_chunk, min(height, (chunk + 1) * per_chunk)):
+            if row_lo[y] != have_top or row_hi[y] != have_bottom:
+                have_top, have_bottom = row_lo[y], row_hi[y]
+                interleave_rows(pair, flat, n_views, plane, have_top * row_bytes, have_bottom * row_bytes,
+                                (have_bottom + 1) * row_bytes if have_bottom + 1 < rows else -1, row_bytes, stride)
             z = z0[y]
-            r0 = row0[y]
-            dr = row_step[y]
             fy = fyq[y]
             po = out2d[y].ctypes.data
             row_lanes = lane_ptr + 8 * lanes * starts * (y % classes)
             for blk in range(n_blocks):
                 o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
-                lp = row_lanes + 8 * lanes * (o0 % starts)
+                lp = row_lanes + block_lanes[blk]
                 zb = z - _U64(o0) * k
                 if mode == 0:
-                    block_pow2(base, ptab + 4 * o0, lp, po + o0, zb, _U64(shift), nv, _U64(0), plane, r0, dr, fy)
+                    block_pow2(base, ptab + 4 * o0, lp, po + o0, zb, _U64(shift), _U64(0), stride, fy)
                 elif mode == 1:
-                    block_general(base, ptab + 4 * o0, lp, po + o0, zb, nv, nv, _U64(0), plane, r0, dr, fy)
+                    block_general(base, ptab + 4 * o0, lp, po + o0, zb, nv, _U64(0), stride, fy)
                 else:
-                    block_general_dark(base, ptab + 4 * o0, lp, po + o0, zb, nv, nv, threshold, plane, r0, dr, fy)
-
-
+                    block_general_dark(base, ptab + 4 * o0, lp, po + o0, zb, nv, threshold, stride, fy)

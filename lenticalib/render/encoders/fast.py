@@ -93,19 +93,24 @@ def _u8_plan(profile: PanelProfile, view_height: int, view_width: int):
     chan, x = o % 3, o // 3
     xs = 3 * x + np.asarray(profile.rho)[chan]  # subpixel position of output value o
     fxq = np.rint(cols.weight[xs] * _ONE).astype(np.uint32)
-    byte_col = cols.lo[xs].astype(np.uint32) * 3 + chan.astype(np.uint32)
-    tab = (byte_col | (fxq << _simd.COLUMN_BITS)).view(np.int32)
+    pair_col = 2 * (cols.lo[xs].astype(np.uint32) * 3 + chan.astype(np.uint32))  # byte in the row pair
+    tab = (pair_col | (fxq << _simd.COLUMN_BITS)).view(np.int32)
     lanes = _lane_table(routing_plan(profile), profile.rho)
-    row_bytes = view_width * 3
-    row0 = rows.lo.astype(np.int64) * row_bytes
-    row_step = (rows.hi.astype(np.int64) - rows.lo) * row_bytes
     fyq = np.rint(rows.weight * _ONE).astype(np.int64)
-    return tab, lanes, row0, row_step, fyq
+    return tab, lanes, rows.lo.astype(np.int64), rows.hi.astype(np.int64), fyq
+
+
+def _pair_stride(view_width: int) -> int:
+    """Bytes per view in a thread's row-pair buffer: ``6 W_v`` rounded up to an odd number of
+    64-byte lines, so that the same column of the N views falls in different cache sets."""
+    lines = -(-6 * view_width // 64)
+    return 64 * (lines | 1)
 
 
 def _block_kernel_fits(views: np.ndarray, nsub: int) -> bool:
-    return (views.dtype == np.uint8 and views.shape[2] >= 2 and views.size + 4 < 2**31
-            and 3 * views.shape[2] < (1 << _simd.COLUMN_BITS) and nsub >= _simd.LANES)
+    n, _, wv, _ = views.shape
+    return (views.dtype == np.uint8 and wv >= 2 and n * _pair_stride(wv) < 2**31
+            and 6 * wv < (1 << _simd.COLUMN_BITS) and nsub >= _simd.LANES)
 
 
 def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None = None) -> np.ndarray:
@@ -116,13 +121,13 @@ def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None
     plan = routing_plan(profile)
     z0, k, dark = plan.z0, plan.k, plan.dark
     if _block_kernel_fits(views, profile.subpixels_per_row):
-        tab, lanes, row0, row_step, fyq = _u8_plan(profile, hv, wv)
-        pow2 = (n & (n - 1)) == 0
+        tab, lanes, row_lo, row_hi, fyq = _u8_plan(profile, hv, wv)
+        pow2 = n > 1 and (n & (n - 1)) == 0
         mode = 2 if dark is not None else (0 if pow2 else 1)
         shift = 64 - (n.bit_length() - 1)
         _simd.encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
-                          _U64(dark or 0), mode, tab, lanes, row0, row_step, fyq,
-                          hv * wv * 3, max(1, nb.get_num_threads()))
+                               _U64(dark or 0), mode, tab, lanes, row_lo, row_hi, fyq, hv * wv * 3, wv * 3,
+                               _pair_stride(wv), max(1, nb.get_num_threads()))
         return out
     cols = column_sampling(profile, wv)
     rows = row_sampling(profile, hv)
