@@ -149,7 +149,7 @@ _U64 = np.uint64
 
 
 @nb.njit(cache=True, boundscheck=False)
-def interleave_rows(pair, flat, n_views, plane, top, bottom, ahead, row_bytes, stride):  # pragma: no cover - compiled
+def interleave_rows(pair, flat, n_views, plane, top, bottom, row_bytes, stride):  # pragma: no cover - compiled
     """Fill ``pair`` (uint16, ``n_views * stride // 2``): per view, byte ``i`` of source row ``top``
     and of ``bottom`` side by side (``pair[v * stride // 2 + i] = top_i | bottom_i << 8``)."""
     half = stride // 2
@@ -159,10 +159,6 @@ def interleave_rows(pair, flat, n_views, plane, top, bottom, ahead, row_bytes, s
         dest = pair[v * half:v * half + row_bytes]
         for i in range(row_bytes):
             dest[i] = np.uint16(upper[i]) | (np.uint16(lower[i]) << np.uint16(8))
-        if ahead >= 0:
-            start = flat.ctypes.data + v * plane + ahead
-            for line in range(0, row_bytes + 63, 64):
-                prefetch(start + line)
 
 
 @nb.njit(parallel=True, cache=True, boundscheck=False)
@@ -180,15 +176,24 @@ def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, l
     lane_ptr = lane_table.ctypes.data
     per_chunk = (height + n_chunks - 1) // n_chunks
     nv = _U64(n_views)
+    # While a pair is in use, the next source row is prefetched a few cache lines per block, spread
+    # over the output rows that use the pair (the N view planes are too many streams for the
+    # hardware prefetcher).
+    pf_lines = (row_bytes + 63) // 64
+    pf_per_block = n_views * pf_lines // (n_blocks * max(1, height // rows)) + 1
+    src = flat.ctypes.data
     for chunk in prange(n_chunks):
         pair = np.empty(n_views * stride // 2 + 4, dtype=np.uint16)  # this thread's row pair
         base = pair.ctypes.data
         have_top, have_bottom = -1, -1
+        pf_view, pf_line, pf_row = n_views, 0, 0
         for y in range(chunk * per_chunk, min(height, (chunk + 1) * per_chunk)):
             if row_lo[y] != have_top or row_hi[y] != have_bottom:
                 have_top, have_bottom = row_lo[y], row_hi[y]
                 interleave_rows(pair, flat, n_views, plane, have_top * row_bytes, have_bottom * row_bytes,
-                                (have_bottom + 1) * row_bytes if have_bottom + 1 < rows else -1, row_bytes, stride)
+                                row_bytes, stride)
+                pf_view = 0 if have_bottom + 1 < rows else n_views
+                pf_line, pf_row = 0, src + (have_bottom + 1) * row_bytes
             z = z0[y]
             fy = fyq[y]
             po = out2d[y].ctypes.data
@@ -197,6 +202,13 @@ def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, l
                 o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
                 lp = row_lanes + block_lanes[blk]
                 zb = z - _U64(o0) * k
+                for _ in range(pf_per_block):
+                    if pf_view < n_views:
+                        prefetch(pf_row + pf_view * plane + 64 * pf_line)
+                        pf_line += 1
+                        if pf_line == pf_lines:
+                            pf_line = 0
+                            pf_view += 1
                 if mode == 0:
                     block_pow2(base, ptab + 4 * o0, lp, po + o0, zb, _U64(shift), _U64(0), stride, fy)
                 elif mode == 1:
