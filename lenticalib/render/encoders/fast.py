@@ -1,18 +1,27 @@
 """Fast CPU encoder: routing computed on the fly in the canonical fixed-point arithmetic.
 
 No per-subpixel maps are streamed: per row it needs the start phase ``Z0[y]`` and the bilinear
-row taps; per output column one packed int32 (byte offset of the left tap | x weight).
+row taps; per output column one packed int32 (tap offset | x weight); per block of
+``_simd.LANES`` output values a row of the per-profile lane table (:func:`_lane_table`).
 
 * uint8 views (the live-video case) go through the explicitly vectorized block kernel of
-  :mod:`._simd` (``_simd.LANES`` subpixels per step, two gathers each), threads over rows;
-  weights are 11-bit fixed point, so values are within 1 LSB of the float64 reference.  Stripe
-  panels and subpixel layouts alike: a per-profile lane table holds each lane's phase offset,
-  slot shift included (:func:`_lane_table`).
+  :mod:`._simd` (``_simd.LANES`` subpixels per step, one 64-bit gather each from a per-thread
+  row-pair buffer), threads over bands of rows; weights are 11-bit fixed point, so values are
+  within 1 LSB of the float64 reference.
 * uint16 and float views, and layouts the block kernel cannot address (a view 1 pixel wide, a
-  stack of 2 GiB or more), go through a scalar numba kernel with float64 weights and the
-  reference's operations in the same order, so its values equal the reference's (tested).
+  stack whose row-pair offsets pass 2**31, a panel row under ``LANES`` values), go through a
+  scalar numba kernel with float64 weights and the reference's operations in the same order, so
+  its values equal the reference's (tested).
 
-Routing (which view) is identical to :func:`lenticalib.core.routing.view_map` in every case.
+Routing (which view) is identical to :func:`lenticalib.core.routing.view_map` in every case:
+stripe panels, subpixel layouts (cell patterns), reversed views and dark bands (``period > N``).
+
+What a subpixel layout costs.  The slot shifts of a layout live in the lane table, whose phase
+offsets the kernel subtracts anyway: a layout with a cell pattern of ``rows x columns`` makes
+the table ``rows x 3 columns`` blocks of ``LANES`` uint64 (at most 4 x 6 x 512 bytes = 12 KiB,
+against 3 x 512 bytes for a stripe panel), built once per profile.  The kernel runs the same
+instructions either way, so a cell layout encodes as fast as a stripe (``tools/bench_encode.py
+--layout cells``; numbers in the README).
 """
 
 from __future__ import annotations
@@ -31,6 +40,7 @@ from . import _simd
 _U64 = np.uint64
 _MASK32 = np.uint64(0xFFFFFFFF)
 _ONE = 1 << _simd.WEIGHT_BITS
+_CHUNKS_PER_THREAD = 8  # row bands per thread (each starts with one extra row-pair build)
 
 
 @nb.njit(parallel=True, cache=True, boundscheck=False)
@@ -85,7 +95,8 @@ def _lane_table(plan: RoutingPlan, rho: tuple[int, int, int]) -> np.ndarray:
 
 @functools.lru_cache(maxsize=8)
 def _u8_plan(profile: PanelProfile, view_height: int, view_width: int):
-    """Per-profile constants of the block kernel (cached): column table, lane table, row taps."""
+    """Per-profile constants of the block kernel (cached): per output value the left tap's byte in
+    the row pair and its x weight (packed int32), the lane table, the row taps and y weights."""
     cols = column_sampling(profile, view_width)
     rows = row_sampling(profile, view_height)
     nsub = profile.subpixels_per_row
@@ -125,9 +136,11 @@ def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None
         pow2 = n > 1 and (n & (n - 1)) == 0
         mode = 2 if dark is not None else (0 if pow2 else 1)
         shift = 64 - (n.bit_length() - 1)
-        _simd.encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
-                               _U64(dark or 0), mode, tab, lanes, row_lo, row_hi, fyq, hv * wv * 3, wv * 3,
-                               _pair_stride(wv), max(1, nb.get_num_threads()))
+        chunks = _CHUNKS_PER_THREAD * max(1, nb.get_num_threads())
+        with nb.parallel_chunksize(1):  # chunks handed out one at a time: a busy core takes fewer
+            _simd.encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
+                                   _U64(dark or 0), mode, tab, lanes, row_lo, row_hi, fyq, hv * wv * 3, wv * 3,
+                                   _pair_stride(wv), chunks)
         return out
     cols = column_sampling(profile, wv)
     rows = row_sampling(profile, hv)
