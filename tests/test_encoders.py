@@ -1,3 +1,4 @@
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -7,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lenticalib.core.errors import ImageError, InputError
+from lenticalib.core.layout import LKG_CELL_PATTERNS, SubpixelLayout, pattern_for_mode
 from lenticalib.core.profile import PanelProfile
 from lenticalib.render.encoders import available_encoders, encode, get_encoder
 from lenticalib.core.routing import tie_mask, view_map
@@ -129,6 +131,82 @@ def test_fast_block_kernel_on_a_wide_panel(n, order, sign):
     fast = encode(views, profile, "fast").astype(np.int32)
     assert np.abs(ref - fast).max() <= 1
     assert (np.abs(ref - fast) == 0).mean() > 0.5
+
+
+@st.composite
+def cell_layout_profiles(draw, max_width=61, max_height=20):
+    """Profiles with a subpixel layout of every Looking Glass cell pattern (1x1, 2x2, 4x1, 4x2, 1x2),
+    either view direction, and dark bands allowed.  Half of them are built for exact ties: dyadic
+    slant, period, offset and channel offsets, so many slots sit on a view or dark boundary."""
+    n = draw(st.sampled_from(VIEW_COUNTS))
+    mode = draw(st.sampled_from(sorted(LKG_CELL_PATTERNS)))
+    n_cells = draw(st.integers(1, 4))
+    height = draw(st.integers(2, max_height))
+    pattern = pattern_for_mode(mode, n_cells, height)
+    if draw(st.booleans(), label="ties"):
+        k = draw(st.integers(max(1, -(-8 // n)), 32))
+        period, slant = n * k / 16, draw(st.integers(-6, 6)) / 16
+        offset = (k * draw(st.integers(-20, 20)) + draw(st.sampled_from([0, 16]))) / 16
+        offsets = st.integers(-8, 8).map(lambda i: i / 16)
+    else:
+        period = draw(st.floats(0.5, 2.0 * n, allow_subnormal=False))
+        slant = draw(st.floats(-0.4, 0.4, allow_subnormal=False))
+        offset = draw(st.floats(-60.0, 60.0, allow_subnormal=False))
+        offsets = st.floats(-0.5, 0.5, allow_subnormal=False)
+    cells = tuple(tuple((draw(offsets), draw(offsets)) for _ in range(3)) for _ in range(n_cells))
+    # the block kernel needs 3 * width >= 64; widths that are not a multiple of the block
+    width = draw(st.integers(max(22, -(-int(period) // 3) + 1), max_width))
+    return PanelProfile(views=n, slant=slant, period=period, offset=offset,
+                        reference_view=float(draw(st.integers(0, n))), width=width, height=height,
+                        subpixel_order="RGB", subpixel_layout=SubpixelLayout(cells=cells, pattern=pattern),
+                        views_reversed=draw(st.booleans(), label="views_reversed"))
+
+
+@st.composite
+def reversed_stripe_profiles(draw):
+    """Stripe profiles (exact-tie ones included) with the view direction reversed, wide enough for the block kernel."""
+    profile = draw(st.one_of(profiles(), tie_profiles(min_width=22)))
+    return dataclasses.replace(profile, width=max(22, profile.width), views_reversed=True)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+@given(st.one_of(cell_layout_profiles(), reversed_stripe_profiles()))
+@settings(max_examples=60)
+def test_fast_routes_cell_layouts_and_reversed_views_canonically(dtype, profile):
+    # uint8: the vectorized block kernel (lane table with slot shifts); uint16: the scalar kernel
+    expected = _in_output_order(profile, view_map(profile)).astype(np.int64)
+    np.testing.assert_array_equal(_chosen_views("fast", profile, dtype), expected)
+
+
+def test_fast_block_kernel_on_every_lkg_cell_pattern():
+    # fixed profiles: a 4K-like slant and period, dark bands (period > N), both view directions,
+    # 2 and 4 cells; width 97 (291 values: 4 full blocks and an overlapping last one)
+    cells = (((-0.25, -0.31), (-0.25, 0.28), (0.25, 0.0)), ((0.25, -0.31), (0.25, 0.28), (-0.25, 0.0)),
+             ((0.1, 0.2), (-0.3, 0.0), (0.3, -0.2)), ((-0.1, 0.4), (0.0, -0.4), (0.2, 0.1)))
+    rng = np.random.default_rng(21)
+    for mode in sorted(LKG_CELL_PATTERNS):
+        for n, period in ((32, 19.47), (8, 11.3)):
+            for reverse in (False, True):
+                layout = SubpixelLayout(cells=cells, pattern=pattern_for_mode(mode, 4 if mode else 2, 13))
+                profile = PanelProfile(views=n, slant=-0.1835, period=period, offset=5.1, reference_view=n / 2,
+                                       width=97, height=13, subpixel_order="RGB", subpixel_layout=layout,
+                                       views_reversed=reverse)
+                expected = _in_output_order(profile, view_map(profile)).astype(np.int64)
+                np.testing.assert_array_equal(_chosen_views("fast", profile, np.uint8), expected,
+                                              err_msg=f"mode {mode} N {n} reversed {reverse}")
+                views = rng.integers(0, 256, (n, 7, 51, 3), dtype=np.uint8)
+                ref = encode(views, profile, "reference", allow_stretch=True).astype(np.int32)
+                fast = encode(views, profile, "fast", allow_stretch=True).astype(np.int32)
+                assert np.abs(ref - fast).max() <= 1
+
+
+@given(cell_layout_profiles(), st.data())
+@settings(max_examples=40)
+def test_fast_matches_reference_within_one_lsb_on_cell_layouts(profile, data):
+    views = _random_views(profile, data, np.uint8)
+    ref = encode(views, profile, "reference", allow_stretch=True).astype(np.int32)
+    fast = encode(views, profile, "fast", allow_stretch=True).astype(np.int32)
+    assert np.abs(ref - fast).max(initial=0) <= 1
 
 
 def test_constant_views_encode_to_their_view_number():

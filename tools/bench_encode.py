@@ -5,7 +5,11 @@ Prints the median over >= 20 timed runs after warm-up, peak memory, and -- measu
 run, interleaved with the encodes -- a plain ``numpy.copyto`` of the 3840x2160x3 output buffer
 as the floor.  The last line is exactly ``encode_ms=<median> floor_ms=<median> ratio=<encode/floor>``.
 
-    python tools/bench_encode.py [--runs 25] [--encoder fast] [--views 32]
+    python tools/bench_encode.py [--runs 25] [--encoder fast] [--views 32] [--layout stripe|cells]
+
+``--layout cells`` gives the panel a Looking Glass style subpixel layout of two cells alternating
+by column (R (-0.25, -0.31), G (-0.25, 0.28), B (0.25, 0) and the mirror image in x; pixels, y
+down) instead of the RGB stripe.
 """
 
 from __future__ import annotations
@@ -25,16 +29,23 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--encoder", default="fast")
     parser.add_argument("--views", type=int, default=32, help="view count N (32 is the target case)")
+    parser.add_argument("--layout", choices=("stripe", "cells"), default="stripe",
+                        help="RGB stripe panel, or two cells alternating by column")
     args = parser.parse_args()
     runs = max(20, args.runs)
 
     import numba
 
+    from lenticalib.core.layout import SubpixelLayout
     from lenticalib.core.profile import PanelProfile
     from lenticalib.render.encoders import encode
 
+    layout = None
+    if args.layout == "cells":
+        layout = SubpixelLayout(cells=(((-0.25, -0.31), (-0.25, 0.28), (0.25, 0.0)),
+                                       ((0.25, -0.31), (0.25, 0.28), (-0.25, 0.0))), pattern=((0, 1),))
     profile = PanelProfile(views=args.views, slant=0.1835, period=19.47, offset=7.3, reference_view=args.views / 2,
-                           width=3840, height=2160, subpixel_order="RGB")
+                           width=3840, height=2160, subpixel_order="RGB", subpixel_layout=layout)
     rng = np.random.default_rng(2026)
     views = rng.integers(0, 256, (args.views, 540, 960, 3), dtype=np.uint8)
     out = np.empty((2160, 3840, 3), dtype=np.uint8)
@@ -63,7 +74,7 @@ def main() -> None:
 
     enc_ms = statistics.median(enc_times) * 1000
     floor_ms = statistics.median(copy_times) * 1000
-    print(f"encoder={args.encoder} views={args.views}x960x540 uint8 -> 3840x2160 bilinear, "
+    print(f"encoder={args.encoder} layout={args.layout} views={args.views}x960x540 uint8 -> 3840x2160 bilinear, "
           f"threads={numba.get_num_threads()}, runs={runs}")
     print(f"first call (compile or cache load + tables): {first * 1000:.0f} ms")
     print(f"encode: median {enc_ms:.2f} ms, min {min(enc_times) * 1000:.2f} ms, max {max(enc_times) * 1000:.2f} ms")

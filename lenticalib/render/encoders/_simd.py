@@ -1,16 +1,28 @@
 """Explicitly vectorized block kernel for the fast uint8 encoder (numba intrinsic, LLVM IR).
 
 LLVM does not auto-vectorize byte gathers, and a scalar loop spends most of its time on the
-four dependent loads per subpixel.  This intrinsic processes ``LANES`` consecutive output values
-of one panel row at once:
+four dependent loads per subpixel.  On the AMD EPYC (Zen 4) machines of this project a vector
+gather costs about 0.5 ns per element whatever its width, so the kernel is built to need one
+gathered element per output value:
 
-1. subpixel positions ``x_s = o0 + lane_offset[lane]`` (the offsets fold in the subpixel order);
-2. phase ``Z = Z0[y] - x_s * K`` (uint64, wrapping) and view ``floor(Z * N / 2**64)``, exactly as
-   :mod:`lenticalib.core.routing` defines it (a shift when N is a power of two, else a 64x32 split
-   multiply); optional dark test ``(Z * N mod 2**64) >= threshold``;
-3. two ``llvm.masked.gather`` of 32-bit words, one per source row: the word at the left
-   neighbour's byte holds that byte and, 3 bytes on, the right neighbour of the same channel
-   (views are interleaved RGB), so one gather fetches both horizontal taps;
+* Row pair.  Each thread keeps a buffer of its current two source rows (the bilinear row taps of
+  its output row), interleaved per byte for every view: ``pair[v][2 i + t]`` is byte ``i`` of the
+  top (``t = 0``) or bottom (``t = 1``) row of view ``v``.  The 8 bytes at ``2 * col`` then hold
+  both rows of the left tap (byte ``col``) and, 6 bytes on, of the right tap (``col + 3``, the
+  same channel of the next pixel; views are interleaved RGB).  The buffer is rebuilt when the
+  row taps change (every ``H / H_v`` output rows), and the next source row is prefetched a few
+  cache lines per block meanwhile.
+
+The intrinsic then processes ``LANES`` consecutive output values ``o0 ..`` of one panel row:
+
+1. phase ``Z = (Z0[y] - o0 * K) - D[lane]`` (uint64, wrapping): ``D`` is the per-profile lane
+   table of the row's class ``y % rows`` and the block's start ``o0 % (3 * columns)`` of the cell
+   pattern, ``(x_s - o0) * K`` plus the slot shift, so ``Z = Z0[y] - x_s * K - shift`` exactly as
+   :mod:`lenticalib.core.routing` defines it, without a vector multiply;
+2. view ``floor(Z * N / 2**64)`` (the high 32-bit half shifted when N is a power of two, else
+   32x32->64 products of the halves); optional dark test ``(Z * N mod 2**64) >= threshold``;
+3. one ``llvm.masked.gather`` of 64-bit words from the row pair (base + 32-bit offsets), and a
+   byte shuffle that keeps the four taps;
 4. fixed-point bilinear blend with 11-bit weights, rounded, stored as ``LANES`` bytes.
 
 The IR is generic: on CPUs without AVX-512/AVX2 gathers LLVM lowers it to scalar loads.
@@ -28,7 +40,7 @@ from numba.extending import intrinsic
 
 LANES = 64
 WEIGHT_BITS = 11  # bilinear weights are integers in [0, 2**WEIGHT_BITS]
-COLUMN_BITS = 20  # packed column table: low 20 bits byte offset, high 12 bits weight
+COLUMN_BITS = 20  # packed column table: low 20 bits the left tap's byte in the row pair, high 12 bits weight
 
 _I1, _I8, _I32, _I64 = ir.IntType(1), ir.IntType(8), ir.IntType(32), ir.IntType(64)
 _V1, _V8, _V32, _V64 = (ir.VectorType(t, LANES) for t in (_I1, _I8, _I32, _I64))
@@ -45,57 +57,64 @@ def _const(vty, value):
     return ir.Constant(vty, [value] * vty.count)
 
 
-def _view_index(builder, z, n_or_shift, pow2):
+def _view_index(builder, z, n_or_shift, pow2, dark):
+    """``(view, frac)``: ``floor(Z * N / 2**64)`` as i32 lanes and, when ``dark``, ``Z * N mod 2**64``.
+
+    N a power of two from 2 to 2**32 (``n_or_shift = 64 - log2 N``, 32 to 63): the view is the top
+    bits of the high 32-bit half of Z.  Otherwise Z is split in 32-bit halves and multiplied
+    by N (< 2**32) in 32x32->64 products, which also give the fraction without a 64x64 multiply."""
     if pow2:
-        return builder.lshr(z, _splat(builder, n_or_shift, _V64))
-    n = _splat(builder, n_or_shift, _V64)
+        halves = builder.bitcast(z, ir.VectorType(_I32, 2 * LANES))
+        high = builder.shuffle_vector(halves, ir.Constant(halves.type, ir.Undefined),
+                                      ir.Constant(_V32, [2 * lane + 1 for lane in range(LANES)]))
+        return builder.lshr(high, _splat(builder, builder.trunc(builder.sub(n_or_shift, ir.Constant(_I64, 32)), _I32), _V32)), None
+    n = _splat(builder, builder.zext(builder.trunc(n_or_shift, _I32), _I64), _V64)
     c32 = _const(_V64, 32)
     hi = builder.mul(builder.lshr(z, c32), n)
     lo = builder.mul(builder.and_(z, _const(_V64, 0xFFFFFFFF)), n)
-    return builder.lshr(builder.add(hi, builder.lshr(lo, c32)), c32)
+    view = builder.trunc(builder.lshr(builder.add(hi, builder.lshr(lo, c32)), c32), _V32)
+    return view, (builder.add(lo, builder.shl(hi, c32)) if dark else None)
 
 
 def _make_codegen(pow2: bool, dark: bool):
     def codegen(context, builder, signature, args):
-        (base, tab_ptr, lane_ptr, o0, out_ptr, z0, k, n_or_shift, n_views, threshold,
-         plane, r0, dr, fy) = args
+        base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, threshold, stride, fy = args
         lane = builder.load(builder.inttoptr(lane_ptr, _V64.as_pointer()), align=8)
-        xs = builder.add(_splat(builder, o0, _V64), lane)
-        z = builder.sub(_splat(builder, z0, _V64), builder.mul(xs, _splat(builder, k, _V64)))
-        view = builder.trunc(_view_index(builder, z, n_or_shift, pow2), _V32)
+        z = builder.sub(_splat(builder, z_block, _V64), lane)
+        view, frac = _view_index(builder, z, n_or_shift, pow2, dark)
         tab = builder.load(builder.inttoptr(tab_ptr, _V32.as_pointer()), align=4)
         col = builder.and_(tab, _const(_V32, (1 << COLUMN_BITS) - 1))
         fx = builder.lshr(tab, _const(_V32, COLUMN_BITS))
-        addr0 = builder.add(builder.add(builder.mul(view, _splat(builder, builder.trunc(plane, _I32), _V32)), col),
-                            _splat(builder, builder.trunc(r0, _I32), _V32))
+        offsets = builder.add(builder.mul(view, _splat(builder, builder.trunc(stride, _I32), _V32)), col)
         gather = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(_V32, [_VPTR, _I32, _V1, _V32]),
-            f"llvm.masked.gather.v{LANES}i32.v{LANES}p0")
-        base_v = _splat(builder, base, _V64)
-        mask = _const(_V1, 1)
-
-        def load_words(offsets):
-            ptrs = builder.inttoptr(builder.add(base_v, builder.sext(offsets, _V64)), _VPTR)
-            return builder.call(gather, [ptrs, ir.Constant(_I32, 1), mask, ir.Constant(_V32, ir.Undefined)])
-
-        top_words = load_words(addr0)
-        bottom_words = load_words(builder.add(addr0, _splat(builder, builder.trunc(dr, _I32), _V32)))
+            builder.module, ir.FunctionType(_V64, [_VPTR, _I32, _V1, _V64]),
+            f"llvm.masked.gather.v{LANES}i64.v{LANES}p0")
+        # base + 32-bit offsets: LLVM emits the 32-bit-index gather, not the 64-bit-index form
+        ptrs = builder.gep(_splat(builder, builder.inttoptr(base, ir.PointerType()), _VPTR), [offsets],
+                           source_etype=_I8)
+        taps = builder.call(gather, [ptrs, ir.Constant(_I32, 1), _const(_V1, 1), ir.Constant(_V64, ir.Undefined)])
+        # the 8 bytes hold (top, bottom) of the left tap and, 6 bytes on, of the right tap: keep
+        # bytes 0, 6 (top row) and 1, 7 (bottom row) of each, one byte shuffle per output register
+        as_bytes = builder.bitcast(taps, ir.VectorType(_I8, 8 * LANES))
+        picks = [8 * lane + b for lane in range(LANES) for b in (0, 6, 1, 7)]
+        words = builder.bitcast(builder.shuffle_vector(as_bytes, ir.Constant(as_bytes.type, ir.Undefined),
+                                                       ir.Constant(ir.VectorType(_I32, 4 * LANES), picks)), _V32)
         one = 1 << WEIGHT_BITS
         gx = builder.sub(_const(_V32, one), fx)
-        low_byte, shift24 = _const(_V32, 255), _const(_V32, 24)
+        low_byte = _const(_V32, 255)
 
-        def blend_row(words):
-            return builder.add(builder.mul(builder.and_(words, low_byte), gx),
-                               builder.mul(builder.lshr(words, shift24), fx))
+        def blend_row(shift):
+            left = builder.and_(builder.lshr(words, _const(_V32, shift)) if shift else words, low_byte)
+            right = builder.and_(builder.lshr(words, _const(_V32, shift + 8)), low_byte)
+            return builder.add(builder.mul(left, gx), builder.mul(right, fx))
 
         fy32 = builder.trunc(fy, _I32)
         acc = builder.add(
-            builder.add(builder.mul(blend_row(top_words), _splat(builder, builder.sub(ir.Constant(_I32, one), fy32), _V32)),
-                        builder.mul(blend_row(bottom_words), _splat(builder, fy32, _V32))),
+            builder.add(builder.mul(blend_row(0), _splat(builder, builder.sub(ir.Constant(_I32, one), fy32), _V32)),
+                        builder.mul(blend_row(16), _splat(builder, fy32, _V32))),
             _const(_V32, 1 << (2 * WEIGHT_BITS - 1)))
         value = builder.lshr(acc, _const(_V32, 2 * WEIGHT_BITS))
         if dark:
-            frac = builder.mul(z, _splat(builder, n_views, _V64))
             lit = builder.icmp_unsigned("<", frac, _splat(builder, threshold, _V64))
             value = builder.select(lit, value, _const(_V32, 0))
         builder.store(builder.trunc(value, _V8), builder.inttoptr(out_ptr, _V8.as_pointer()), align=1)
@@ -104,13 +123,12 @@ def _make_codegen(pow2: bool, dark: bool):
     return codegen
 
 
-_SIG = types.void(types.intp, types.intp, types.intp, types.uint64, types.intp, types.uint64, types.uint64,
-                  types.uint64, types.uint64, types.uint64, types.int64, types.int64, types.int64, types.int64)
+_SIG = types.void(types.intp, types.intp, types.intp, types.intp, types.uint64,
+                  types.uint64, types.uint64, types.int64, types.int64)
 
 
 def _declare(pow2: bool, dark: bool):
-    def block(typingctx, base, tab_ptr, lane_ptr, o0, out_ptr, z0, k, n_or_shift, n_views, threshold,
-              plane, r0, dr, fy):
+    def block(typingctx, base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, threshold, stride, fy):
         return _SIG, _make_codegen(pow2, dark)
 
     block.__name__ = f"block_{'pow2' if pow2 else 'general'}{'_dark' if dark else ''}"
@@ -122,41 +140,97 @@ block_general = _declare(False, False)
 block_general_dark = _declare(False, True)
 
 
+@intrinsic
+def prefetch(typingctx, address):
+    """Hint the CPU to bring the cache line at ``address`` (an integer) into the cache (no fault)."""
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ir.PointerType(), _I32, _I32, _I32]),
+                                            "llvm.prefetch.p0")
+        builder.call(fn, [builder.inttoptr(args[0], ir.PointerType()), ir.Constant(_I32, 0), ir.Constant(_I32, 3),
+                          ir.Constant(_I32, 1)])
+        return context.get_dummy_value()
+
+    return types.void(types.intp), codegen
+
+
 # The row kernel lives here, next to the intrinsics it inlines: numba's on-disk cache is keyed on
 # the file that defines a jitted function, so keeping both in one file invalidates them together.
 _U64 = np.uint64
 
 
+@nb.njit(cache=True, boundscheck=False)
+def interleave_rows(pair, flat, n_views, plane, top, bottom, row_bytes, stride):  # pragma: no cover - compiled
+    """Fill ``pair`` (uint16, ``n_views * stride // 2``): per view, byte ``i`` of source row ``top``
+    and of ``bottom`` side by side (``pair[v * stride // 2 + i] = top_i | bottom_i << 8``)."""
+    half = stride // 2
+    for v in range(n_views):
+        upper = flat[v * plane + top:v * plane + top + row_bytes]  # slices: the loop index is >= 0, no
+        lower = flat[v * plane + bottom:v * plane + bottom + row_bytes]  # wraparound test, so it vectorizes
+        dest = pair[v * half:v * half + row_bytes]
+        for i in range(row_bytes):
+            dest[i] = np.uint16(upper[i]) | (np.uint16(lower[i]) << np.uint16(8))
+
+
 @nb.njit(parallel=True, cache=True, boundscheck=False)
-def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_offsets,
-                      row0, row_step, fyq, plane, n_chunks):  # pragma: no cover - compiled
+def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_table,
+                     row_lo, row_hi, fyq, plane, row_bytes, stride, n_chunks):  # pragma: no cover - compiled
     height = out2d.shape[0]
     length = out2d.shape[1]
-    lanes = lane_offsets.shape[1]
+    rows = plane // row_bytes
+    classes, starts, lanes = lane_table.shape
     n_blocks = (length + lanes - 1) // lanes
-    base = flat.ctypes.data
+    block_lanes = np.empty(n_blocks, dtype=np.int64)  # byte offset of each block's start in a lane-table row
+    for blk in range(n_blocks):
+        block_lanes[blk] = 8 * lanes * (min(blk * lanes, length - lanes) % starts)
     ptab = tab.ctypes.data
-    plane_ptr = lane_offsets.ctypes.data
+    lane_ptr = lane_table.ctypes.data
     per_chunk = (height + n_chunks - 1) // n_chunks
     nv = _U64(n_views)
+    # While a pair is in use, the next source row is prefetched a few cache lines per block, spread
+    # over the output rows that use the pair (the N view planes are too many streams for the
+    # hardware prefetcher).
+    pf_lines = (row_bytes + 63) // 64
+    pf_per_block = n_views * pf_lines // (n_blocks * max(1, height // rows)) + 1
+    src = flat.ctypes.data
     for chunk in prange(n_chunks):
-        for y in range(chunk * per_chunk, min(height, (chunk + 1) * per_chunk)):
+        pair = np.empty(n_views * stride // 2 + 4, dtype=np.uint16)  # this thread's row pair
+        base = pair.ctypes.data
+        have_top, have_bottom = -1, -1
+        pf_view, pf_line, pf_row = n_views, 0, 0
+        end = min(height, (chunk + 1) * per_chunk)
+        for y in range(chunk * per_chunk, end):
+            if row_lo[y] != have_top or row_hi[y] != have_bottom:
+                have_top, have_bottom = row_lo[y], row_hi[y]
+                interleave_rows(pair, flat, n_views, plane, have_top * row_bytes, have_bottom * row_bytes,
+                                row_bytes, stride)
+                # the source row the next pair of this band adds (any direction: image flips)
+                ahead = y + 1
+                while ahead < end and row_lo[ahead] == have_top and row_hi[ahead] == have_bottom:
+                    ahead += 1
+                pf_view, pf_line = (n_views if ahead == end else 0), 0
+                if ahead < end:
+                    new_row = row_hi[ahead]
+                    if new_row == have_top or new_row == have_bottom:
+                        new_row = row_lo[ahead]
+                    pf_row = src + new_row * row_bytes
             z = z0[y]
-            r0 = row0[y]
-            dr = row_step[y]
             fy = fyq[y]
             po = out2d[y].ctypes.data
+            row_lanes = lane_ptr + 8 * lanes * starts * (y % classes)
             for blk in range(n_blocks):
                 o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
-                lp = plane_ptr + 8 * lanes * (o0 % 3)
+                lp = row_lanes + block_lanes[blk]
+                zb = z - _U64(o0) * k
+                for _ in range(pf_per_block):
+                    if pf_view < n_views:
+                        prefetch(pf_row + pf_view * plane + 64 * pf_line)
+                        pf_line += 1
+                        if pf_line == pf_lines:
+                            pf_line = 0
+                            pf_view += 1
                 if mode == 0:
-                    block_pow2(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, _U64(shift), nv,
-                                     _U64(0), plane, r0, dr, fy)
+                    block_pow2(base, ptab + 4 * o0, lp, po + o0, zb, _U64(shift), _U64(0), stride, fy)
                 elif mode == 1:
-                    block_general(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
-                                        _U64(0), plane, r0, dr, fy)
+                    block_general(base, ptab + 4 * o0, lp, po + o0, zb, nv, _U64(0), stride, fy)
                 else:
-                    block_general_dark(base, ptab + 4 * o0, lp, _U64(o0), po + o0, z, k, nv, nv,
-                                             threshold, plane, r0, dr, fy)
-
-
+                    block_general_dark(base, ptab + 4 * o0, lp, po + o0, zb, nv, threshold, stride, fy)
