@@ -19,11 +19,11 @@ import os
 from typing import Any, Mapping
 
 from ...core.documents import json_from_bytes
-from ...core.errors import DeviceDisconnectedError, DeviceNotFoundError, DeviceProtocolError, InputError, \
+from ...core.errors import DeviceDisconnectedError, DeviceProtocolError, InputError, \
     LenticalibError
 from ...core.lkg import profile_from_visual
 from ...core.profile import PanelProfile
-from ..transports.base import reason
+from ..transports.base import Link, reason
 from ..url import DeviceURL
 
 # The calibration text a unit may hold, in bytes: a visual.json is a few hundred bytes (a
@@ -88,10 +88,11 @@ class LookingGlassCalibration:
         return profile.replace(provenance=provenance)
 
 
-class LookingGlassUnit:
+class LookingGlassUnit(Link):
     """One Looking Glass unit at ``url`` (a parsed :class:`DeviceURL`).  Use as a context manager."""
 
     kind = "base"
+    what = "the Looking Glass unit"
 
     def __init__(self, url: DeviceURL):
         self.url = url
@@ -99,27 +100,6 @@ class LookingGlassUnit:
         self.usb_serial: str | None = None
 
     # --- public API: owns errors and checks ---
-
-    def open(self) -> "LookingGlassUnit":
-        if self.is_open:
-            return self
-        try:
-            self._open()
-        except LenticalibError:
-            raise
-        except (OSError, ValueError) as exc:
-            raise DeviceNotFoundError(f"cannot open the Looking Glass unit: {reason(exc, str(self.url))}",
-                                      source=str(self.url), hint=self.open_hint()) from None
-        self.is_open = True
-        return self
-
-    def close(self) -> None:
-        if self.is_open:
-            self.is_open = False
-            try:
-                self._close()
-            except Exception:  # closing a dead link must never mask the error that killed it
-                pass
 
     def read_calibration(self) -> LookingGlassCalibration:
         """The unit's calibration, checked: at most :data:`MAX_CALIBRATION_BYTES`, UTF-8 JSON text
@@ -146,19 +126,7 @@ class LookingGlassUnit:
         """What to do when the calibration read is unusable."""
         return "read it again; if it persists, the unit's calibration is damaged"
 
-    def __enter__(self):
-        return self.open()
-
-    def __exit__(self, *exc):
-        self.close()
-
-    # --- backend hooks ---
-
-    def _open(self) -> None:
-        raise NotImplementedError
-
-    def _close(self) -> None:
-        raise NotImplementedError
+    # --- backend hooks (and _open / _close of Link) ---
 
     def _read_text(self) -> tuple[bytes, str | os.PathLike | None]:
         """(the calibration's bytes, the file they came from or None)."""

@@ -63,7 +63,56 @@ def reason(exc: BaseException, url: str | None = None) -> str:
     return _LIBRARY_PREFIXES.sub("", text).strip() or type(exc).__name__
 
 
-class Transport:
+class Link:
+    """Opening and closing one device at ``self.url`` around the backend hooks ``_open`` / ``_close``.
+
+    ``open`` turns an OSError or ValueError of the backend into one DeviceNotFoundError naming the
+    URL (``what`` names the device in it, ``open_hint()`` says what to do); ``close`` never raises.
+    A context manager.  Shared by controller transports and Looking Glass units.
+    """
+
+    what = "the device"
+    url: DeviceURL
+    is_open: bool = False
+
+    def open(self):
+        if self.is_open:
+            return self
+        try:
+            self._open()
+        except LenticalibError:  # already says what is wrong (a bad URL parameter, a busy flash image)
+            raise
+        except (OSError, ValueError) as exc:
+            raise DeviceNotFoundError(f"cannot open {self.what}: {reason(exc, str(self.url))}", source=str(self.url),
+                                      hint=self.open_hint()) from None
+        self.is_open = True
+        return self
+
+    def close(self) -> None:
+        if self.is_open:
+            self.is_open = False
+            try:
+                self._close()
+            except Exception:  # closing a dead link must never mask the error that killed it
+                pass
+
+    def open_hint(self) -> str:
+        return "check the URL and that the device is plugged in"
+
+    def __enter__(self):
+        return self.open()
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _open(self) -> None:
+        raise NotImplementedError
+
+    def _close(self) -> None:
+        raise NotImplementedError
+
+
+class Transport(Link):
     """A byte stream to one controller.  Use as a context manager.
 
     ``url`` is the parsed device URL; ``family`` the controller family (timeouts) and
@@ -79,27 +128,6 @@ class Transport:
         self.is_open = False
 
     # --- public API: owns errors ---
-
-    def open(self) -> "Transport":
-        if self.is_open:
-            return self
-        try:
-            self._open()
-        except LenticalibError:  # already says what is wrong (a bad URL parameter, a busy flash image)
-            raise
-        except (OSError, ValueError) as exc:
-            raise DeviceNotFoundError(f"cannot open the device: {reason(exc, str(self.url))}", source=str(self.url),
-                                      hint=self.open_hint()) from None
-        self.is_open = True
-        return self
-
-    def close(self) -> None:
-        if self.is_open:
-            self.is_open = False
-            try:
-                self._close()
-            except Exception:  # closing a dead link must never mask the error that killed it
-                pass
 
     def write(self, data: bytes) -> None:
         """Send ``data`` (all of it) or raise DeviceDisconnectedError."""
@@ -156,23 +184,11 @@ class Transport:
     def open_hint(self) -> str:
         return "check the URL, that the controller is plugged in, and the udev rules (drivers/70-lenticalib.rules)"
 
-    def __enter__(self):
-        return self.open()
-
-    def __exit__(self, *exc):
-        self.close()
-
     def _require_open(self):
         if not self.is_open:
             raise DeviceDisconnectedError("the transport is not open", source=str(self.url))
 
-    # --- backend hooks ---
-
-    def _open(self) -> None:
-        raise NotImplementedError
-
-    def _close(self) -> None:
-        raise NotImplementedError
+    # --- backend hooks (and _open / _close of Link) ---
 
     def _write(self, data: bytes) -> None:
         raise NotImplementedError
