@@ -93,11 +93,12 @@ CELL_Y_PERIOD = 16.0  # rows
 # T are blind near Delta_r = T and noisy beyond |Delta_r / T - 1| of about 0.3, so one period
 # covers about 14.5 to 21 subpixels.  At 20 subpixels the second set is blind only where the
 # first aliases by 0.25 (Delta_r = 20), the first is blind where it aliases by 0.2 (16), and
-# together they cover 14 to 26 (:func:`lenticalib.calib.layout_fit.combine_periods`).
+# together they are meant to cover 14 to 26 (:func:`lenticalib.calib.layout_fit.combine_periods`);
+# measured on simulated sets (docs/calibration.md): every layout and slant sign up to 22.05.
 CELL_X_PERIODS = (FINE_PERIODS[0], 20.0)  # subpixels: CELL_GROUPS, CELL_WIDE_GROUPS
 CELL_WIDE_GROUPS = tuple(f"cellw-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
 CELL_X_GROUPS = {CELL_X_PERIODS[0]: CELL_GROUPS, CELL_X_PERIODS[1]: CELL_WIDE_GROUPS}
-CELL_PERIOD_RANGE = (14.0, 26.0)  # lens periods Delta_r (subpixels) the cell photos together measure
+CELL_PERIOD_RANGE = (14.5, 22.5)  # lens periods Delta_r (subpixels) where the cell photos measured well
 
 
 def frame_width(height: int) -> int:
