@@ -9,8 +9,8 @@ import pytest
 
 from lenticalib.calib import layout_fit
 from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, CELL_Y_GROUPS, cell_class_of, design_patterns,
-                                       read_manifest, render_pattern)
+from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, CELL_WIDE_GROUPS, CELL_Y_GROUPS, cell_class_of,
+                                       design_patterns, read_manifest, render_pattern)
 from lenticalib.core.colour import srgb_encode8
 from lenticalib.core.errors import CalibrationError
 from lenticalib.core.pattern_sets import write_patterns
@@ -28,8 +28,8 @@ def _profile(layout=None, order="RGB", slant=0.21, period=19.5):
 # 1. The cell patterns ------------------------------------------------------------------------------
 def test_cell_patterns_light_one_channel_in_one_class(tmp_path):
     plain, cells = design_patterns(64, 64, 8), design_patterns(64, 64, 8, cells=True)
-    assert cells.names == plain.names + list(CELL_GROUPS) + list(CELL_Y_GROUPS)
-    assert len(CELL_GROUPS) == len(CELL_Y_GROUPS) == 3 * CELL_CLASSES
+    assert cells.names == plain.names + list(CELL_GROUPS) + list(CELL_Y_GROUPS) + list(CELL_WIDE_GROUPS)
+    assert len(CELL_GROUPS) == len(CELL_Y_GROUPS) == len(CELL_WIDE_GROUPS) == 3 * CELL_CLASSES
     assert cells.set_id != plain.set_id and "cells" not in plain.to_dict()
     reference = render_pattern(plain.group("f16")[0], 64, 64)  # the fine sinusoid, step 0, green
     classes = cell_class_of(np.arange(64)[None, :], np.arange(64)[:, None])
@@ -108,6 +108,31 @@ def test_a_layout_that_cannot_be_told_is_refused_in_one_line():
                                       np.full((CELL_CLASSES, 3), 0.01), np.ones((CELL_CLASSES, 3)), 16.0)
     decision = layout_fit.decide_layout(scattered, 32 / 19.5)
     assert decision.layout is not None and len(decision.layout.cells) == CELL_CLASSES  # no two classes agree
+
+
+def test_two_periods_combine_by_their_sigma_and_floor():
+    truth = _profile(NAMED_LAYOUTS["lkg-checker"])
+    good = _measured(truth, sigma=0.01, seed=1)
+    # near its blind spot a period's phase is garbage and its jackknife sigma large
+    blind = layout_fit.CellShifts(good.shift + np.random.default_rng(2).uniform(-2, 2, good.shift.shape),
+                                  np.full(good.shift.shape, 1.5), np.ones(good.shift.shape), 20.0)
+    for parts, floors in (([good, blind], [0.015, 0.03]), ([blind, good], [0.03, 0.015])):
+        combined, floor = layout_fit.combine_periods(parts, floors)
+        assert np.max(np.abs(combined.shift - good.shift)) < 0.01
+        assert np.all(combined.sigma < 0.016) and np.allclose(floor, 0.015, atol=0.001)
+        decision = layout_fit.decide_layout(combined, 32 / 19.5, floor)
+        assert decision.problem is None and len(decision.layout.cells) == 2
+    # a period whose systematic floor is large (strong alias) counts less than one measuring well
+    far = layout_fit.CellShifts(good.shift + 0.2, np.full(good.shift.shape, 0.01), np.ones(good.shift.shape), 16.0)
+    combined, floor = layout_fit.combine_periods([far, good], [0.2, 0.015])
+    assert np.max(np.abs(combined.shift - good.shift)) < 0.01
+    # two periods that disagree by more than they claim: the sigma grows (honest), and a blind
+    # period alone is refused in one line
+    off = layout_fit.CellShifts(good.shift + 0.3, good.sigma, good.amplitude, 20.0)
+    combined, floor = layout_fit.combine_periods([good, off], [0.015, 0.015])
+    assert np.all(2 * np.hypot(combined.sigma, floor) > np.abs(combined.shift - good.shift))  # 0.15 off: 2 sigma
+    combined, floor = layout_fit.combine_periods([blind], [0.015])
+    assert "known only to" in layout_fit.decide_layout(combined, 32 / 19.5, floor).problem
 
 
 # 3. A simulated cell panel, fitted end to end -------------------------------------------------------

@@ -14,7 +14,7 @@ Targets: RMS <= 0.05, worst <= 0.15, |centring| <= 0.25 view, layout recovered.
 
     python tools/bench_layouts.py [--seeds 1-4] [--layouts lkg-columns,lkg-checker,lkg-rows4,RGB,BGR]
                                   [--signs +,-] [--panel 1280x720] [--resolution 1250x800]
-                                  [--subsamples 1] [--keep DIR [--reuse]]
+                                  [--subsamples 1] [--keep DIR [--reuse]] [--jobs 1]
 
 The defaults keep a run of the 5 x 4 x 2 sets near half an hour on two cores: a 1280x720 panel
 (the simulated panel's size does not change the method) photographed at 1 megapixel with one
@@ -24,6 +24,7 @@ ray per camera pixel, as the test suite's simulated sets are.
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import json
 import shutil
 import sys
@@ -123,6 +124,7 @@ def main() -> int:
     parser.add_argument("--keep", metavar="DIR", help="keep the capture sets in DIR")
     parser.add_argument("--reuse", action="store_true", help="with --keep: fit sets already simulated there")
     parser.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
+    parser.add_argument("--jobs", type=int, default=1, help="sets run at once (processes; rows print as they end)")
     args = parser.parse_args()
     panel = tuple(int(v) for v in args.panel.split("x"))
     resolution = tuple(int(v) for v in args.resolution.split("x"))
@@ -131,14 +133,20 @@ def main() -> int:
     print(f"{'layout':>12} {'seed':>4} {'C_r':>7} {'Delta_r':>7} {'found':>14} {'rec':>4} {'e err':>6} {'sigma':>6} "
           f"{'rms':>6} {'worst':>6} {'centre':>7} {'fit s':>5} ok", flush=True)
     rows = []
+    tasks = [(layout_name, seed, -1.0 if sign.strip() == "-" else 1.0, root, panel, resolution, args.subsamples,
+              args.reuse)
+             for layout_name in args.layouts.split(",") for seed in parse_seeds(args.seeds)
+             for sign in args.signs.split(",")]
     try:
-        for layout_name in args.layouts.split(","):
-            for seed in parse_seeds(args.seeds):
-                for sign in args.signs.split(","):
-                    row = run_one(layout_name, seed, -1.0 if sign.strip() == "-" else 1.0, root, panel, resolution,
-                                  args.subsamples, args.reuse)
-                    rows.append(row)
-                    _print_row(row)
+        if args.jobs <= 1:
+            for task in tasks:
+                rows.append(run_one(*task))
+                _print_row(rows[-1])
+        else:
+            with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
+                for future in concurrent.futures.as_completed([pool.submit(run_one, *task) for task in tasks]):
+                    rows.append(future.result())
+                    _print_row(rows[-1])
     finally:
         if not args.keep:
             shutil.rmtree(root, ignore_errors=True)

@@ -34,7 +34,8 @@ from .camera import CameraModel, describe_pose, estimate_camera, load_camera_mod
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
 from .groups import Group, Registration, demodulate_group, group_photos
-from .patterns import CELL_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD, FINE_PERIODS, PERIOD_RANGE
+from .patterns import (CELL_GROUPS, CELL_PERIOD_RANGE, CELL_WIDE_GROUPS, CELL_X_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD,
+                       FINE_PERIODS, PERIOD_RANGE)
 from .pose import PanelPose, camera_pose
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
@@ -53,7 +54,7 @@ def progress_steps(pattern_set) -> int:
     """How many times :func:`fit_capture_set` calls ``progress`` for a capture set of ``pattern_set``
     (a :class:`~.patterns.PatternSet`): once per photo it reads, once per stage."""
     cells = getattr(pattern_set, "cells", False)
-    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_GROUPS + CELL_Y_GROUPS if cells else ())
+    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_GROUPS + CELL_Y_GROUPS + CELL_WIDE_GROUPS if cells else ())
     photos = sum(len(pattern_set.group(name)) for name in names)
     return photos + len(STAGES) + (1 if cells else 0)
 
@@ -293,7 +294,8 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
         layout_sigma = float(np.max(layout.cell_sigma)) * n_views / constants["period"]
         if layout_sigma > MAX_LAYOUT_SIGMA:
             problems.append(f"1-sigma uncertainty of the subpixel layout reaches {layout_sigma:.3f} views (limit "
-                            f"{MAX_LAYOUT_SIGMA}; the cell photos measure well at lens periods of about 14.5 to 21 "
+                            f"{MAX_LAYOUT_SIGMA}; the cell photos measure well at lens periods of about "
+                            f"{CELL_PERIOD_RANGE[0]:g} to {CELL_PERIOD_RANGE[1]:g} "
                             f"subpixels, this panel's is {constants['period']:.2f})")
     if layout is None and order.margin < MIN_ORDER_MARGIN:
         problems.append(f"subpixel order is ambiguous (margin {order.margin:.2f}, limit {MIN_ORDER_MARGIN}; a panel "
@@ -383,27 +385,45 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
 def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration,
                  views: int) -> layout_fit.LayoutDecision:
     """The stripe order or the cell layout from the cell photos (:mod:`.layout_fit`); CaptureError
-    naming a photo that does not show its channel's fringes, CalibrationError (one line) when the
-    shifts cannot tell the layout."""
-    period = capture.patterns.group(CELL_GROUPS[0])[0].period
+    naming a photo that does not show its channel's fringes (at either period of the x photos),
+    CalibrationError (one line) when the shifts cannot tell the layout."""
     lens_period = -1.0 / fit.a
     slant = fit.b * lens_period / 3.0
-    along_row = _cell_shifts(capture, CELL_GROUPS, period, _predicted_fine_cycles(fit, x_sm, y_sm, valid, period),
-                             groups[f"f{period:g}"], valid, shape, progress, registration)
-    along_column = _cell_shifts(capture, CELL_Y_GROUPS, CELL_Y_PERIOD, np.where(valid, y_sm / CELL_Y_PERIOD, 0.0),
-                                groups["y1"], valid, shape, progress, registration)
+    parts, floors, weak = [], [], []
+    for period, names in CELL_X_GROUPS.items():
+        reference = groups[f"f{min(FINE_PERIODS, key=lambda p: abs(p - period)):g}"]
+        part, faint = _cell_shifts(capture, names, period, _predicted_fine_cycles(fit, x_sm, y_sm, valid, period),
+                                   reference, valid, shape, progress, registration)
+        parts.append(part)
+        floors.append(layout_fit.shift_floor(lens_period, period))
+        weak.append(faint)
+    for key, error in weak[0].items():  # a photo without fringes is an error only when no period has them
+        if all(key in faint for faint in weak[1:]):
+            raise error
+    along_row, floor = layout_fit.combine_periods(parts, floors)
+    along_column, faint = _cell_shifts(capture, CELL_Y_GROUPS, CELL_Y_PERIOD,
+                                       np.where(valid, y_sm / CELL_Y_PERIOD, 0.0), groups["y1"], valid, shape,
+                                       progress, registration)
+    for error in faint.values():
+        raise error
     shifts = layout_fit.route_shifts(along_row, along_column, slant)
-    decision = layout_fit.decide_layout(shifts, views / lens_period, layout_fit.shift_floor(lens_period, period))
+    decision = layout_fit.decide_layout(shifts, views / lens_period, floor)
     layout_fit.refuse_if_unresolved(decision, str(capture.directory / "captures"))
     return decision
 
 
-def _cell_shifts(capture, names, period, pred, reference, valid, shape, progress, registration) -> layout_fit.CellShifts:
+def _cell_shifts(capture, names, period, pred, reference, valid, shape, progress,
+                 registration) -> tuple[layout_fit.CellShifts, dict]:
     """The shifts (in units of the pattern coordinate) one kind of cell photo measures, against the
-    phase ``pred`` (cycles, per working pixel); contrast judged against the green group ``reference``."""
+    phase ``pred`` (cycles, per working pixel); contrast judged against the green group ``reference``.
+
+    Returns the shifts (sigma ``inf`` for a photo whose fringes are too faint) and, per
+    ``(class, channel)`` of such a photo, the CaptureError that names it; a photo of the wrong
+    colour raises at once."""
     ref_amp = float(np.median(np.abs(reference.z[valid]) / np.maximum(reference.dc[valid], 1e-6)))
     classes = len(names) // 3
     offset, sigma, amplitude = (np.zeros((classes, 3)) for _ in range(3))
+    faint = {}
     for name in names:
         channel, k = "rgb".index(name[-2]), int(name[-1])
         photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
@@ -417,10 +437,13 @@ def _cell_shifts(capture, names, period, pred, reference, valid, shape, progress
         offset[k, channel], sigma[k, channel], amp = layout_fit.phase_offset(q, rows, cols, photo.luma.shape)
         amplitude[k, channel] = amp / max(ref_amp, 1e-9)
         if amplitude[k, channel] < MIN_CELL_CONTRAST:
-            raise CaptureError(f"shows almost no fringes of pattern {name} (contrast {amplitude[k, channel]:.2f} of "
-                               "the green group's)", source=str(photo.path),
-                               hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
-    return layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
+            faint[(k, channel)] = CaptureError(
+                f"shows almost no fringes of pattern {name} (contrast {amplitude[k, channel]:.2f} of the green "
+                "group's)", source=str(photo.path),
+                hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
+            sigma[k, channel] = math.inf
+    shifts = layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
+    return shifts, faint
 
 
 def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:

@@ -3,8 +3,9 @@
 Frames and units: working-image pixels (see :mod:`.phase`); panel coordinates ``X`` (subpixels)
 and ``Y`` (rows); shifts in subpixels along a row.
 
-THE MEASUREMENT.  A cell photo (``cell-<c><k>``, :data:`.patterns.CELL_GROUPS`) shows the fine
-sinusoid of period ``T`` in channel ``c`` only, evaluated at the channel's stripe-RGB slot
+THE MEASUREMENT.  A cell photo (``cell-<c><k>``, :data:`.patterns.CELL_GROUPS`; ``cellw-<c><k>``,
+:data:`.patterns.CELL_WIDE_GROUPS`, at a second period) shows the fine sinusoid of period ``T``
+in channel ``c`` only, evaluated at the channel's stripe-RGB slot
 ``x_s = 3 x + c``, and only in the pixels of cell class ``k`` (``2 (y % 4) + x % 2``); a
 ``celly-<c><k>`` photo (:data:`.patterns.CELL_Y_GROUPS`) a sinusoid of ``CELL_Y_PERIOD`` rows
 along y.  The camera sees the light of a subpixel where it is: if channel ``c`` sits ``a``
@@ -21,7 +22,8 @@ Per photo the phase offset against the plane's prediction is fitted block by blo
 (``A + Re(m exp(2 pi i predicted))`` in blocks of ``BLOCK`` pixels); its 1-sigma comes from a
 delete-one-tile jackknife over ``TILES`` tiles of the panel, so spatially correlated errors count
 (moire of the sparse lit pixels, glare, JPEG); a cell's sigma has a systematic floor
-(:func:`shift_floor`).  The offsets of the eight green photos give the
+(:func:`shift_floor`).  The two periods of x photos are combined per class and channel by
+their sigmas and floors (:func:`combine_periods`).  The offsets of the eight green photos give the
 reference (their mean is the plane's own green), which also cancels what all single photos share
 (the tone curve's harmonics, the camera's colour mixing into the luminance).
 
@@ -94,6 +96,45 @@ class CellShifts:
         return out
 
 
+def combine_periods(parts: list[CellShifts], floors: list[float]) -> tuple[CellShifts, np.ndarray]:
+    """The shifts along the row from x photos at several periods, and their systematic floor.
+
+    ``parts``: one :class:`CellShifts` per period (its ``sigma`` statistical, ``inf`` where a
+    photo showed no usable fringe); ``floors``: each period's systematic 1-sigma (subpixels,
+    :func:`shift_floor`).  Per class and channel the measurements are averaged with weights
+    ``1 / (sigma^2 + floor^2)``, so the period that measures better dominates (near its blind
+    spot a period's jackknife sigma is large; where it aliases strongly, its floor is).  Returns
+    the combined shifts (statistical sigma ``sqrt(sum w^2 sigma^2) / sum w``) and the combined
+    floor, float64 ``(CELL_CLASSES, 3)`` (``sum w floor / sum w``: the floors of one channel are
+    alike in every class, so they add linearly).  Where two periods disagree by more than their
+    combined uncertainty, the statistical sigma grows by that ratio (the Birge ratio), so a
+    sigma stays honest when one period is off by more than it claims.
+    """
+    shift = np.stack([p.shift for p in parts])
+    stat = np.stack([p.sigma for p in parts])
+    floor = np.broadcast_to(np.asarray(floors, dtype=np.float64)[:, None, None], shift.shape)
+    total = np.hypot(stat, floor)
+    w = np.where(np.isfinite(total), 1.0 / np.maximum(total, 1e-9) ** 2, 0.0)
+    wsum = w.sum(axis=0)
+    if np.any(wsum <= 0.0):  # no period measured this class and channel
+        out_sigma = np.where(wsum > 0, 0.0, np.inf)
+        wsum = np.where(wsum > 0, wsum, 1.0)
+    else:
+        out_sigma = np.zeros(wsum.shape)
+    finite = np.isfinite(total)
+    mean = np.where(finite, w * shift, 0.0).sum(axis=0) / wsum
+    sigma = np.sqrt(np.where(finite, (w * stat) ** 2, 0.0).sum(axis=0)) / wsum
+    comb_floor = np.where(finite, w * floor, 0.0).sum(axis=0) / wsum
+    if len(parts) > 1:  # Birge ratio over the periods that measured
+        chi2 = np.where(finite, w * (shift - mean) ** 2, 0.0).sum(axis=0)
+        dof = np.maximum(finite.sum(axis=0) - 1, 1)
+        sigma = sigma * np.sqrt(np.maximum(1.0, chi2 / dof))
+    sigma = sigma + out_sigma
+    amplitude = np.max(np.stack([p.amplitude for p in parts]), axis=0)
+    named = {f"along_row_period_{p.period:g}": p for p in parts}
+    return CellShifts(mean, sigma, amplitude, parts[0].period, named), comb_floor
+
+
 def route_shifts(along_row: CellShifts, along_column: CellShifts, slant: float) -> CellShifts:
     """The shifts across the lenses (what routing needs, subpixels) from the shifts along the row
     (subpixels, the ``cell`` photos) and along the column (rows, the ``celly`` photos):
@@ -101,8 +142,8 @@ def route_shifts(along_row: CellShifts, along_column: CellShifts, slant: float) 
     subpixels further right), with the two sigmas combined."""
     shift = along_row.shift - 3.0 * slant * along_column.shift
     sigma = np.hypot(along_row.sigma, 3.0 * abs(slant) * along_column.sigma)
-    return CellShifts(shift, sigma, np.minimum(along_row.amplitude, along_column.amplitude), along_row.period,
-                      {"along_row": along_row, "along_column_rows": along_column})
+    parts = {"along_row": along_row, "along_column_rows": along_column}  # along_row holds each period
+    return CellShifts(shift, sigma, np.minimum(along_row.amplitude, along_column.amplitude), along_row.period, parts)
 
 
 @dataclasses.dataclass
@@ -194,12 +235,15 @@ def phase_offset(q: np.ndarray, row: np.ndarray, col: np.ndarray, shape: tuple[i
 def shifts_from_offsets(offset: np.ndarray, sigma: np.ndarray, amplitude: np.ndarray, period: float) -> CellShifts:
     """:class:`CellShifts` from the phase offsets (cycles, ``(classes, 3)``) of the cell photos:
     ``r = -T (offset - reference)``, the reference the circular mean of the green offsets."""
-    green = offset[:, 1]
+    usable = np.isfinite(sigma[:, 1])  # a green photo without fringes (sigma inf) is no reference
+    green = offset[usable, 1]
+    if green.size == 0:
+        return CellShifts(np.zeros(offset.shape), np.full(offset.shape, np.inf), amplitude, period)
     ref = math.atan2(np.sin(2 * np.pi * green).mean(), np.cos(2 * np.pi * green).mean()) / (2 * math.pi)
     d = (offset - ref + 0.5) % 1.0 - 0.5
     shift = -period * d
     # the reference's own error: the mean of the green sigmas over the classes, in every shift
-    ref_var = float(np.sum(sigma[:, 1] ** 2)) / green.size ** 2
+    ref_var = float(np.sum(sigma[usable, 1] ** 2)) / green.size ** 2
     return CellShifts(shift, period * np.sqrt(sigma ** 2 + ref_var), amplitude, period)
 
 
@@ -214,20 +258,22 @@ def _compress(table: list[list[int]]) -> tuple[tuple[int, ...], ...]:
     return tuple(tuple(table[y][x] for x in range(cols)) for y in range(rows))
 
 
-def decide_layout(shifts: CellShifts, views_per_subpixel: float, floor: float = SHIFT_FLOOR) -> LayoutDecision:
+def decide_layout(shifts: CellShifts, views_per_subpixel: float, floor=SHIFT_FLOOR) -> LayoutDecision:
     """The stripe or the cell layout the shifts show (module docstring).
 
     ``views_per_subpixel``: ``N / Delta_r``, to judge the shifts' uncertainty in views;
-    ``floor``: the systematic 1-sigma of a cell's shift (:func:`shift_floor`), subpixels.
+    ``floor``: the systematic 1-sigma of a cell's shift (:func:`shift_floor`), subpixels: one
+    number, or per class and channel ``(CELL_CLASSES, 3)`` (:func:`combine_periods`).
     """
     r, s = shifts.shift, shifts.sigma
+    floor = np.broadcast_to(np.asarray(floor, dtype=np.float64), r.shape)
     worst = float(np.max(s)) * views_per_subpixel
     sa = np.hypot(s, floor)  # agreement is judged with the systematic floor too
 
     def merged(members):
         """(mean, 1-sigma with the floor) of some classes' shifts, (3,) each."""
         mean, sig = _weighted_mean(r[members], s[members])
-        return mean, np.hypot(sig, floor)
+        return mean, np.hypot(sig, floor[members].mean(axis=0))
 
     for order, stripe in STRIPE_SHIFTS.items():
         if _agree(r, sa, np.array(stripe)[None, :], 0.0):
