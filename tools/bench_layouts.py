@@ -32,16 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-
-def parse_seeds(text: str) -> list[int]:
-    seeds: list[int] = []
-    for part in text.split(","):
-        if "-" in part:
-            lo, hi = part.split("-")
-            seeds += list(range(int(lo), int(hi) + 1))
-        else:
-            seeds.append(int(part))
-    return seeds
+from bench_fit import parse_seeds  # tools/ is on sys.path when a tool runs as a script
 
 
 def run_one(layout_name: str, seed: int, sign: float, root: Path, panel, resolution, subsamples: int,

@@ -318,35 +318,6 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     return FitResult(profile, not problems, problems, quality, maps, seconds, warnings, pose=pose, layout=layout)
 
 
-def _block_amplitude(luma: np.ndarray, predicted_cycles: np.ndarray, valid: np.ndarray,
-                     block: int = 48) -> tuple[complex, int]:
-    """Sum over blocks of the complex fringe amplitude (relative to the block's mean level).
-
-    In each ``block`` x ``block`` pixel square, ``luma ~ A + Re(m exp(2 pi i predicted))`` by
-    least squares; returns (sum of m / A over blocks, number of blocks).  The angle of the
-    sum is the photo's phase offset from the prediction.
-    """
-    h, w = luma.shape
-    rows, cols = np.nonzero(valid)
-    nbx = (w + block - 1) // block
-    index = (rows // block) * nbx + cols // block
-    nb = ((h + block - 1) // block) * nbx
-    ph = 2 * math.pi * predicted_cycles[rows, cols]
-    basis = (np.ones_like(ph), np.cos(ph), np.sin(ph))
-    val = luma[rows, cols].astype(np.float64)
-    gram = np.empty((nb, 3, 3))
-    rhs = np.empty((nb, 3))
-    for i in range(3):
-        rhs[:, i] = np.bincount(index, weights=basis[i] * val, minlength=nb)
-        for j in range(i, 3):
-            gram[:, i, j] = gram[:, j, i] = np.bincount(index, weights=basis[i] * basis[j], minlength=nb)
-    full = gram[:, 0, 0] >= block * block // 2
-    coef = np.linalg.solve(gram[full] + 1e-9 * np.eye(3), rhs[full][:, :, None])[:, :, 0]
-    good = coef[:, 0] > 0
-    coef = coef[good]
-    return complex(np.sum((coef[:, 1] - 1j * coef[:, 2]) / coef[:, 0])), int(good.sum())
-
-
 def _predicted_fine_cycles(fit, x_sm, y_sm, valid, period):
     out = np.zeros(x_sm.shape)
     out[valid] = x_sm[valid] / period + fit.psi(x_sm[valid], y_sm[valid])
@@ -371,7 +342,8 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
             raise CaptureError(f"should show a {colour} pattern but its panel is not {colour}",
                                source=str(photo.path),
                                hint=f"photograph {name}.png (swapped with the other order photo?)")
-        q, blocks = _block_amplitude(photo.luma, pred, valid)
+        amplitudes, _, _ = layout_fit.block_phases(photo.luma, pred, valid, block=48)
+        q, blocks = complex(amplitudes.sum()), int(amplitudes.size)
         blocks = max(1, blocks)
         amps[name] = abs(q) / blocks / max(ref_amp, 1e-9)
         offsets[name] = math.atan2(q.imag, q.real) / (2 * math.pi)
