@@ -32,6 +32,8 @@ import dataclasses
 from fractions import Fraction
 from typing import Any, Mapping, Sequence
 
+import numpy as np
+
 from .errors import ProfileError
 from .fields import is_finite_number, short_repr
 
@@ -79,8 +81,6 @@ class SubpixelLayout:
 
     def cell_of(self, x, y):
         """Cell index of pixel ``(x, y)`` (ints or integer arrays; y from the top)."""
-        import numpy as np
-
         table = np.asarray(self.pattern, dtype=np.int64)
         return table[np.asarray(y) % self.pattern_rows, np.asarray(x) % self.pattern_columns]
 
@@ -126,7 +126,8 @@ def layout_problem(layout: SubpixelLayout) -> tuple[str, str] | None:
     for row in pattern:
         for cell in row:
             if isinstance(cell, bool) or not isinstance(cell, int) or not 0 <= cell < len(cells):
-                return "pattern", f"cell index {short_repr(cell)} is not one of the {len(cells)} cells"
+                return "pattern", (f"cell index {short_repr(cell)} is not one of the {len(cells)} "
+                                   f"cell{'' if len(cells) == 1 else 's'} (0 to {len(cells) - 1})")
     return None
 
 
@@ -157,14 +158,10 @@ def layout_from_dict(data: Any, source: str) -> SubpixelLayout:
     raw_pattern = data.get("pattern", [[0]])
     if not isinstance(raw_pattern, list) or not all(isinstance(row, list) for row in raw_pattern):
         fail(".pattern", "must be a list of rows of cell indices, e.g. [[0, 1]]")
-    pattern = tuple(tuple(row) for row in raw_pattern)
-    layout = SubpixelLayout.__new__(SubpixelLayout)
-    object.__setattr__(layout, "cells", tuple(cells))
-    object.__setattr__(layout, "pattern", pattern)
-    problem = layout_problem(layout)
-    if problem is not None:
-        fail("." + problem[0], problem[1])
-    return layout
+    try:
+        return SubpixelLayout(cells=tuple(cells), pattern=tuple(tuple(row) for row in raw_pattern))
+    except ProfileError as exc:  # the same message, naming the file
+        raise ProfileError(exc.message, source=source, hint=exc.hint) from None
 
 
 def pattern_for_mode(mode: int, cell_count: int, height: int) -> tuple[tuple[int, ...], ...]:

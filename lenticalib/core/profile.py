@@ -139,7 +139,8 @@ class PanelProfile:
         if self.subpixel_layout is None:
             return self.subpixel_order
         lay = self.subpixel_layout
-        return f"cells ({len(lay.cells)} cells, pattern {lay.pattern_rows}x{lay.pattern_columns})"
+        count = len(lay.cells)
+        return f"cells ({count} cell{'' if count == 1 else 's'}, pattern {lay.pattern_rows}x{lay.pattern_columns})"
 
     def uses_version_2(self) -> bool:
         """True when the profile needs format version 2 (a layout, reversed views or flips).
