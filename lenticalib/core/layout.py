@@ -94,6 +94,15 @@ class SubpixelLayout:
         return tuple(tuple(1 + 3 * Fraction(dx) - 3 * c_r * Fraction(dy) - c for c, (dx, dy) in enumerate(cell))
                      for cell in self.cells)
 
+    def per_slot(self, per_cell: Sequence[Sequence[Any]]) -> list[list[Any]]:
+        """A per-cell triple (R, G, B) laid out over the pattern: rows ``[y % rows][3 (x % columns) + c]``."""
+        return [[per_cell[cell][c] for cell in row for c in range(3)] for row in self.pattern]
+
+    def slot_shift_table(self, slant: float) -> np.ndarray:
+        """Slot shifts ``e`` in subpixels, float64 ``(rows, 3 * columns)`` indexed
+        ``[y % rows, 3 (x % columns) + c]`` (:meth:`slot_shifts` laid out by :meth:`per_slot`)."""
+        return np.array(self.per_slot([[float(e) for e in cell] for cell in self.slot_shifts(slant)]))
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON form: ``{"cells": [{"R": [dx, dy], "G": [...], "B": [...]}, ...], "pattern": [[...]]}``."""
         return {"cells": [{name: [float(dx), float(dy)] for name, (dx, dy) in zip(CHANNELS, cell)}

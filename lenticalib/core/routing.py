@@ -91,8 +91,7 @@ def _routing_plan(key: tuple) -> RoutingPlan:
         shift = np.zeros((1, 3), dtype=np.uint64)
     else:
         per_cell = [[(e * _TWO64 / p).__floor__() % _TWO64 for e in cell] for cell in layout.slot_shifts(slant)]
-        shift = np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern],
-                         dtype=np.uint64)
+        shift = np.array(layout.per_slot(per_cell), dtype=np.uint64)
     # lit iff frac(w) < N / period; frac(w) * 2**64 is (Z * N) mod 2**64.
     ratio = Fraction(n) / p
     dark_threshold = None if ratio >= 1 else -((-ratio.numerator * _TWO64) // ratio.denominator)
@@ -149,10 +148,16 @@ def slot_shift_views(profile: PanelProfile) -> np.ndarray:
 
     Indexed like :attr:`RoutingPlan.shift`: ``[y % rows, 3 (x % columns) + slot]``."""
     layout = profile.subpixel_layout
-    if layout is None:
-        return np.zeros((1, 3))
-    per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(profile.slant)]
-    return np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern])
+    return np.zeros((1, 3)) if layout is None else layout.slot_shift_table(profile.slant)
+
+
+def slot_shift_rows(profile: PanelProfile, rows) -> np.ndarray:
+    """Slot shift ``e`` (subpixels) of every slot of ``rows`` (integer row indices), float64
+    ``(len(rows), 3 * width)``: :func:`slot_shift_views` repeated along the row."""
+    shift = slot_shift_views(profile)
+    reps = -(-profile.subpixels_per_row // shift.shape[1])
+    full = np.tile(shift, (1, reps))[:, :profile.subpixels_per_row]
+    return full[np.asarray(rows, dtype=np.int64) % shift.shape[0]]
 
 
 def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np.ndarray:
@@ -167,10 +172,7 @@ def view_coordinate(profile: PanelProfile, rows: np.ndarray | None = None) -> np
     scale = profile.views / profile.period
     w = profile.reference_view + (3.0 * profile.slant * y[:, None] + profile.offset - xs[None, :]) * scale
     if not profile.is_stripe:
-        shift = slot_shift_views(profile)
-        reps = -(-profile.subpixels_per_row // shift.shape[1])
-        full = np.tile(shift, (1, reps))[:, :profile.subpixels_per_row]
-        w = w - full[y.astype(np.int64) % shift.shape[0]] * scale
+        w = w - slot_shift_rows(profile, y.astype(np.int64)) * scale
     if profile.views_reversed:
         w = profile.views - w
     return w

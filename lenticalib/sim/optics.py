@@ -170,10 +170,7 @@ class PanelOptics:
         the apertures at the true centres (:meth:`channel_offsets`).
         """
         layout = self.subpixel_layout
-        if layout is None:
-            return np.zeros((1, 3))
-        per_cell = [[float(e) for e in cell] for cell in layout.slot_shifts(self.slant)]
-        return np.array([[per_cell[cell][s] for cell in row for s in range(3)] for row in layout.pattern])
+        return np.zeros((1, 3)) if layout is None else layout.slot_shift_table(self.slant)
 
     def channel_offsets(self) -> np.ndarray:
         """Where each slot's channel sits relative to the stripe RGB slot, float64
@@ -185,8 +182,7 @@ class PanelOptics:
             return np.zeros((2, 1, 3))
         along = [[1.0 + 3.0 * dx - c for c, (dx, _) in enumerate(cell)] for cell in layout.cells]
         down = [[float(dy) for _, dy in cell] for cell in layout.cells]
-        return np.array([[[table[cell][s] for cell in row for s in range(3)] for row in layout.pattern]
-                         for table in (along, down)])
+        return np.array([layout.per_slot(table) for table in (along, down)])
 
     def slot_shift_at(self, xs, y) -> np.ndarray:
         """The slot shift ``e`` (subpixels) of slots ``xs`` (``3 x + slot``) in rows ``y`` (integer

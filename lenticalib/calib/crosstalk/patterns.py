@@ -42,7 +42,7 @@ from ...core.documents import FORMATS, check_envelope
 from ...core.errors import InputError
 from ...core.pattern_sets import manifest_matches
 from ...core.profile import PanelProfile, profile_from_dict
-from ...core.routing import slot_shift_views, view_coordinate
+from ...core.routing import slot_shift_rows, view_coordinate
 from ..patterns import FRAME_LEVEL, frame_width
 
 DOCUMENT = FORMATS["lenticalib.crosstalk-patterns"]
@@ -180,9 +180,7 @@ def _slot_positions(profile: PanelProfile, rows: np.ndarray) -> np.ndarray:
     positions = np.arange(nsub, dtype=np.float64)[None, :]
     if profile.is_stripe:
         return positions
-    shift = slot_shift_views(profile)  # [y % rows, 3 (x % columns) + slot]
-    full = np.tile(shift, (1, -(-nsub // shift.shape[1])))[:, :nsub]
-    return positions + full[np.asarray(rows) % shift.shape[0]]
+    return positions + slot_shift_rows(profile, rows)
 
 
 def _lit(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, relative: np.ndarray) -> np.ndarray:
