@@ -27,8 +27,9 @@ import math
 import time
 from typing import Callable
 
-from ...core.errors import DeviceNotFoundError, DeviceProtocolError, DeviceTimeoutError, InputError
+from ...core.errors import DeviceProtocolError, DeviceTimeoutError, InputError
 from ..transports.base import FoundDevice
+from ..transports.hid import open_hid_device
 from .unit import FAMILY, MAX_CALIBRATION_BYTES, LookingGlassUnit
 
 VENDOR_ID = 0x04D8
@@ -129,18 +130,8 @@ class HidUnit(LookingGlassUnit):
 
     def _open(self) -> None:
         vid, pid, serial = self._ids or self.url.vid_pid_serial()
-        if self._factory is None:
-            import hid
-
-            device = hid.device()
-        else:
-            device = self._factory()
-        try:
-            device.open(vid, pid, serial)
-        except OSError:
-            raise DeviceNotFoundError(f"no Looking Glass HID unit {vid:04x}:{pid:04x}"
-                                      + (f" with serial {serial}" if serial else ""),
-                                      source=str(self.url), hint=self.open_hint()) from None
+        device = open_hid_device(self._factory, vid, pid, serial, "Looking Glass HID unit", self.url,
+                                 self.open_hint())
         self.device = device
         try:
             self.usb_serial = device.get_serial_number_string() or serial

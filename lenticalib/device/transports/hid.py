@@ -13,6 +13,23 @@ from ...core.errors import DeviceNotFoundError
 from .base import FoundDevice, Transport, family_ids
 
 
+def open_hid_device(factory, vid: int, pid: int, serial: str | None, what: str, url, hint: str):
+    """A hidapi ``hid.device`` (or ``factory()``, an object with its API) opened on ``vid:pid``
+    (and ``serial``); DeviceNotFoundError naming ``what`` and ``url`` when none answers."""
+    if factory is None:
+        import hid
+
+        device = hid.device()
+    else:
+        device = factory()
+    try:
+        device.open(vid, pid, serial)
+    except OSError:
+        raise DeviceNotFoundError(f"no {what} {vid:04x}:{pid:04x}" + (f" with serial {serial}" if serial else ""),
+                                  source=str(url), hint=hint) from None
+    return device
+
+
 class HidTransport(Transport):
     kind = "hid"
 
@@ -46,18 +63,7 @@ class HidTransport(Transport):
     def _open(self) -> None:
         vid, pid, serial_number = self.url.vid_pid_serial() if self.url.scheme == "hid" else (
             self.description.vid, self.description.pid, None)
-        if self._factory is None:
-            import hid
-
-            device = hid.device()
-        else:
-            device = self._factory()
-        try:
-            device.open(vid, pid, serial_number)
-        except OSError:
-            raise DeviceNotFoundError(f"no HID device {vid:04x}:{pid:04x}"
-                                      + (f" with serial {serial_number}" if serial_number else ""),
-                                      source=str(self.url), hint=self.open_hint()) from None
+        device = open_hid_device(self._factory, vid, pid, serial_number, "HID device", self.url, self.open_hint())
         device.set_nonblocking(False)
         self.device = device
 
