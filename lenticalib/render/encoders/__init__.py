@@ -2,12 +2,13 @@
 
     reference   canonical routing and float64 bilinear sampling written out plainly (the golden model)
     tables      a precomputed view table per subpixel (canonical routing) + sample points
-    fast        the canonical routing on the fly, vectorized numba kernels (the default)
+    fast        canonical routing, vectorized numba kernels (the default)
     torch       sparse tables on a torch device (CPU or CUDA); numpy in, numpy out through the registry,
                 tensors in and out with ``torch_encoder.TorchEncoder`` (needs PyTorch)
 
-Modules: ``reference``, ``tables`` and ``fast`` (one encoder each, as above), ``_simd`` (the
-explicitly vectorized uint8 block kernel of ``fast``), ``torch_encoder`` (the ``torch`` encoder)
+Modules: ``reference``, ``tables`` and ``fast`` (one encoder each, as above), ``_permute`` and
+``_simd`` (the explicitly vectorized uint8 block kernels of ``fast``: byte permutes on CPUs with
+AVX-512 VBMI, gathers elsewhere), ``torch_encoder`` (the ``torch`` encoder)
 with ``torch_tables`` (its sparse tables), and ``common`` (what every encoder checks and shares:
 the view stack and the output raster).  Part of the render layer: imports only core and render.
 

@@ -1,27 +1,30 @@
-"""Fast CPU encoder: routing computed on the fly in the canonical fixed-point arithmetic.
+"""Fast CPU encoder: canonical routing, vectorized numba kernels; three kernels, the fastest that applies.
 
-No per-subpixel maps are streamed: per row it needs the start phase ``Z0[y]`` and the bilinear
-row taps; per output column one packed int32 (tap offset | x weight); per block of
-``_simd.LANES`` output values a row of the per-profile lane table (:func:`_lane_table`).
+* ``permute`` (uint8 views on CPUs with AVX-512 VBMI, up to 64 views, views at least 22 pixels
+  wide, and at most ``_permute.MAX_WINDOWS`` permute windows per block: views up to the panel's
+  width for 16 views or fewer, up to half of it for 32, up to a sixth of it for 33 to 64):
+  :mod:`._permute`.  Per profile it stores the view of every output value (one byte each, from
+  :func:`lenticalib.core.routing.view_map`:
+  25 MiB at 3840x2160) and small block tables; per frame each thread transposes the source rows
+  it needs (view-minor) and reads the four bilinear taps with byte permutes, no gather.
+* ``gather`` (other uint8 cases the block kernel can address): :mod:`._simd`, routing computed on
+  the fly from the start phase ``Z0[y]`` and a per-profile lane table (:func:`_lane_table`), one
+  64-bit gather per output value from a per-thread row-pair buffer.  No per-subpixel map.
+* ``scalar`` (uint16 and float views, and what the others cannot address: a view 1 pixel wide, a
+  panel row under 64 values): float64 weights and the reference's operations in the same order,
+  so its values equal the reference's (tested).
 
-* uint8 views (the live-video case) go through the explicitly vectorized block kernel of
-  :mod:`._simd` (``_simd.LANES`` subpixels per step, one 64-bit gather each from a per-thread
-  row-pair buffer), threads over bands of rows; weights are 11-bit fixed point, so values are
-  within 1 LSB of the float64 reference.
-* uint16 and float views, and layouts the block kernel cannot address (a view 1 pixel wide, a
-  stack whose row-pair offsets pass 2**31, a panel row under ``LANES`` values), go through a
-  scalar numba kernel with float64 weights and the reference's operations in the same order, so
-  its values equal the reference's (tested).
+Both uint8 kernels use fixed-point weights and are within 1 LSB of the float64 reference; threads
+run over bands of rows.  Routing (which view) is identical to
+:func:`lenticalib.core.routing.view_map` in every kernel: stripe panels, subpixel layouts (cell
+patterns), reversed views and dark bands (``period > N``).
 
-Routing (which view) is identical to :func:`lenticalib.core.routing.view_map` in every case:
-stripe panels, subpixel layouts (cell patterns), reversed views and dark bands (``period > N``).
-
-What a subpixel layout costs.  The slot shifts of a layout live in the lane table, whose phase
-offsets the kernel subtracts anyway: a layout with a cell pattern of ``rows x columns`` makes
-the table ``rows x 3 columns`` blocks of ``LANES`` uint64 (at most 4 x 6 x 512 bytes = 12 KiB,
-against 3 x 512 bytes for a stripe panel), built once per profile.  The kernel runs the same
-instructions either way, so a cell layout encodes as fast as a stripe (``tools/bench_encode.py
---layout cells``; numbers in the README).
+What a subpixel layout costs.  ``permute`` reads the view of each value from its per-profile map,
+so a layout costs nothing.  ``gather`` keeps the slot shifts in the lane table, whose phase
+offsets it subtracts anyway: a cell pattern of ``rows x columns`` makes the table ``rows x 3
+columns`` blocks of ``LANES`` uint64 (at most 12 KiB, against 1.5 KiB for a stripe panel), and
+the kernel runs the same instructions.  ``tools/bench_encode.py --layout cells [--kernel K]``;
+numbers in the README.
 """
 
 from __future__ import annotations
@@ -33,9 +36,9 @@ import numpy as np
 from numba import prange
 
 from ...core.profile import PanelProfile
-from ...core.routing import RoutingPlan, routing_plan
+from ...core.routing import RoutingPlan, routing_plan, view_map
 from ..sampling import column_sampling, row_sampling
-from . import _simd
+from . import _permute, _simd
 
 _U64 = np.uint64
 _MASK32 = np.uint64(0xFFFFFFFF)
@@ -111,6 +114,39 @@ def _u8_plan(profile: PanelProfile, view_height: int, view_width: int):
     return tab, lanes, rows.lo.astype(np.int64), rows.hi.astype(np.int64), fyq
 
 
+@functools.lru_cache(maxsize=2)
+def _permute_plan(profile: PanelProfile, view_height: int, view_width: int):
+    """Per-profile constants of the permute kernel (cached; None when it cannot address them):
+    the view of every output value (uint8 ``(height, 3 width)``, ``_permute.DARK`` where none),
+    the row taps and y weights, and the block tables (:func:`._permute.block_tables`)."""
+    vs = _permute.view_slots(profile.views)
+    cols = column_sampling(profile, view_width)
+    rows = row_sampling(profile, view_height)
+    nsub = profile.subpixels_per_row
+    o = np.arange(nsub)
+    chan = o % 3
+    xs = 3 * (o // 3) + np.asarray(profile.rho)[chan]  # slot shown by output value o
+    s_left = 3 * cols.lo[xs].astype(np.int64) + chan
+    s_right = 3 * cols.hi[xs].astype(np.int64) + chan
+    starts, s_min_bytes, tables, windows = _permute.block_tables(s_left, s_right, cols.weight[xs], vs)
+    if tables is None:
+        return None
+    views_u8 = np.empty((profile.height, nsub), dtype=np.uint8)
+    for start in range(0, profile.height, 128):  # bounded int16 temporaries
+        chosen = view_map(profile, slice(start, start + 128))[:, xs]
+        views_u8[start:start + 128] = np.where(chosen < 0, _permute.DARK, chosen)
+    fyq = np.rint(rows.weight * (1 << _permute.Y_BITS)).astype(np.int64)
+    t_bytes = max(3 * view_width * vs, int(s_min_bytes.max()) + _permute.WINDOW * windows) + 64
+    return (views_u8, rows.lo.astype(np.int64), rows.hi.astype(np.int64), fyq, starts, s_min_bytes, tables,
+            windows, vs, t_bytes)
+
+
+def _permute_kernel_fits(views: np.ndarray, nsub: int) -> bool:
+    n, _, wv, _ = views.shape
+    return (views.dtype == np.uint8 and _permute.available() and _permute.view_slots(n) is not None
+            and 3 * wv >= _permute.LANES and nsub >= _permute.LANES)
+
+
 def _pair_stride(view_width: int) -> int:
     """Bytes per view in a thread's row-pair buffer: ``6 W_v`` rounded up to an odd number of
     64-byte lines, so that the same column of the N views falls in different cache sets."""
@@ -124,20 +160,49 @@ def _block_kernel_fits(views: np.ndarray, nsub: int) -> bool:
             and 6 * wv < (1 << _simd.COLUMN_BITS) and nsub >= _simd.LANES)
 
 
-def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None = None) -> np.ndarray:
-    """Encode ``views`` ``(N, H_v, W_v, 3)`` into ``out`` ``(height, width, 3)`` (allocated if None)."""
+KERNELS = ("permute", "gather", "scalar")  # fastest first; the scalar kernel takes every case
+
+
+def usable_kernels(views: np.ndarray, profile: PanelProfile) -> list[str]:
+    """Names of the kernels (:data:`KERNELS`) that can encode ``views`` for ``profile`` here, fastest first."""
+    names = []
+    if _permute_kernel_fits(views, profile.subpixels_per_row) and _permute_plan(profile, *views.shape[1:3]):
+        names.append("permute")
+    if _block_kernel_fits(views, profile.subpixels_per_row):
+        names.append("gather")
+    return names + ["scalar"]
+
+
+def encode_fast(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None = None, *,
+                kernel: str | None = None) -> np.ndarray:
+    """Encode ``views`` ``(N, H_v, W_v, 3)`` into ``out`` ``(height, width, 3)`` (allocated if None).
+
+    ``kernel``: None runs the fastest kernel that applies (:func:`usable_kernels`); a name from
+    :data:`KERNELS` forces that one (ValueError when it cannot encode these views: for tests and
+    benchmarks)."""
     n, hv, wv, _ = views.shape
     if out is None:
         out = np.empty((profile.height, profile.width, 3), dtype=views.dtype)
+    usable = usable_kernels(views, profile)
+    if kernel is not None and kernel not in usable:
+        raise ValueError(f"kernel {kernel!r} cannot encode these views here (usable: {', '.join(usable)})")
+    kernel = kernel or usable[0]
+    chunks = _CHUNKS_PER_THREAD * max(1, nb.get_num_threads())
+    if kernel == "permute":
+        views_u8, row_lo, row_hi, fyq, starts, s_min_bytes, tables, windows, vs, t_bytes = _permute_plan(profile, hv, wv)
+        with nb.parallel_chunksize(1):  # chunks handed out one at a time: a busy core takes fewer
+            _permute.encode_u8_permute(views.reshape(-1), out.reshape(profile.height, -1), views_u8, row_lo, row_hi,
+                                       fyq, starts, s_min_bytes, tables, windows, hv * wv * 3, wv * 3, n, vs,
+                                       t_bytes, chunks)
+        return out
     plan = routing_plan(profile)
     z0, k, dark = plan.z0, plan.k, plan.dark
-    if _block_kernel_fits(views, profile.subpixels_per_row):
+    if kernel == "gather":
         tab, lanes, row_lo, row_hi, fyq = _u8_plan(profile, hv, wv)
         pow2 = n > 1 and (n & (n - 1)) == 0
         mode = 2 if dark is not None else (0 if pow2 else 1)
         shift = 64 - (n.bit_length() - 1)
-        chunks = _CHUNKS_PER_THREAD * max(1, nb.get_num_threads())
-        with nb.parallel_chunksize(1):  # chunks handed out one at a time: a busy core takes fewer
+        with nb.parallel_chunksize(1):
             _simd.encode_u8_blocks(views.reshape(-1), out.reshape(profile.height, -1), z0, _U64(k), n, shift,
                                    _U64(dark or 0), mode, tab, lanes, row_lo, row_hi, fyq, hv * wv * 3, wv * 3,
                                    _pair_stride(wv), chunks)
