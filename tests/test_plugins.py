@@ -121,6 +121,20 @@ def test_the_gsplat_renderer_and_the_torch_encoder_say_whether_they_can_run_here
 
 # -- every registry on the one loader ------------------------------------------------------------
 
+def test_a_builtin_backend_loads_without_reading_the_entry_points(monkeypatch):
+    # encode() asks the registry every frame: the entry-point scan (milliseconds) is for plug-ins
+    from lenticalib.core import plugins
+
+    calls = []
+    real = plugins.metadata.entry_points
+    monkeypatch.setattr(plugins.metadata, "entry_points", lambda **kw: calls.append(kw) or real(**kw))
+    assert callable(get_encoder("fast")) and callable(ENCODERS.load("reference", "encoder"))
+    assert calls == []
+    with pytest.raises(InputError, match="unknown encoder 'nope'"):
+        get_encoder("nope")
+    assert calls  # a name that is not built in is looked for among the plug-ins
+
+
 @pytest.mark.parametrize("kind", sorted(REGISTRIES))
 def test_every_registry_loads_its_builtins_by_name(kind):
     registry = REGISTRIES[kind]

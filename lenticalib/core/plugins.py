@@ -39,7 +39,8 @@ from .errors import BackendUnavailableError, InputError, LenticalibError
 
 class Registry(Mapping[str, Any]):
     """Backends of one kind by name: ``builtin`` ``{name: "module:attribute"}`` plus the ``group``
-    entry points (None: built-ins only), read each time they are asked for.
+    entry points (None: built-ins only), read each time they are asked for (loading a built-in
+    by name reads none: it cannot be taken over).
 
     ``what`` is the kind's word in messages ("encoder", "transport"); ``install`` maps a name to the
     library its module needs (the hint when it fails to import); ``unknown_error`` is the error
@@ -108,7 +109,9 @@ class Registry(Mapping[str, Any]):
         BackendUnavailableError, with its one-line reason, passes) or when its
         ``unavailable(device)`` gives a reason; the hint names the backends that can run here.
         """
-        entries = self.entries()  # read once: the entry points cost milliseconds
+        # a built-in name cannot be taken over, so it needs no entry points (they cost milliseconds,
+        # which a per-frame caller such as ``encode`` would pay every frame); read them once otherwise
+        entries = self.builtin if isinstance(name, str) and name in self.builtin else self.entries()
         backend = self._import(entries, self._check(entries, name, source), source)
         reason = unavailable(backend, device)
         if reason is not None:
