@@ -41,7 +41,7 @@ from numba import prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ._simd import _const, _splat, prefetch
+from ._simd import _const, _splat, prefetch_row_lines
 
 LANES = 64
 WINDOW = 128  # bytes a two-source byte permute selects from
@@ -344,11 +344,5 @@ def encode_u8_permute(flat, out2d, views_u8, row_lo, row_hi, fyq, starts, s_min_
                 o0 = starts[blk]
                 at = s_min_bytes[blk]
                 tb = ptab + blk * tab_stride
-                for _ in range(pf_per_block):
-                    if pf_view < n_views:
-                        prefetch(pf_row + pf_view * plane + 64 * pf_line)
-                        pf_line += 1
-                        if pf_line == pf_lines:
-                            pf_line = 0
-                            pf_view += 1
+                pf_view, pf_line = prefetch_row_lines(pf_row, pf_view, pf_line, pf_per_block, n_views, pf_lines, plane)
                 block(pt + at, pb + at, pv + o0, tb, po + o0, fy, windows)

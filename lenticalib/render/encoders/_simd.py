@@ -153,6 +153,21 @@ def prefetch(typingctx, address):
     return types.void(types.intp), codegen
 
 
+@nb.njit(cache=True, inline="always")
+def prefetch_row_lines(row, view, line, count, n_views, lines, plane):  # pragma: no cover - compiled
+    """Prefetch the next ``count`` cache lines of a source row of the N views: the row's address in
+    view 0 ``row``, ``lines`` lines per view row, views ``plane`` bytes apart, going on from line
+    ``line`` of view ``view`` (nothing once ``view == n_views``).  Returns the new ``(view, line)``."""
+    for _ in range(count):
+        if view < n_views:
+            prefetch(row + view * plane + 64 * line)
+            line += 1
+            if line == lines:
+                line = 0
+                view += 1
+    return view, line
+
+
 # The row kernel lives here, next to the intrinsics it inlines: numba's on-disk cache is keyed on
 # the file that defines a jitted function, so keeping both in one file invalidates them together.
 _U64 = np.uint64
@@ -221,13 +236,7 @@ def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, l
                 o0 = min(blk * lanes, length - lanes)  # last block overlaps: recomputes, same values
                 lp = row_lanes + block_lanes[blk]
                 zb = z - _U64(o0) * k
-                for _ in range(pf_per_block):
-                    if pf_view < n_views:
-                        prefetch(pf_row + pf_view * plane + 64 * pf_line)
-                        pf_line += 1
-                        if pf_line == pf_lines:
-                            pf_line = 0
-                            pf_view += 1
+                pf_view, pf_line = prefetch_row_lines(pf_row, pf_view, pf_line, pf_per_block, n_views, pf_lines, plane)
                 if mode == 0:
                     block_pow2(base, ptab + 4 * o0, lp, po + o0, zb, _U64(shift), _U64(0), stride, fy)
                 elif mode == 1:
