@@ -9,7 +9,8 @@ import pytest
 
 from lenticalib.calib import layout_fit
 from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, CELL_WIDE_GROUPS, CELL_Y_GROUPS, cell_class_of,
+from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, CELL_WIDE_GROUPS, CELL_WIDER_GROUPS, CELL_X_GROUPS,
+                                       CELL_Y_GROUPS, cell_class_of,
                                        design_patterns, read_manifest, render_pattern)
 from lenticalib.core.colour import srgb_encode8
 from lenticalib.core.errors import CalibrationError
@@ -28,22 +29,28 @@ def _profile(layout=None, order="RGB", slant=0.21, period=19.5):
 # 1. The cell patterns ------------------------------------------------------------------------------
 def test_cell_patterns_light_one_channel_in_one_class(tmp_path):
     plain, cells = design_patterns(64, 64, 8), design_patterns(64, 64, 8, cells=True)
-    assert cells.names == plain.names + list(CELL_GROUPS) + list(CELL_Y_GROUPS) + list(CELL_WIDE_GROUPS)
-    assert len(CELL_GROUPS) == len(CELL_Y_GROUPS) == len(CELL_WIDE_GROUPS) == 3 * CELL_CLASSES
+    assert cells.names == (plain.names + list(CELL_GROUPS) + list(CELL_Y_GROUPS) + list(CELL_WIDE_GROUPS)
+                           + list(CELL_WIDER_GROUPS))
+    assert len(CELL_GROUPS) == len(CELL_Y_GROUPS) == len(CELL_WIDE_GROUPS) == len(CELL_WIDER_GROUPS) == 3 * CELL_CLASSES
+    # the x photos at 16, 20 and 26 subpixels: a lens period up to about 23.5 has one that measures
+    # it (docs/calibration.md, the working range)
+    assert {period: [p.period for name in names for p in cells.group(name)] == [period] * len(names)
+            for period, names in CELL_X_GROUPS.items()} == {16.0: True, 20.0: True, 26.0: True}
     assert cells.set_id != plain.set_id and "cells" not in plain.to_dict()
     reference = render_pattern(plain.group("f16")[0], 64, 64)  # the fine sinusoid, step 0, green
     classes = cell_class_of(np.arange(64)[None, :], np.arange(64)[:, None])
     inner = (slice(2, -2), slice(2, -2))  # inside the registration frame
-    for name, channel in (("cell-g3", 1), ("cell-r0", 0), ("cell-b7", 2)):
+    for name, channel in (("cell-g3", 1), ("cell-r0", 0), ("cell-b7", 2), ("cellv-g6", 1), ("cellw-r1", 0)):
         image = render_pattern(cells.group(name)[0], 64, 64)[inner]
         k = int(name[-1])
         lit = classes[inner] == k
         assert not np.delete(image, channel, axis=2).any()
         assert not image[..., channel][~lit].any()
-        if channel == 1:
+        if name == "cell-g3":
             np.testing.assert_array_equal(image[..., 1][lit], reference[inner][..., 1][lit])
-        else:
-            assert image[..., channel][lit].min() > 0
+        period = {"cell": 16.0, "cellw": 20.0, "cellv": 26.0}[name.split("-")[0]]
+        row = srgb_encode8(0.5 + 0.45 * np.cos(2 * np.pi * (3 * np.arange(64)[inner[1]] + channel + 0.5) / period))
+        np.testing.assert_array_equal(image[..., channel][lit], np.broadcast_to(row, image.shape[:2])[lit])
     image = render_pattern(cells.group("celly-b5")[0], 64, 64)[inner]  # along y, blue, class 5
     lit = classes[inner] == 5
     assert not image[..., :2].any() and not image[..., 2][~lit].any()

@@ -55,12 +55,14 @@ def run_one(layout_name: str, seed: int, sign: float, root: Path, panel, resolut
                          slant=sign * abs(drawn.optics.slant), order=None if layout else order, layout=layout)
     folder = root / f"{layout_name}-{seed:03d}-{'p' if sign > 0 else 'm'}"
     done = folder / "simulation.json"
+    pattern_set = design_patterns(width, height, 32, cells=True)
     t_sim = 0.0
-    if not (reuse and done.exists() and json.loads(done.read_text()).get("status") == "complete"
-            and json.loads(done.read_text())["scene"] == scene.to_dict()):
+    record = json.loads(done.read_text()) if reuse and done.exists() else {}
+    if not (record.get("status") == "complete" and record["scene"] == scene.to_dict()
+            and record["pattern_set"]["set_id"] == pattern_set.set_id):  # the same scene and patterns
         if folder.exists():
             shutil.rmtree(folder)
-        write_patterns(folder, design_patterns(width, height, 32, cells=True))
+        write_patterns(folder, pattern_set)
         t0 = time.perf_counter()
         simulate_capture_set(folder, scene)
         t_sim = time.perf_counter() - t0

@@ -34,7 +34,7 @@ from .camera import CameraModel, describe_pose, estimate_camera, load_camera_mod
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
 from .groups import Group, Registration, demodulate_group, group_photos
-from .patterns import (CELL_GROUPS, CELL_PERIOD_RANGE, CELL_WIDE_GROUPS, CELL_X_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD,
+from .patterns import (CELL_PERIOD_RANGE, CELL_X_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD,
                        FINE_PERIODS, PERIOD_RANGE)
 from .pose import PanelPose, camera_pose
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
@@ -54,7 +54,7 @@ def progress_steps(pattern_set) -> int:
     """How many times :func:`fit_capture_set` calls ``progress`` for a capture set of ``pattern_set``
     (a :class:`~.patterns.PatternSet`): once per photo it reads, once per stage."""
     cells = getattr(pattern_set, "cells", False)
-    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_GROUPS + CELL_Y_GROUPS + CELL_WIDE_GROUPS if cells else ())
+    names = DEMODULATED_GROUPS + tuple(ORDER_CHANNELS) + (CELL_Y_GROUPS + sum(CELL_X_GROUPS.values(), ()) if cells else ())
     photos = sum(len(pattern_set.group(name)) for name in names)
     return photos + len(STAGES) + (1 if cells else 0)
 
@@ -357,7 +357,7 @@ def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, re
 def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration,
                  views: int) -> layout_fit.LayoutDecision:
     """The stripe order or the cell layout from the cell photos (:mod:`.layout_fit`); CaptureError
-    naming a photo that does not show its channel's fringes (at either period of the x photos),
+    naming a photo that does not show its channel's fringes (at every period of the x photos),
     CalibrationError (one line) when the shifts cannot tell the layout."""
     lens_period = -1.0 / fit.a
     slant = fit.b * lens_period / 3.0

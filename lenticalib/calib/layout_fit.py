@@ -3,8 +3,8 @@
 Frames and units: working-image pixels (see :mod:`.phase`); panel coordinates ``X`` (subpixels)
 and ``Y`` (rows); shifts in subpixels along a row.
 
-THE MEASUREMENT.  A cell photo (``cell-<c><k>``, :data:`.patterns.CELL_GROUPS`; ``cellw-<c><k>``,
-:data:`.patterns.CELL_WIDE_GROUPS`, at a second period) shows the fine sinusoid of period ``T``
+THE MEASUREMENT.  A cell photo (``cell-<c><k>``, :data:`.patterns.CELL_GROUPS`; ``cellw-<c><k>`` and
+``cellv-<c><k>`` at further periods, :data:`.patterns.CELL_X_GROUPS`) shows the fine sinusoid of period ``T``
 in channel ``c`` only, evaluated at the channel's stripe-RGB slot
 ``x_s = 3 x + c``, and only in the pixels of cell class ``k`` (``2 (y % 4) + x % 2``); a
 ``celly-<c><k>`` photo (:data:`.patterns.CELL_Y_GROUPS`) a sinusoid of ``CELL_Y_PERIOD`` rows
@@ -22,7 +22,7 @@ Per photo the phase offset against the plane's prediction is fitted block by blo
 (``A + Re(m exp(2 pi i predicted))`` in blocks of ``BLOCK`` pixels); its 1-sigma comes from a
 delete-one-tile jackknife over ``TILES`` tiles of the panel, so spatially correlated errors count
 (moire of the sparse lit pixels, glare, JPEG); a cell's sigma has a systematic floor
-(:func:`shift_floor`).  The two periods of x photos are combined per class and channel by
+(:func:`shift_floor`).  The periods of x photos are combined per class and channel by
 their sigmas and floors (:func:`combine_periods`).  The offsets of the eight green photos give the
 reference (their mean is the plane's own green), which also cancels what all single photos share
 (the tone curve's harmonics, the camera's colour mixing into the luminance).

@@ -34,18 +34,18 @@ Why these patterns (the physics is in ``docs/optics.md``; the method in ``docs/c
   without bias (an edge lit by the photo's own fringe is weighted by that fringe) and undone
   (:mod:`.register`).  The fringes fill the panel inside the frame.
 
-* With ``cells`` (``lenticalib patterns --cells``) 72 *cell patterns* follow: ``cell-<c><k>``
+* With ``cells`` (``lenticalib patterns --cells``) 96 *cell patterns* follow: ``cell-<c><k>``
   draws the fine sinusoid of ``f16`` in channel ``c`` (r, g or b, at its RGB slot) only in the
   pixels of cell class ``k = 2 (y % 4) + x % 2``, ``celly-<c><k>`` a sinusoid of 16 rows
-  along y the same way, and ``cellw-<c><k>`` the x sinusoid at 20 subpixels (a second
-  period, so that lens periods where one period is blind or aliases too strongly are measured
-  by the other: :data:`CELL_X_PERIODS`).  On a panel whose subpixels are not a stripe
+  along y the same way, and ``cellw-<c><k>`` and ``cellv-<c><k>`` the x sinusoid at 20 and 26
+  subpixels (more periods, so that every lens period has one that neither is blind nor
+  aliases too strongly: :data:`CELL_X_PERIODS`).  On a panel whose subpixels are not a stripe
   each channel of each cell sits elsewhere in the pixel; the phase of these photos against the
   fitted model measures where, along the row and along the column, and the lens routes by the
   combination across the lenses (:mod:`.layout_fit`).  Every cell pattern public calibrations
   use (1, 2 or 4 rows; 1 or 2 columns) is a function of the class.
 
-23 photos in all (95 with the cell patterns).  Periods scale with the panel so any raster size
+23 photos in all (119 with the cell patterns).  Periods scale with the panel so any raster size
 works; the fine periods cover lens periods Delta_r from 9.5 to 31 subpixels.
 """
 
@@ -88,17 +88,21 @@ CELL_GROUPS = tuple(f"cell-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
 # routes by the combination across the lenses).
 CELL_Y_GROUPS = tuple(f"celly-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
 CELL_Y_PERIOD = 16.0  # rows
-# ... and "cellw-<channel><class>": the x patterns again at a second period.  A single-step photo
-# carries a phase only where its alias fringe varies over the panel: the x photos at one period
-# T are blind near Delta_r = T and noisy beyond |Delta_r / T - 1| of about 0.3, so one period
-# covers about 14.5 to 21 subpixels.  At 20 subpixels the second set is blind only where the
-# first aliases by 0.25 (Delta_r = 20), the first is blind where it aliases by 0.2 (16), and
-# together they are meant to cover 14 to 26 (:func:`lenticalib.calib.layout_fit.combine_periods`);
-# measured on simulated sets (docs/calibration.md): every layout and slant sign up to 22.05.
-CELL_X_PERIODS = (FINE_PERIODS[0], 20.0)  # subpixels: CELL_GROUPS, CELL_WIDE_GROUPS
+# ... and "cellw-<channel><class>", "cellv-<channel><class>": the x patterns again at more
+# periods.  A single-step photo carries a phase only where its alias fringe varies over the panel,
+# and its errors grow with the alias |Delta_r / T - 1| (about 0.3 |alias| subpixel on a layout
+# whose cells differ in dy), so the x photos at one period T are blind near Delta_r = T and off by
+# 0.1-0.2 subpixel beyond an alias of about 0.35.  16 and 20 alone measured lens periods up to
+# 22 subpixels; at 23.4 the 16-subpixel photos alias by 0.46 and the 20-subpixel ones are noisy
+# (tools/bench_layouts.py).  26 measures there (alias -0.1) and is blind only beyond the lens
+# periods random_scene draws (14 to 24); 16 and 26 alone were not enough at 23.4 (the two
+# disagree by more than their floors, so the combined sigma reaches the limit), 16, 20 and 26 are
+# (:func:`lenticalib.calib.layout_fit.combine_periods`; measured range in docs/calibration.md).
+CELL_X_PERIODS = (FINE_PERIODS[0], 20.0, 26.0)  # subpixels: CELL_GROUPS, CELL_WIDE_GROUPS, CELL_WIDER_GROUPS
 CELL_WIDE_GROUPS = tuple(f"cellw-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
-CELL_X_GROUPS = {CELL_X_PERIODS[0]: CELL_GROUPS, CELL_X_PERIODS[1]: CELL_WIDE_GROUPS}
-CELL_PERIOD_RANGE = (14.5, 22.5)  # lens periods Delta_r (subpixels) where the cell photos measured well
+CELL_WIDER_GROUPS = tuple(f"cellv-{c}{k}" for c in "rgb" for k in range(CELL_CLASSES))
+CELL_X_GROUPS = dict(zip(CELL_X_PERIODS, (CELL_GROUPS, CELL_WIDE_GROUPS, CELL_WIDER_GROUPS)))
+CELL_PERIOD_RANGE = (14.5, 23.5)  # lens periods Delta_r (subpixels) where the cell photos measured well
 
 
 def frame_width(height: int) -> int:
@@ -192,8 +196,8 @@ def design_patterns(width: int, height: int, views: int, cells: bool = False) ->
     Coarse periods: 1.25 panel widths/heights (one unambiguous phase over the panel), then
     a twelfth of the width (a sixteenth of the height), then 96 subpixels (at most a third
     of a cycle per lens up to Delta_r = 32, so the lenses do not alias it).  ``cells``: also the
-    72 cell patterns (:data:`CELL_GROUPS`, :data:`CELL_Y_GROUPS`, :data:`CELL_WIDE_GROUPS`), for
-    panels whose subpixels are not a stripe.
+    96 cell patterns (:data:`CELL_GROUPS`, :data:`CELL_Y_GROUPS`, then the x patterns at the further
+    periods of :data:`CELL_X_GROUPS`), for panels whose subpixels are not a stripe.
     """
     if not (isinstance(width, int) and isinstance(height, int) and width >= 64 and height >= 64):
         raise InputError(f"panel size {width}x{height} is too small", source="width/height",
@@ -222,10 +226,9 @@ def design_patterns(width: int, height: int, views: int, cells: bool = False) ->
             for k in range(CELL_CLASSES):
                 name = f"celly-{channel.lower()}{k}"
                 patterns.append(Pattern(name, name, "y", CELL_Y_PERIOD, 0, 1, channel, k))
-        for channel in "RGB":
-            for k in range(CELL_CLASSES):
-                name = f"cellw-{channel.lower()}{k}"
-                patterns.append(Pattern(name, name, "x", CELL_X_PERIODS[1], 0, 1, channel, k))
+        for period in CELL_X_PERIODS[1:]:
+            for name in CELL_X_GROUPS[period]:
+                patterns.append(Pattern(name, name, "x", period, 0, 1, name[-2].upper(), int(name[-1])))
     return PatternSet(width, height, views, tuple(patterns), cells=bool(cells))
 
 

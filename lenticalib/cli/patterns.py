@@ -26,8 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "to see which way the views run")
     parser.add_argument("--profile", metavar="P", help="the panel profile (with --direction)")
     parser.add_argument("--cells", action="store_true",
-                        help="also the 72 cell patterns (one colour in one of 8 pixel classes each, along x at "
-                             "two periods and along y), from which 'fit' finds a subpixel layout that is not a "
+                        help="also the 96 cell patterns (one colour in one of 8 pixel classes each, along x at "
+                             "three periods and along y), from which 'fit' finds a subpixel layout that is not a "
                              "stripe (Looking Glass panels with subpixel cells)")
     parser.set_defaults(run=run)
 
