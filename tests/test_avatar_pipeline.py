@@ -276,3 +276,25 @@ def test_crosstalk_compensation_in_the_loop_changes_what_is_encoded(demo, direct
     assert plain.returncode == 0, plain.stderr
     assert not np.array_equal(read_image(tmp_path / "plain.png"), raster)
     assert np.abs(views[:, :5, :5].astype(int) - 48).max() <= 1  # the black background is lifted to 0.03 (sRGB 48)
+
+
+def test_the_first_ctrl_c_asks_the_live_loop_to_stop_and_the_second_interrupts():
+    # an interrupt raised inside a numba kernel surfaces as SystemError: the first Ctrl-C only sets a flag
+    import os
+    import signal
+
+    from lenticalib.render.live import stop_on_interrupt
+
+    before = signal.getsignal(signal.SIGINT)
+    with stop_on_interrupt() as interrupted:
+        assert not interrupted.is_set()
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):  # the handler runs between bytecodes of the main thread
+            if interrupted.is_set():
+                break
+        assert interrupted.is_set()
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):
+                pass
+    assert signal.getsignal(signal.SIGINT) is before

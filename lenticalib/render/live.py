@@ -3,7 +3,10 @@
 Output: ``"panel"`` (full screen, pixel-exact, through the presenter; the monitor whose mode is
 the profile's size unless ``display`` names one), ``"preview"`` (a normal window showing the
 centre view, for a desk without a panel) or ``"headless"`` (no output: timing only; no present
-stage).  Esc, q or closing the window stops; ``frames`` stops after that many, Ctrl-C too.
+stage).  Esc, q or closing the window stops; ``frames`` stops after that many, Ctrl-C too: on the
+main thread the first Ctrl-C only asks the loop to stop after the current frame (an interrupt
+raised inside a compiled kernel comes out as a SystemError, not a KeyboardInterrupt), a second
+one interrupts at once.
 
 Errors name the argument at fault by its parameter name (``source="frames"``); a command-line
 front end maps them to its flags.
@@ -11,8 +14,11 @@ front end maps them to its flags.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
+import signal
+import threading
 import time
 from typing import Callable
 
@@ -23,6 +29,27 @@ from ..core.profile import PanelProfile
 from .session import AvatarOptions, AvatarSession, open_avatar_session
 
 OUTPUTS = ("panel", "preview", "headless")
+
+
+@contextlib.contextmanager
+def stop_on_interrupt():
+    """Yields an Event set by the first Ctrl-C (SIGINT) while the block runs, on the main thread;
+    a second Ctrl-C raises KeyboardInterrupt as usual.  Elsewhere (no signals) an Event never set."""
+    requested = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield requested
+        return
+
+    def on_interrupt(signum, frame):
+        if requested.is_set():
+            raise KeyboardInterrupt
+        requested.set()
+
+    previous = signal.signal(signal.SIGINT, on_interrupt)
+    try:
+        yield requested
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 @dataclasses.dataclass
@@ -66,9 +93,9 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
     centre = profile.views // 2
     times = StageTimes()
     start = last_report = time.perf_counter()
-    with presenter:
+    with presenter, stop_on_interrupt() as interrupted:
         try:
-            while frames is None or times.frames < frames:
+            while (frames is None or times.frames < frames) and not interrupted.is_set():
                 raster, views, stages = pipeline.frame(session.controls_at(time.perf_counter() - start))
                 t0 = time.perf_counter()
                 if output == "preview":
