@@ -11,37 +11,29 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lenticalib.core.layout import LKG_CELL_PATTERNS, SubpixelLayout, pattern_for_mode
+from lenticalib.core.layout import SubpixelLayout, pattern_for_mode
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import view_map
 from lenticalib.render.encoders import _permute, encode
 from lenticalib.render.encoders.fast import KERNELS, encode_fast, usable_kernels
 
-from .strategies import VIEW_COUNTS, profiles, tie_profiles
+from .strategies import profiles, tie_profiles
+from .test_encoders import _in_output_order, _numbered_views
 
 CELLS = (((-0.25, -0.31), (-0.25, 0.28), (0.25, 0.0)), ((0.25, -0.31), (0.25, 0.28), (-0.25, 0.0)),
          ((0.1, 0.2), (-0.3, 0.0), (0.3, -0.2)), ((-0.1, 0.4), (0.0, -0.4), (0.2, 0.1)))
 
 
-def _expected_views(profile):
-    xs = 3 * np.arange(profile.width)[:, None] + np.asarray(profile.rho)[None, :]
-    return view_map(profile)[:, xs.reshape(-1)].reshape(profile.height, profile.width, 3).astype(np.int64)
-
-
-def _numbered(n, hv, wv):
-    """View i filled with i + 1: an encoded raster is the chosen view + 1 (0 where dark)."""
-    return np.broadcast_to(np.arange(1, n + 1, dtype=np.uint8)[:, None, None, None], (n, hv, wv, 3)).copy()
-
-
 def _check_every_kernel(profile, hv, wv, seed=0):
     """Every usable kernel routes exactly like view_map and is within 1 LSB of the reference;
     returns the kernels that ran."""
-    kernels = usable_kernels(_numbered(profile.views, hv, wv), profile)
-    expected = _expected_views(profile)
+    numbered = _numbered_views(profile, np.uint8, hv, wv)
+    kernels = usable_kernels(numbered, profile)
+    expected = _in_output_order(profile, view_map(profile)).astype(np.int64)
     views = np.random.default_rng(seed).integers(0, 256, (profile.views, hv, wv, 3), dtype=np.uint8)
     ref = encode(views, profile, "reference", allow_stretch=True).astype(np.int32)
     for kernel in kernels:
-        chosen = encode_fast(_numbered(profile.views, hv, wv), profile, kernel=kernel).astype(np.int64) - 1
+        chosen = encode_fast(numbered, profile, kernel=kernel).astype(np.int64) - 1
         np.testing.assert_array_equal(chosen, expected, err_msg=kernel)
         values = encode_fast(views, profile, kernel=kernel).astype(np.int32)
         assert np.abs(values - ref).max() <= 1, kernel

@@ -41,7 +41,7 @@ from numba import prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ._simd import _const, _splat, prefetch_row_lines
+from ._simd import _const, _splat, next_source_row, prefetch_row_lines
 
 LANES = 64
 WINDOW = 128  # bytes a two-source byte permute selects from
@@ -316,13 +316,10 @@ def encode_u8_permute(flat, out2d, views_u8, row_lo, row_hi, fyq, starts, s_min_
                     else:
                         _transpose_row(flat, need * row_bytes, plane, n_views, row_bytes, vs, rows[1])
                         held1 = need
-            if changed:  # the source row the next change of taps in this band adds (any direction)
-                ahead = y + 1
-                while ahead < end and row_lo[ahead] == top and row_hi[ahead] == bottom:
-                    ahead += 1
-                pf_view, pf_line = (n_views if ahead == end else 0), 0
-                if ahead < end:
-                    new_row = row_hi[ahead] if row_hi[ahead] != top and row_hi[ahead] != bottom else row_lo[ahead]
+            if changed:  # the source row the next change of taps in this band adds
+                ahead, new_row = next_source_row(row_lo, row_hi, y, end, top, bottom)
+                pf_view, pf_line = (n_views if new_row < 0 else 0), 0
+                if new_row >= 0:
                     pf_row = src + new_row * row_bytes
                     pf_per_block = n_views * pf_lines // (n_blocks * (ahead - y)) + 1
             pt = rows[0].ctypes.data if held0 == top else rows[1].ctypes.data

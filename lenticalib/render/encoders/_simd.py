@@ -168,6 +168,22 @@ def prefetch_row_lines(row, view, line, count, n_views, lines, plane):  # pragma
     return view, line
 
 
+@nb.njit(cache=True, inline="always")
+def next_source_row(row_lo, row_hi, y, end, top, bottom):  # pragma: no cover - compiled
+    """The first output row after ``y`` (before ``end``) whose bilinear row taps are not
+    ``(top, bottom)``, and the source row it adds (any direction: image flips); ``(end, -1)``
+    when the band has no such row."""
+    ahead = y + 1
+    while ahead < end and row_lo[ahead] == top and row_hi[ahead] == bottom:
+        ahead += 1
+    if ahead == end:
+        return end, -1
+    new_row = row_hi[ahead]
+    if new_row == top or new_row == bottom:
+        new_row = row_lo[ahead]
+    return ahead, new_row
+
+
 # The row kernel lives here, next to the intrinsics it inlines: numba's on-disk cache is keyed on
 # the file that defines a jitted function, so keeping both in one file invalidates them together.
 _U64 = np.uint64
@@ -218,15 +234,10 @@ def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, l
                 have_top, have_bottom = row_lo[y], row_hi[y]
                 interleave_rows(pair, flat, n_views, plane, have_top * row_bytes, have_bottom * row_bytes,
                                 row_bytes, stride)
-                # the source row the next pair of this band adds (any direction: image flips)
-                ahead = y + 1
-                while ahead < end and row_lo[ahead] == have_top and row_hi[ahead] == have_bottom:
-                    ahead += 1
-                pf_view, pf_line = (n_views if ahead == end else 0), 0
-                if ahead < end:
-                    new_row = row_hi[ahead]
-                    if new_row == have_top or new_row == have_bottom:
-                        new_row = row_lo[ahead]
+                # the source row the next pair of this band adds
+                _, new_row = next_source_row(row_lo, row_hi, y, end, have_top, have_bottom)
+                pf_view, pf_line = (n_views if new_row < 0 else 0), 0
+                if new_row >= 0:
                     pf_row = src + new_row * row_bytes
             z = z0[y]
             fy = fyq[y]

@@ -96,16 +96,21 @@ def _lane_table(plan: RoutingPlan, rho: tuple[int, int, int]) -> np.ndarray:
     return np.ascontiguousarray(table, dtype=np.uint64)
 
 
+def _output_slots(profile: PanelProfile) -> tuple[np.ndarray, np.ndarray]:
+    """``(channel, slot)`` int arrays ``(3 W,)``: output value ``o = 3 x + c`` of a panel row is
+    channel ``c`` and shows subpixel slot ``x_s = 3 x + rho[c]``."""
+    o = np.arange(profile.subpixels_per_row)
+    chan = o % 3
+    return chan, 3 * (o // 3) + np.asarray(profile.rho)[chan]
+
+
 @functools.lru_cache(maxsize=8)
 def _u8_plan(profile: PanelProfile, view_height: int, view_width: int):
     """Per-profile constants of the block kernel (cached): per output value the left tap's byte in
     the row pair and its x weight (packed int32), the lane table, the row taps and y weights."""
     cols = column_sampling(profile, view_width)
     rows = row_sampling(profile, view_height)
-    nsub = profile.subpixels_per_row
-    o = np.arange(nsub)
-    chan, x = o % 3, o // 3
-    xs = 3 * x + np.asarray(profile.rho)[chan]  # subpixel position of output value o
+    chan, xs = _output_slots(profile)
     fxq = np.rint(cols.weight[xs] * _ONE).astype(np.uint32)
     pair_col = 2 * (cols.lo[xs].astype(np.uint32) * 3 + chan.astype(np.uint32))  # byte in the row pair
     tab = (pair_col | (fxq << _simd.COLUMN_BITS)).view(np.int32)
@@ -122,16 +127,13 @@ def _permute_plan(profile: PanelProfile, view_height: int, view_width: int):
     vs = _permute.view_slots(profile.views)
     cols = column_sampling(profile, view_width)
     rows = row_sampling(profile, view_height)
-    nsub = profile.subpixels_per_row
-    o = np.arange(nsub)
-    chan = o % 3
-    xs = 3 * (o // 3) + np.asarray(profile.rho)[chan]  # slot shown by output value o
+    chan, xs = _output_slots(profile)
     s_left = 3 * cols.lo[xs].astype(np.int64) + chan
     s_right = 3 * cols.hi[xs].astype(np.int64) + chan
     starts, s_min_bytes, tables, windows = _permute.block_tables(s_left, s_right, cols.weight[xs], vs)
     if tables is None:
         return None
-    views_u8 = np.empty((profile.height, nsub), dtype=np.uint8)
+    views_u8 = np.empty((profile.height, xs.shape[0]), dtype=np.uint8)
     for start in range(0, profile.height, 128):  # bounded int16 temporaries
         chosen = view_map(profile, slice(start, start + 128))[:, xs]
         views_u8[start:start + 128] = np.where(chosen < 0, _permute.DARK, chosen)
