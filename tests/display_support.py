@@ -27,26 +27,29 @@ SCREEN = (640, 360)  # width, height of the tests' Xvfb screen (the ``xvfb`` fix
 
 
 class VirtualDisplay:
-    """An Xvfb server of one screen ``width`` x ``height`` x 24 bits on a free display number."""
+    """An Xvfb server of one screen ``width`` x ``height`` x 24 bits on a display number it chose."""
 
     def __init__(self, width: int, height: int):
         self.width, self.height = width, height
         xvfb = require("Xvfb", "xvfb")
-        for number in range(120, 200):
-            if os.path.exists(f"/tmp/.X11-unix/X{number}") or os.path.exists(f"/tmp/.X{number}-lock"):
-                continue
-            self.name = f":{number}"
-            self.process = subprocess.Popen([xvfb, self.name, "-screen", "0", f"{width}x{height}x24", "-nolisten", "tcp"],
-                                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            deadline = time.monotonic() + 10
-            while time.monotonic() < deadline:
-                if os.path.exists(f"/tmp/.X11-unix/X{number}"):
-                    return
-                if self.process.poll() is not None:
+        # -displayfd: Xvfb takes a free display number itself and writes it once it listens, so
+        # parallel test workers cannot pick (and later kill) the same one
+        read_end, write_end = os.pipe()
+        self.process = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-screen", "0", f"{width}x{height}x24",
+                                         "-nolisten", "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                        pass_fds=(write_end,))
+        os.close(write_end)
+        number = b""
+        with os.fdopen(read_end, "rb") as pipe:
+            while not number.endswith(b"\n"):
+                chunk = pipe.read(1)
+                if not chunk:
                     break
-                time.sleep(0.05)
+                number += chunk
+        if not number.strip().isdigit():
             self.process.kill()
-        pytest.fail("could not start Xvfb on any display :120-:199")
+            pytest.fail("Xvfb did not start (no display number on -displayfd)")
+        self.name = f":{number.strip().decode()}"
 
     def variables(self) -> dict:
         """What a process needs to show on this display: DISPLAY set, WAYLAND_DISPLAY unset (None)."""

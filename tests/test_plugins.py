@@ -115,7 +115,7 @@ def test_the_gsplat_renderer_and_the_torch_encoder_say_whether_they_can_run_here
     with pytest.raises(BackendUnavailableError) as err:
         get_encoder("torch", device="cuda")
     assert "encoder 'torch' cannot run here: device 'cuda' requested but torch sees no CUDA device" in str(err.value)
-    assert "(encoders that can run here: fast, reference, tables)" in str(err.value)
+    assert "(encoders that can run here: fast, gl, reference, tables)" in str(err.value)
     assert get_encoder("torch", device="cpu") and get_encoder("torch")  # on the CPU it runs
 
 

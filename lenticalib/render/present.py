@@ -103,6 +103,7 @@ class Presenter:
         self._program = None
         self._vao = None
         self._shown: np.ndarray | None = None
+        self._redraw = None  # the draw function of the last show_drawn
 
     # -- lifecycle ---------------------------------------------------------------------------
     def __enter__(self) -> "Presenter":
@@ -172,7 +173,21 @@ class Presenter:
         done = time.perf_counter()
         timing = FrameTiming(1e3 * (uploaded - start), 1e3 * (done - uploaded))
         self.timings.append(timing)
-        self._shown = data
+        self._shown, self._redraw = data, None
+        return timing
+
+    def show_drawn(self, draw) -> FrameTiming:
+        """Put on the panel what ``draw(framebuffer)`` draws into the presenter's framebuffer in
+        its context (a GPU encoder: :meth:`lenticalib.render.encoders.gl_encoder.GLEncoder.draw`),
+        with no raster in host memory; returns and records its timing (upload 0: nothing sent).
+        ``shown`` is None afterwards (``read_back`` gives what was drawn)."""
+        start = time.perf_counter()
+        draw(self._target())
+        self._swap()
+        self.ctx.finish()
+        timing = FrameTiming(0.0, 1e3 * (time.perf_counter() - start))
+        self.timings.append(timing)
+        self._shown, self._redraw = None, draw
         return timing
 
     def _draw(self, texture) -> None:
@@ -308,9 +323,12 @@ class WindowPresenter(Presenter):
         """What the GL pipeline makes of the last raster: it is drawn again into the back buffer
         (not swapped) and read; the front buffer is not readable on every driver.  A test that
         must see the screen itself grabs it from the window system (an X screenshot)."""
-        if self._shown is None:
+        if self._shown is not None:
+            self._draw(self._texture(self._shown.dtype))
+        elif self._redraw is not None:
+            self._redraw(self._target())
+        else:
             raise DisplayError("nothing has been shown yet")
-        self._draw(self._texture(self._shown.dtype))
         self.ctx.finish()
         data = self.ctx.screen.read(viewport=(0, 0, *self.size), components=3, alignment=1)
         return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3)[::-1].copy()

@@ -20,6 +20,28 @@ from .monitors import is_macos
 from .present import FrameTiming, Presenter, check_raster
 
 
+def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
+    """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X
+    server -- a GPU driver's, or Mesa's surfaceless llvmpipe -- else the platform's default),
+    OpenGL ``require`` (330 = 3.3) or newer.  DisplayError (one line, naming the backend and what
+    to install; ``hint`` appended) when there is none."""
+    import moderngl
+
+    if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
+        backend = "egl"
+    kwargs = {"standalone": True, "require": require}
+    if backend:
+        kwargs["backend"] = backend
+    try:
+        return moderngl.create_context(**kwargs)
+    except Exception as exc:
+        text = str(exc).strip()
+        raise DisplayError(f"no offscreen OpenGL {require // 100}.{require // 10 % 10} context ({backend or 'default'} "
+                           f"backend: {text.splitlines()[-1] if text else repr(exc)})",
+                           hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver"
+                                + (f"; {hint}" if hint else "")) from None
+
+
 class OffscreenPresenter(Presenter):
     """A framebuffer object in a context with no window (EGL on a headless GPU, or GLX/WGL
     standalone): for benchmarks and the virtual panel.  ``size``: (width, height)."""
@@ -33,21 +55,7 @@ class OffscreenPresenter(Presenter):
         self._fbo = None
 
     def open(self) -> None:
-        import moderngl
-
-        backend = self.backend
-        if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
-            backend = "egl"  # no X server: EGL (a GPU driver's, or Mesa's surfaceless llvmpipe)
-        kwargs = {"standalone": True, "require": 330}
-        if backend:
-            kwargs["backend"] = backend
-        try:
-            self.ctx = moderngl.create_context(**kwargs)
-        except Exception as exc:
-            raise DisplayError(f"no offscreen OpenGL 3.3 context ({backend or 'default'} backend: "
-                               f"{str(exc).strip().splitlines()[-1] if str(exc).strip() else exc!r})",
-                               hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver; or use "
-                                    "`display` none") from None
+        self.ctx = offscreen_context(self.backend, hint="or use `display` none")
         colour = self.ctx.renderbuffer(self.size, 4, dtype="f1")
         self._fbo = self.ctx.framebuffer(color_attachments=[colour])
         self._setup_gl()
@@ -91,6 +99,10 @@ class MemoryPresenter(Presenter):
         timing = FrameTiming(1e3 * (time.perf_counter() - start), 0.0)
         self.timings.append(timing)
         return timing
+
+    def show_drawn(self, draw) -> FrameTiming:
+        raise DisplayError("the `none` display has no OpenGL framebuffer to draw into",
+                           hint="use the offscreen display or a window with a GPU encoder")
 
     def read_back(self) -> np.ndarray:
         if self._shown is None:

@@ -5,17 +5,20 @@
     fast        canonical routing, vectorized numba kernels (the default)
     torch       sparse tables on a torch device (CPU or CUDA); numpy in, numpy out through the registry,
                 tensors in and out with ``torch_encoder.TorchEncoder`` (needs PyTorch)
+    gl          a fragment shader in an OpenGL 3.3 context (any GPU driver, or Mesa's llvmpipe); numpy in
+                and out through the registry (an offscreen EGL context), straight into a presenter's
+                framebuffer with ``gl_encoder.GLEncoder`` (uint8 views)
 
 Modules: ``reference``, ``tables`` and ``fast`` (one encoder each, as above), ``_permute`` and
 ``_simd`` (the explicitly vectorized uint8 block kernels of ``fast``: byte permutes on CPUs with
-AVX-512 VBMI, gathers elsewhere), ``torch_encoder`` (the ``torch`` encoder)
+AVX-512 VBMI, gathers elsewhere), ``gl_encoder`` (the ``gl`` encoder), ``torch_encoder`` (the ``torch`` encoder)
 with ``torch_tables`` (its sparse tables), and ``common`` (what every encoder checks and shares:
 the view stack and the output raster).  Part of the render layer: imports only core and render.
 
 All of them route by :func:`lenticalib.core.routing.view_map` (same view for every subpixel, ties
 included; subpixel layouts and reversed views included) and sample where
 :mod:`lenticalib.render.sampling` says (the image flips included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
-views and is within 1 LSB for uint8 (fixed-point weights).
+views and is within 1 LSB for uint8 (fixed-point weights); ``gl`` is within 1 LSB (float32).
 
 Modules are imported only when an encoder is asked for, so ``lenticalib --help`` stays instant.
 Third-party encoders register through the ``lenticalib.encoders`` entry-point group (a plugin
@@ -40,6 +43,7 @@ ENCODERS = Registry("encoder", {
     "tables": "lenticalib.render.encoders.tables:encode_tables",
     "fast": "lenticalib.render.encoders.fast:encode_fast",
     "torch": "lenticalib.render.encoders.torch_encoder:encode_torch",
+    "gl": "lenticalib.render.encoders.gl_encoder:encode_gl",
 }, "lenticalib.encoders")
 
 
