@@ -12,8 +12,11 @@ from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import view_map
 from lenticalib.render.encoders import available_encoders, encode, get_encoder
 from lenticalib.render.encoders.gl_encoder import GLEncoder
+from lenticalib.render.monitors import list_monitors
+from lenticalib.render.present import WindowPresenter
 from lenticalib.render.present_offscreen import MemoryPresenter, OffscreenPresenter
 
+from .display_support import SCREEN
 from .strategies import profiles, tie_profiles
 from .test_encoders import bundled_4k
 
@@ -110,3 +113,22 @@ def test_encode_cli_with_the_gl_encoder(tmp_path, cli):
         assert code == 0
     gl, ref = (read_image(tmp_path / f"{name}.png").astype(np.int32) for name in ("gl", "reference"))
     assert gl.shape == (54, 96, 3) and np.abs(gl - ref).max() <= 1
+
+
+def test_a_window_opens_and_draws_the_gl_raster_after_the_gl_encoder_ran(on_xvfb):
+    # creating the encoder's EGL context left it current on the thread, and a thread with a current
+    # EGL context cannot make a GLX context current: the next window ended the process (X BadAccess)
+    w, h = SCREEN
+    profile = PanelProfile(views=8, slant=0.19, period=7.4, offset=1.5, reference_view=4, width=w, height=h,
+                           subpixel_order="BGR")
+    views = np.random.default_rng(4).integers(0, 256, (8, h // 4, w // 4, 3), dtype=np.uint8)
+    expected = encode(views, profile, "gl")
+    with WindowPresenter(list_monitors()[0]) as presenter:
+        presenter.show(expected)
+        np.testing.assert_array_equal(presenter.read_back(), expected)
+        encoder = GLEncoder(profile, views.shape[1:3], ctx=presenter.ctx)  # the window's own context
+        encoder.upload_views(views)
+        presenter.show_drawn(encoder.draw)
+        np.testing.assert_array_equal(on_xvfb.screenshot(), expected)  # what X shows
+        np.testing.assert_array_equal(presenter.read_back(), expected)
+        encoder.release()

@@ -103,10 +103,26 @@ def headless_context():
     hint = "or use another encoder (fast)"
     if os.name == "posix" and not is_macos():
         try:
-            return offscreen_context("egl", hint=hint)
+            ctx = offscreen_context("egl", hint=hint)
         except DisplayError:
             pass
+        else:
+            _unbind_egl()
+            return ctx
     return offscreen_context(None, hint=hint)
+
+
+def _unbind_egl() -> None:
+    """Leave no EGL context current on this thread (creating one makes it current).  A thread with
+    a current EGL context cannot make a GLX context current afterwards (X error BadAccess, which
+    ends the process): a window opened later in the same process would fail.  The encoder makes
+    its context current only around its own calls (``with ctx``), which restores this state."""
+    import ctypes
+
+    lib = ctypes.CDLL("libEGL.so.1")
+    lib.eglGetCurrentDisplay.restype = ctypes.c_void_p
+    lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+    lib.eglMakeCurrent(lib.eglGetCurrentDisplay(), None, None, None)
 
 
 def _taps(sampling, index: np.ndarray) -> np.ndarray:
