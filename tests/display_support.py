@@ -33,10 +33,12 @@ class VirtualDisplay:
         self.width, self.height = width, height
         xvfb = require("Xvfb", "xvfb")
         # -displayfd: Xvfb takes a free display number itself and writes it once it listens, so
-        # parallel test workers cannot pick (and later kill) the same one
+        # parallel test workers cannot pick (and later kill) the same one; -noreset: without it the
+        # server regenerates whenever its last client leaves, and Xvfb with GLX in use may not survive
+        # that (a later test then finds no display)
         read_end, write_end = os.pipe()
         self.process = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-screen", "0", f"{width}x{height}x24",
-                                         "-nolisten", "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                         "-nolisten", "tcp", "-noreset"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                         pass_fds=(write_end,))
         os.close(write_end)
         number = b""

@@ -10,36 +10,13 @@ picks one by display spec; both are in ``lenticalib.render.present.PRESENTERS``.
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
 
 from ..core.errors import DisplayError
-from .monitors import is_macos
+from .gl_context import offscreen_context, unbind_egl
 from .present import FrameTiming, Presenter, check_raster
-
-
-def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
-    """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X
-    server -- a GPU driver's, or Mesa's surfaceless llvmpipe -- else the platform's default),
-    OpenGL ``require`` (330 = 3.3) or newer.  DisplayError (one line, naming the backend and what
-    to install; ``hint`` appended) when there is none."""
-    import moderngl
-
-    if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
-        backend = "egl"
-    kwargs = {"standalone": True, "require": require}
-    if backend:
-        kwargs["backend"] = backend
-    try:
-        return moderngl.create_context(**kwargs)
-    except Exception as exc:
-        text = str(exc).strip()
-        raise DisplayError(f"no offscreen OpenGL {require // 100}.{require // 10 % 10} context ({backend or 'default'} "
-                           f"backend: {text.splitlines()[-1] if text else repr(exc)})",
-                           hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver"
-                                + (f"; {hint}" if hint else "")) from None
 
 
 class OffscreenPresenter(Presenter):
@@ -70,6 +47,7 @@ class OffscreenPresenter(Presenter):
             self._fbo.release()
             self._fbo = None
         super().close()
+        unbind_egl()  # an EGL context left current would keep a later window (GLX) from becoming current
 
     def read_back(self) -> np.ndarray:
         data = self._fbo.read(components=3, alignment=1)

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import os
 import threading
 
 import numpy as np
@@ -37,9 +36,11 @@ import numpy as np
 from ...core.errors import DisplayError, ImageError
 from ...core.profile import PanelProfile
 from ...core.routing import view_map
+from ..gl_context import headless_context, offscreen_context
 from ..sampling import column_sampling, row_sampling
 from .common import output_like
 
+_HINT = "or use another encoder (fast)"
 DARK = 255  # view-map value of a channel no view lights (profiles have at most 254 views)
 
 _VERTEX = """
@@ -93,38 +94,6 @@ def _panel_view_map(profile: PanelProfile) -> np.ndarray:
     return out
 
 
-def headless_context():
-    """An offscreen OpenGL 3.3 context that needs no window system: EGL first (a GPU driver's, or
-    Mesa's llvmpipe), so that it does not hang on an X server that may go away; else the
-    platform's default.  DisplayError (one line) when there is none."""
-    from ..monitors import is_macos
-    from ..present_offscreen import offscreen_context
-
-    hint = "or use another encoder (fast)"
-    if os.name == "posix" and not is_macos():
-        try:
-            ctx = offscreen_context("egl", hint=hint)
-        except DisplayError:
-            pass
-        else:
-            _unbind_egl()
-            return ctx
-    return offscreen_context(None, hint=hint)
-
-
-def _unbind_egl() -> None:
-    """Leave no EGL context current on this thread (creating one makes it current).  A thread with
-    a current EGL context cannot make a GLX context current afterwards (X error BadAccess, which
-    ends the process): a window opened later in the same process would fail.  The encoder makes
-    its context current only around its own calls (``with ctx``), which restores this state."""
-    import ctypes
-
-    lib = ctypes.CDLL("libEGL.so.1")
-    lib.eglGetCurrentDisplay.restype = ctypes.c_void_p
-    lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
-    lib.eglMakeCurrent(lib.eglGetCurrentDisplay(), None, None, None)
-
-
 def _taps(sampling, index: np.ndarray) -> np.ndarray:
     """float32 ``(..., 3)``: (lo, hi, weight of hi) of ``sampling`` at ``index``."""
     return np.stack([sampling.lo[index], sampling.hi[index], sampling.weight[index]], axis=-1).astype(np.float32)
@@ -135,19 +104,17 @@ class GLEncoder:
 
     ``profile``; ``view_size`` ``(H_v, W_v)``; ``ctx`` a moderngl context to live in (None: an
     offscreen one of its own: :func:`headless_context`, or ``backend`` as
-    :func:`..present_offscreen.offscreen_context`).
+    :func:`lenticalib.render.gl_context.offscreen_context`).
     DisplayError (one line) when there is no OpenGL 3.3 or the panel or the view stack exceeds
     the driver's texture limits."""
 
     def __init__(self, profile: PanelProfile, view_size: tuple[int, int], ctx=None, backend: str | None = None):
-        from ..present_offscreen import offscreen_context
-
         self.profile = profile
         self.view_size = (int(view_size[0]), int(view_size[1]))
         hv, wv = self.view_size
         self._own_ctx = ctx is None
         if ctx is None:
-            ctx = headless_context() if backend is None else offscreen_context(backend, hint="or use another encoder (fast)")
+            ctx = headless_context(hint=_HINT) if backend is None else offscreen_context(backend, hint=_HINT)
         self.ctx = ctx
         try:
             self._enter()
@@ -271,7 +238,7 @@ def encode_gl(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None =
     key = (profile, views.shape[1], views.shape[2])
     with _CACHE_LOCK:
         if not _SHARED:
-            _SHARED.append(headless_context())
+            _SHARED.append(headless_context(hint=_HINT))
         with _SHARED[0]:
             encoder = _CACHE.pop(key, None)
             if encoder is None:
@@ -289,7 +256,7 @@ def _unavailable(device=None) -> str | None:
     """Why the gl encoder cannot run here (no OpenGL 3.3 context), or None; asked once per process."""
     if not _AVAILABLE:
         try:
-            headless_context().release()
+            headless_context(hint=_HINT).release()
             _AVAILABLE.append(None)
         except DisplayError as exc:
             _AVAILABLE.append(str(exc))

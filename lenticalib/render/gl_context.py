@@ -1,0 +1,72 @@
+"""OpenGL contexts with no window, shared by the offscreen presenter and the GL encoder and renderer.
+
+:func:`offscreen_context` opens a moderngl context of at least a given OpenGL version on a named
+backend; :func:`headless_context` prefers EGL (a GPU driver's, or Mesa's llvmpipe, which needs no
+X server) and leaves no EGL context current afterwards (:func:`unbind_egl`), so that a window
+opened later in the same process (GLX through glfw) can still be made current.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..core.errors import DisplayError
+from .monitors import is_macos
+
+
+def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
+    """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X
+    server -- a GPU driver's, or Mesa's surfaceless llvmpipe -- else the platform's default),
+    OpenGL ``require`` (330 = 3.3) or newer.  DisplayError (one line, naming the backend and what
+    to install; ``hint`` appended) when there is none."""
+    import moderngl
+
+    if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
+        backend = "egl"
+    kwargs = {"standalone": True, "require": require}
+    if backend:
+        kwargs["backend"] = backend
+    try:
+        ctx = moderngl.create_context(**kwargs)
+    except Exception as exc:
+        text = str(exc).strip()
+        raise DisplayError(f"no offscreen OpenGL {require // 100}.{require // 10 % 10} context ({backend or 'default'} "
+                           f"backend: {text.splitlines()[-1] if text else repr(exc)})",
+                           hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver"
+                                + (f"; {hint}" if hint else "")) from None
+    return ctx
+
+
+def headless_context(require: int = 330, hint: str | None = None):
+    """An offscreen context of OpenGL ``require`` or newer that needs no window system: EGL first,
+    so that it does not depend on an X server that may go away; else the platform's default.
+    DisplayError (one line) when there is none.  No context is left current: use it inside
+    ``with ctx:``."""
+    if os.name == "posix" and not is_macos():
+        try:
+            ctx = offscreen_context("egl", require, hint)
+        except DisplayError:
+            pass
+        else:
+            unbind_egl()
+            return ctx
+    return offscreen_context(None, require, hint)
+
+
+def unbind_egl() -> None:
+    """Leave no EGL context current on this thread (creating one makes it current).  A thread with
+    a current EGL context cannot make a GLX context current afterwards (X error BadAccess, which
+    ends the process), so a window opened later in the same process would fail.  Users of an
+    offscreen context make it current around their own calls (``with ctx:``), which restores this
+    state."""
+    import ctypes
+
+    try:
+        lib = ctypes.CDLL("libEGL.so.1")
+    except OSError:
+        return
+    lib.eglGetCurrentDisplay.restype = ctypes.c_void_p
+    lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+    display = lib.eglGetCurrentDisplay()
+    if display:
+        lib.eglMakeCurrent(display, None, None, None)
