@@ -70,5 +70,6 @@ def run(args: argparse.Namespace) -> int:
         p, (w, h), compensate = done.profile, done.view_size, done.compensate_seconds
         print(f"wrote {args.output}: {p.width}x{p.height} {done.dtype} from {p.views} views of {w}x{h} "
               f"({done.encoder} encoder, {done.encode_seconds * 1000:.0f} ms incl. compile"
-              + (f"; crosstalk pre-compensation {compensate * 1000:.0f} ms" if compensate is not None else "") + ")")
+              + (f"; crosstalk pre-compensation {compensate * 1000:.0f} ms" if compensate is not None else "")
+              + ("; crosstalk pre-compensation on the GPU" if done.compensated_on == "gpu" else "") + ")")
     return 0

@@ -138,7 +138,7 @@ class Compensator:
                              f"{getattr(views, 'dtype', type(views))} {getattr(views, 'shape', '')}", source="views")
         flat = np.ascontiguousarray(views).reshape(self.views, -1)
         out = np.empty_like(flat)
-        _compensate(flat, out, _decode_lut(), _encode_lut(), *self._kernel_args())
+        _compensate(flat, out, decode_table(), encode_table(), *self._kernel_args())
         return out.reshape(views.shape)
 
     def _kernel_args(self):
@@ -179,14 +179,17 @@ _NO_TABLE_F = np.zeros(0, np.float32)
 _NO_TABLE_U = np.zeros(0, np.uint8)
 
 
-def _decode_lut() -> np.ndarray:
+def decode_table() -> np.ndarray:
+    """float32 (256,): linear light of each uint8 sRGB code, as the compensation reads views."""
     global _DECODE
     if _DECODE is None:
         _DECODE = srgb_decode_lut().astype(np.float32)
     return _DECODE
 
 
-def _encode_lut() -> np.ndarray:
+def encode_table() -> np.ndarray:
+    """uint8 (_LEVELS,): the sRGB code of linear light ``k / (_LEVELS - 1)``, as the compensation
+    writes views (index ``int(value * (_LEVELS - 1) + 0.5)``)."""
     global _ENCODE
     if _ENCODE is None:
         _ENCODE = srgb_encode8(np.arange(_LEVELS) / (_LEVELS - 1))

@@ -56,7 +56,8 @@ class CompensationOptions:
 class EncodedFile:
     """What :func:`encode_to_file` wrote: ``output``; the ``profile``; ``view_size`` (W_v, H_v);
     ``dtype`` of the raster; the ``encoder``; ``encode_seconds`` (incl. a first compile) and
-    ``compensate_seconds`` (None: no compensation); ``crosstalk_file``."""
+    ``compensate_seconds`` (None: no compensation, or done by the encoder on its device (``gl``)
+    and counted in ``encode_seconds``); ``crosstalk_file``."""
 
     output: Path
     profile: PanelProfile
@@ -66,6 +67,7 @@ class EncodedFile:
     encode_seconds: float
     compensate_seconds: float | None
     crosstalk_file: str | None
+    compensated_on: str | None = None  # "host", "gpu" (the encoder's device), None: not compensated
 
     def summary(self) -> dict:
         """The JSON summary ``lenticalib encode --json`` prints."""
@@ -73,7 +75,8 @@ class EncodedFile:
         return {"output": str(self.output), "width": p.width, "height": p.height, "views": p.views,
                 "view_size": list(self.view_size), "dtype": self.dtype, "encoder": self.encoder,
                 "encode_seconds": round(self.encode_seconds, 4), "compensate": self.crosstalk_file,
-                "compensate_seconds": None if self.compensate_seconds is None else round(self.compensate_seconds, 4)}
+                "compensate_seconds": None if self.compensate_seconds is None else round(self.compensate_seconds, 4),
+                "compensated_on": self.compensated_on}
 
 
 def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.PathLike, *,
@@ -86,7 +89,7 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
     .npy).  ``allow_stretch``: views of another aspect ratio than the panel's are stretched.
     Returns :class:`EncodedFile`; InputError/ImageError before any work for a bad argument.
     """
-    from .encoders import encode, get_encoder
+    from .encoders import compensates_on_device, encode, get_encoder
     from .views import load_quilt, load_view_folder
 
     if (views_dir is None) == (quilt is None):
@@ -107,19 +110,24 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
         views = load_view_folder(views_dir, profile.views)
     check_image_output(output, views.dtype, what="panel raster")  # e.g. float views into a .png
     compensate_seconds = None
+    on_device = False
     if compensator is not None:
         if views.dtype != np.uint8:
             raise ImageError(f"compensation works on 8-bit views, these are {views.dtype}",
                              source=str(views_dir if views_dir is not None else quilt),
                              hint="save the views as 8-bit PNG or JPEG")
-        start = time.perf_counter()
-        views = compensator.apply(views)
-        compensate_seconds = time.perf_counter() - start
+        on_device = compensates_on_device(encoder)
+        if not on_device:
+            start = time.perf_counter()
+            views = compensator.apply(views)
+            compensate_seconds = time.perf_counter() - start
     start = time.perf_counter()
-    raster = encode(views, profile, encoder, allow_stretch=allow_stretch)
+    raster = encode(views, profile, encoder, allow_stretch=allow_stretch,
+                    compensator=compensator if on_device else None)
     elapsed = time.perf_counter() - start
     write_image(output, raster)
     return EncodedFile(Path(output), profile, (int(views.shape[2]), int(views.shape[1])), str(raster.dtype), encoder,
                        elapsed, compensate_seconds,
                        None if compensation is None or compensation.crosstalk_file is None
-                       else str(compensation.crosstalk_file))
+                       else str(compensation.crosstalk_file),
+                       None if compensator is None else "gpu" if on_device else "host")

@@ -62,15 +62,32 @@ def get_encoder(name: str, device: str | None = None) -> Callable[..., np.ndarra
     return ENCODERS.load(name, "encoder", device=device)
 
 
+def compensates_on_device(method: str) -> bool:
+    """Whether encoder ``method`` applies crosstalk pre-compensation itself, on its device (``gl``:
+    on the GPU), when :func:`encode` is given a compensator."""
+    return bool(getattr(get_encoder(method), "compensates", False))
+
+
 def encode(views: np.ndarray, profile: PanelProfile, method: str = DEFAULT_ENCODER, *,
-           out: np.ndarray | None = None, allow_stretch: bool = False) -> np.ndarray:
+           out: np.ndarray | None = None, allow_stretch: bool = False, compensator=None) -> np.ndarray:
     """Encode ``views`` ``(N, H_v, W_v, 3)`` RGB into the panel raster ``(height, width, 3)``.
 
     The output has the views' dtype (uint8, uint16, float32 or float64).  ``out`` may supply a
-    preallocated raster (honoured by the ``fast`` encoder, copied into otherwise).
+    preallocated raster (honoured by the ``fast`` encoder, copied into otherwise).  ``compensator``
+    (a :class:`lenticalib.render.compensation.Compensator`, uint8 views): the views are
+    pre-compensated first, by the encoder on its device where it can (:func:`compensates_on_device`),
+    else on the host (:meth:`Compensator.apply`).
     """
     views = check_views(views, profile, check_aspect=not allow_stretch)
     func = get_encoder(method)
+    if compensator is not None:
+        if getattr(func, "compensates", False):
+            result = func(views, profile, compensator=compensator)
+            if out is not None:
+                np.copyto(output_like(views, profile, out), result)
+                return out
+            return result
+        views = compensator.apply(views)
     if method == "fast":
         return func(views, profile, out=output_like(views, profile, out))
     result = func(views, profile)

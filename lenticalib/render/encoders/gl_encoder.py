@@ -127,8 +127,9 @@ class GLEncoder:
                                             dtype="f4")
             self._row_taps = ctx.texture((profile.height, 1), 3,
                                          _taps(row_sampling(profile, hv), np.arange(profile.height)).tobytes(), dtype="f4")
-            self.views = ctx.texture_array((wv, hv, profile.views), 3, dtype="f1", alignment=1)
-            for texture in (self._view_map, self._column_taps, self._row_taps, self.views):
+            self.views = None  # the RGB8 texture array of upload_views, made on the first upload
+            self._stage = None  # the GPU views stage of encode(..., compensator), made on first use
+            for texture in (self._view_map, self._column_taps, self._row_taps):
                 texture.filter = (ctx.NEAREST, ctx.NEAREST)
             self._program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
             for unit, name in enumerate(("view_map", "column_taps", "row_taps", "views")):
@@ -172,13 +173,22 @@ class GLEncoder:
                                f"{p.views} views", hint="use the fast encoder (CPU)")
 
     def upload_views(self, views: np.ndarray) -> None:
-        """Write ``views`` (N, H_v, W_v, 3) uint8 C-contiguous into the texture array."""
+        """Write ``views`` (N, H_v, W_v, 3) uint8 C-contiguous into the texture array :attr:`views`."""
         with self._current():
+            if self.views is None:
+                hv, wv = self.view_size
+                self.views = self.ctx.texture_array((wv, hv, self.profile.views), 3, dtype="f1", alignment=1)
+                self.views.filter = (self.ctx.NEAREST, self.ctx.NEAREST)
             self.views.write(np.ascontiguousarray(views))
 
-    def draw(self, framebuffer=None) -> None:
-        """Draw the raster from the current views into ``framebuffer`` (None: the offscreen one),
-        whose size must be the panel's."""
+    def draw(self, framebuffer=None, views=None) -> None:
+        """Draw the raster into ``framebuffer`` (None: the offscreen one), whose size must be the
+        panel's, from ``views``: a normalised 8-bit texture array of this context, N layers of
+        (W_v, H_v), RGB or RGBA, texel row 0 the top of the image (a GPU views stage's,
+        :attr:`lenticalib.render.gl_views.GLViewStage.views`); None: the uploaded :attr:`views`."""
+        views = self.views if views is None else views
+        if views is None:
+            raise DisplayError("no views to encode yet", hint="upload views first")
         with self._current():
             if framebuffer is None:
                 if self._fbo is None:
@@ -186,7 +196,7 @@ class GLEncoder:
                 framebuffer = self._fbo
             framebuffer.use()
             self.ctx.viewport = (0, 0, self.profile.width, self.profile.height)
-            for unit, texture in enumerate((self._view_map, self._column_taps, self._row_taps, self.views)):
+            for unit, texture in enumerate((self._view_map, self._column_taps, self._row_taps, views)):
                 texture.use(unit)
             self._quad.render(mode=self.ctx.TRIANGLES, vertices=3)
 
@@ -201,10 +211,33 @@ class GLEncoder:
         np.copyto(out, raster)
         return out
 
-    def encode(self, views: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Upload ``views``, draw offscreen and read the raster back."""
-        self.upload_views(views)
-        self.draw()
+    def encode(self, views: np.ndarray, out: np.ndarray | None = None, compensator=None) -> np.ndarray:
+        """Upload ``views``, draw offscreen and read the raster back.  With ``compensator`` (a
+        :class:`lenticalib.render.compensation.Compensator`) the views are pre-compensated on the GPU
+        first (:class:`lenticalib.render.gl_views.GLViewStage`; needs OpenGL 4.3: DisplayError
+        otherwise), within one level of :meth:`Compensator.apply`."""
+        if compensator is None:
+            self.upload_views(views)
+            self.draw()
+            return self.read(out)
+        from ..gl_views import GLViewStage
+
+        n, hv, wv, _ = views.shape
+        with self._current():
+            if self._stage is None or self._stage.compensator is not compensator:
+                if self._stage is not None:
+                    self._stage.release()
+                    self._stage = None
+                self._stage = GLViewStage(self.ctx, n, wv, hv, compensator=compensator)
+            rgba = np.empty((n, hv, wv, 4), dtype=np.float32)  # codes / 255: the stage recovers them exactly
+            np.multiply(views, np.float32(1.0 / 255.0), out=rgba[..., :3])
+            rgba[..., 3] = 1.0
+            source = self.ctx.texture_array((wv, hv, n), 4, rgba.tobytes(), dtype="f4")
+            try:
+                self._stage.run(source)
+            finally:
+                source.release()
+        self.draw(views=self._stage.views)
         return self.read(out)
 
     def release(self) -> None:
@@ -212,6 +245,9 @@ class GLEncoder:
         if getattr(self, "ctx", None) is None:
             return
         with self._current():
+            if getattr(self, "_stage", None) is not None:
+                self._stage.release()
+                self._stage = None
             for name in ("_quad", "_program", "_fbo", "views", "_row_taps", "_column_taps", "_view_map"):
                 obj = getattr(self, name, None)
                 if obj is not None:
@@ -228,10 +264,12 @@ _CACHE_SIZE = 2
 _SHARED: list = []  # the one offscreen context of the registry's encoders (contexts do not mix well)
 
 
-def encode_gl(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None = None) -> np.ndarray:
+def encode_gl(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None = None, *,
+              compensator=None) -> np.ndarray:
     """The registry's form: numpy views ``(N, H_v, W_v, 3)`` uint8 in, the raster out, through
     :class:`GLEncoder` objects kept per (profile, view size) in a small cache, all in one offscreen
-    context of the process (made current for the call, the caller's current context restored)."""
+    context of the process (made current for the call, the caller's current context restored).
+    ``compensator``: pre-compensated on the GPU first (:meth:`GLEncoder.encode`)."""
     if views.dtype != np.uint8:
         raise ImageError(f"the gl encoder takes 8-bit views, these are {views.dtype}", source="views",
                          hint="use the fast encoder for 16-bit and float views")
@@ -246,7 +284,7 @@ def encode_gl(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None =
             _CACHE[key] = encoder
             while len(_CACHE) > _CACHE_SIZE:
                 _CACHE.popitem(last=False)[1].release()
-            return encoder.encode(views, output_like(views, profile, out))
+            return encoder.encode(views, output_like(views, profile, out), compensator=compensator)
 
 
 _AVAILABLE: list = []
@@ -264,3 +302,4 @@ def _unavailable(device=None) -> str | None:
 
 
 encode_gl.unavailable = _unavailable
+encode_gl.compensates = True  # pre-compensation on the GPU (lenticalib.render.encoders.encode)
