@@ -16,9 +16,10 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
                              "'-' (JSON lines on stdin) or udp://HOST:PORT")
     parser.add_argument("--driver", metavar="SPEC", help="deformer: 'rig' (the rig's own, default) or "
                         "module:callable (your own, e.g. a FLAME-based avatar)")
-    parser.add_argument("--renderer", default=None, help="cpu (default without a GPU) or gsplat (CUDA)")
-    parser.add_argument("--encoder", default=None, help="fast (default on the CPU), torch (default with gsplat), "
-                        "reference, tables")
+    parser.add_argument("--renderer", default=None, help="cpu (default without a GPU), gl (OpenGL: any GPU, or "
+                        "Mesa) or gsplat (CUDA)")
+    parser.add_argument("--encoder", default=None, help="fast (default on the CPU), gl (default with the gl "
+                        "renderer), torch (default with gsplat), reference, tables")
     parser.add_argument("--device", default=None, help="torch device for gsplat/torch (default cuda)")
     parser.add_argument("--camera-model", default="arc", metavar="MODEL",
                         help="virtual cameras: arc (LentiAvatar, default), shear (Looking Glass style) or a "

@@ -34,8 +34,8 @@ def run(args: argparse.Namespace) -> int:
         done = render_avatar(args.avatar, args.profile, args.output, options=avatar_options(args), frames=args.frames,
                              fps=args.fps, views_out=args.views_out)
     pipeline = done.session.pipeline
-    if pipeline.warning:
-        print(f"lenticalib: warning: {pipeline.warning}", file=sys.stderr)
+    for warning in ([pipeline.warning] if pipeline.warning else []) + pipeline.notes:
+        print(f"lenticalib: warning: {warning}", file=sys.stderr)
     what = args.output if done.kind == "image" else f"{args.frames} frame(s) in {args.output}"
     if done.kind == "video":
         what = f"{args.frames} frame(s), lossless, in {args.output}"

@@ -71,7 +71,7 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
     """Play ``avatar`` on ``profile``'s panel until Esc/q, Ctrl-C or ``frames`` frames (module
     docstring).  ``on_warning`` gets the pipeline's warning (before the first frame), ``on_stats``
     the stage times (ms, by stage) of a frame about once a second.  Returns :class:`PlayRun`."""
-    from .loop import StageTimes
+    from .loop import StageTimes, views_on_host
     from .present import WindowPresenter, open_presenter
     from .present_offscreen import MemoryPresenter
 
@@ -95,16 +95,31 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
     start = last_report = time.perf_counter()
     with presenter, stop_on_interrupt() as interrupted:
         try:
+            if presenter.ctx is not None:  # the gl renderer renders in the presenter's context
+                pipeline.use_context(presenter.ctx)
+            on_gpu = output == "panel" and pipeline.draws_on_gpu
+            told = 0
             while (frames is None or times.frames < frames) and not interrupted.is_set():
-                raster, views, stages = pipeline.frame(session.controls_at(time.perf_counter() - start))
+                raster, views, stages = pipeline.frame(session.controls_at(time.perf_counter() - start),
+                                                       raster_to_host=not on_gpu)
+                for note in pipeline.notes[told:]:  # fallbacks, said once (made on the first frame)
+                    if on_warning is not None:
+                        on_warning(note)
+                told = len(pipeline.notes)
                 t0 = time.perf_counter()
+                drawn = 0.0
                 if output == "preview":
                     view = views[centre]
-                    presenter.show(view if isinstance(view, np.ndarray) else view.cpu().numpy())
+                    presenter.show(view if isinstance(view, np.ndarray) else views_on_host(view[None])[0])
+                elif on_gpu:  # the raster drawn straight into the window: its draw is compose, the rest present
+                    draws = []
+                    presenter.show_drawn(lambda framebuffer: draws.append(pipeline.draw_raster(framebuffer)))
+                    drawn = sum(draws)
+                    stages["compose"] += drawn
                 elif output == "panel":  # headless presents nothing: no present stage
                     presenter.show(raster)
                 if output != "headless":
-                    stages["present"] = 1e3 * (time.perf_counter() - t0)
+                    stages["present"] = max(1e3 * (time.perf_counter() - t0) - drawn, 0.0)
                 times.add(**stages)
                 if any(k in ("escape", "q") for k in presenter.keys()):
                     break
@@ -114,6 +129,7 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
         except KeyboardInterrupt:
             pass
         finally:
+            pipeline.close()  # its OpenGL objects, while the presenter's context is still open
             session.close()
     summary = session.controls.summary() if session.controls is not None else None
     return PlayRun(session, times, presenter.kind, summary or None)

@@ -16,7 +16,11 @@ the table the LentiAvatar paper reports (its Table 3).
 Devices: the ``cpu`` renderer and the numpy encoders keep everything on the host; ``gsplat``
 and the ``torch`` encoder keep views and raster on the GPU until the raster goes to the
 presenter (one 25 MB download per frame at 4K; CUDA-OpenGL interop would remove it, see
-docs/presenting.md).
+docs/presenting.md).  The ``gl`` renderer keeps Gaussians, views and, with the ``gl`` encoder,
+the raster in one OpenGL context (:mod:`.gl_pipeline`): :meth:`AvatarPipeline.use_context` puts
+it in a presenter's context, and the raster is drawn straight into its framebuffer
+(``frame(..., raster_to_host=False)`` then :meth:`AvatarPipeline.draw_raster`); its render and
+compose times come from GL timer queries.
 """
 
 from __future__ import annotations
@@ -110,6 +114,30 @@ def desaturate_edges(rgba, strength: float):
     return luma + (rgb - luma) * keep
 
 
+def prepare_views(rgba: np.ndarray, background, edge_desaturation: float, compensator, *,
+                  background_rendered: bool) -> np.ndarray:
+    """Rendered (N, H_v, W_v, 4) float32 RGBA -> the uint8 views to encode (N, H_v, W_v, 3), on the
+    host: ``background`` (None, (3,) or (H_v, W_v, 3)) under the premultiplied colour unless the
+    renderer already put it there (``background_rendered``), edge desaturation, rounding to 8
+    bits, crosstalk pre-compensation (``compensator`` or None).  ``rgba`` may be modified.
+    :class:`lenticalib.render.gl_views.GLViewStage` is the same on the GPU."""
+    if background is not None and not background_rendered:  # rgb += (1 - alpha) * background
+        rgba[..., :3] += (1.0 - rgba[..., 3:4]) * (background if np.ndim(background) == 1 else background[None])
+    views = to_uint8(np.ascontiguousarray(desaturate_edges(rgba, edge_desaturation))
+                     if edge_desaturation > 0 else rgba)
+    return compensator.apply(views) if compensator is not None else views
+
+
+def views_on_host(views) -> np.ndarray:
+    """The views a pipeline frame returned, as numpy (N, H_v, W_v, 3) uint8: as they are (numpy), read
+    back from OpenGL (:class:`lenticalib.render.gl_pipeline.FrameViews`) or from a torch device."""
+    if isinstance(views, np.ndarray):
+        return views
+    if hasattr(views, "to_host"):
+        return views.to_host()
+    return views.cpu().numpy()
+
+
 def to_uint8(rgb: np.ndarray) -> np.ndarray:
     """(..., 3 or 4) float in 0..1 -> (..., 3) uint8, rounded (alpha dropped); numba, in one pass."""
     return _to_uint8(rgb.reshape(-1, rgb.shape[-1])).reshape(rgb.shape[:-1] + (3,))
@@ -161,10 +189,13 @@ class AvatarPipeline:
                              hint="render as many views as the profile has")
         self.avatar, self.profile = avatar, profile
         self.warning = direction_warning(profile)
+        self.notes: list[str] = []  # one line per fallback taken (the gl renderer's), for the caller to print
         self.cameras = order_for_direction(cameras, profile.view_direction or 1)
         self.render_fn = get_renderer(renderer, device=device)  # refused here if it cannot run on this machine
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"
+        self.on_gl = renderer == "gl"  # render (and with the gl encoder, encode) in one OpenGL context
+        self._gl = None  # its GLFrame, made by use_context or on the first frame
         self.edge_desaturation = float(edge_desaturation)
         self.compensator = compensator  # crosstalk pre-compensation (render.compensation), part of compose
         self._torch_encoder = None
@@ -194,24 +225,51 @@ class AvatarPipeline:
             if background is not None:
                 self._background = torch.as_tensor(background, device=device)
 
-    def frame(self, controls: np.ndarray | None) -> tuple[np.ndarray, object, dict]:
-        """(raster uint8 (height, width, 3) on the host, views uint8 (N, H_v, W_v, 3) numpy or
-        torch, {"drive", "render", "compose"} milliseconds)."""
+    @property
+    def draws_on_gpu(self) -> bool:
+        """True when the raster is made in OpenGL (gl renderer and gl encoder): :meth:`frame` with
+        ``raster_to_host=False`` and :meth:`draw_raster` put it on a presenter with no round trip."""
+        return self.on_gl and self.encoder == "gl"
+
+    def use_context(self, ctx) -> None:
+        """Build the OpenGL objects of the gl renderer in ``ctx`` (a presenter's, current), so that
+        the raster can be drawn into its framebuffer; without this call the first frame makes a
+        headless context of its own.  Nothing for the other renderers."""
+        if self.on_gl and self._gl is None:
+            self._gl = self._make_gl(ctx)
+
+    def _make_gl(self, ctx=None):
+        from .gl_pipeline import GLFrame
+
+        frame = GLFrame(self.profile, self.cameras, ctx=ctx, background=self._background,
+                        edge_desaturation=self.edge_desaturation, compensator=self.compensator)
+        for note in frame.notes:
+            self.notes.append(note)
+        return frame
+
+    def frame(self, controls: np.ndarray | None, raster_to_host: bool = True) -> tuple[np.ndarray | None, object, dict]:
+        """(raster uint8 (height, width, 3) on the host, views, {"drive", "render", "compose"}
+        milliseconds).  Views: uint8 (N, H_v, W_v, 3) numpy, a torch tensor (gsplat) or a
+        :class:`~.gl_pipeline.FrameViews` (gl: read back when indexed; :func:`views_on_host`).
+        ``raster_to_host=False`` (gl renderer and encoder only): the raster stays on the GPU,
+        None is returned for it and :meth:`draw_raster` draws it (its time is added to compose)."""
         t0 = time.perf_counter()
         gaussians = self.avatar.pose(controls, self.device, as_torch=self.on_gpu)
         self._sync()
         t1 = time.perf_counter()
+        if self.on_gl:
+            return self._gl_frame(gaussians, raster_to_host, 1e3 * (t1 - t0))
         viewmats, ks = self._mats
         bg = self._background
         image_bg = bg is not None and bg.ndim == 3
         rgba = self.render_fn(gaussians, viewmats, ks, self.cameras.width, self.cameras.height,
                               background=None if image_bg else bg)
-        if image_bg:  # premultiplied colour over the image (the render's own array): rgb += (1 - alpha) * image
-            rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg[None]
         self._sync()
         t2 = time.perf_counter()
-        rgb = desaturate_edges(rgba, self.edge_desaturation) if self.edge_desaturation > 0 else rgba[..., :3]
         if self.on_gpu:
+            if image_bg:  # premultiplied colour over the image (the render's own tensor): rgb += (1 - alpha) * image
+                rgba[..., :3] += (1.0 - rgba[..., 3:4]) * bg[None]
+            rgb = desaturate_edges(rgba, self.edge_desaturation) if self.edge_desaturation > 0 else rgba[..., :3]
             import torch
 
             rgb = rgb.clamp(0, 1)
@@ -220,12 +278,39 @@ class AvatarPipeline:
             views = (rgb * 255.0 + 0.5).to(dtype=torch.uint8).contiguous()
             raster = self._gpu_encoder().encode(views).cpu().numpy()
         else:
-            views = to_uint8(np.ascontiguousarray(rgb) if self.edge_desaturation > 0 else rgba)
-            if self.compensator is not None:
-                views = self.compensator.apply(views)
+            views = prepare_views(rgba, bg, self.edge_desaturation, self.compensator, background_rendered=not image_bg)
             raster = self.encode_fn(views, self.profile)
         t3 = time.perf_counter()
         return raster, views, {"drive": 1e3 * (t1 - t0), "render": 1e3 * (t2 - t1), "compose": 1e3 * (t3 - t2)}
+
+    def _gl_frame(self, gaussians, raster_to_host: bool, drive_ms: float):
+        """:meth:`frame` for the gl renderer: stage times from GL timer queries (see gl_pipeline)."""
+        if self._gl is None:
+            self._gl = self._make_gl()
+        stages = {"drive": drive_ms, **self._gl.run(gaussians)}
+        views = self._gl.latest_views()
+        if self.encoder != "gl":  # the views to the host, the raster by a host encoder
+            start = time.perf_counter()
+            raster = self.encode_fn(views.to_host(), self.profile)
+            stages["compose"] += 1e3 * (time.perf_counter() - start)
+        elif raster_to_host:
+            raster, ms = self._gl.raster()
+            stages["compose"] += ms
+        else:
+            raster = None
+        return raster, views, stages
+
+    def draw_raster(self, framebuffer) -> float:
+        """Draw the last frame's raster into ``framebuffer`` of the context given to
+        :meth:`use_context` (a presenter's); returns the draw's GPU milliseconds (timer query), a
+        part of compose."""
+        return self._gl.draw(framebuffer)
+
+    def close(self) -> None:
+        """Free the OpenGL objects of the gl renderer (nothing for the others)."""
+        if self._gl is not None:
+            self._gl.release()
+            self._gl = None
 
     def set_eye(self, eye) -> bool:
         """Route the next frames for a tracked viewer's eye ``(x, y, D)`` mm (panel-centred: x right,
@@ -241,6 +326,8 @@ class AvatarPipeline:
             return False
         self.profile = new
         self._torch_encoder = None
+        if self._gl is not None:
+            self._gl.set_profile(new)
         return True
 
     def _gpu_encoder(self):

@@ -23,7 +23,6 @@ import dataclasses
 import os
 from pathlib import Path
 
-import numpy as np
 
 from ..core.atomic import PendingFile
 from ..core.errors import InputError
@@ -103,11 +102,15 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
         if writer is not None:
             writer.discard()
         raise
+    finally:
+        session.pipeline.close()
     session.close()
     return RenderRun(Path(output), None if views_out is None else Path(views_out), frames, kind, session, times)
 
 
 def _render_frames(session, output, frames, fps, times, targets, writer, single) -> None:
+    from .loop import views_on_host
+
     pipeline = session.pipeline
     with contextlib.ExitStack() as stack:
         folders = {name: Path(stack.enter_context(staged_folder(path, what, contents)))
@@ -123,7 +126,7 @@ def _render_frames(session, output, frames, fps, times, targets, writer, single)
             else:
                 write_image(folders["raster"] / f"frame-{k:05d}.png", raster)
             if "views" in folders:
-                views = views if isinstance(views, np.ndarray) else views.cpu().numpy()
+                views = views_on_host(views)
                 frame_dir = folders["views"] / f"frame-{k:05d}"
                 frame_dir.mkdir()
                 for i, view in enumerate(views):

@@ -25,7 +25,7 @@ class AvatarOptions:
 
     ``controls``: 'demo', a file (.npz, .csv, .jsonl), '-' (JSON lines on stdin) or
     udp://HOST:PORT; ``driver``: 'rig' or module:callable; ``renderer`` (default cpu),
-    ``encoder`` (default torch with gsplat, fast otherwise), ``device`` (default cuda with
+    ``encoder`` (default torch with gsplat, gl with gl, fast otherwise), ``device`` (default cuda with
     gsplat, cpu otherwise); ``camera_model`` 'arc', 'shear' or a plug-in's, with ``radius`` (avatar units),
     ``fov_deg``, ``yaw_range_deg``; ``view_size`` (W, H) pixels; ``background``: 'R,G,B' or an
     image file; ``compensation``; ``edge_desaturation`` 0..1.
@@ -81,7 +81,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
 
     o = options or AvatarOptions()
     renderer = o.renderer or "cpu"
-    encoder = o.encoder or ("torch" if renderer == "gsplat" else "fast")
+    encoder = o.encoder or {"gsplat": "torch", "gl": "gl"}.get(renderer, "fast")
     device = o.device or ("cuda" if renderer == "gsplat" else "cpu")
     get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
     get_encoder(encoder, device=device)
