@@ -2,17 +2,21 @@
 
     cpu      a tile-based 3DGS rasterizer in numba, gsplat's forward maths (the default)
     gsplat   gsplat's CUDA rasterizer, all views in one batched call (needs torch and a CUDA GPU)
+    gl       OpenGL through moderngl: projection and sort in compute shaders (4.3; on the CPU where
+             only 3.3 is there), splats drawn as instanced quads into a texture array (any GPU, Mesa)
 
 Modules: ``cpu`` (the ``cpu`` renderer) with ``cpu_project`` (its projection, colour and
-binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), and ``common`` (the checks every
+binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), ``gl_renderer`` (the ``gl``
+renderer; :class:`~.gl_renderer.GLSplatRenderer` draws into a caller's context) with
+``gl_shaders`` (its GLSL) and ``gl_sort`` (its GPU sort), and ``common`` (the checks every
 renderer makes at its boundary and the conventions they share).  Part of the render layer:
 imports only core and render.
 
 Every renderer has the signature of :func:`render` without ``renderer`` and returns
-(N, H, W, 4) float32 RGBA (numpy for ``cpu``, a torch tensor on the GPU for ``gsplat``): RGB
-composited over ``background`` (black when None, i.e. premultiplied) and alpha.  Cameras are
-OpenCV's: ``viewmats`` world-to-camera with x right, y down, z forward; ``Ks`` in pixels with
-pixel centres at integer coordinates (the backends shift to gsplat's half-pixel frame themselves).
+(N, H, W, 4) float32 RGBA (numpy for ``cpu`` and ``gl``, a torch tensor on the GPU for
+``gsplat``): RGB composited over ``background`` (black when None, i.e. premultiplied) and alpha.
+Cameras are OpenCV's: ``viewmats`` world-to-camera with x right, y down, z forward; ``Ks`` in
+pixels with pixel centres at integer coordinates (the backends shift to gsplat's half-pixel frame themselves).
 
 Modules are imported only when a renderer is asked for, and a renderer that cannot run on this
 machine is refused when it is asked for, before anything else is loaded (its function's
@@ -31,6 +35,7 @@ DEFAULT_RENDERER = "cpu"
 RENDERERS = Registry("renderer", {
     "cpu": "lenticalib.render.renderers.cpu:render_cpu",
     "gsplat": "lenticalib.render.renderers.gsplat_backend:render_gsplat",
+    "gl": "lenticalib.render.renderers.gl_renderer:render_gl",
 }, "lenticalib.renderers")
 
 

@@ -1,0 +1,381 @@
+"""The ``gl`` renderer: 3D Gaussian splatting in OpenGL through moderngl, the ``cpu`` renderer's maths.
+
+    r = GLSplatRenderer(ctx, n_views, width, height)   # ctx: the caller's, current
+    r.render(gaussians, viewmats, Ks, background=None)  # N views into r.views (a texture array)
+    views = r.read()                                   # (N, height, width, 4) float32, as render_cpu
+    render_gl(gaussians, viewmats, Ks, width, height)  # the registry's form, its own context
+
+Per call, with the GPU sort (OpenGL 4.3 compute shaders; :mod:`.gl_shaders` holds the sources):
+
+projection (compute, one invocation per (Gaussian, view))
+    the ``cpu`` renderer's (gsplat 1.5's) in float32, like gsplat itself: camera-frame mean,
+    culling (near 0.01 <= z <= far, opacity >= 1/255, det > 0, gsplat's opacity-aware box on
+    screen), EWA covariance with the clamped J, + 0.3 px^2, conic, SH colour of degree 0-3 for the
+    direction camera centre -> mean (+ 0.5, clamped at 0 below); writes the ``cpu`` renderer's
+    per-Gaussian record (:mod:`.cpu_project`) and a depth key, and counts the visible Gaussians
+    into each view's indirect draw command.
+sort (compute, :mod:`.gl_sort`)
+    per view, the keys (float bits of z: ascending = front to back) with their slots, ties in
+    index order (gsplat's stable sort).
+draw (one indirect multi-draw)
+    the visible Gaussians of each view, front to back, as instanced quads into its layer of
+    ``views`` (layered framebuffer, ``gl_Layer`` from the vertex shader): each quad is the
+    parallelogram bounding the ellipse where alpha can reach 1/255 (inside gsplat's box);
+    the fragment shader computes sigma at the pixel centre, alpha = min(0.999, o exp(-sigma)),
+    discards sigma < 0 or alpha < 1/255, and blending (src ONE_MINUS_DST_ALPHA, dst ONE, on
+    (c alpha, alpha) into RGBA32F) composites front to back: C += T c alpha, A = 1 - T.
+background
+    one full-view triangle per layer blended the same way: RGB += (1 - A) background.
+
+With the CPU sort (``sort="cpu"``; what runs where OpenGL 4.3 is missing, e.g. macOS's 4.1), the
+projection and the order are the ``cpu`` renderer's own kernels (:func:`.cpu_project._project`,
+:func:`.cpu_project._front_to_back`, float64) on the host; the records are uploaded in drawing
+order as instance attributes and drawn by the same quads and fragment shader (OpenGL 3.3).
+
+Difference from ``cpu``: the cpu renderer stops a pixel *before* the Gaussian that would take its
+transmittance T to <= 1e-4; fixed-function blending cannot stop, so here such a pixel goes on
+compositing.  What it adds after that point is T times colours (T < 1e-4 and falling): each
+channel differs by less than 1e-4 times the largest colour behind (colours are >= 0 and usually
+<= 1), alpha by less than 1e-4.  Otherwise float32 rounding (gsplat's precision) and the GPU's exp.
+
+Frames: ``viewmats`` world-to-camera, OpenCV camera (x right, y down, z forward); ``Ks`` in pixels
+with pixel centres at integer coordinates (+ 0.5 to cx, cy as :mod:`.cpu` does).  Layer i of
+``views`` holds view i with texel (x, y) = pixel column x, image row y (row 0 the top), not flipped.
+"""
+
+from __future__ import annotations
+
+import collections
+import numbers
+import threading
+import time
+
+import numpy as np
+
+from ...core.errors import DisplayError, InputError
+from ..gaussians import Gaussians
+from ..gl_context import headless_context
+from . import gl_shaders as sh
+from .common import TILE_SIZE, check_render_inputs
+from .cpu_project import _RECORD, _front_to_back, _project, _world_covariances
+from .gl_sort import GLSorter
+
+__all__ = ["GLSplatRenderer", "render_gl"]
+
+_HINT = "or use the cpu renderer"
+
+
+def _driver_limits(ctx) -> tuple[int, int]:
+    """(GL_MAX_TEXTURE_SIZE, GL_MAX_ARRAY_TEXTURE_LAYERS) of ``ctx``'s driver, 0 where unknown."""
+    info = ctx.info
+    return (int(info.get("GL_MAX_TEXTURE_SIZE", 0) or 0), int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0))
+
+
+def _gl_version(ctx) -> str:
+    return f"{ctx.version_code // 100}.{ctx.version_code // 10 % 10}"
+
+
+def check_finite(g: Gaussians) -> None:
+    """InputError (naming ``gaussians``) for non-finite parameters or a zero-length quaternion;
+    ``g`` numpy, as :func:`.cpu.render_cpu` refuses them."""
+    for name in ("means", "quats", "scales", "opacities", "sh"):
+        if not np.isfinite(getattr(g, name)).all():
+            raise InputError(f"{name} has non-finite values", source="gaussians")
+    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
+        raise InputError("quats has a zero-length quaternion", source="gaussians")
+
+
+def camera_table(viewmats: np.ndarray, Ks: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(N, 6, 4) float32, the CAMS buffer of :mod:`.gl_shaders`: rows of [R t], (fx, fy, cx + 0.5,
+    cy + 0.5), the camera centre -R^T t, and gsplat's clamp limits of J (as :func:`._project`)."""
+    n = viewmats.shape[0]
+    rot, t = viewmats[:, :3, :3], viewmats[:, :3, 3]
+    fx, fy = Ks[:, 0, 0], Ks[:, 1, 1]
+    cx, cy = Ks[:, 0, 2] + 0.5, Ks[:, 1, 2] + 0.5
+    tan_fovx, tan_fovy = 0.5 * width / fx, 0.5 * height / fy
+    out = np.zeros((n, 6, 4))
+    out[:, :3, :3], out[:, :3, 3] = rot, t
+    out[:, 3] = np.stack([fx, fy, cx, cy], axis=1)
+    out[:, 4, :3] = -np.einsum("nji,nj->ni", rot, t)
+    out[:, 5] = np.stack([(width - cx) / fx + 0.3 * tan_fovx, cx / fx + 0.3 * tan_fovx,
+                          (height - cy) / fy + 0.3 * tan_fovy, cy / fy + 0.3 * tan_fovy], axis=1)
+    return out.astype(np.float32)
+
+
+def pack_gaussians(g: Gaussians) -> np.ndarray:
+    """(G, 10 + 3 K) float32, the GAUSS buffer of :mod:`.gl_shaders` (``g`` numpy)."""
+    k = g.sh.shape[1]
+    out = np.empty((g.count, 10 + 3 * k), dtype=np.float32)
+    out[:, :3] = g.means
+    out[:, 3] = g.opacities
+    out[:, 4:10] = _world_covariances(g.quats, g.scales)
+    out[:, 10:] = g.sh.reshape(g.count, 3 * k)
+    return out
+
+
+class GLSplatRenderer:
+    """N views of Gaussians splatted into a texture array of the caller's moderngl context.
+
+    ARGUMENTS
+        ctx         a moderngl context the caller owns and has made current (never released here)
+        n_views     N, the views rendered per call
+        width, height   view size, pixels
+        sort        "gpu" (compute shaders, OpenGL 4.3), "cpu" (projection and order on the host,
+                    OpenGL 3.3), or None: "gpu" where the context has 4.3, else "cpu"
+
+    ATTRIBUTES
+        views           moderngl TextureArray (width, height, N), RGBA32F, the last render
+                        (see the module docstring for its layout and meaning)
+        sort_kind       "gpu" or "cpu", the sort used
+        fallback_reason one line when the CPU sort is used because the driver lacks OpenGL 4.3,
+                        else None
+        stage_ms        with ``profile`` set True: {"upload", "project", "sort", "draw"} of the
+                        last render, milliseconds (measured with ctx.finish(), which stalls)
+
+    DisplayError (one line: what is missing, and the fallback) when the driver's texture limits
+    are too small for the views, when ``sort="gpu"`` and there is no OpenGL 4.3, or when the driver
+    lacks GL_ARB_shader_viewport_layer_array.
+    """
+
+    def __init__(self, ctx, n_views: int, width: int, height: int, *, sort: str | None = None):
+        for name, value in (("n_views", n_views), ("width", width), ("height", height)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value <= 0:
+                raise InputError(f"must be a positive integer, got {value!r}", source=name)
+        if sort not in (None, "gpu", "cpu"):
+            raise InputError(f"must be 'gpu', 'cpu' or None, got {sort!r}", source="sort")
+        self.ctx = ctx
+        self.n_views, self.width, self.height = int(n_views), int(width), int(height)
+        has_compute = ctx.version_code >= 430
+        if sort == "gpu" and not has_compute:
+            raise DisplayError(f"the gpu sort needs OpenGL 4.3 compute shaders, the driver has OpenGL "
+                               f"{_gl_version(ctx)}",
+                               hint="use sort='cpu', which sorts on the host")
+        self.sort_kind = sort or ("gpu" if has_compute else "cpu")
+        self.fallback_reason = None
+        if sort is None and not has_compute:
+            self.fallback_reason = (f"OpenGL {_gl_version(ctx)} has no compute shaders (4.3 needed): "
+                                    f"the gl renderer projects and sorts on the CPU")
+        largest, layers = _driver_limits(ctx)
+        if largest and max(self.width, self.height) > largest:
+            raise DisplayError(f"the OpenGL driver takes textures up to {largest} pixels, the views are "
+                               f"{self.width}x{self.height}", hint="render smaller views or use the cpu renderer")
+        if layers and self.n_views > layers:
+            raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
+                               f"{self.n_views} views were asked for",
+                               hint="render fewer views or use the cpu renderer")
+        if sh.LAYER_EXTENSION not in ctx.extensions:
+            raise DisplayError(f"the OpenGL driver lacks {sh.LAYER_EXTENSION} (layer from the vertex shader)",
+                               hint="use the cpu renderer")
+        self.profile = False
+        self.stage_ms: dict[str, float] = {}
+        self._objects: list = []
+        try:
+            self.views = self._keep(ctx.texture_array((self.width, self.height, self.n_views), 4, dtype="f4"))
+            self.views.filter = (ctx.NEAREST, ctx.NEAREST)
+            self._fbo = self._keep(ctx.framebuffer(color_attachments=[self.views]))
+            self._background = self._keep(ctx.program(vertex_shader=sh.BACKGROUND_VERTEX,
+                                                      fragment_shader=sh.BACKGROUND_FRAGMENT))
+            self._background_vao = self._keep(ctx.vertex_array(self._background, []))
+            vertex = sh.SPLAT_VERTEX_GPU if self.sort_kind == "gpu" else sh.SPLAT_VERTEX_HOST
+            self._splat = self._keep(ctx.program(vertex_shader=vertex, fragment_shader=sh.SPLAT_FRAGMENT))
+            self._splat["size"].value = (float(self.width), float(self.height))
+            if self.sort_kind == "gpu":
+                self._project = self._keep(ctx.compute_shader(sh.PROJECT))
+                self._project["size"].value = (float(self.width), float(self.height))
+                self._sorter = GLSorter(ctx)
+                self._cams = self._keep(ctx.buffer(reserve=self.n_views * 6 * 16))
+                self._cmds = self._keep(ctx.buffer(reserve=self.n_views * 20))
+            self._capacity = -1  # Gaussians the per-Gaussian buffers hold
+            self._buffers: dict = {}
+            self._vao = None
+        except Exception:
+            self.release()
+            raise
+
+    def _keep(self, obj):
+        self._objects.append(obj)
+        return obj
+
+    # -- buffers -------------------------------------------------------------------------------
+
+    def _buffer(self, name: str, nbytes: int):
+        """The buffer ``name`` of at least ``nbytes`` (reallocated, larger, when it is smaller)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < nbytes:
+            if buf is not None:
+                buf.release()
+            buf = self.ctx.buffer(reserve=max(nbytes, 16))
+            self._buffers[name] = buf
+            if self._vao is not None:
+                self._vao.release()
+                self._vao = None
+        return buf
+
+    # -- rendering -----------------------------------------------------------------------------
+
+    def render(self, gaussians: Gaussians, viewmats, Ks, background=None) -> None:
+        """Render the N views of ``gaussians`` into :attr:`views` (see :func:`.cpu.render_cpu` for
+        the arguments; N must be this renderer's ``n_views``)."""
+        viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, self.width, self.height, background)
+        if viewmats.shape[0] != self.n_views:
+            raise InputError(f"{viewmats.shape[0]} views, this renderer draws {self.n_views}", source="viewmats")
+        g = gaussians.to_numpy()
+        check_finite(g)
+        ctx = self.ctx
+        times = [time.perf_counter()]
+
+        def stage():
+            if self.profile:
+                ctx.finish()
+                times.append(time.perf_counter())
+
+        self._fbo.use()
+        self._fbo.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.disable(ctx.DEPTH_TEST | ctx.CULL_FACE)
+        ctx.enable(ctx.BLEND)
+        ctx.blend_equation = ctx.FUNC_ADD
+        ctx.blend_func = ctx.ONE_MINUS_DST_ALPHA, ctx.ONE
+        try:
+            if g.count:
+                (self._render_gpu if self.sort_kind == "gpu" else self._render_host)(g, viewmats, Ks, stage)
+            else:
+                for _ in range(3):
+                    stage()
+            if background is not None:
+                self._background["background"].value = tuple(float(c) for c in background)
+                self._background_vao.render(mode=ctx.TRIANGLES, vertices=3, instances=self.n_views)
+            stage()
+        finally:
+            ctx.disable(ctx.BLEND)
+            ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
+        if self.profile:
+            self.stage_ms = {name: 1e3 * (b - a) for name, a, b in
+                             zip(("project", "sort", "draw"), times, times[1:])}
+
+    def _render_gpu(self, g: Gaussians, viewmats, Ks, stage) -> None:
+        ctx, n = self.ctx, self.n_views
+        count = g.count
+        padded = 1 << max(0, (count - 1).bit_length())
+        data = pack_gaussians(g)
+        gauss = self._buffer("gauss", data.nbytes)
+        splats = self._buffer("splats", n * count * _RECORD * 4)
+        keys = self._buffer("keys", n * padded * 4)
+        vals = self._buffer("vals", n * padded * 4)
+        gauss.write(data)
+        self._cams.write(camera_table(viewmats, Ks, self.width, self.height))
+        cmds = np.zeros((n, 5), dtype=np.uint32)
+        cmds[:, 0] = 4
+        cmds[:, 3] = np.arange(n) * padded
+        self._cmds.write(cmds)
+        for binding, buf in ((sh.GAUSS, gauss), (sh.CAMS, self._cams), (sh.SPLATS, splats), (sh.KEYS, keys),
+                             (sh.VALS, vals), (sh.CMDS, self._cmds)):
+            buf.bind_to_storage_buffer(binding)
+        prog = self._project
+        prog["count"].value = count
+        prog["padded"].value = padded
+        prog["stride"].value = data.shape[1]
+        prog["degree"].value = g.sh_degree
+        prog.run(-(-padded // sh.GROUP), n)
+        ctx.memory_barrier()
+        stage()
+        self._sorter.sort(keys, vals, padded, n)
+        stage()
+        if self._vao is None:
+            self._vao = ctx.vertex_array(self._splat, [(vals, "u/i", "slot")])
+        self._splat["count"].value = count
+        self._fbo.use()
+        self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLE_STRIP, count=n)
+
+    def _render_host(self, g: Gaussians, viewmats, Ks, stage) -> None:
+        ctx, n, count = self.ctx, self.n_views, g.count
+        cov = _world_covariances(g.quats, g.scales)
+        tiles_x, tiles_y = -(-self.width // TILE_SIZE), -(-self.height // TILE_SIZE)
+        records = np.empty((count, _RECORD), dtype=np.float32)
+        boxes = np.empty((count, 4), dtype=np.int32)
+        depth = np.empty(count, dtype=np.float32)
+        index = np.arange(count, dtype=np.uint64)
+        drawn, layers = [], []
+        for view in range(n):
+            k = Ks[view]
+            _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
+                     k[0, 2] + 0.5, k[1, 2] + 0.5, self.width, self.height, tiles_x, tiles_y, records, boxes, depth)
+            order = _front_to_back(depth, index)
+            drawn.append(records[order])
+            layers.append(np.full(order.shape[0], view, dtype=np.int32))
+        stage()
+        drawn = np.concatenate(drawn)
+        layers = np.concatenate(layers)
+        stage()
+        if not drawn.shape[0]:
+            return
+        rec = self._buffer("records", drawn.nbytes)
+        lay = self._buffer("layers", layers.nbytes)
+        rec.write(drawn)
+        lay.write(layers)
+        if self._vao is None:
+            self._vao = ctx.vertex_array(self._splat, [(rec, "4f 4f 4f/i", "r0", "r1", "r2"), (lay, "i/i", "layer")])
+        self._fbo.use()
+        self._vao.render(mode=ctx.TRIANGLE_STRIP, vertices=4, instances=drawn.shape[0])
+
+    def read(self) -> np.ndarray:
+        """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""
+        data = np.frombuffer(self.views.read(), dtype=np.float32)
+        return data.reshape(self.n_views, self.height, self.width, 4).copy()
+
+    def release(self) -> None:
+        """Free this renderer's GL objects (not the context)."""
+        for obj in [self._vao] + list(self._buffers.values()) if hasattr(self, "_buffers") else []:
+            if obj is not None:
+                obj.release()
+        self._buffers = {}
+        self._vao = None
+        sorter = getattr(self, "_sorter", None)
+        if sorter is not None:
+            sorter.release()
+            self._sorter = None
+        for obj in reversed(getattr(self, "_objects", [])):
+            obj.release()
+        self._objects = []
+
+
+_CACHE: collections.OrderedDict = collections.OrderedDict()
+_CACHE_LOCK = threading.Lock()
+_CACHE_SIZE = 2
+_SHARED: list = []  # the one offscreen context of the registry's renderers
+
+
+def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, background=None) -> np.ndarray:
+    """The registry's form, as :func:`.cpu.render_cpu` (same arguments and result): a
+    :class:`GLSplatRenderer` per (N, width, height), kept in a small cache, in one headless context
+    of the process (OpenGL 3.3 or newer; made current for the call)."""
+    viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
+    key = (viewmats.shape[0], int(width), int(height))
+    with _CACHE_LOCK:
+        if not _SHARED:
+            _SHARED.append(headless_context(require=330, hint=_HINT))
+        with _SHARED[0]:
+            renderer = _CACHE.pop(key, None)
+            if renderer is None:
+                renderer = GLSplatRenderer(_SHARED[0], *key)
+            _CACHE[key] = renderer
+            while len(_CACHE) > _CACHE_SIZE:
+                _CACHE.popitem(last=False)[1].release()
+            renderer.render(gaussians, viewmats, Ks, background)
+            return renderer.read()
+
+
+_AVAILABLE: list = []
+
+
+def _unavailable(device=None) -> str | None:
+    """Why the gl renderer cannot run here (no OpenGL 3.3 context), or None; asked once per process."""
+    if not _AVAILABLE:
+        try:
+            headless_context(require=330, hint=_HINT).release()
+            _AVAILABLE.append(None)
+        except DisplayError as exc:
+            _AVAILABLE.append(str(exc))
+    return _AVAILABLE[0]
+
+
+render_gl.unavailable = _unavailable

@@ -1,0 +1,273 @@
+"""GLSL sources of the ``gl`` renderer (:mod:`.gl_renderer`): projection, sort, splats, background.
+
+The constants are the package's (:mod:`.common`, :mod:`.cpu_project`), written into the sources
+when they are built, so that the shaders and the ``cpu`` renderer share one definition.
+
+Buffers (std430, bindings fixed here and used by :mod:`.gl_renderer` and :mod:`.gl_sort`):
+
+    0 GAUSS    float[G * stride]: per Gaussian mean (3), opacity, world covariance (xx xy xz yy yz
+               zz), then the K SH coefficients as K RGB triples; ``stride`` = 10 + 3 K
+    1 CAMS     vec4[6 N]: per view the rows of [R t] (3), (fx, fy, cx, cy) in gsplat's frame (cx, cy
+               already + 0.5), the camera centre (xyz, 0), the clamp limits of J (lim_x_pos,
+               lim_x_neg, lim_y_pos, lim_y_neg)
+    2 SPLATS   vec4[3 N G]: per (view, Gaussian) the ``cpu`` renderer's record (:mod:`.cpu_project`'s
+               _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity, R, G), (B, slope, q, ext_y)
+    3 KEYS     uint[N P]: per view P (a power of two >= G) depth keys (float bits of the camera
+               z, ascending = front to back; 0xFFFFFFFF where culled or padding)
+    4 VALS     uint[N P]: per key its splat slot v G + i (Gaussian i of view v)
+    5 CMDS     uint[5 N]: one DrawArraysIndirectCommand per view (4 vertices, visible Gaussians,
+               first 0, base instance v P) and a pad: moderngl's render_indirect reads them 20
+               bytes apart
+
+Pixel frame: gsplat's (pixel (x, y) centred at (x + 0.5, y + 0.5), y down), which is also
+``gl_FragCoord`` in the view's layer drawn without a flip (texel row 0 = image row 0).
+"""
+
+from __future__ import annotations
+
+from .common import EPS2D, FAR_PLANE, NEAR_PLANE
+from .cpu import ALPHA_MAX
+from .cpu_project import _COV_MAX, _SIGMA_MARGIN, ALPHA_MIN
+
+GROUP = 64  # compute work-group size (invocations along x)
+GAUSS, CAMS, SPLATS, KEYS, VALS, CMDS = range(6)
+LAYER_EXTENSION = "GL_ARB_shader_viewport_layer_array"
+
+
+def _f(value: float) -> str:
+    return f"{float(value):.9e}"
+
+
+_CONSTANTS = f"""
+const float NEAR_PLANE = {_f(NEAR_PLANE)};
+const float FAR_PLANE = {_f(FAR_PLANE)};
+const float EPS2D = {_f(EPS2D)};
+const float ALPHA_MIN = {_f(ALPHA_MIN)};
+const float ALPHA_MAX = {_f(ALPHA_MAX)};
+const float SIGMA_MARGIN = {_f(_SIGMA_MARGIN)};
+const float COV_MAX = {_f(_COV_MAX)};
+"""
+
+# SH colour (gsplat's / Sloan's basis, as cpu_project._sh_colour), for a unit direction d;
+# sh(k) returns coefficient k as an RGB triple
+_SH = """
+vec3 sh_colour(int degree, vec3 d) {
+    vec3 r = 0.2820947917738781 * sh(0);
+    if (degree >= 1) {
+        float x = d.x, y = d.y, z = d.z;
+        r += 0.48860251190292 * (-y * sh(1) + z * sh(2) - x * sh(3));
+        if (degree >= 2) {
+            float z2 = z * z;
+            float t0b = -1.092548430592079 * z;
+            float c1 = x * x - y * y;
+            float s1 = 2.0 * x * y;
+            r += 0.5462742152960395 * s1 * sh(4) + t0b * y * sh(5)
+                 + (0.9461746957575601 * z2 - 0.3153915652525201) * sh(6)
+                 + t0b * x * sh(7) + 0.5462742152960395 * c1 * sh(8);
+            if (degree >= 3) {
+                float t0c = -2.285228997322329 * z2 + 0.4570457994644658;
+                float t1b = 1.445305721320277 * z;
+                float c2 = x * c1 - y * s1;
+                float s2 = x * s1 + y * c1;
+                r += -0.5900435899266435 * s2 * sh(9) + t1b * s1 * sh(10) + t0c * y * sh(11)
+                     + z * (1.865881662950577 * z2 - 1.119528997770346) * sh(12)
+                     + t0c * x * sh(13) + t1b * c1 * sh(14) - 0.5900435899266435 * c2 * sh(15);
+            }
+        }
+    }
+    return max(r + 0.5, vec3(0.0));
+}
+"""
+
+PROJECT = f"""
+#version 430
+layout(local_size_x = {GROUP}) in;
+layout(std430, binding = {GAUSS}) readonly buffer Gauss {{ float g[]; }};
+layout(std430, binding = {CAMS}) readonly buffer Cams {{ vec4 cams[]; }};
+layout(std430, binding = {SPLATS}) writeonly buffer Splats {{ vec4 splats[]; }};
+layout(std430, binding = {KEYS}) writeonly buffer Keys {{ uint keys[]; }};
+layout(std430, binding = {VALS}) writeonly buffer Vals {{ uint vals[]; }};
+layout(std430, binding = {CMDS}) buffer Cmds {{ uint cmds[]; }};
+uniform int count;     // G
+uniform int padded;    // P
+uniform int stride;    // floats per Gaussian in GAUSS
+uniform int degree;    // SH degree
+uniform vec2 size;     // (width, height), pixels
+{_CONSTANTS}
+int base;
+vec3 sh(int k) {{ int o = base + 10 + 3 * k; return vec3(g[o], g[o + 1], g[o + 2]); }}
+{_SH}
+void main() {{
+    int i = int(gl_GlobalInvocationID.x);
+    int v = int(gl_WorkGroupID.y);
+    if (i >= padded) return;
+    uint slot = uint(v * padded + i);
+    uint key = 0xFFFFFFFFu;
+    vals[slot] = uint(v * count + i);
+    if (i < count) {{
+        base = i * stride;
+        vec3 m = vec3(g[base], g[base + 1], g[base + 2]);
+        float op = g[base + 3];
+        vec4 r0 = cams[6 * v], r1 = cams[6 * v + 1], r2 = cams[6 * v + 2];
+        vec4 f = cams[6 * v + 3], eye = cams[6 * v + 4], lim = cams[6 * v + 5];
+        float x = dot(r0.xyz, m) + r0.w;
+        float y = dot(r1.xyz, m) + r1.w;
+        float z = dot(r2.xyz, m) + r2.w;
+        if (z >= NEAR_PLANE && z <= FAR_PLANE && op >= ALPHA_MIN) {{
+            int c = base + 4;
+            mat3 cov = mat3(g[c], g[c + 1], g[c + 2], g[c + 1], g[c + 3], g[c + 4], g[c + 2], g[c + 4], g[c + 5]);
+            mat3 rot = transpose(mat3(r0.xyz, r1.xyz, r2.xyz));
+            mat3 k = rot * cov * transpose(rot);  // camera frame
+            float rz = 1.0 / z;
+            float tx = z * min(lim.x, max(-lim.y, x * rz));
+            float ty = z * min(lim.z, max(-lim.w, y * rz));
+            float j00 = f.x * rz, j02 = -f.x * tx * rz * rz;
+            float j11 = f.y * rz, j12 = -f.y * ty * rz * rz;
+            float k00 = k[0][0], k01 = k[1][0], k02 = k[2][0], k11 = k[1][1], k12 = k[2][1], k22 = k[2][2];
+            float c00 = j00 * j00 * k00 + 2.0 * j00 * j02 * k02 + j02 * j02 * k22 + EPS2D;
+            float c01 = j00 * j11 * k01 + j00 * j12 * k02 + j02 * j11 * k12 + j02 * j12 * k22;
+            float c11 = j11 * j11 * k11 + 2.0 * j11 * j12 * k12 + j12 * j12 * k22 + EPS2D;
+            float det = c00 * c11 - c01 * c01;
+            if (det > 0.0 && c00 < COV_MAX && c11 < COV_MAX) {{
+                float lg = max(log(op / ALPHA_MIN), 0.0);
+                float extend = min(3.33, sqrt(2.0 * lg));
+                float rx = ceil(extend * sqrt(c00));
+                float ry = ceil(extend * sqrt(c11));
+                float u = f.x * x * rz + f.z;
+                float w = f.y * y * rz + f.w;
+                bool off = u + rx <= 0.0 || u - rx >= size.x || w + ry <= 0.0 || w - ry >= size.y;
+                if (!(rx <= 0.0 && ry <= 0.0) && !off) {{
+                    key = floatBitsToUint(z);
+                    vec3 d = m - eye.xyz;
+                    float n = length(d);
+                    if (n > 0.0) d /= n;
+                    vec3 colour = sh_colour(degree, d);
+                    uint s = 3u * uint(v * count + i);
+                    splats[s] = vec4(u, w, c11 / det, -c01 / det);
+                    splats[s + 1u] = vec4(c00 / det, op, colour.rg);
+                    splats[s + 2u] = vec4(colour.b, c01 / c11, det / (c11 * c11),
+                                          sqrt(2.0 * (lg + SIGMA_MARGIN) * c11));
+                    atomicAdd(cmds[5 * v + 1], 1u);
+                }}
+            }}
+        }}
+    }}
+    keys[slot] = key;
+}}
+"""
+
+# One bitonic merge step (k, j) over every view's P keys at once (work group y = view);
+# (key, val) pairs compared lexicographically, so equal depths stay in index order.
+BITONIC = f"""
+#version 430
+layout(local_size_x = {GROUP}) in;
+layout(std430, binding = {KEYS}) buffer Keys {{ uint keys[]; }};
+layout(std430, binding = {VALS}) buffer Vals {{ uint vals[]; }};
+uniform uint padded;
+uniform uint k;
+uniform uint j;
+void main() {{
+    uint t = gl_GlobalInvocationID.x;
+    if (t >= padded / 2u) return;
+    uint base = gl_WorkGroupID.y * padded;
+    uint a = base + 2u * t - (t & (j - 1u));
+    uint b = a + j;
+    bool up = ((a - base) & k) == 0u;
+    uint ka = keys[a], kb = keys[b], va = vals[a], vb = vals[b];
+    bool greater = ka > kb || (ka == kb && va > vb);
+    if (greater == up) {{
+        keys[a] = kb; keys[b] = ka; vals[a] = vb; vals[b] = va;
+    }}
+}}
+"""
+
+# Splat quads: the parallelogram that bounds the record's ellipse where alpha can reach 1/255
+# (rows |dy| <= ext_y, on row dy the columns mx + slope dy -+ sqrt(q (ext_y^2 - dy^2))); one that
+# would reach far past the view is drawn as the whole view instead (the fragment test decides).
+_QUAD = """
+flat out vec2 mean;
+flat out vec4 conic_op;
+flat out vec3 colour;
+uniform vec2 size;
+void splat(vec4 r0, vec4 r1, vec4 r2) {
+    mean = r0.xy;
+    conic_op = vec4(r0.zw, r1.xy);
+    colour = vec3(r1.zw, r2.x);
+    vec2 s = vec2(float(gl_VertexID & 1), float(gl_VertexID >> 1)) * 2.0 - 1.0;
+    float ext_y = r2.w;
+    float half_x = sqrt(r2.z) * ext_y;
+    vec2 p;
+    if (ext_y + abs(r2.y) * ext_y + half_x > 4.0 * (size.x + size.y)) {
+        p = (s * 0.5 + 0.5) * (size + 2.0) - 1.0;
+    } else {
+        float dy = s.y * ext_y;
+        p = mean + vec2(r2.y * dy + s.x * half_x, dy);
+    }
+    gl_Position = vec4(2.0 * p / size - 1.0, 0.0, 1.0);
+}
+"""
+
+# GPU-sorted draw: instance attribute ``slot`` read from VALS at base instance v P + rank
+SPLAT_VERTEX_GPU = f"""
+#version 430
+#extension {LAYER_EXTENSION} : require
+layout(std430, binding = {SPLATS}) readonly buffer Splats {{ vec4 splats[]; }};
+in uint slot;
+uniform int count;
+{_QUAD}
+void main() {{
+    uint s = 3u * slot;
+    splat(splats[s], splats[s + 1u], splats[s + 2u]);
+    gl_Layer = int(slot) / count;
+}}
+"""
+
+# CPU-sorted draw (OpenGL 3.3): records in drawing order as instance attributes
+SPLAT_VERTEX_HOST = f"""
+#version 330 core
+#extension {LAYER_EXTENSION} : require
+in vec4 r0;
+in vec4 r1;
+in vec4 r2;
+in int layer;
+{_QUAD}
+void main() {{
+    splat(r0, r1, r2);
+    gl_Layer = layer;
+}}
+"""
+
+SPLAT_FRAGMENT = f"""
+#version 330 core
+{_CONSTANTS}
+flat in vec2 mean;
+flat in vec4 conic_op;
+flat in vec3 colour;
+out vec4 result;
+void main() {{
+    vec2 d = gl_FragCoord.xy - mean;
+    float sigma = 0.5 * (conic_op.x * d.x * d.x + conic_op.z * d.y * d.y) + conic_op.y * d.x * d.y;
+    float alpha = min(ALPHA_MAX, conic_op.w * exp(-sigma));
+    if (sigma < 0.0 || alpha < ALPHA_MIN) discard;
+    result = vec4(colour * alpha, alpha);  // blended: C += (1 - A) c alpha, A += (1 - A) alpha
+}}
+"""
+
+# Background under what was drawn: one triangle per layer (instance = layer), (bg, 0) blended
+# like a splat: C += (1 - A) bg, A unchanged
+BACKGROUND_VERTEX = f"""
+#version 330 core
+#extension {LAYER_EXTENSION} : require
+void main() {{
+    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+    gl_Layer = gl_InstanceID;
+}}
+"""
+
+BACKGROUND_FRAGMENT = """
+#version 330 core
+uniform vec3 background;
+out vec4 result;
+void main() { result = vec4(background, 0.0); }
+"""
