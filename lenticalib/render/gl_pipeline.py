@@ -12,8 +12,9 @@ preview window); on a panel the encoder draws straight into the window
 (:meth:`lenticalib.render.present.Presenter.show_drawn`).
 
 Stage times come from GL timer queries (``GL_TIME_ELAPSED``: the GPU's time for the commands
-between begin and end): ``render`` (upload, projection, sort, splatting) and ``compose`` (views
-stage and encoder draw); a read-back of the raster is added to ``compose`` as wall time.
+between begin and end; :meth:`GLFrame._timed`): ``render`` (upload, projection, sort, splatting)
+and ``compose`` (views stage and encoder draw); a read-back of the raster is added to ``compose``
+as wall time.
 
 Fallbacks, each said in one line (:attr:`GLFrame.notes`): a driver without OpenGL 4.3 (macOS
 stops at 4.1) sorts on the CPU (the renderer's) and runs the views stage on the host (the
@@ -87,18 +88,12 @@ class GLFrame:
         which :meth:`draw` adds to ``self.last_draw_ms``)."""
         viewmats, ks = self._mats
         with self._current():
-            query = self._queries["render"]
             bg = self.background if self.stage is None and self._colour_background() else None
-            with query:
-                self.renderer.render(gaussians, viewmats, ks, background=bg)
-            render_ms = query.elapsed / 1e6
+            render_ms = self._timed("render", lambda: self.renderer.render(gaussians, viewmats, ks, background=bg))
             start = time.perf_counter()
             self._host_views = None
-            query = self._queries["compose"]
             if self.stage is not None:
-                with query:
-                    self.stage.run(self.renderer.views)
-                compose_ms = query.elapsed / 1e6
+                compose_ms = self._timed("compose", lambda: self.stage.run(self.renderer.views))
             else:  # no compute shaders: the host path, then one upload
                 from .loop import prepare_views
 
@@ -118,10 +113,21 @@ class GLFrame:
         """Draw the raster of the last :meth:`run` into ``framebuffer`` (None: the encoder's offscreen
         one); returns the draw's GPU milliseconds (timer query)."""
         with self._current():
-            query = self._queries["compose"]
-            with query:
-                self.encoder.draw(framebuffer, views=self._views_texture())
-            return query.elapsed / 1e6
+            return self._timed("compose", lambda: self.encoder.draw(framebuffer, views=self._views_texture()))
+
+    def _timed(self, name: str, work) -> float:
+        """Run ``work`` (GL commands) inside timer query ``name``; its GPU milliseconds.  The query
+        ends after ``ctx.finish()``, which adds no GPU time but makes every driver record it (Mesa's
+        llvmpipe reports no valid time for commands still queued).  Where the driver still gives no
+        valid time (all ones: moderngl reads 32 bits, so also beyond 4.29 s), the wall time."""
+        query = self._queries[name]
+        start = time.perf_counter()
+        with query:
+            work()
+            self.ctx.finish()
+        wall_ms = 1e3 * (time.perf_counter() - start)
+        elapsed = query.elapsed
+        return wall_ms if elapsed in (0, 0xFFFFFFFF) else elapsed / 1e6
 
     def raster(self, out: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """(the raster (H, W, 3) uint8 on the host, milliseconds: draw (GPU) + read-back (wall))."""
@@ -171,9 +177,7 @@ class GLFrame:
             if obj is not None:
                 obj.release()
                 setattr(self, name, None)
-        for query in getattr(self, "_queries", {}).values():
-            query.release()
-        self._queries = {}
+        self._queries = {}  # moderngl's queries have no release; they go with the context
 
     def release(self) -> None:
         """Free the GL objects (and the context when it is this frame's own)."""
