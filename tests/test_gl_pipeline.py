@@ -146,3 +146,17 @@ def test_without_opengl_43_the_gl_path_falls_back_and_says_so(avatar, panel, cpu
     _, cpu_rasters, cpu_views = cpu_frames
     assert _agree(views, cpu_views)[0] > 0.999
     assert _agree(rasters, cpu_rasters)[0] > 0.999
+
+
+def test_no_opengl_at_all_is_one_line_naming_the_fallback(avatar, panel, tmp_path, cli_process):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["__EGL_VENDOR_LIBRARY_FILENAMES"] = str(tmp_path / "no-such-vendor.json")  # EGL finds no driver
+    for flags, named in ((("--renderer", "gl"), "renderer 'gl' cannot run here"),
+                         (("--encoder", "gl"), "encoder 'gl' cannot run here")):
+        result = cli_process("render", avatar, "--profile", panel, "-o", tmp_path / "x.png", "--view-size", VIEW_SIZE,
+                             *flags, env=env)
+        assert result.returncode == 2
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and named in lines[0] and "no offscreen OpenGL" in lines[0], result.stderr
+        assert "can run here: cpu" in lines[0] or "can run here: fast" in lines[0]
+        assert not (tmp_path / "x.png").exists()
