@@ -38,4 +38,9 @@ Presenting and the pipeline
     session             the pipeline set up from plain options: what ``play`` and ``render`` run
     live                ``play_avatar``: the live loop, with per-stage timings
     offline             ``render_avatar``: the pipeline offline, to PNG rasters or a lossless video
+
+On OpenGL (any GPU driver, or Mesa's llvmpipe)
+    gl_context          offscreen OpenGL contexts (EGL first), shared by the presenter and the gl backends
+    gl_views            the views stage on the GPU: background, edge desaturation, 8 bits, pre-compensation
+    gl_pipeline         render, views stage and encode in one OpenGL context (``GLFrame``), timer queries
 """
