@@ -20,20 +20,16 @@ from lenticalib.core.profile import PanelProfile, save_profile
 from lenticalib.render.encoders import encode
 
 from .display_support import SCREEN
-from .test_avatar_pipeline import _table
+from .test_avatar_pipeline import _table, demo  # noqa: F401 (demo: a fixture)
 
 VIEW_SIZE = "160x90"
 WIDTH, HEIGHT = SCREEN  # 640 x 360: the panel is the Xvfb screen
 
 
 @pytest.fixture(scope="module")
-def avatar(tmp_path_factory):
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
-
-    path = tmp_path_factory.mktemp("avatar") / "demo.npz"
-    save_rig(path, make_demo_avatar(seed=2, count=4000))
-    return path
+def avatar(demo):
+    """The small demo avatar of test_avatar_pipeline (6000 Gaussians, fixed seed)."""
+    return demo
 
 
 @pytest.fixture(scope="module")

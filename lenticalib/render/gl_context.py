@@ -13,6 +13,16 @@ import os
 from ..core.errors import DisplayError
 from .monitors import is_macos
 
+# A vertex shader drawing one triangle that covers the viewport (3 vertices, no vertex buffer):
+# every full-screen pass (the presenter's raster, the gl encoder) draws with it.
+VIEWPORT_TRIANGLE = """
+#version 330 core
+void main() {
+    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+
 
 def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
     """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X

@@ -29,19 +29,11 @@ import numpy as np
 
 from ..core.errors import DisplayError, ImageError
 from ..core.sizes import check_raster_size
+from .gl_context import VIEWPORT_TRIANGLE
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0
 GL_FRAMEBUFFER_SRGB = 0x8DB9
-
-_VERTEX = """
-#version 330 core
-void main() {
-    // one triangle covering the viewport; no vertex buffer needed
-    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-"""
 
 _FRAGMENT = """
 #version 330 core
@@ -130,7 +122,7 @@ class Presenter:
         ctx = self.ctx
         ctx.disable_direct(GL_DITHER)
         ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
-        self._program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+        self._program = ctx.program(vertex_shader=VIEWPORT_TRIANGLE, fragment_shader=_FRAGMENT)
         self._program["raster"].value = 0
         self._program["height"].value = self.size[1]
         self._vao = ctx.vertex_array(self._program, [])

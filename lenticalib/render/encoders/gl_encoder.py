@@ -36,21 +36,12 @@ import numpy as np
 from ...core.errors import DisplayError, ImageError
 from ...core.profile import PanelProfile
 from ...core.routing import view_map
-from ..gl_context import headless_context, offscreen_context
+from ..gl_context import VIEWPORT_TRIANGLE, headless_context, offscreen_context
 from ..sampling import column_sampling, row_sampling
 from .common import output_like
 
 _HINT = "or use another encoder (fast)"
 DARK = 255  # view-map value of a channel no view lights (profiles have at most 254 views)
-
-_VERTEX = """
-#version 330 core
-void main() {
-    // one triangle covering the viewport; no vertex buffer needed
-    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-"""
 
 _FRAGMENT = """
 #version 330 core
@@ -131,7 +122,7 @@ class GLEncoder:
             self._stage = None  # the GPU views stage of encode(..., compensator), made on first use
             for texture in (self._view_map, self._column_taps, self._row_taps):
                 texture.filter = (ctx.NEAREST, ctx.NEAREST)
-            self._program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+            self._program = ctx.program(vertex_shader=VIEWPORT_TRIANGLE, fragment_shader=_FRAGMENT)
             for unit, name in enumerate(("view_map", "column_taps", "row_taps", "views")):
                 self._program[name].value = unit
             self._program["height"].value = profile.height
