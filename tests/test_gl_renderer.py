@@ -107,19 +107,22 @@ def test_small_gaussians_land_where_they_project(ctx):
     assert max(errors) < 0.3
 
 
-@pytest.mark.parametrize("padded, runs, values", [(1, 3, 1), (8, 2, 3), (1024, 5, 40), (4096, 2, 1 << 32)])
-def test_the_gpu_sort_is_a_stable_sort_by_key(ctx, padded, runs, values):
-    rng = np.random.default_rng(padded)
-    keys = rng.integers(0, values, (runs, padded), dtype=np.uint64).astype(np.uint32)  # ties when values is small
-    keys[:, -padded // 4:] = 0xFFFFFFFF  # culled and padding
-    vals = (np.arange(runs * padded, dtype=np.uint32).reshape(runs, padded) * 7) % (runs * padded)  # distinct
-    vals.sort(axis=1)  # ascending within each run, like the renderer's slots
+@pytest.mark.parametrize("length, runs, values", [(1, 3, 1), (7, 2, 3), (1024, 5, 40), (2500, 3, 1 << 32),
+                                                  (3000, 2, 1 << 20)])
+def test_the_gpu_sort_is_a_stable_sort_by_key(ctx, length, runs, values):
+    # keys with ties (few values), spanning several chunks of the radix sort's passes, and culled ones
+    rng = np.random.default_rng(length)
+    keys = rng.integers(0, values, (runs, length), dtype=np.uint64).astype(np.uint32)
+    keys[:, rng.random(length) < 0.2] = 0xFFFFFFFF
+    if values == 1 << 20:
+        keys = (keys << np.uint32(12)) | np.uint32(0x3F000000)  # float-like keys: low digits 0, high ones shared
+    vals = rng.permutation(1 << 24)[:runs * length].astype(np.uint32).reshape(runs, length)  # distinct, any order
     with ctx:
         sorter = GLSorter(ctx)
         kbuf, vbuf = ctx.buffer(keys.tobytes()), ctx.buffer(vals.tobytes())
-        sorter.sort(kbuf, vbuf, padded, runs)
-        got_k = np.frombuffer(kbuf.read(), np.uint32).reshape(runs, padded)
-        got_v = np.frombuffer(vbuf.read(), np.uint32).reshape(runs, padded)
+        sorter.sort(kbuf, vbuf, length, runs)
+        got_k = np.frombuffer(kbuf.read(), np.uint32).reshape(runs, length)
+        got_v = np.frombuffer(vbuf.read(), np.uint32).reshape(runs, length)
         for obj in (kbuf, vbuf):
             obj.release()
         sorter.release()

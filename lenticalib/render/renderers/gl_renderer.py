@@ -255,36 +255,34 @@ class GLSplatRenderer:
     def _render_gpu(self, g: Gaussians, viewmats, Ks, stage) -> None:
         ctx, n = self.ctx, self.n_views
         count = g.count
-        padded = 1 << max(0, (count - 1).bit_length())
         data = pack_gaussians(g)
         gauss = self._buffer("gauss", data.nbytes)
         splats = self._buffer("splats", n * count * _RECORD * 4)
-        keys = self._buffer("keys", n * padded * 4)
-        vals = self._buffer("vals", n * padded * 4)
+        keys = self._buffer("keys", n * count * 4)
+        vals = self._buffer("vals", n * count * 4)
         gauss.write(data)
         self._cams.write(camera_table(viewmats, Ks, self.width, self.height))
         cmds = np.zeros((n, 5), dtype=np.uint32)
-        cmds[:, 0] = 4
-        cmds[:, 3] = np.arange(n) * padded
+        cmds[:, 1] = 1
+        cmds[:, 2] = 3 * count * np.arange(n)
         self._cmds.write(cmds)
         for binding, buf in ((sh.GAUSS, gauss), (sh.CAMS, self._cams), (sh.SPLATS, splats), (sh.KEYS, keys),
                              (sh.VALS, vals), (sh.CMDS, self._cmds)):
             buf.bind_to_storage_buffer(binding)
         prog = self._project
         prog["count"].value = count
-        prog["padded"].value = padded
         prog["stride"].value = data.shape[1]
         prog["degree"].value = g.sh_degree
-        prog.run(-(-padded // sh.GROUP), n)
+        prog.run(-(-count // sh.GROUP), n)
         ctx.memory_barrier()
         stage()
-        self._sorter.sort(keys, vals, padded, n)
+        self._sorter.sort(keys, vals, count, n)
         stage()
         if self._vao is None:
-            self._vao = ctx.vertex_array(self._splat, [(vals, "u/i", "slot")])
+            self._vao = ctx.vertex_array(self._splat, [])
         self._splat["count"].value = count
         self._fbo.use()
-        self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLE_STRIP, count=n)
+        self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLES, count=n)
 
     def _render_host(self, g: Gaussians, viewmats, Ks, stage) -> None:
         ctx, n, count = self.ctx, self.n_views, g.count
@@ -315,7 +313,7 @@ class GLSplatRenderer:
         if self._vao is None:
             self._vao = ctx.vertex_array(self._splat, [(rec, "4f 4f 4f/i", "r0", "r1", "r2"), (lay, "i/i", "layer")])
         self._fbo.use()
-        self._vao.render(mode=ctx.TRIANGLE_STRIP, vertices=4, instances=drawn.shape[0])
+        self._vao.render(mode=ctx.TRIANGLES, vertices=3, instances=drawn.shape[0])
 
     def read(self) -> np.ndarray:
         """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""

@@ -12,12 +12,12 @@ Buffers (std430, bindings fixed here and used by :mod:`.gl_renderer` and :mod:`.
                lim_x_neg, lim_y_pos, lim_y_neg)
     2 SPLATS   vec4[3 N G]: per (view, Gaussian) the ``cpu`` renderer's record (:mod:`.cpu_project`'s
                _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity, R, G), (B, slope, q, ext_y)
-    3 KEYS     uint[N P]: per view P (a power of two >= G) depth keys (float bits of the camera
-               z, ascending = front to back; 0xFFFFFFFF where culled or padding)
-    4 VALS     uint[N P]: per key its splat slot v G + i (Gaussian i of view v)
-    5 CMDS     uint[5 N]: one DrawArraysIndirectCommand per view (4 vertices, visible Gaussians,
-               first 0, base instance v P) and a pad: moderngl's render_indirect reads them 20
-               bytes apart
+    3 KEYS     uint[N G]: per view G depth keys (float bits of the camera z, ascending = front to
+               back; 0xFFFFFFFF where culled)
+    4 VALS     uint[N G]: per key its splat slot v G + i (Gaussian i of view v)
+    5 CMDS     uint[5 N]: one DrawArraysIndirectCommand per view (3 vertices per visible Gaussian,
+               1 instance, first 3 v G, base instance 0) and a pad: moderngl's render_indirect
+               reads them 20 bytes apart
 
 Pixel frame: gsplat's (pixel (x, y) centred at (x + 0.5, y + 0.5), y down), which is also
 ``gl_FragCoord`` in the view's layer drawn without a flip (texel row 0 = image row 0).
@@ -89,7 +89,6 @@ layout(std430, binding = {KEYS}) writeonly buffer Keys {{ uint keys[]; }};
 layout(std430, binding = {VALS}) writeonly buffer Vals {{ uint vals[]; }};
 layout(std430, binding = {CMDS}) buffer Cmds {{ uint cmds[]; }};
 uniform int count;     // G
-uniform int padded;    // P
 uniform int stride;    // floats per Gaussian in GAUSS
 uniform int degree;    // SH degree
 uniform vec2 size;     // (width, height), pixels
@@ -100,11 +99,11 @@ vec3 sh(int k) {{ int o = base + 10 + 3 * k; return vec3(g[o], g[o + 1], g[o + 2
 void main() {{
     int i = int(gl_GlobalInvocationID.x);
     int v = int(gl_WorkGroupID.y);
-    if (i >= padded) return;
-    uint slot = uint(v * padded + i);
+    if (i >= count) return;
+    uint slot = uint(v * count + i);
     uint key = 0xFFFFFFFFu;
-    vals[slot] = uint(v * count + i);
-    if (i < count) {{
+    vals[slot] = slot;
+    {{
         base = i * stride;
         vec3 m = vec3(g[base], g[base + 1], g[base + 2]);
         float op = g[base + 3];
@@ -142,12 +141,12 @@ void main() {{
                     float n = length(d);
                     if (n > 0.0) d /= n;
                     vec3 colour = sh_colour(degree, d);
-                    uint s = 3u * uint(v * count + i);
+                    uint s = 3u * slot;
                     splats[s] = vec4(u, w, c11 / det, -c01 / det);
                     splats[s + 1u] = vec4(c00 / det, op, colour.rg);
                     splats[s + 2u] = vec4(colour.b, c01 / c11, det / (c11 * c11),
                                           sqrt(2.0 * (lg + SIGMA_MARGIN) * c11));
-                    atomicAdd(cmds[5 * v + 1], 1u);
+                    atomicAdd(cmds[5 * v], 3u);
                 }}
             }}
         }}
@@ -156,68 +155,50 @@ void main() {{
 }}
 """
 
-# One bitonic merge step (k, j) over every view's P keys at once (work group y = view);
-# (key, val) pairs compared lexicographically, so equal depths stay in index order.
-BITONIC = f"""
-#version 430
-layout(local_size_x = {GROUP}) in;
-layout(std430, binding = {KEYS}) buffer Keys {{ uint keys[]; }};
-layout(std430, binding = {VALS}) buffer Vals {{ uint vals[]; }};
-uniform uint padded;
-uniform uint k;
-uniform uint j;
-void main() {{
-    uint t = gl_GlobalInvocationID.x;
-    if (t >= padded / 2u) return;
-    uint base = gl_WorkGroupID.y * padded;
-    uint a = base + 2u * t - (t & (j - 1u));
-    uint b = a + j;
-    bool up = ((a - base) & k) == 0u;
-    uint ka = keys[a], kb = keys[b], va = vals[a], vb = vals[b];
-    bool greater = ka > kb || (ka == kb && va > vb);
-    if (greater == up) {{
-        keys[a] = kb; keys[b] = ka; vals[a] = vb; vals[b] = va;
-    }}
-}}
-"""
-
-# Splat quads: the parallelogram that bounds the record's ellipse where alpha can reach 1/255
-# (rows |dy| <= ext_y, on row dy the columns mx + slope dy -+ sqrt(q (ext_y^2 - dy^2))); one that
-# would reach far past the view is drawn as the whole view instead (the fragment test decides).
-_QUAD = """
+# Splats as one triangle each (geometry, not fragments, is what costs most on llvmpipe): the
+# record's ellipse where alpha can reach 1/255 is, in (x', dy) with x' = dx - slope dy, the
+# axis-aligned ellipse of half-axes sqrt(q) ext_y and ext_y, i.e. the unit circle scaled; the
+# triangle is the equilateral one circumscribing that circle (vertices 2 from its centre), mapped
+# back (an affine map keeps it circumscribed).  One that would reach far past the view is a
+# triangle covering the whole view instead (the fragment test decides).
+_SPLAT = """
 flat out vec2 mean;
 flat out vec4 conic_op;
 flat out vec3 colour;
 uniform vec2 size;
-void splat(vec4 r0, vec4 r1, vec4 r2) {
+const vec2 TRIANGLE[3] = vec2[3](vec2(0.0, 2.0), vec2(-1.7320508, -1.0), vec2(1.7320508, -1.0));
+void splat(vec4 r0, vec4 r1, vec4 r2, int corner) {
     mean = r0.xy;
     conic_op = vec4(r0.zw, r1.xy);
     colour = vec3(r1.zw, r2.x);
-    vec2 s = vec2(float(gl_VertexID & 1), float(gl_VertexID >> 1)) * 2.0 - 1.0;
     float ext_y = r2.w;
     float half_x = sqrt(r2.z) * ext_y;
     vec2 p;
-    if (ext_y + abs(r2.y) * ext_y + half_x > 4.0 * (size.x + size.y)) {
-        p = (s * 0.5 + 0.5) * (size + 2.0) - 1.0;
+    if (2.0 * (ext_y + abs(r2.y) * ext_y + half_x) > 4.0 * (size.x + size.y)) {
+        p = vec2(corner == 1 ? 2.0 : 0.0, corner == 2 ? 2.0 : 0.0) * (size + 2.0) - 1.0;
     } else {
+        vec2 s = TRIANGLE[corner];
         float dy = s.y * ext_y;
-        p = mean + vec2(r2.y * dy + s.x * half_x, dy);
+        p = mean + vec2(s.x * half_x + r2.y * dy, dy);
     }
     gl_Position = vec4(2.0 * p / size - 1.0, 0.0, 1.0);
 }
 """
 
-# GPU-sorted draw: instance attribute ``slot`` read from VALS at base instance v P + rank
+# GPU-sorted draw: no instancing (llvmpipe runs each instance as a draw of its own), one
+# triangle per splat; vertex 3 (v G + rank) + k is corner k of the rank-th splat of view v, whose
+# slot is VALS[v G + rank]
 SPLAT_VERTEX_GPU = f"""
 #version 430
 #extension {LAYER_EXTENSION} : require
 layout(std430, binding = {SPLATS}) readonly buffer Splats {{ vec4 splats[]; }};
-in uint slot;
+layout(std430, binding = {VALS}) readonly buffer Vals {{ uint vals[]; }};
 uniform int count;
-{_QUAD}
+{_SPLAT}
 void main() {{
+    uint slot = vals[gl_VertexID / 3];
     uint s = 3u * slot;
-    splat(splats[s], splats[s + 1u], splats[s + 2u]);
+    splat(splats[s], splats[s + 1u], splats[s + 2u], gl_VertexID % 3);
     gl_Layer = int(slot) / count;
 }}
 """
@@ -230,9 +211,9 @@ in vec4 r0;
 in vec4 r1;
 in vec4 r2;
 in int layer;
-{_QUAD}
+{_SPLAT}
 void main() {{
-    splat(r0, r1, r2);
+    splat(r0, r1, r2, gl_VertexID);
     gl_Layer = layer;
 }}
 """
