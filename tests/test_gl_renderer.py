@@ -234,6 +234,15 @@ def test_texture_limits_too_small_are_one_line_display_errors(ctx, monkeypatch):
         GLSplatRenderer(ctx, 4, 960, 540).release()  # at the limit: fine
 
 
+@pytest.mark.parametrize("sort", ["gpu", "cpu"])
+def test_without_the_vertex_layer_extension_a_geometry_shader_picks_the_layers(ctx, monkeypatch, sort):
+    gaussians = random_scene(3, n=80)
+    expected = _render(ctx, gaussians, *CAMERAS, W, H, background=(0.1, 0.2, 0.3), sort=sort)
+    monkeypatch.setattr(gl_renderer, "_vertex_layer", lambda context: False)
+    np.testing.assert_array_equal(_render(ctx, gaussians, *CAMERAS, W, H, background=(0.1, 0.2, 0.3), sort=sort),
+                                  expected)
+
+
 class _OpenGL41:
     """The test context as a driver without compute shaders would report it (macOS stops at 4.1)."""
 

@@ -19,7 +19,8 @@ sort (compute, :mod:`.gl_sort`)
     radix sort (ties in index order, as gsplat's sort); culled Gaussians sort last.
 draw (one indirect multi-draw, N commands whose counts the projection wrote)
     the visible Gaussians of each view, front to back, into its layer of ``views`` (layered
-    framebuffer, ``gl_Layer`` from the vertex shader), one triangle each: the equilateral
+    framebuffer; ``gl_Layer`` from the vertex shader, or from a pass-through geometry shader
+    where the driver lacks GL_ARB_shader_viewport_layer_array), one triangle each: the equilateral
     triangle circumscribing the ellipse where alpha can reach 1/255 (mapped by the ellipse's
     affine frame; its corners reach past gsplat's box, their fragments fail the alpha test), or
     the whole view for a splat far larger than the view.  No instancing: llvmpipe runs every
@@ -79,6 +80,11 @@ def _driver_limits(ctx) -> tuple[int, int]:
     """(GL_MAX_TEXTURE_SIZE, GL_MAX_ARRAY_TEXTURE_LAYERS) of ``ctx``'s driver, 0 where unknown."""
     info = ctx.info
     return (int(info.get("GL_MAX_TEXTURE_SIZE", 0) or 0), int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0))
+
+
+def _vertex_layer(ctx) -> bool:
+    """Whether the vertex shaders may write gl_Layer (else a pass-through geometry shader does)."""
+    return sh.LAYER_EXTENSION in ctx.extensions
 
 
 def _gl_version(ctx) -> str:
@@ -143,8 +149,8 @@ class GLSplatRenderer:
                         last render, milliseconds (measured with ctx.finish(), which stalls)
 
     DisplayError (one line: what is missing, and the fallback) when the driver's texture limits
-    are too small for the views, when ``sort="gpu"`` and there is no OpenGL 4.3, or when the driver
-    lacks GL_ARB_shader_viewport_layer_array.
+    are too small for the views, or when ``sort="gpu"`` and there is no OpenGL 4.3.  Without
+    GL_ARB_shader_viewport_layer_array, a pass-through geometry shader picks each layer.
     """
 
     def __init__(self, ctx, n_views: int, width: int, height: int, *, sort: str | None = None):
@@ -173,9 +179,6 @@ class GLSplatRenderer:
             raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
                                f"{self.n_views} views were asked for",
                                hint="render fewer views or use the cpu renderer")
-        if sh.LAYER_EXTENSION not in ctx.extensions:
-            raise DisplayError(f"the OpenGL driver lacks {sh.LAYER_EXTENSION} (layer from the vertex shader)",
-                               hint="use the cpu renderer")
         self.profile = False
         self.stage_ms: dict[str, float] = {}
         self._objects: list = []
@@ -183,11 +186,17 @@ class GLSplatRenderer:
             self.views = self._keep(ctx.texture_array((self.width, self.height, self.n_views), 4, dtype="f4"))
             self.views.filter = (ctx.NEAREST, ctx.NEAREST)
             self._fbo = self._keep(ctx.framebuffer(color_attachments=[self.views]))
-            self._background = self._keep(ctx.program(vertex_shader=sh.BACKGROUND_VERTEX,
-                                                      fragment_shader=sh.BACKGROUND_FRAGMENT))
+            vertex_layer = _vertex_layer(ctx)
+            self._background = self._keep(ctx.program(
+                vertex_shader=sh.vertex_shader(sh.BACKGROUND_VERTEX, vertex_layer),
+                geometry_shader=None if vertex_layer else sh.geometry_shader(splat=False),
+                fragment_shader=sh.BACKGROUND_FRAGMENT))
             self._background_vao = self._keep(ctx.vertex_array(self._background, []))
             vertex = sh.SPLAT_VERTEX_GPU if self.sort_kind == "gpu" else sh.SPLAT_VERTEX_HOST
-            self._splat = self._keep(ctx.program(vertex_shader=vertex, fragment_shader=sh.SPLAT_FRAGMENT))
+            self._splat = self._keep(ctx.program(
+                vertex_shader=sh.vertex_shader(vertex, vertex_layer),
+                geometry_shader=None if vertex_layer else sh.geometry_shader(splat=True),
+                fragment_shader=sh.SPLAT_FRAGMENT))
             self._splat["size"].value = (float(self.width), float(self.height))
             if self.sort_kind == "gpu":
                 self._project = self._keep(ctx.compute_shader(sh.PROJECT))

@@ -162,15 +162,18 @@ void main() {{
 # back (an affine map keeps it circumscribed).  One that would reach far past the view is a
 # triangle covering the whole view instead (the fragment test decides).
 _SPLAT = """
-flat out vec2 mean;
-flat out vec4 conic_op;
-flat out vec3 colour;
+out Splat {
+    flat vec2 mean;
+    flat vec4 conic_op;
+    flat vec3 colour;
+} splat_out;
 uniform vec2 size;
 const vec2 TRIANGLE[3] = vec2[3](vec2(0.0, 2.0), vec2(-1.7320508, -1.0), vec2(1.7320508, -1.0));
 void splat(vec4 r0, vec4 r1, vec4 r2, int corner) {
-    mean = r0.xy;
-    conic_op = vec4(r0.zw, r1.xy);
-    colour = vec3(r1.zw, r2.x);
+    vec2 mean = r0.xy;
+    splat_out.mean = mean;
+    splat_out.conic_op = vec4(r0.zw, r1.xy);
+    splat_out.colour = vec3(r1.zw, r2.x);
     float ext_y = r2.w;
     float half_x = sqrt(r2.z) * ext_y;
     vec2 p;
@@ -185,12 +188,25 @@ void splat(vec4 r0, vec4 r1, vec4 r2, int corner) {
 }
 """
 
+# The layer of a vertex: SET_LAYER(x) writes gl_Layer where the driver has the extension that
+# allows it in a vertex shader, else passes it to :func:`geometry_shader`'s pass-through, which
+# writes it (OpenGL 3.2 core); :func:`vertex_shader` picks one.
+_LAYER = f"""
+#ifdef VERTEX_LAYER
+#extension {LAYER_EXTENSION} : require
+#define SET_LAYER(x) gl_Layer = (x)
+#else
+flat out int layer_v;
+#define SET_LAYER(x) layer_v = (x)
+#endif
+"""
+
 # GPU-sorted draw: no instancing (llvmpipe runs each instance as a draw of its own), one
 # triangle per splat; vertex 3 (v G + rank) + k is corner k of the rank-th splat of view v, whose
 # slot is VALS[v G + rank]
 SPLAT_VERTEX_GPU = f"""
 #version 430
-#extension {LAYER_EXTENSION} : require
+{_LAYER}
 layout(std430, binding = {SPLATS}) readonly buffer Splats {{ vec4 splats[]; }};
 layout(std430, binding = {VALS}) readonly buffer Vals {{ uint vals[]; }};
 uniform int count;
@@ -199,14 +215,14 @@ void main() {{
     uint slot = vals[gl_VertexID / 3];
     uint s = 3u * slot;
     splat(splats[s], splats[s + 1u], splats[s + 2u], gl_VertexID % 3);
-    gl_Layer = int(slot) / count;
+    SET_LAYER(int(slot) / count);
 }}
 """
 
 # CPU-sorted draw (OpenGL 3.3): records in drawing order as instance attributes
 SPLAT_VERTEX_HOST = f"""
 #version 330 core
-#extension {LAYER_EXTENSION} : require
+{_LAYER}
 in vec4 r0;
 in vec4 r1;
 in vec4 r2;
@@ -214,23 +230,26 @@ in int layer;
 {_SPLAT}
 void main() {{
     splat(r0, r1, r2, gl_VertexID);
-    gl_Layer = layer;
+    SET_LAYER(layer);
 }}
 """
 
 SPLAT_FRAGMENT = f"""
 #version 330 core
 {_CONSTANTS}
-flat in vec2 mean;
-flat in vec4 conic_op;
-flat in vec3 colour;
+in Splat {{
+    flat vec2 mean;
+    flat vec4 conic_op;
+    flat vec3 colour;
+}} splat_in;
 out vec4 result;
 void main() {{
-    vec2 d = gl_FragCoord.xy - mean;
-    float sigma = 0.5 * (conic_op.x * d.x * d.x + conic_op.z * d.y * d.y) + conic_op.y * d.x * d.y;
-    float alpha = min(ALPHA_MAX, conic_op.w * exp(-sigma));
+    vec2 d = gl_FragCoord.xy - splat_in.mean;
+    vec4 c = splat_in.conic_op;
+    float sigma = 0.5 * (c.x * d.x * d.x + c.z * d.y * d.y) + c.y * d.x * d.y;
+    float alpha = min(ALPHA_MAX, c.w * exp(-sigma));
     if (sigma < 0.0 || alpha < ALPHA_MIN) discard;
-    result = vec4(colour * alpha, alpha);  // blended: C += (1 - A) c alpha, A += (1 - A) alpha
+    result = vec4(splat_in.colour * alpha, alpha);  // blended: C += (1 - A) c alpha, A += (1 - A) alpha
 }}
 """
 
@@ -238,11 +257,11 @@ void main() {{
 # like a splat: C += (1 - A) bg, A unchanged
 BACKGROUND_VERTEX = f"""
 #version 330 core
-#extension {LAYER_EXTENSION} : require
+{_LAYER}
 void main() {{
     vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
     gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-    gl_Layer = gl_InstanceID;
+    SET_LAYER(gl_InstanceID);
 }}
 """
 
@@ -251,4 +270,34 @@ BACKGROUND_FRAGMENT = """
 uniform vec3 background;
 out vec4 result;
 void main() { result = vec4(background, 0.0); }
+"""
+
+
+def vertex_shader(source: str, vertex_layer: bool) -> str:
+    """``source`` (one of the vertex shaders above) writing gl_Layer itself (``vertex_layer``:
+    the driver has LAYER_EXTENSION) or handing it to :func:`geometry_shader`."""
+    head, rest = source.lstrip().split("\n", 1)
+    return f"{head}\n#define VERTEX_LAYER\n{rest}" if vertex_layer else f"{head}\n{rest}"
+
+
+def geometry_shader(splat: bool) -> str:
+    """A pass-through geometry shader that writes gl_Layer (for drivers without LAYER_EXTENSION),
+    handing on the Splat block when ``splat``."""
+    block = "flat vec2 mean; flat vec4 conic_op; flat vec3 colour;"
+    return f"""
+#version 330 core
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+flat in int layer_v[];
+{f"in Splat {{ {block} }} splat_in[]; out Splat {{ {block} }} splat_out;" if splat else ""}
+void main() {{
+    for (int k = 0; k < 3; ++k) {{
+        gl_Position = gl_in[k].gl_Position;
+        gl_Layer = layer_v[0];
+        {"splat_out.mean = splat_in[k].mean; splat_out.conic_op = splat_in[k].conic_op; "
+         "splat_out.colour = splat_in[k].colour;" if splat else ""}
+        EmitVertex();
+    }}
+    EndPrimitive();
+}}
 """
