@@ -276,3 +276,31 @@ def test_without_opengl_43_the_cpu_sort_is_used_and_said(ctx):
         assert native.sort_kind == "gpu" and native.fallback_reason is None
         native.release()
     np.testing.assert_array_equal(out, _render(ctx, gaussians, *CAMERAS, W, H, sort="cpu"))
+
+
+def test_on_a_real_opengl_41_context_render_gl_sorts_on_the_cpu_and_says_so(tmp_path):
+    # Mesa told to offer OpenGL 4.1 (macOS's last): no compute shaders in that process at all
+    import os
+    import subprocess
+    import sys
+
+    script = f"""
+import logging, sys
+import numpy as np
+sys.path.insert(0, {str(os.getcwd())!r})
+from tests.test_renderer_cpu import CAMERAS, H, W, random_scene
+from lenticalib.render.renderers.gl_renderer import render_gl, _SHARED
+logging.basicConfig(level=logging.WARNING, format="%(message)s")
+out = render_gl(random_scene(3, n=80), *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
+with _SHARED[0]:
+    print("version", _SHARED[0].version_code)
+np.save({str(tmp_path / "out.npy")!r}, out)
+"""
+    env = dict(os.environ, MESA_GL_VERSION_OVERRIDE="4.1", MESA_GLSL_VERSION_OVERRIDE="410")
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "version 410" in done.stdout
+    assert "OpenGL 4.1 has no compute shaders (4.3 needed): the gl renderer projects and sorts on the CPU" in done.stderr
+    expected = render_cpu(random_scene(3, n=80), *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
+    _assert_close(np.load(tmp_path / "out.npy"), expected)
+

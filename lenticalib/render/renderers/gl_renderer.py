@@ -57,6 +57,7 @@ with pixel centres at integer coordinates (+ 0.5 to cx, cy as :mod:`.cpu` does).
 from __future__ import annotations
 
 import collections
+import logging
 import numbers
 import threading
 import time
@@ -72,6 +73,8 @@ from .cpu_project import _RECORD, _front_to_back, _project, _world_covariances
 from .gl_sort import GLSorter
 
 __all__ = ["GLSplatRenderer", "render_gl"]
+
+_log = logging.getLogger(__name__)
 
 _HINT = "or use the cpu renderer"
 
@@ -364,7 +367,8 @@ _SHARED: list = []  # the one offscreen context of the registry's renderers
 def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, background=None) -> np.ndarray:
     """The registry's form, as :func:`.cpu.render_cpu` (same arguments and result): a
     :class:`GLSplatRenderer` per (N, width, height), kept in a small cache, in one headless context
-    of the process (OpenGL 3.3 or newer; made current for the call)."""
+    of the process (OpenGL 3.3 or newer; made current for the call).  Where that context lacks
+    OpenGL 4.3 the CPU sort is used, and its ``fallback_reason`` logged as a warning."""
     viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
     key = (viewmats.shape[0], int(width), int(height))
     with _CACHE_LOCK:
@@ -374,6 +378,8 @@ def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, ba
             renderer = _CACHE.pop(key, None)
             if renderer is None:
                 renderer = GLSplatRenderer(_SHARED[0], *key)
+                if renderer.fallback_reason:
+                    _log.warning(renderer.fallback_reason)
             _CACHE[key] = renderer
             while len(_CACHE) > _CACHE_SIZE:
                 _CACHE.popitem(last=False)[1].release()
