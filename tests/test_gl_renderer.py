@@ -300,7 +300,8 @@ np.save({str(tmp_path / "out.npy")!r}, out)
     done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "version 410" in done.stdout
-    assert "OpenGL 4.1 has no compute shaders (4.3 needed): the gl renderer projects and sorts on the CPU" in done.stderr
+    assert ("OpenGL 4.1 has no compute shaders (4.3 needed): the gl renderer projects and sorts on the CPU"
+            in done.stderr)
     expected = render_cpu(random_scene(3, n=80), *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
     _assert_close(np.load(tmp_path / "out.npy"), expected)
 
