@@ -153,6 +153,18 @@ def test_an_empty_scene_renders_the_background(ctx, gaussians, sort):
     np.testing.assert_array_equal(out[..., 3], 0)
 
 
+def test_huge_and_far_gaussians_render_like_the_cpu_renderers():
+    # a variance beyond float32 (culled), one covering every pixel of every view (drawn as the
+    # whole view), one far off every view: as render_cpu, finite
+    g = random_scene(0, n=5)
+    g.scales[1] = 1e18
+    g.scales[3] = 1e6
+    g.means[4] = (1e25, 0.0, 0.0)
+    out = render_gl(g, *CAMERAS, W, H)
+    assert np.isfinite(out).all() and (out[..., 3] > 0).all()
+    _assert_close(out, render_cpu(g, *CAMERAS, W, H))
+
+
 def test_a_renderer_reused_for_more_then_fewer_gaussians_renders_each_like_a_new_one(ctx):
     scenes = [random_scene(0, n=30, seed=4), random_scene(3, n=700, seed=5), random_scene(1, n=10, seed=6)]
     with ctx:

@@ -45,9 +45,13 @@ colour behind it, colours being >= 0 and usually <= 1), and by at most 1e-4 of i
 Gaussian's alpha is small.  Measured on the test scenes: up to 0.007 in a few pixels of opaque
 stacks (73-87 dB PSNR there), 1e-6 elsewhere.  Otherwise float32 rounding (gsplat's precision).
 
-Speed on Mesa's llvmpipe (2 cores, tools/bench_gl_render.py): geometry, not fragments, bounds it:
-llvmpipe transforms and sets up primitives on the calling thread only, about 0.6 us a triangle,
-so 32 views of a 100k-Gaussian avatar cost about 2 s of drawing whatever the fragment shader does.
+Speed on Mesa's llvmpipe (2 cores; tools/bench_gl_render.py): the draw dominates, and it costs in
+proportion to the pixels the triangles cover (about 13 ns a pixel per core, blending included;
+the geometry itself about 0.2 us a triangle).  The triangle covers 1.65 times its ellipse (a
+parallelogram 1.27 times, but at two triangles it came out no faster), and fixed-function blending
+cannot stop pixels early as the cpu renderer does; so on llvmpipe the numba ``cpu`` renderer is
+the faster one (about 4x on the demo avatar), and this renderer is for GPUs, where fragments are
+cheap and the views then stay on the GPU for the ``gl`` encoder.
 
 Frames: ``viewmats`` world-to-camera, OpenCV camera (x right, y down, z forward); ``Ks`` in pixels
 with pixel centres at integer coordinates (+ 0.5 to cx, cy as :mod:`.cpu` does).  Layer i of
