@@ -166,6 +166,23 @@ def test_huge_and_far_gaussians_render_like_the_cpu_renderers():
     _assert_close(out, render_cpu(g, *CAMERAS, W, H))
 
 
+@pytest.mark.parametrize("views_per_batch", [1, 3])
+def test_views_are_rendered_in_batches_within_the_drivers_storage_block_size(ctx, monkeypatch, views_per_batch):
+    gaussians = random_scene(0, n=300)  # 52 bytes a Gaussian in the GAUSS buffer, 48 a record per view
+    expected = _render(ctx, gaussians, *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
+    limit = max(300 * 52, 300 * 48 * views_per_batch + 47)
+    monkeypatch.setattr(gl_renderer, "_storage_limit", lambda context: limit)
+    np.testing.assert_array_equal(_render(ctx, gaussians, *CAMERAS, W, H, background=(0.1, 0.2, 0.3)), expected)
+
+
+def test_gaussians_beyond_the_drivers_storage_block_size_are_a_one_line_display_error(ctx, monkeypatch):
+    monkeypatch.setattr(gl_renderer, "_storage_limit", lambda context: 299 * 48)
+    with pytest.raises(DisplayError, match=r"300 Gaussians exceed the OpenGL driver's shader storage block size "
+                                           r"\(14352 bytes\)") as err:
+        _render(ctx, random_scene(0, n=300), *CAMERAS, W, H)
+    assert "\n" not in str(err.value) and "cpu renderer" in str(err.value)
+
+
 def test_a_renderer_reused_for_more_then_fewer_gaussians_renders_each_like_a_new_one(ctx):
     scenes = [random_scene(0, n=30, seed=4), random_scene(3, n=700, seed=5), random_scene(1, n=10, seed=6)]
     with ctx:

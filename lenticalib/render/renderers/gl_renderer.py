@@ -89,6 +89,11 @@ def _driver_limits(ctx) -> tuple[int, int]:
     return (int(info.get("GL_MAX_TEXTURE_SIZE", 0) or 0), int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0))
 
 
+def _storage_limit(ctx) -> int:
+    """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of ``ctx``'s driver, bytes (0 where unknown)."""
+    return int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+
+
 def _vertex_layer(ctx) -> bool:
     """Whether the vertex shaders may write gl_Layer (else a pass-through geometry shader does)."""
     return sh.LAYER_EXTENSION in ctx.extensions
@@ -152,8 +157,12 @@ class GLSplatRenderer:
         sort_kind       "gpu" or "cpu", the sort used
         fallback_reason one line when the CPU sort is used because the driver lacks OpenGL 4.3,
                         else None
-        stage_ms        with ``profile`` set True: {"upload", "project", "sort", "draw"} of the
-                        last render, milliseconds (measured with ctx.finish(), which stalls)
+        profile         False; set True to time the stages of each render (ctx.finish() after
+                        each, which stalls)
+        stage_ms        with ``profile``: {"project", "sort", "draw"} of the last render,
+                        milliseconds; "project" includes packing and uploading the Gaussians
+                        (with the CPU sort: the host's projection and order; "sort" gathering
+                        the records)
 
     DisplayError (one line: what is missing, and the fallback) when the driver's texture limits
     are too small for the views, or when ``sort="gpu"`` and there is no OpenGL 4.3.  Without
@@ -211,7 +220,6 @@ class GLSplatRenderer:
                 self._sorter = GLSorter(ctx)
                 self._cams = self._keep(ctx.buffer(reserve=self.n_views * 6 * 16))
                 self._cmds = self._keep(ctx.buffer(reserve=self.n_views * 20))
-            self._capacity = -1  # Gaussians the per-Gaussian buffers hold
             self._buffers: dict = {}
             self._vao = None
         except Exception:
@@ -248,12 +256,16 @@ class GLSplatRenderer:
         g = gaussians.to_numpy()
         check_finite(g)
         ctx = self.ctx
-        times = [time.perf_counter()]
+        self.stage_ms = {"project": 0.0, "sort": 0.0, "draw": 0.0}
+        clock = [time.perf_counter()]
 
-        def stage():
+        def stage(name: str) -> None:
+            """With ``profile``: the time since the last stage ended, added to ``name``'s."""
             if self.profile:
                 ctx.finish()
-                times.append(time.perf_counter())
+                now = time.perf_counter()
+                self.stage_ms[name] += 1e3 * (now - clock[0])
+                clock[0] = now
 
         self._fbo.use()
         self._fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -264,51 +276,62 @@ class GLSplatRenderer:
         try:
             if g.count:
                 (self._render_gpu if self.sort_kind == "gpu" else self._render_host)(g, viewmats, Ks, stage)
-            else:
-                for _ in range(3):
-                    stage()
             if background is not None:
+                self._fbo.use()
                 self._background["background"].value = tuple(float(c) for c in background)
                 self._background_vao.render(mode=ctx.TRIANGLES, vertices=3, instances=self.n_views)
-            stage()
+            stage("draw")
         finally:
             ctx.disable(ctx.BLEND)
             ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
-        if self.profile:
-            self.stage_ms = {name: 1e3 * (b - a) for name, a, b in
-                             zip(("project", "sort", "draw"), times, times[1:])}
+
+    def _batch(self, count: int, stride: int) -> int:
+        """Views per batch: as many as keep the per-view buffers within the driver's storage block
+        size.  DisplayError when even the Gaussians, or one view's records, do not fit."""
+        limit = _storage_limit(self.ctx)
+        per_view = count * _RECORD * 4
+        if limit and (count * stride * 4 > limit or per_view > limit):
+            size = f"{limit >> 20} MiB" if limit >= 1 << 20 else f"{limit} bytes"
+            raise DisplayError(f"{count} Gaussians exceed the OpenGL driver's shader storage block size ({size})",
+                               hint="render fewer Gaussians or use the cpu renderer")
+        return self.n_views if not limit else max(1, min(self.n_views, limit // per_view))
 
     def _render_gpu(self, g: Gaussians, viewmats, Ks, stage) -> None:
-        ctx, n = self.ctx, self.n_views
-        count = g.count
+        ctx, n, count = self.ctx, self.n_views, g.count
         data = pack_gaussians(g)
+        batch = self._batch(count, data.shape[1])
         gauss = self._buffer("gauss", data.nbytes)
-        splats = self._buffer("splats", n * count * _RECORD * 4)
-        keys = self._buffer("keys", n * count * 4)
-        vals = self._buffer("vals", n * count * 4)
+        splats = self._buffer("splats", batch * count * _RECORD * 4)
+        keys = self._buffer("keys", batch * count * 4)
+        vals = self._buffer("vals", batch * count * 4)
         gauss.write(data)
         self._cams.write(camera_table(viewmats, Ks, self.width, self.height))
         cmds = np.zeros((n, 5), dtype=np.uint32)
         cmds[:, 1] = 1
-        cmds[:, 2] = 3 * count * np.arange(n)
+        cmds[:, 2] = 3 * count * (np.arange(n) % batch)
         self._cmds.write(cmds)
         for binding, buf in ((sh.GAUSS, gauss), (sh.CAMS, self._cams), (sh.SPLATS, splats), (sh.KEYS, keys),
                              (sh.VALS, vals), (sh.CMDS, self._cmds)):
             buf.bind_to_storage_buffer(binding)
-        prog = self._project
-        prog["count"].value = count
-        prog["stride"].value = data.shape[1]
-        prog["degree"].value = g.sh_degree
-        prog.run(-(-count // sh.GROUP), n)
-        ctx.memory_barrier()
-        stage()
-        self._sorter.sort(keys, vals, count, n)
-        stage()
+        project, draw = self._project, self._splat
+        project["count"].value = count
+        project["stride"].value = data.shape[1]
+        project["degree"].value = g.sh_degree
+        draw["count"].value = count
         if self._vao is None:
-            self._vao = ctx.vertex_array(self._splat, [])
-        self._splat["count"].value = count
-        self._fbo.use()
-        self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLES, count=n)
+            self._vao = ctx.vertex_array(draw, [])
+        for first in range(0, n, batch):
+            views = min(batch, n - first)
+            project["first_view"].value = first
+            project.run(-(-count // sh.GROUP), views)
+            ctx.memory_barrier()
+            stage("project")
+            self._sorter.sort(keys, vals, count, views)
+            stage("sort")
+            draw["first_view"].value = first
+            self._fbo.use()
+            self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLES, count=views, first=first)
+            stage("draw")
 
     def _render_host(self, g: Gaussians, viewmats, Ks, stage) -> None:
         ctx, n, count = self.ctx, self.n_views, g.count
@@ -326,10 +349,10 @@ class GLSplatRenderer:
             order = _front_to_back(depth, index)
             drawn.append(records[order])
             layers.append(np.full(order.shape[0], view, dtype=np.int32))
-        stage()
+        stage("project")
         drawn = np.concatenate(drawn)
         layers = np.concatenate(layers)
-        stage()
+        stage("sort")
         if not drawn.shape[0]:
             return
         rec = self._buffer("records", drawn.nbytes)

@@ -3,21 +3,25 @@
 The constants are the package's (:mod:`.common`, :mod:`.cpu_project`), written into the sources
 when they are built, so that the shaders and the ``cpu`` renderer share one definition.
 
-Buffers (std430, bindings fixed here and used by :mod:`.gl_renderer` and :mod:`.gl_sort`):
+Buffers (std430, bindings fixed here and used by :mod:`.gl_renderer` and :mod:`.gl_sort`).  The
+views are rendered in batches of B consecutive views (all N at once unless the per-view buffers
+would exceed the driver's GL_MAX_SHADER_STORAGE_BLOCK_SIZE); per-view buffers hold one batch,
+view v of the batch starting at ``first_view`` being its local view v - first_view:
 
     0 GAUSS    float[G * stride]: per Gaussian mean (3), opacity, world covariance (xx xy xz yy yz
                zz), then the K SH coefficients as K RGB triples; ``stride`` = 10 + 3 K
     1 CAMS     vec4[6 N]: per view the rows of [R t] (3), (fx, fy, cx, cy) in gsplat's frame (cx, cy
                already + 0.5), the camera centre (xyz, 0), the clamp limits of J (lim_x_pos,
                lim_x_neg, lim_y_pos, lim_y_neg)
-    2 SPLATS   vec4[3 N G]: per (view, Gaussian) the ``cpu`` renderer's record (:mod:`.cpu_project`'s
-               _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity, R, G), (B, slope, q, ext_y)
-    3 KEYS     uint[N G]: per view G depth keys (float bits of the camera z, ascending = front to
-               back; 0xFFFFFFFF where culled)
-    4 VALS     uint[N G]: per key its splat slot v G + i (Gaussian i of view v)
+    2 SPLATS   vec4[3 B G]: per (local view, Gaussian) the ``cpu`` renderer's record
+               (:mod:`.cpu_project`'s _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity,
+               R, G), (B, slope, q, ext_y)
+    3 KEYS     uint[B G]: per local view G depth keys (float bits of the camera z, ascending =
+               front to back; 0xFFFFFFFF where culled)
+    4 VALS     uint[B G]: per key its splat slot v G + i (Gaussian i of local view v)
     5 CMDS     uint[5 N]: one DrawArraysIndirectCommand per view (3 vertices per visible Gaussian,
-               1 instance, first 3 v G, base instance 0) and a pad: moderngl's render_indirect
-               reads them 20 bytes apart
+               1 instance, first 3 v G for local view v, base instance 0) and a pad: moderngl's
+               render_indirect reads them 20 bytes apart
 
 Pixel frame: gsplat's (pixel (x, y) centred at (x + 0.5, y + 0.5), y down), which is also
 ``gl_FragCoord`` in the view's layer drawn without a flip (texel row 0 = image row 0).
@@ -89,6 +93,7 @@ layout(std430, binding = {KEYS}) writeonly buffer Keys {{ uint keys[]; }};
 layout(std430, binding = {VALS}) writeonly buffer Vals {{ uint vals[]; }};
 layout(std430, binding = {CMDS}) buffer Cmds {{ uint cmds[]; }};
 uniform int count;     // G
+uniform int first_view;  // the batch's first view
 uniform int stride;    // floats per Gaussian in GAUSS
 uniform int degree;    // SH degree
 uniform vec2 size;     // (width, height), pixels
@@ -98,9 +103,10 @@ vec3 sh(int k) {{ int o = base + 10 + 3 * k; return vec3(g[o], g[o + 1], g[o + 2
 {_SH}
 void main() {{
     int i = int(gl_GlobalInvocationID.x);
-    int v = int(gl_WorkGroupID.y);
+    int lv = int(gl_WorkGroupID.y);  // local view
+    int v = first_view + lv;
     if (i >= count) return;
-    uint slot = uint(v * count + i);
+    uint slot = uint(lv * count + i);
     uint key = 0xFFFFFFFFu;
     vals[slot] = slot;
     {{
@@ -202,20 +208,21 @@ flat out int layer_v;
 """
 
 # GPU-sorted draw: no instancing (llvmpipe runs each instance as a draw of its own), one
-# triangle per splat; vertex 3 (v G + rank) + k is corner k of the rank-th splat of view v, whose
-# slot is VALS[v G + rank]
+# triangle per splat; vertex 3 (v G + rank) + k is corner k of the rank-th splat of local view v,
+# whose slot is VALS[v G + rank]
 SPLAT_VERTEX_GPU = f"""
 #version 430
 {_LAYER}
 layout(std430, binding = {SPLATS}) readonly buffer Splats {{ vec4 splats[]; }};
 layout(std430, binding = {VALS}) readonly buffer Vals {{ uint vals[]; }};
 uniform int count;
+uniform int first_view;
 {_SPLAT}
 void main() {{
     uint slot = vals[gl_VertexID / 3];
     uint s = 3u * slot;
     splat(splats[s], splats[s + 1u], splats[s + 2u], gl_VertexID % 3);
-    SET_LAYER(int(slot) / count);
+    SET_LAYER(first_view + int(slot) / count);
 }}
 """
 
