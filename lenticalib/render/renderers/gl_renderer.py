@@ -366,8 +366,9 @@ class GLSplatRenderer:
 
     def read(self) -> np.ndarray:
         """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""
-        data = np.frombuffer(self.views.read(), dtype=np.float32)
-        return data.reshape(self.n_views, self.height, self.width, 4).copy()
+        out = np.empty((self.n_views, self.height, self.width, 4), dtype=np.float32)
+        self.views.read_into(out)
+        return out
 
     def release(self) -> None:
         """Free this renderer's GL objects (not the context)."""
