@@ -17,7 +17,7 @@ projection (compute, one invocation per (Gaussian, view))
 sort (compute, :mod:`.gl_sort`)
     per view, the keys (float bits of z: ascending = front to back) with their slots, a stable
     radix sort (ties in index order, as gsplat's sort); culled Gaussians sort last.
-draw (one indirect multi-draw, N commands whose counts the projection wrote)
+draw (one indirect multi-draw, a command per view whose count the projection wrote)
     the visible Gaussians of each view, front to back, into its layer of ``views`` (layered
     framebuffer; ``gl_Layer`` from the vertex shader, or from a pass-through geometry shader
     where the driver lacks GL_ARB_shader_viewport_layer_array), one triangle each: the equilateral
@@ -31,6 +31,10 @@ draw (one indirect multi-draw, N commands whose counts the projection wrote)
 background
     one full-view triangle per layer blended the same way: RGB += (1 - A) background.
 
+The three run for all N views at once, or in batches of views where the per-view buffers would
+exceed the driver's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (llvmpipe's 128 MiB holds 27 views of 100k
+Gaussians).
+
 With the CPU sort (``sort="cpu"``; what runs where OpenGL 4.3 is missing, e.g. macOS's 4.1), the
 projection and the order are the ``cpu`` renderer's own kernels (:func:`.cpu_project._project`,
 :func:`.cpu_project._front_to_back`, float64) on the host; the records are uploaded in drawing
@@ -38,17 +42,18 @@ order as instance attributes (3 vertices an instance) and drawn by the same tria
 fragment shader (OpenGL 3.3).
 
 Difference from ``cpu``: the cpu renderer stops a pixel *before* the Gaussian that would take its
-transmittance T to <= 1e-4 and adds nothing more; blending cannot stop, so here that Gaussian
-and all behind it are composited too.  Alpha is at most 0.999, so the T at which the cpu renderer
-stops is below 1e-4 / (1 - alpha) <= 0.1: a pixel differs by at most that T (times the largest
-colour behind it, colours being >= 0 and usually <= 1), and by at most 1e-4 of it when the stopping
-Gaussian's alpha is small.  Measured on the test scenes: up to 0.007 in a few pixels of opaque
-stacks (73-87 dB PSNR there), 1e-6 elsewhere.  Otherwise float32 rounding (gsplat's precision).
+transmittance T to <= 1e-4, and adds nothing after; blending cannot stop, so here that Gaussian
+and all behind it are composited too, adding to each channel and to alpha at most the T left at
+the stop (times the colours behind, which are >= 0 and usually <= 1).  That T is below
+1e-4 / (1 - alpha) of the stopping Gaussian: below 1e-3 unless its alpha exceeds 0.9, below 0.1
+at worst (alpha <= 0.999).  Measured on the test scenes: at most 0.008, in a few pixels where
+opaque Gaussians stack (73-87 dB PSNR in the layered scene).  Otherwise float32 rounding, as
+gsplat's own.
 
 Speed on Mesa's llvmpipe (2 cores; tools/bench_gl_render.py): the draw dominates, and it costs in
 proportion to the pixels the triangles cover (about 13 ns a pixel per core, blending included;
 the geometry itself about 0.2 us a triangle).  The triangle covers 1.65 times its ellipse (a
-parallelogram 1.27 times, but at two triangles it came out no faster), and fixed-function blending
+parallelogram 1.27 times, but takes two triangles: no faster in a micro-benchmark), and blending
 cannot stop pixels early as the cpu renderer does; so on llvmpipe the numba ``cpu`` renderer is
 the faster one (about 4x on the demo avatar), and this renderer is for GPUs, where fragments are
 cheap and the views then stay on the GPU for the ``gl`` encoder.
