@@ -10,10 +10,11 @@ Least-significant-digit radix sort, 4 passes of 8 bits, each three compute dispa
 histogram   each run is cut into chunks of CHUNK pairs; one invocation per chunk counts its
             digits, serially, into its own column of the run's table ``hist[digit][chunk]``
             (no atomics: every counter has one writer)
-scan        one invocation per run turns the table into exclusive offsets, digit-major then
-            chunk-major: where the first pair of each (digit, chunk) goes
+scan        one invocation per (run, digit) turns its row into exclusive offsets over the chunks
+            and writes the digit's total; then one invocation per run turns its 256 totals into
+            exclusive offsets: (digit, chunk) starts at total[digit] + hist[digit][chunk]
 scatter     one invocation per chunk walks its pairs again in order and writes each to its
-            digit's next offset: stable, as every pair of a chunk follows the earlier chunks'
+            digit's next place: stable, as every pair of a chunk follows the earlier chunks'
 
 Serial chunks suit Mesa's llvmpipe (invocations are SIMD lanes of a few CPU threads) and keep the
 sort stable without a per-work-group ranking; on a GPU the same dispatches run as they are.
@@ -26,7 +27,7 @@ from . import gl_shaders as sh
 
 CHUNK = 1024  # pairs per invocation in the histogram and scatter dispatches
 RADIX_BITS = 8
-_KEYS_IN, _VALS_IN, _KEYS_OUT, _VALS_OUT, _HIST = range(6, 11)
+_KEYS_IN, _VALS_IN, _KEYS_OUT, _VALS_OUT, _HIST, _TOTALS = range(6, 12)
 
 _HEAD = f"""
 #version 430
@@ -36,6 +37,7 @@ layout(std430, binding = {_VALS_IN}) readonly buffer ValsIn {{ uint vals_in[]; }
 layout(std430, binding = {_KEYS_OUT}) writeonly buffer KeysOut {{ uint keys_out[]; }};
 layout(std430, binding = {_VALS_OUT}) writeonly buffer ValsOut {{ uint vals_out[]; }};
 layout(std430, binding = {_HIST}) buffer Hist {{ uint hist[]; }};
+layout(std430, binding = {_TOTALS}) buffer Totals {{ uint totals[]; }};  // [run * DIGITS + digit]
 uniform uint length;   // pairs per run
 uniform uint chunks;   // chunks per run
 uniform uint shift;    // the digit's lowest bit
@@ -61,16 +63,30 @@ void main() {
 }
 """
 
-SCAN = _HEAD + """
+SCAN_ROWS = _HEAD + """
+uniform uint runs;
+void main() {
+    uint row = gl_GlobalInvocationID.x;  // run * DIGITS + digit
+    if (row >= runs * DIGITS) return;
+    uint total = 0u;
+    for (uint k = row * chunks; k < row * chunks + chunks; ++k) {
+        uint count = hist[k];
+        hist[k] = total;
+        total += count;
+    }
+    totals[row] = total;
+}
+"""
+
+SCAN_DIGITS = _HEAD + """
 uniform uint runs;
 void main() {
     uint run = gl_GlobalInvocationID.x;
     if (run >= runs) return;
-    uint first = run * DIGITS * chunks;
     uint total = 0u;
-    for (uint k = first; k < first + DIGITS * chunks; ++k) {
-        uint count = hist[k];
-        hist[k] = total;
+    for (uint k = run * DIGITS; k < run * DIGITS + DIGITS; ++k) {
+        uint count = totals[k];
+        totals[k] = total;
         total += count;
     }
 }
@@ -86,9 +102,10 @@ void main() {
     uint end = min(c * CHUNK + CHUNK, length);
     for (uint i = c * CHUNK; i < end; ++i) {
         uint key = keys_in[base + i];
-        uint slot = table + ((key >> shift) & MASK) * chunks;
-        uint to = hist[slot];
-        hist[slot] = to + 1u;
+        uint digit = (key >> shift) & MASK;
+        uint slot = table + digit * chunks;
+        uint to = totals[run * DIGITS + digit] + hist[slot];
+        hist[slot] += 1u;
         keys_out[base + to] = key;
         vals_out[base + to] = vals_in[base + i];
     }
@@ -102,7 +119,7 @@ class GLSorter:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self._programs = [ctx.compute_shader(source) for source in (HISTOGRAM, SCAN, SCATTER)]
+        self._programs = [ctx.compute_shader(source) for source in (HISTOGRAM, SCAN_ROWS, SCAN_DIGITS, SCATTER)]
         self._scratch: dict = {}
 
     def _buffer(self, name: str, nbytes: int):
@@ -122,7 +139,8 @@ class GLSorter:
         pair = (keys, vals)
         other = (self._buffer("keys", 4 * length * runs), self._buffer("vals", 4 * length * runs))
         self._buffer("hist", 4 * runs * chunks << RADIX_BITS).bind_to_storage_buffer(_HIST)
-        histogram, scan, scatter = self._programs
+        self._buffer("totals", 4 * runs << RADIX_BITS).bind_to_storage_buffer(_TOTALS)
+        histogram, scan_rows, scan_digits, scatter = self._programs
         for prog in self._programs:
             for name, value in (("length", length), ("chunks", chunks), ("runs", runs)):
                 if prog.get(name, None) is not None:  # a uniform a program does not use is not there
@@ -137,7 +155,9 @@ class GLSorter:
             scatter["shift"].value = shift
             histogram.run(groups, runs)
             self.ctx.memory_barrier()
-            scan.run(-(-runs // sh.GROUP))
+            scan_rows.run(-(-(runs << RADIX_BITS) // sh.GROUP))
+            self.ctx.memory_barrier()
+            scan_digits.run(-(-runs // sh.GROUP))
             self.ctx.memory_barrier()
             scatter.run(groups, runs)
             self.ctx.memory_barrier()
