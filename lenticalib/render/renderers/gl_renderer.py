@@ -172,6 +172,9 @@ class GLSplatRenderer:
     DisplayError (one line: what is missing, and the fallback) when the driver's texture limits
     are too small for the views, or when ``sort="gpu"`` and there is no OpenGL 4.3.  Without
     GL_ARB_shader_viewport_layer_array, a pass-through geometry shader picks each layer.
+
+    Context state: :meth:`render` binds its own framebuffer and shader storage buffers (bindings
+    0-11) and leaves blending, depth test and face culling disabled.
     """
 
     def __init__(self, ctx, n_views: int, width: int, height: int, *, sort: str | None = None):
