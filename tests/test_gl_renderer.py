@@ -75,7 +75,8 @@ def test_the_cpu_sort_agrees_with_the_cpu_renderer_and_the_gpu_sort(ctx, name):
     _assert_close(host, _render(ctx, gaussians, *CAMERAS, W, H, sort="gpu"), min_psnr=80.0)
 
 
-def test_gl_agrees_with_the_cpu_renderer_on_the_demo_avatar(ctx):
+@pytest.mark.parametrize("sort", ["gpu", "cpu"])  # cpu: 18000 records, 18 rows of the record texture
+def test_gl_agrees_with_the_cpu_renderer_on_the_demo_avatar(ctx, sort):
     from lenticalib.render.camera_models import make_cameras
     from lenticalib.render.demo_avatar import make_demo_avatar
 
@@ -84,7 +85,7 @@ def test_gl_agrees_with_the_cpu_renderer_on_the_demo_avatar(ctx):
     cameras = make_cameras("arc", gaussians, 3, view_size=(120, 68))
     expected = render_cpu(gaussians, cameras.viewmats, cameras.K, 120, 68)
     assert (expected[..., 3] > 0.5).mean() > 0.05
-    _assert_close(_render(ctx, gaussians, cameras.viewmats, cameras.K, 120, 68), expected)
+    _assert_close(_render(ctx, gaussians, cameras.viewmats, cameras.K, 120, 68, sort=sort), expected)
 
 
 def test_small_gaussians_land_where_they_project(ctx):
@@ -252,6 +253,8 @@ def test_a_renderer_refuses_other_view_counts_and_unknown_sorts(ctx):
 
 
 def test_texture_limits_too_small_are_one_line_display_errors(ctx, monkeypatch):
+    scene = random_scene(0, n=300)
+    expected = _render(ctx, scene, *CAMERAS[:2], 16, 12, sort="cpu")
     with ctx:
         monkeypatch.setattr(gl_renderer, "_driver_limits", lambda context: (4096, 16))
         with pytest.raises(DisplayError, match="texture arrays of up to 16 layers, 32 views") as err:
@@ -262,6 +265,13 @@ def test_texture_limits_too_small_are_one_line_display_errors(ctx, monkeypatch):
             GLSplatRenderer(ctx, 4, 1920, 1080)
         assert "\n" not in str(err.value)
         GLSplatRenderer(ctx, 4, 960, 540).release()  # at the limit: fine
+    # the CPU sort's records (12 floats, 3 texels each) in a texture of at most 64 x 64 texels:
+    # 21 records a row, 64 rows
+    monkeypatch.setattr(gl_renderer, "_driver_limits", lambda context: (64, 2048))
+    np.testing.assert_array_equal(_render(ctx, scene, *CAMERAS[:2], 16, 12, sort="cpu"), expected)
+    with pytest.raises(DisplayError, match="splats exceed the OpenGL driver's texture size \\(64 pixels\\)") as err:
+        _render(ctx, random_scene(0, n=1500), *CAMERAS, W // 2, H // 2, sort="cpu")
+    assert "\n" not in str(err.value)
 
 
 @pytest.mark.parametrize("sort", ["gpu", "cpu"])

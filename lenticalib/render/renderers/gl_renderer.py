@@ -38,8 +38,8 @@ Gaussians).
 With the CPU sort (``sort="cpu"``; what runs where OpenGL 4.3 is missing, e.g. macOS's 4.1), the
 projection and the order are the ``cpu`` renderer's own kernels (:func:`.cpu_project._project`,
 :func:`.cpu_project._front_to_back`, float64) on the host; the records are uploaded in drawing
-order as instance attributes (3 vertices an instance) and drawn by the same triangles and
-fragment shader (OpenGL 3.3).
+order as one RGBA32F texture and drawn, a draw call per view, by the same triangles and fragment
+shader (OpenGL 3.3).
 
 Difference from ``cpu``: the cpu renderer stops a pixel *before* the Gaussian that would take its
 transmittance T to <= 1e-4, and adds nothing after; blending cannot stop, so here that Gaussian
@@ -349,28 +349,45 @@ class GLSplatRenderer:
         boxes = np.empty((count, 4), dtype=np.int32)
         depth = np.empty(count, dtype=np.float32)
         index = np.arange(count, dtype=np.uint64)
-        drawn, layers = [], []
+        drawn = []
         for view in range(n):
             k = Ks[view]
             _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
                      k[0, 2] + 0.5, k[1, 2] + 0.5, self.width, self.height, tiles_x, tiles_y, records, boxes, depth)
-            order = _front_to_back(depth, index)
-            drawn.append(records[order])
-            layers.append(np.full(order.shape[0], view, dtype=np.int32))
+            drawn.append(records[_front_to_back(depth, index)])
         stage("project")
-        drawn = np.concatenate(drawn)
-        layers = np.concatenate(layers)
-        stage("sort")
-        if not drawn.shape[0]:
+        total = sum(len(d) for d in drawn)
+        if not total:
             return
-        rec = self._buffer("records", drawn.nbytes)
-        lay = self._buffer("layers", layers.nbytes)
-        rec.write(drawn)
-        lay.write(layers)
+        largest = _driver_limits(ctx)[0] or 1 << 14
+        per_row = min(sh.RECORDS_PER_ROW, largest // 3)
+        rows = -(-total // per_row)
+        if rows > largest:
+            raise DisplayError(f"{total} splats exceed the OpenGL driver's texture size ({largest} pixels) for "
+                               f"the CPU sort's record texture", hint="render fewer views or use the cpu renderer")
+        table = np.zeros((rows * per_row, _RECORD), dtype=np.float32)
+        offsets = np.cumsum([0] + [len(d) for d in drawn])
+        for view, d in enumerate(drawn):
+            table[offsets[view]:offsets[view + 1]] = d
+        stage("sort")
+        texture = self._buffers.get("records")
+        if texture is None or texture.size != (3 * per_row, rows):
+            if texture is not None:
+                texture.release()
+            texture = self._buffers["records"] = ctx.texture((3 * per_row, rows), 4, dtype="f4")
+            texture.filter = (ctx.NEAREST, ctx.NEAREST)
+        texture.write(table)
+        texture.use(0)
         if self._vao is None:
-            self._vao = ctx.vertex_array(self._splat, [(rec, "4f 4f 4f/i", "r0", "r1", "r2"), (lay, "i/i", "layer")])
+            self._vao = ctx.vertex_array(self._splat, [])
+        self._splat["records"].value = 0
+        self._splat["per_row"].value = per_row
         self._fbo.use()
-        self._vao.render(mode=ctx.TRIANGLES, vertices=3, instances=drawn.shape[0])
+        for view in range(n):
+            if offsets[view + 1] > offsets[view]:
+                self._splat["layer"].value = view
+                self._vao.render(mode=ctx.TRIANGLES, vertices=3 * int(offsets[view + 1] - offsets[view]),
+                                 first=3 * int(offsets[view]))
 
     def read(self) -> np.ndarray:
         """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""

@@ -36,6 +36,7 @@ from .cpu_project import _COV_MAX, _SIGMA_MARGIN, ALPHA_MIN
 GROUP = 64  # compute work-group size (invocations along x)
 GAUSS, CAMS, SPLATS, KEYS, VALS, CMDS = range(6)
 LAYER_EXTENSION = "GL_ARB_shader_viewport_layer_array"
+RECORDS_PER_ROW = 1024  # records per row of the CPU sort's record texture (3 texels each)
 
 
 def _f(value: float) -> str:
@@ -226,17 +227,21 @@ void main() {{
 }}
 """
 
-# CPU-sorted draw (OpenGL 3.3): records in drawing order as instance attributes
+# CPU-sorted draw (OpenGL 3.3): the records in drawing order in an RGBA32F texture, record r in
+# texels (3 (r % per_row) + k, r / per_row), k = 0, 1, 2; one draw call per view (``first`` = 3
+# times the view's first record), one triangle per record
 SPLAT_VERTEX_HOST = f"""
 #version 330 core
 {_LAYER}
-in vec4 r0;
-in vec4 r1;
-in vec4 r2;
-in int layer;
+uniform sampler2D records;
+uniform int per_row;
+uniform int layer;
 {_SPLAT}
 void main() {{
-    splat(r0, r1, r2, gl_VertexID);
+    int r = gl_VertexID / 3;
+    ivec2 t = ivec2(3 * (r % per_row), r / per_row);
+    splat(texelFetch(records, t, 0), texelFetch(records, t + ivec2(1, 0), 0), texelFetch(records, t + ivec2(2, 0), 0),
+          gl_VertexID % 3);
     SET_LAYER(layer);
 }}
 """
