@@ -8,7 +8,8 @@
 Modules: ``cpu`` (the ``cpu`` renderer) with ``cpu_project`` (its projection, colour and
 binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), ``gl_renderer`` (the ``gl``
 renderer; :class:`~.gl_renderer.GLSplatRenderer` draws into a caller's context) with
-``gl_shaders`` (its GLSL) and ``gl_sort`` (its GPU sort), and ``common`` (the checks every
+``gl_shaders`` (its GLSL), ``gl_sort`` (its GPU sort) and ``gl_upload`` (what it computes on the
+host), and ``common`` (the checks every
 renderer makes at its boundary and the conventions they share).  Part of the render layer:
 imports only core and render.
 

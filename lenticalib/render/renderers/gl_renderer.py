@@ -5,7 +5,8 @@
     views = r.read()                                   # (N, height, width, 4) float32, as render_cpu
     render_gl(gaussians, viewmats, Ks, width, height)  # the registry's form, its own context
 
-Per call, with the GPU sort (OpenGL 4.3 compute shaders; :mod:`.gl_shaders` holds the sources):
+Per call, with the GPU sort (OpenGL 4.3 compute shaders; :mod:`.gl_shaders` holds the sources,
+:mod:`.gl_upload` what is computed on the host):
 
 projection (compute, one invocation per (Gaussian, view))
     the ``cpu`` renderer's (gsplat 1.5's) in float32, like gsplat itself: camera-frame mean,
@@ -77,9 +78,10 @@ from ...core.errors import DisplayError, InputError
 from ..gaussians import Gaussians
 from ..gl_context import headless_context
 from . import gl_shaders as sh
-from .common import TILE_SIZE, check_render_inputs
-from .cpu_project import _RECORD, _front_to_back, _project, _world_covariances
+from .common import check_render_inputs
+from .cpu_project import _RECORD
 from .gl_sort import GLSorter
+from .gl_upload import camera_table, check_finite, host_records, pack_gaussians, record_table
 
 __all__ = ["GLSplatRenderer", "render_gl"]
 
@@ -106,44 +108,6 @@ def _vertex_layer(ctx) -> bool:
 
 def _gl_version(ctx) -> str:
     return f"{ctx.version_code // 100}.{ctx.version_code // 10 % 10}"
-
-
-def check_finite(g: Gaussians) -> None:
-    """InputError (naming ``gaussians``) for non-finite parameters or a zero-length quaternion;
-    ``g`` numpy, as :func:`.cpu.render_cpu` refuses them."""
-    for name in ("means", "quats", "scales", "opacities", "sh"):
-        if not np.isfinite(getattr(g, name)).all():
-            raise InputError(f"{name} has non-finite values", source="gaussians")
-    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
-        raise InputError("quats has a zero-length quaternion", source="gaussians")
-
-
-def camera_table(viewmats: np.ndarray, Ks: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(N, 6, 4) float32, the CAMS buffer of :mod:`.gl_shaders`: rows of [R t], (fx, fy, cx + 0.5,
-    cy + 0.5), the camera centre -R^T t, and gsplat's clamp limits of J (as :func:`._project`)."""
-    n = viewmats.shape[0]
-    rot, t = viewmats[:, :3, :3], viewmats[:, :3, 3]
-    fx, fy = Ks[:, 0, 0], Ks[:, 1, 1]
-    cx, cy = Ks[:, 0, 2] + 0.5, Ks[:, 1, 2] + 0.5
-    tan_fovx, tan_fovy = 0.5 * width / fx, 0.5 * height / fy
-    out = np.zeros((n, 6, 4))
-    out[:, :3, :3], out[:, :3, 3] = rot, t
-    out[:, 3] = np.stack([fx, fy, cx, cy], axis=1)
-    out[:, 4, :3] = -np.einsum("nji,nj->ni", rot, t)
-    out[:, 5] = np.stack([(width - cx) / fx + 0.3 * tan_fovx, cx / fx + 0.3 * tan_fovx,
-                          (height - cy) / fy + 0.3 * tan_fovy, cy / fy + 0.3 * tan_fovy], axis=1)
-    return out.astype(np.float32)
-
-
-def pack_gaussians(g: Gaussians) -> np.ndarray:
-    """(G, 10 + 3 K) float32, the GAUSS buffer of :mod:`.gl_shaders` (``g`` numpy)."""
-    k = g.sh.shape[1]
-    out = np.empty((g.count, 10 + 3 * k), dtype=np.float32)
-    out[:, :3] = g.means
-    out[:, 3] = g.opacities
-    out[:, 4:10] = _world_covariances(g.quats, g.scales)
-    out[:, 10:] = g.sh.reshape(g.count, 3 * k)
-    return out
 
 
 class GLSplatRenderer:
@@ -342,39 +306,24 @@ class GLSplatRenderer:
             stage("draw")
 
     def _render_host(self, g: Gaussians, viewmats, Ks, stage) -> None:
-        ctx, n, count = self.ctx, self.n_views, g.count
-        cov = _world_covariances(g.quats, g.scales)
-        tiles_x, tiles_y = -(-self.width // TILE_SIZE), -(-self.height // TILE_SIZE)
-        records = np.empty((count, _RECORD), dtype=np.float32)
-        boxes = np.empty((count, 4), dtype=np.int32)
-        depth = np.empty(count, dtype=np.float32)
-        index = np.arange(count, dtype=np.uint64)
-        drawn = []
-        for view in range(n):
-            k = Ks[view]
-            _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
-                     k[0, 2] + 0.5, k[1, 2] + 0.5, self.width, self.height, tiles_x, tiles_y, records, boxes, depth)
-            drawn.append(records[_front_to_back(depth, index)])
-        stage("project")
-        total = sum(len(d) for d in drawn)
-        if not total:
-            return
+        ctx, n = self.ctx, self.n_views
         largest = _driver_limits(ctx)[0] or 1 << 14
         per_row = min(sh.RECORDS_PER_ROW, largest // 3)
-        rows = -(-total // per_row)
-        if rows > largest:
-            raise DisplayError(f"{total} splats exceed the OpenGL driver's texture size ({largest} pixels) for "
-                               f"the CPU sort's record texture", hint="render fewer views or use the cpu renderer")
-        table = np.zeros((rows * per_row, _RECORD), dtype=np.float32)
+        drawn = host_records(g, viewmats, Ks, self.width, self.height)
+        stage("project")
         offsets = np.cumsum([0] + [len(d) for d in drawn])
-        for view, d in enumerate(drawn):
-            table[offsets[view]:offsets[view + 1]] = d
+        if not offsets[-1]:
+            return
+        if -(-offsets[-1] // per_row) > largest:
+            raise DisplayError(f"{offsets[-1]} splats exceed the OpenGL driver's texture size ({largest} pixels) for "
+                               f"the CPU sort's record texture", hint="render fewer views or use the cpu renderer")
+        table = record_table(drawn, per_row)
         stage("sort")
         texture = self._buffers.get("records")
-        if texture is None or texture.size != (3 * per_row, rows):
+        if texture is None or texture.size != (3 * per_row, table.shape[0]):
             if texture is not None:
                 texture.release()
-            texture = self._buffers["records"] = ctx.texture((3 * per_row, rows), 4, dtype="f4")
+            texture = self._buffers["records"] = ctx.texture((3 * per_row, table.shape[0]), 4, dtype="f4")
             texture.filter = (ctx.NEAREST, ctx.NEAREST)
         texture.write(table)
         texture.use(0)
