@@ -283,6 +283,16 @@ def test_without_the_vertex_layer_extension_a_geometry_shader_picks_the_layers(c
                                   expected)
 
 
+def test_shaders_a_driver_refuses_are_a_one_line_display_error(ctx, monkeypatch):
+    from lenticalib.render.renderers import gl_shaders
+
+    broken = gl_shaders.SPLAT_FRAGMENT.replace("exp(-sigma)", "exp(-sigma, 2)")
+    monkeypatch.setattr(gl_shaders, "SPLAT_FRAGMENT", broken)
+    with ctx, pytest.raises(DisplayError, match="the OpenGL driver refused the gl renderer's shaders: .*exp") as err:
+        GLSplatRenderer(ctx, 4, W, H)
+    assert "\n" not in str(err.value) and "cpu renderer" in str(err.value)
+
+
 class _OpenGL41:
     """The test context as a driver without compute shaders would report it (macOS stops at 4.1)."""
 

@@ -195,9 +195,14 @@ class GLSplatRenderer:
                 self._cmds = self._keep(ctx.buffer(reserve=self.n_views * 20))
             self._buffers: dict = {}
             self._vao = None
-        except Exception:
+        except Exception as exc:
             self.release()
-            raise
+            if type(exc).__name__ != "Error":  # moderngl.Error: a shader or object the driver refused
+                raise
+            lines = [line.strip() for line in str(exc).splitlines() if line.strip() and not line.startswith("=")]
+            errors = [line for line in lines if "error" in line.lower()] or lines[-1:] or [repr(exc)]
+            raise DisplayError(f"the OpenGL driver refused the gl renderer's shaders: {errors[0]}",
+                               hint="use the cpu renderer") from None
 
     def _keep(self, obj):
         self._objects.append(obj)
