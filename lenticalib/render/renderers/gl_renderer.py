@@ -300,6 +300,8 @@ class GLSplatRenderer:
             self._vao = ctx.vertex_array(draw, [])
         for first in range(0, n, batch):
             views = min(batch, n - first)
+            if first:  # the last batch's draw must have read the buffers this batch rewrites
+                ctx.memory_barrier()
             project["first_view"].value = first
             project.run(-(-count // sh.GROUP), views)
             ctx.memory_barrier()
