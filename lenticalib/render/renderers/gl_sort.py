@@ -38,7 +38,7 @@ layout(std430, binding = {_KEYS_OUT}) writeonly buffer KeysOut {{ uint keys_out[
 layout(std430, binding = {_VALS_OUT}) writeonly buffer ValsOut {{ uint vals_out[]; }};
 layout(std430, binding = {_HIST}) buffer Hist {{ uint hist[]; }};
 layout(std430, binding = {_TOTALS}) buffer Totals {{ uint totals[]; }};  // [run * DIGITS + digit]
-uniform uint length;   // pairs per run
+uniform uint run_length;  // pairs per run ("length" is a built-in function's name)
 uniform uint chunks;   // chunks per run
 uniform uint shift;    // the digit's lowest bit
 const uint CHUNK = {CHUNK}u;
@@ -54,8 +54,8 @@ void main() {
     uint run = gl_WorkGroupID.y;
     uint table = run * DIGITS * chunks + c;
     for (uint d = 0u; d < DIGITS; ++d) hist[table + d * chunks] = 0u;
-    uint base = run * length;
-    uint end = min(c * CHUNK + CHUNK, length);
+    uint base = run * run_length;
+    uint end = min(c * CHUNK + CHUNK, run_length);
     for (uint i = c * CHUNK; i < end; ++i) {
         uint d = (keys_in[base + i] >> shift) & MASK;
         hist[table + d * chunks] += 1u;
@@ -98,8 +98,8 @@ void main() {
     if (c >= chunks) return;
     uint run = gl_WorkGroupID.y;
     uint table = run * DIGITS * chunks + c;
-    uint base = run * length;
-    uint end = min(c * CHUNK + CHUNK, length);
+    uint base = run * run_length;
+    uint end = min(c * CHUNK + CHUNK, run_length);
     for (uint i = c * CHUNK; i < end; ++i) {
         uint key = keys_in[base + i];
         uint digit = (key >> shift) & MASK;
@@ -142,7 +142,7 @@ class GLSorter:
         self._buffer("totals", 4 * runs << RADIX_BITS).bind_to_storage_buffer(_TOTALS)
         histogram, scan_rows, scan_digits, scatter = self._programs
         for prog in self._programs:
-            for name, value in (("length", length), ("chunks", chunks), ("runs", runs)):
+            for name, value in (("run_length", length), ("chunks", chunks), ("runs", runs)):
                 if prog.get(name, None) is not None:  # a uniform a program does not use is not there
                     prog[name].value = value
         groups = -(-chunks // sh.GROUP)
