@@ -3,14 +3,14 @@
     cpu      a tile-based 3DGS rasterizer in numba, gsplat's forward maths (the default)
     gsplat   gsplat's CUDA rasterizer, all views in one batched call (needs torch and a CUDA GPU)
     gl       OpenGL through moderngl: projection and sort in compute shaders (4.3; on the CPU where
-             only 3.3 is there), splats drawn as instanced quads into a texture array (any GPU, Mesa)
+             only 3.3 is there), a triangle per splat blended into a texture array (any GPU, Mesa)
 
 Modules: ``cpu`` (the ``cpu`` renderer) with ``cpu_project`` (its projection, colour and
 binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), ``gl_renderer`` (the ``gl``
 renderer; :class:`~.gl_renderer.GLSplatRenderer` draws into a caller's context) with
-``gl_shaders`` (its GLSL) and ``gl_sort`` (its GPU sort), and ``common`` (the checks every
-renderer makes at its boundary and the conventions they share).  Part of the render layer:
-imports only core and render.
+``gl_shaders`` (its GLSL), ``gl_sort`` (its GPU sort) and ``gl_upload`` (what it computes on the
+host), and ``common`` (the checks every renderer makes at its boundary and the conventions they
+share).  Part of the render layer: imports only core and render.
 
 Every renderer has the signature of :func:`render` without ``renderer`` and returns
 (N, H, W, 4) float32 RGBA (numpy for ``cpu`` and ``gl``, a torch tensor on the GPU for

@@ -5,7 +5,8 @@
     views = r.read()                                   # (N, height, width, 4) float32, as render_cpu
     render_gl(gaussians, viewmats, Ks, width, height)  # the registry's form, its own context
 
-Per call, with the GPU sort (OpenGL 4.3 compute shaders; :mod:`.gl_shaders` holds the sources):
+Per call, with the GPU sort (OpenGL 4.3 compute shaders; :mod:`.gl_shaders` holds the sources,
+:mod:`.gl_upload` what is computed on the host):
 
 projection (compute, one invocation per (Gaussian, view))
     the ``cpu`` renderer's (gsplat 1.5's) in float32, like gsplat itself: camera-frame mean,
@@ -15,28 +16,49 @@ projection (compute, one invocation per (Gaussian, view))
     per-Gaussian record (:mod:`.cpu_project`) and a depth key, and counts the visible Gaussians
     into each view's indirect draw command.
 sort (compute, :mod:`.gl_sort`)
-    per view, the keys (float bits of z: ascending = front to back) with their slots, ties in
-    index order (gsplat's stable sort).
-draw (one indirect multi-draw)
-    the visible Gaussians of each view, front to back, as instanced quads into its layer of
-    ``views`` (layered framebuffer, ``gl_Layer`` from the vertex shader): each quad is the
-    parallelogram bounding the ellipse where alpha can reach 1/255 (inside gsplat's box);
-    the fragment shader computes sigma at the pixel centre, alpha = min(0.999, o exp(-sigma)),
-    discards sigma < 0 or alpha < 1/255, and blending (src ONE_MINUS_DST_ALPHA, dst ONE, on
-    (c alpha, alpha) into RGBA32F) composites front to back: C += T c alpha, A = 1 - T.
+    per view, the keys (float bits of z: ascending = front to back) with their slots, a stable
+    radix sort (ties in index order, as gsplat's sort); culled Gaussians sort last.
+draw (one indirect multi-draw, a command per view whose count the projection wrote)
+    the visible Gaussians of each view, front to back, into its layer of ``views`` (layered
+    framebuffer; ``gl_Layer`` from the vertex shader, or from a pass-through geometry shader
+    where the driver lacks GL_ARB_shader_viewport_layer_array), one triangle each: the equilateral
+    triangle circumscribing the ellipse where alpha can reach 1/255 (mapped by the ellipse's
+    affine frame; its corners reach past gsplat's box, their fragments fail the alpha test), or
+    the whole view for a splat far larger than the view.  No instancing: llvmpipe runs every
+    instance as a draw of its own.  The fragment shader computes sigma at the pixel centre,
+    alpha = min(0.999, o exp(-sigma)), discards sigma < 0 or alpha < 1/255, and blending (src
+    ONE_MINUS_DST_ALPHA, dst ONE, on (c alpha, alpha) into RGBA32F) composites front to back:
+    C += T c alpha, A = 1 - T.
 background
     one full-view triangle per layer blended the same way: RGB += (1 - A) background.
+
+The three run for all N views at once, or in batches of views where the per-view buffers would
+exceed the driver's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (llvmpipe's 128 MiB holds 27 views of 100k
+Gaussians).
 
 With the CPU sort (``sort="cpu"``; what runs where OpenGL 4.3 is missing, e.g. macOS's 4.1), the
 projection and the order are the ``cpu`` renderer's own kernels (:func:`.cpu_project._project`,
 :func:`.cpu_project._front_to_back`, float64) on the host; the records are uploaded in drawing
-order as instance attributes and drawn by the same quads and fragment shader (OpenGL 3.3).
+order as one RGBA32F texture and drawn, a draw call per view, by the same triangles and fragment
+shader (OpenGL 3.3).
 
 Difference from ``cpu``: the cpu renderer stops a pixel *before* the Gaussian that would take its
-transmittance T to <= 1e-4; fixed-function blending cannot stop, so here such a pixel goes on
-compositing.  What it adds after that point is T times colours (T < 1e-4 and falling): each
-channel differs by less than 1e-4 times the largest colour behind (colours are >= 0 and usually
-<= 1), alpha by less than 1e-4.  Otherwise float32 rounding (gsplat's precision) and the GPU's exp.
+transmittance T to <= 1e-4, and adds nothing after; blending cannot stop, so here that Gaussian
+and all behind it are composited too, adding to each channel and to alpha at most the T left at
+the stop (times the colours behind, which are >= 0 and usually <= 1).  That T is below
+1e-4 / (1 - alpha) of the stopping Gaussian: below 1e-3 unless its alpha exceeds 0.9, below 0.1
+at worst (alpha <= 0.999).  Measured on the test scenes: at most 0.008, in a few pixels where
+opaque Gaussians stack (73-87 dB PSNR in the layered scene).  Otherwise float32 rounding, as
+gsplat's own.
+
+Speed on Mesa's llvmpipe (2 cores; tools/bench_gl_render.py): the draw dominates, and it costs in
+proportion to the pixels the triangles cover (about 11 ns a pixel per core, blending included;
+the geometry itself about 0.2 us a triangle).  The triangle covers 1.65 times its ellipse (a
+parallelogram 1.27 times, but as two triangles it drew 20% slower), and blending cannot stop
+pixels early as the cpu renderer does; so on llvmpipe the numba ``cpu`` renderer is the faster
+one (32 views of 960x540 of the 100k-Gaussian demo avatar: cpu 1.07 s, gl 3.8 s, of which draw
+3.5 s, projection 0.28 s, sort 0.17 s), and this renderer is for GPUs, where fragments are cheap
+and the views stay on the GPU for the ``gl`` encoder.
 
 Frames: ``viewmats`` world-to-camera, OpenCV camera (x right, y down, z forward); ``Ks`` in pixels
 with pixel centres at integer coordinates (+ 0.5 to cx, cy as :mod:`.cpu` does).  Layer i of
@@ -46,6 +68,7 @@ with pixel centres at integer coordinates (+ 0.5 to cx, cy as :mod:`.cpu` does).
 from __future__ import annotations
 
 import collections
+import logging
 import numbers
 import threading
 import time
@@ -56,11 +79,14 @@ from ...core.errors import DisplayError, InputError
 from ..gaussians import Gaussians
 from ..gl_context import headless_context
 from . import gl_shaders as sh
-from .common import TILE_SIZE, check_render_inputs
-from .cpu_project import _RECORD, _front_to_back, _project, _world_covariances
+from .common import check_render_inputs
+from .cpu_project import _RECORD
 from .gl_sort import GLSorter
+from .gl_upload import camera_table, check_finite, host_records, pack_gaussians, record_table
 
 __all__ = ["GLSplatRenderer", "render_gl"]
+
+_log = logging.getLogger(__name__)
 
 _HINT = "or use the cpu renderer"
 
@@ -71,46 +97,18 @@ def _driver_limits(ctx) -> tuple[int, int]:
     return (int(info.get("GL_MAX_TEXTURE_SIZE", 0) or 0), int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0))
 
 
+def _storage_limit(ctx) -> int:
+    """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of ``ctx``'s driver, bytes (0 where unknown)."""
+    return int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+
+
+def _vertex_layer(ctx) -> bool:
+    """Whether the vertex shaders may write gl_Layer (else a pass-through geometry shader does)."""
+    return sh.LAYER_EXTENSION in ctx.extensions
+
+
 def _gl_version(ctx) -> str:
     return f"{ctx.version_code // 100}.{ctx.version_code // 10 % 10}"
-
-
-def check_finite(g: Gaussians) -> None:
-    """InputError (naming ``gaussians``) for non-finite parameters or a zero-length quaternion;
-    ``g`` numpy, as :func:`.cpu.render_cpu` refuses them."""
-    for name in ("means", "quats", "scales", "opacities", "sh"):
-        if not np.isfinite(getattr(g, name)).all():
-            raise InputError(f"{name} has non-finite values", source="gaussians")
-    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
-        raise InputError("quats has a zero-length quaternion", source="gaussians")
-
-
-def camera_table(viewmats: np.ndarray, Ks: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(N, 6, 4) float32, the CAMS buffer of :mod:`.gl_shaders`: rows of [R t], (fx, fy, cx + 0.5,
-    cy + 0.5), the camera centre -R^T t, and gsplat's clamp limits of J (as :func:`._project`)."""
-    n = viewmats.shape[0]
-    rot, t = viewmats[:, :3, :3], viewmats[:, :3, 3]
-    fx, fy = Ks[:, 0, 0], Ks[:, 1, 1]
-    cx, cy = Ks[:, 0, 2] + 0.5, Ks[:, 1, 2] + 0.5
-    tan_fovx, tan_fovy = 0.5 * width / fx, 0.5 * height / fy
-    out = np.zeros((n, 6, 4))
-    out[:, :3, :3], out[:, :3, 3] = rot, t
-    out[:, 3] = np.stack([fx, fy, cx, cy], axis=1)
-    out[:, 4, :3] = -np.einsum("nji,nj->ni", rot, t)
-    out[:, 5] = np.stack([(width - cx) / fx + 0.3 * tan_fovx, cx / fx + 0.3 * tan_fovx,
-                          (height - cy) / fy + 0.3 * tan_fovy, cy / fy + 0.3 * tan_fovy], axis=1)
-    return out.astype(np.float32)
-
-
-def pack_gaussians(g: Gaussians) -> np.ndarray:
-    """(G, 10 + 3 K) float32, the GAUSS buffer of :mod:`.gl_shaders` (``g`` numpy)."""
-    k = g.sh.shape[1]
-    out = np.empty((g.count, 10 + 3 * k), dtype=np.float32)
-    out[:, :3] = g.means
-    out[:, 3] = g.opacities
-    out[:, 4:10] = _world_covariances(g.quats, g.scales)
-    out[:, 10:] = g.sh.reshape(g.count, 3 * k)
-    return out
 
 
 class GLSplatRenderer:
@@ -129,12 +127,19 @@ class GLSplatRenderer:
         sort_kind       "gpu" or "cpu", the sort used
         fallback_reason one line when the CPU sort is used because the driver lacks OpenGL 4.3,
                         else None
-        stage_ms        with ``profile`` set True: {"upload", "project", "sort", "draw"} of the
-                        last render, milliseconds (measured with ctx.finish(), which stalls)
+        profile         False; set True to time the stages of each render (ctx.finish() after
+                        each, which stalls)
+        stage_ms        with ``profile``: {"project", "sort", "draw"} of the last render,
+                        milliseconds; "project" includes packing and uploading the Gaussians
+                        (with the CPU sort: the host's projection and order; "sort" gathering
+                        the records)
 
     DisplayError (one line: what is missing, and the fallback) when the driver's texture limits
-    are too small for the views, when ``sort="gpu"`` and there is no OpenGL 4.3, or when the driver
-    lacks GL_ARB_shader_viewport_layer_array.
+    are too small for the views, or when ``sort="gpu"`` and there is no OpenGL 4.3.  Without
+    GL_ARB_shader_viewport_layer_array, a pass-through geometry shader picks each layer.
+
+    Context state: :meth:`render` binds its own framebuffer and shader storage buffers (bindings
+    0-11) and leaves blending, depth test and face culling disabled.
     """
 
     def __init__(self, ctx, n_views: int, width: int, height: int, *, sort: str | None = None):
@@ -163,9 +168,6 @@ class GLSplatRenderer:
             raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
                                f"{self.n_views} views were asked for",
                                hint="render fewer views or use the cpu renderer")
-        if sh.LAYER_EXTENSION not in ctx.extensions:
-            raise DisplayError(f"the OpenGL driver lacks {sh.LAYER_EXTENSION} (layer from the vertex shader)",
-                               hint="use the cpu renderer")
         self.profile = False
         self.stage_ms: dict[str, float] = {}
         self._objects: list = []
@@ -173,11 +175,17 @@ class GLSplatRenderer:
             self.views = self._keep(ctx.texture_array((self.width, self.height, self.n_views), 4, dtype="f4"))
             self.views.filter = (ctx.NEAREST, ctx.NEAREST)
             self._fbo = self._keep(ctx.framebuffer(color_attachments=[self.views]))
-            self._background = self._keep(ctx.program(vertex_shader=sh.BACKGROUND_VERTEX,
-                                                      fragment_shader=sh.BACKGROUND_FRAGMENT))
+            vertex_layer = _vertex_layer(ctx)
+            self._background = self._keep(ctx.program(
+                vertex_shader=sh.vertex_shader(sh.BACKGROUND_VERTEX, vertex_layer),
+                geometry_shader=None if vertex_layer else sh.geometry_shader(splat=False),
+                fragment_shader=sh.BACKGROUND_FRAGMENT))
             self._background_vao = self._keep(ctx.vertex_array(self._background, []))
             vertex = sh.SPLAT_VERTEX_GPU if self.sort_kind == "gpu" else sh.SPLAT_VERTEX_HOST
-            self._splat = self._keep(ctx.program(vertex_shader=vertex, fragment_shader=sh.SPLAT_FRAGMENT))
+            self._splat = self._keep(ctx.program(
+                vertex_shader=sh.vertex_shader(vertex, vertex_layer),
+                geometry_shader=None if vertex_layer else sh.geometry_shader(splat=True),
+                fragment_shader=sh.SPLAT_FRAGMENT))
             self._splat["size"].value = (float(self.width), float(self.height))
             if self.sort_kind == "gpu":
                 self._project = self._keep(ctx.compute_shader(sh.PROJECT))
@@ -185,12 +193,16 @@ class GLSplatRenderer:
                 self._sorter = GLSorter(ctx)
                 self._cams = self._keep(ctx.buffer(reserve=self.n_views * 6 * 16))
                 self._cmds = self._keep(ctx.buffer(reserve=self.n_views * 20))
-            self._capacity = -1  # Gaussians the per-Gaussian buffers hold
             self._buffers: dict = {}
             self._vao = None
-        except Exception:
+        except Exception as exc:
             self.release()
-            raise
+            if type(exc).__name__ != "Error":  # moderngl.Error: a shader or object the driver refused
+                raise
+            lines = [line.strip() for line in str(exc).splitlines() if line.strip() and not line.startswith("=")]
+            errors = [line for line in lines if "error" in line.lower()] or lines[-1:] or [repr(exc)]
+            raise DisplayError(f"the OpenGL driver refused the gl renderer's shaders: {errors[0]}",
+                               hint="use the cpu renderer") from None
 
     def _keep(self, obj):
         self._objects.append(obj)
@@ -222,12 +234,16 @@ class GLSplatRenderer:
         g = gaussians.to_numpy()
         check_finite(g)
         ctx = self.ctx
-        times = [time.perf_counter()]
+        self.stage_ms = {"project": 0.0, "sort": 0.0, "draw": 0.0}
+        clock = [time.perf_counter()]
 
-        def stage():
+        def stage(name: str) -> None:
+            """With ``profile``: the time since the last stage ended, added to ``name``'s."""
             if self.profile:
                 ctx.finish()
-                times.append(time.perf_counter())
+                now = time.perf_counter()
+                self.stage_ms[name] += 1e3 * (now - clock[0])
+                clock[0] = now
 
         self._fbo.use()
         self._fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -238,89 +254,103 @@ class GLSplatRenderer:
         try:
             if g.count:
                 (self._render_gpu if self.sort_kind == "gpu" else self._render_host)(g, viewmats, Ks, stage)
-            else:
-                for _ in range(3):
-                    stage()
             if background is not None:
+                self._fbo.use()
                 self._background["background"].value = tuple(float(c) for c in background)
                 self._background_vao.render(mode=ctx.TRIANGLES, vertices=3, instances=self.n_views)
-            stage()
+            stage("draw")
         finally:
             ctx.disable(ctx.BLEND)
             ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
-        if self.profile:
-            self.stage_ms = {name: 1e3 * (b - a) for name, a, b in
-                             zip(("project", "sort", "draw"), times, times[1:])}
+
+    def _batch(self, count: int, stride: int) -> int:
+        """Views per batch: as many as keep the per-view buffers within the driver's storage block
+        size.  DisplayError when even the Gaussians, or one view's records, do not fit."""
+        limit = _storage_limit(self.ctx)
+        per_view = count * _RECORD * 4
+        if limit and (count * stride * 4 > limit or per_view > limit):
+            size = f"{limit >> 20} MiB" if limit >= 1 << 20 else f"{limit} bytes"
+            raise DisplayError(f"{count} Gaussians exceed the OpenGL driver's shader storage block size ({size})",
+                               hint="render fewer Gaussians or use the cpu renderer")
+        return self.n_views if not limit else max(1, min(self.n_views, limit // per_view))
 
     def _render_gpu(self, g: Gaussians, viewmats, Ks, stage) -> None:
-        ctx, n = self.ctx, self.n_views
-        count = g.count
-        padded = 1 << max(0, (count - 1).bit_length())
+        ctx, n, count = self.ctx, self.n_views, g.count
         data = pack_gaussians(g)
+        batch = self._batch(count, data.shape[1])
         gauss = self._buffer("gauss", data.nbytes)
-        splats = self._buffer("splats", n * count * _RECORD * 4)
-        keys = self._buffer("keys", n * padded * 4)
-        vals = self._buffer("vals", n * padded * 4)
+        splats = self._buffer("splats", batch * count * _RECORD * 4)
+        keys = self._buffer("keys", batch * count * 4)
+        vals = self._buffer("vals", batch * count * 4)
         gauss.write(data)
         self._cams.write(camera_table(viewmats, Ks, self.width, self.height))
         cmds = np.zeros((n, 5), dtype=np.uint32)
-        cmds[:, 0] = 4
-        cmds[:, 3] = np.arange(n) * padded
+        cmds[:, 1] = 1
+        cmds[:, 2] = 3 * count * (np.arange(n) % batch)
         self._cmds.write(cmds)
         for binding, buf in ((sh.GAUSS, gauss), (sh.CAMS, self._cams), (sh.SPLATS, splats), (sh.KEYS, keys),
                              (sh.VALS, vals), (sh.CMDS, self._cmds)):
             buf.bind_to_storage_buffer(binding)
-        prog = self._project
-        prog["count"].value = count
-        prog["padded"].value = padded
-        prog["stride"].value = data.shape[1]
-        prog["degree"].value = g.sh_degree
-        prog.run(-(-padded // sh.GROUP), n)
-        ctx.memory_barrier()
-        stage()
-        self._sorter.sort(keys, vals, padded, n)
-        stage()
+        project, draw = self._project, self._splat
+        project["count"].value = count
+        project["stride"].value = data.shape[1]
+        project["degree"].value = g.sh_degree
+        draw["count"].value = count
         if self._vao is None:
-            self._vao = ctx.vertex_array(self._splat, [(vals, "u/i", "slot")])
-        self._splat["count"].value = count
-        self._fbo.use()
-        self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLE_STRIP, count=n)
+            self._vao = ctx.vertex_array(draw, [])
+        for first in range(0, n, batch):
+            views = min(batch, n - first)
+            if first:  # the last batch's draw must have read the buffers this batch rewrites
+                ctx.memory_barrier()
+            project["first_view"].value = first
+            project.run(-(-count // sh.GROUP), views)
+            ctx.memory_barrier()
+            stage("project")
+            self._sorter.sort(keys, vals, count, views)
+            stage("sort")
+            draw["first_view"].value = first
+            self._fbo.use()
+            self._vao.render_indirect(self._cmds, mode=ctx.TRIANGLES, count=views, first=first)
+            stage("draw")
 
     def _render_host(self, g: Gaussians, viewmats, Ks, stage) -> None:
-        ctx, n, count = self.ctx, self.n_views, g.count
-        cov = _world_covariances(g.quats, g.scales)
-        tiles_x, tiles_y = -(-self.width // TILE_SIZE), -(-self.height // TILE_SIZE)
-        records = np.empty((count, _RECORD), dtype=np.float32)
-        boxes = np.empty((count, 4), dtype=np.int32)
-        depth = np.empty(count, dtype=np.float32)
-        index = np.arange(count, dtype=np.uint64)
-        drawn, layers = [], []
-        for view in range(n):
-            k = Ks[view]
-            _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
-                     k[0, 2] + 0.5, k[1, 2] + 0.5, self.width, self.height, tiles_x, tiles_y, records, boxes, depth)
-            order = _front_to_back(depth, index)
-            drawn.append(records[order])
-            layers.append(np.full(order.shape[0], view, dtype=np.int32))
-        stage()
-        drawn = np.concatenate(drawn)
-        layers = np.concatenate(layers)
-        stage()
-        if not drawn.shape[0]:
+        ctx, n = self.ctx, self.n_views
+        largest = _driver_limits(ctx)[0] or 1 << 14
+        per_row = min(sh.RECORDS_PER_ROW, largest // 3)
+        drawn = host_records(g, viewmats, Ks, self.width, self.height)
+        stage("project")
+        offsets = np.cumsum([0] + [len(d) for d in drawn])
+        if not offsets[-1]:
             return
-        rec = self._buffer("records", drawn.nbytes)
-        lay = self._buffer("layers", layers.nbytes)
-        rec.write(drawn)
-        lay.write(layers)
+        if -(-offsets[-1] // per_row) > largest:
+            raise DisplayError(f"{offsets[-1]} splats exceed the OpenGL driver's texture size ({largest} pixels) for "
+                               f"the CPU sort's record texture", hint="render fewer views or use the cpu renderer")
+        table = record_table(drawn, per_row)
+        stage("sort")
+        texture = self._buffers.get("records")
+        if texture is None or texture.size != (3 * per_row, table.shape[0]):
+            if texture is not None:
+                texture.release()
+            texture = self._buffers["records"] = ctx.texture((3 * per_row, table.shape[0]), 4, dtype="f4")
+            texture.filter = (ctx.NEAREST, ctx.NEAREST)
+        texture.write(table)
+        texture.use(0)
         if self._vao is None:
-            self._vao = ctx.vertex_array(self._splat, [(rec, "4f 4f 4f/i", "r0", "r1", "r2"), (lay, "i/i", "layer")])
+            self._vao = ctx.vertex_array(self._splat, [])
+        self._splat["records"].value = 0
+        self._splat["per_row"].value = per_row
         self._fbo.use()
-        self._vao.render(mode=ctx.TRIANGLE_STRIP, vertices=4, instances=drawn.shape[0])
+        for view in range(n):
+            if offsets[view + 1] > offsets[view]:
+                self._splat["layer"].value = view
+                self._vao.render(mode=ctx.TRIANGLES, vertices=3 * int(offsets[view + 1] - offsets[view]),
+                                 first=3 * int(offsets[view]))
 
     def read(self) -> np.ndarray:
         """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""
-        data = np.frombuffer(self.views.read(), dtype=np.float32)
-        return data.reshape(self.n_views, self.height, self.width, 4).copy()
+        out = np.empty((self.n_views, self.height, self.width, 4), dtype=np.float32)
+        self.views.read_into(out)
+        return out
 
     def release(self) -> None:
         """Free this renderer's GL objects (not the context)."""
@@ -347,7 +377,8 @@ _SHARED: list = []  # the one offscreen context of the registry's renderers
 def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, background=None) -> np.ndarray:
     """The registry's form, as :func:`.cpu.render_cpu` (same arguments and result): a
     :class:`GLSplatRenderer` per (N, width, height), kept in a small cache, in one headless context
-    of the process (OpenGL 3.3 or newer; made current for the call)."""
+    of the process (OpenGL 3.3 or newer; made current for the call).  Where that context lacks
+    OpenGL 4.3 the CPU sort is used, and its ``fallback_reason`` logged as a warning."""
     viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
     key = (viewmats.shape[0], int(width), int(height))
     with _CACHE_LOCK:
@@ -357,6 +388,8 @@ def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, ba
             renderer = _CACHE.pop(key, None)
             if renderer is None:
                 renderer = GLSplatRenderer(_SHARED[0], *key)
+                if renderer.fallback_reason:
+                    _log.warning(renderer.fallback_reason)
             _CACHE[key] = renderer
             while len(_CACHE) > _CACHE_SIZE:
                 _CACHE.popitem(last=False)[1].release()

@@ -3,21 +3,25 @@
 The constants are the package's (:mod:`.common`, :mod:`.cpu_project`), written into the sources
 when they are built, so that the shaders and the ``cpu`` renderer share one definition.
 
-Buffers (std430, bindings fixed here and used by :mod:`.gl_renderer` and :mod:`.gl_sort`):
+Buffers (std430, bindings fixed here and used by :mod:`.gl_renderer` and :mod:`.gl_sort`).  The
+views are rendered in batches of B consecutive views (all N at once unless the per-view buffers
+would exceed the driver's GL_MAX_SHADER_STORAGE_BLOCK_SIZE); per-view buffers hold one batch,
+view v of the batch starting at ``first_view`` being its local view v - first_view:
 
     0 GAUSS    float[G * stride]: per Gaussian mean (3), opacity, world covariance (xx xy xz yy yz
                zz), then the K SH coefficients as K RGB triples; ``stride`` = 10 + 3 K
     1 CAMS     vec4[6 N]: per view the rows of [R t] (3), (fx, fy, cx, cy) in gsplat's frame (cx, cy
                already + 0.5), the camera centre (xyz, 0), the clamp limits of J (lim_x_pos,
                lim_x_neg, lim_y_pos, lim_y_neg)
-    2 SPLATS   vec4[3 N G]: per (view, Gaussian) the ``cpu`` renderer's record (:mod:`.cpu_project`'s
-               _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity, R, G), (B, slope, q, ext_y)
-    3 KEYS     uint[N P]: per view P (a power of two >= G) depth keys (float bits of the camera
-               z, ascending = front to back; 0xFFFFFFFF where culled or padding)
-    4 VALS     uint[N P]: per key its splat slot v G + i (Gaussian i of view v)
-    5 CMDS     uint[5 N]: one DrawArraysIndirectCommand per view (4 vertices, visible Gaussians,
-               first 0, base instance v P) and a pad: moderngl's render_indirect reads them 20
-               bytes apart
+    2 SPLATS   vec4[3 B G]: per (local view, Gaussian) the ``cpu`` renderer's record
+               (:mod:`.cpu_project`'s _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity,
+               R, G), (B, slope, q, ext_y)
+    3 KEYS     uint[B G]: per local view G depth keys (float bits of the camera z, ascending =
+               front to back; 0xFFFFFFFF where culled)
+    4 VALS     uint[B G]: per key its splat slot v G + i (Gaussian i of local view v)
+    5 CMDS     uint[5 N]: one DrawArraysIndirectCommand per view (3 vertices per visible Gaussian,
+               1 instance, first 3 v G for local view v, base instance 0) and a pad: moderngl's
+               render_indirect reads them 20 bytes apart
 
 Pixel frame: gsplat's (pixel (x, y) centred at (x + 0.5, y + 0.5), y down), which is also
 ``gl_FragCoord`` in the view's layer drawn without a flip (texel row 0 = image row 0).
@@ -32,6 +36,7 @@ from .cpu_project import _COV_MAX, _SIGMA_MARGIN, ALPHA_MIN
 GROUP = 64  # compute work-group size (invocations along x)
 GAUSS, CAMS, SPLATS, KEYS, VALS, CMDS = range(6)
 LAYER_EXTENSION = "GL_ARB_shader_viewport_layer_array"
+RECORDS_PER_ROW = 1024  # records per row of the CPU sort's record texture (3 texels each)
 
 
 def _f(value: float) -> str:
@@ -89,7 +94,7 @@ layout(std430, binding = {KEYS}) writeonly buffer Keys {{ uint keys[]; }};
 layout(std430, binding = {VALS}) writeonly buffer Vals {{ uint vals[]; }};
 layout(std430, binding = {CMDS}) buffer Cmds {{ uint cmds[]; }};
 uniform int count;     // G
-uniform int padded;    // P
+uniform int first_view;  // the batch's first view
 uniform int stride;    // floats per Gaussian in GAUSS
 uniform int degree;    // SH degree
 uniform vec2 size;     // (width, height), pixels
@@ -99,12 +104,13 @@ vec3 sh(int k) {{ int o = base + 10 + 3 * k; return vec3(g[o], g[o + 1], g[o + 2
 {_SH}
 void main() {{
     int i = int(gl_GlobalInvocationID.x);
-    int v = int(gl_WorkGroupID.y);
-    if (i >= padded) return;
-    uint slot = uint(v * padded + i);
+    int lv = int(gl_WorkGroupID.y);  // local view
+    int v = first_view + lv;
+    if (i >= count) return;
+    uint slot = uint(lv * count + i);
     uint key = 0xFFFFFFFFu;
-    vals[slot] = uint(v * count + i);
-    if (i < count) {{
+    vals[slot] = slot;
+    {{
         base = i * stride;
         vec3 m = vec3(g[base], g[base + 1], g[base + 2]);
         float op = g[base + 3];
@@ -142,12 +148,12 @@ void main() {{
                     float n = length(d);
                     if (n > 0.0) d /= n;
                     vec3 colour = sh_colour(degree, d);
-                    uint s = 3u * uint(v * count + i);
+                    uint s = 3u * slot;
                     splats[s] = vec4(u, w, c11 / det, -c01 / det);
                     splats[s + 1u] = vec4(c00 / det, op, colour.rg);
                     splats[s + 2u] = vec4(colour.b, c01 / c11, det / (c11 * c11),
                                           sqrt(2.0 * (lg + SIGMA_MARGIN) * c11));
-                    atomicAdd(cmds[5 * v + 1], 1u);
+                    atomicAdd(cmds[5 * v], 3u);
                 }}
             }}
         }}
@@ -156,100 +162,106 @@ void main() {{
 }}
 """
 
-# One bitonic merge step (k, j) over every view's P keys at once (work group y = view);
-# (key, val) pairs compared lexicographically, so equal depths stay in index order.
-BITONIC = f"""
-#version 430
-layout(local_size_x = {GROUP}) in;
-layout(std430, binding = {KEYS}) buffer Keys {{ uint keys[]; }};
-layout(std430, binding = {VALS}) buffer Vals {{ uint vals[]; }};
-uniform uint padded;
-uniform uint k;
-uniform uint j;
-void main() {{
-    uint t = gl_GlobalInvocationID.x;
-    if (t >= padded / 2u) return;
-    uint base = gl_WorkGroupID.y * padded;
-    uint a = base + 2u * t - (t & (j - 1u));
-    uint b = a + j;
-    bool up = ((a - base) & k) == 0u;
-    uint ka = keys[a], kb = keys[b], va = vals[a], vb = vals[b];
-    bool greater = ka > kb || (ka == kb && va > vb);
-    if (greater == up) {{
-        keys[a] = kb; keys[b] = ka; vals[a] = vb; vals[b] = va;
-    }}
-}}
-"""
-
-# Splat quads: the parallelogram that bounds the record's ellipse where alpha can reach 1/255
-# (rows |dy| <= ext_y, on row dy the columns mx + slope dy -+ sqrt(q (ext_y^2 - dy^2))); one that
-# would reach far past the view is drawn as the whole view instead (the fragment test decides).
-_QUAD = """
-flat out vec2 mean;
-flat out vec4 conic_op;
-flat out vec3 colour;
+# Splats as one triangle each (geometry, not fragments, is what costs most on llvmpipe): the
+# record's ellipse where alpha can reach 1/255 is, in (x', dy) with x' = dx - slope dy, the
+# axis-aligned ellipse of half-axes sqrt(q) ext_y and ext_y, i.e. the unit circle scaled; the
+# triangle is the equilateral one circumscribing that circle (vertices 2 from its centre), mapped
+# back (an affine map keeps it circumscribed).  One that would reach far past the view is a
+# triangle covering the whole view instead (the fragment test decides).
+_SPLAT = """
+out Splat {
+    flat vec2 mean;
+    flat vec4 conic_op;
+    flat vec3 colour;
+} splat_out;
 uniform vec2 size;
-void splat(vec4 r0, vec4 r1, vec4 r2) {
-    mean = r0.xy;
-    conic_op = vec4(r0.zw, r1.xy);
-    colour = vec3(r1.zw, r2.x);
-    vec2 s = vec2(float(gl_VertexID & 1), float(gl_VertexID >> 1)) * 2.0 - 1.0;
+const vec2 TRIANGLE[3] = vec2[3](vec2(0.0, 2.0), vec2(-1.7320508, -1.0), vec2(1.7320508, -1.0));
+void splat(vec4 r0, vec4 r1, vec4 r2, int corner) {
+    vec2 mean = r0.xy;
+    splat_out.mean = mean;
+    splat_out.conic_op = vec4(r0.zw, r1.xy);
+    splat_out.colour = vec3(r1.zw, r2.x);
     float ext_y = r2.w;
     float half_x = sqrt(r2.z) * ext_y;
     vec2 p;
-    if (ext_y + abs(r2.y) * ext_y + half_x > 4.0 * (size.x + size.y)) {
-        p = (s * 0.5 + 0.5) * (size + 2.0) - 1.0;
+    if (2.0 * (ext_y + abs(r2.y) * ext_y + half_x) > 4.0 * (size.x + size.y)) {
+        p = vec2(corner == 1 ? 2.0 : 0.0, corner == 2 ? 2.0 : 0.0) * (size + 2.0) - 1.0;
     } else {
+        vec2 s = TRIANGLE[corner];
         float dy = s.y * ext_y;
-        p = mean + vec2(r2.y * dy + s.x * half_x, dy);
+        p = mean + vec2(s.x * half_x + r2.y * dy, dy);
     }
     gl_Position = vec4(2.0 * p / size - 1.0, 0.0, 1.0);
 }
 """
 
-# GPU-sorted draw: instance attribute ``slot`` read from VALS at base instance v P + rank
+# The layer of a vertex: SET_LAYER(x) writes gl_Layer where the driver has the extension that
+# allows it in a vertex shader, else passes it to :func:`geometry_shader`'s pass-through, which
+# writes it (OpenGL 3.2 core); :func:`vertex_shader` picks one.
+_LAYER = f"""
+#ifdef VERTEX_LAYER
+#extension {LAYER_EXTENSION} : require
+#define SET_LAYER(x) gl_Layer = (x)
+#else
+flat out int layer_v;
+#define SET_LAYER(x) layer_v = (x)
+#endif
+"""
+
+# GPU-sorted draw: no instancing (llvmpipe runs each instance as a draw of its own), one
+# triangle per splat; vertex 3 (v G + rank) + k is corner k of the rank-th splat of local view v,
+# whose slot is VALS[v G + rank]
 SPLAT_VERTEX_GPU = f"""
 #version 430
-#extension {LAYER_EXTENSION} : require
+{_LAYER}
 layout(std430, binding = {SPLATS}) readonly buffer Splats {{ vec4 splats[]; }};
-in uint slot;
+layout(std430, binding = {VALS}) readonly buffer Vals {{ uint vals[]; }};
 uniform int count;
-{_QUAD}
+uniform int first_view;
+{_SPLAT}
 void main() {{
+    uint slot = vals[gl_VertexID / 3];
     uint s = 3u * slot;
-    splat(splats[s], splats[s + 1u], splats[s + 2u]);
-    gl_Layer = int(slot) / count;
+    splat(splats[s], splats[s + 1u], splats[s + 2u], gl_VertexID % 3);
+    SET_LAYER(first_view + int(slot) / count);
 }}
 """
 
-# CPU-sorted draw (OpenGL 3.3): records in drawing order as instance attributes
+# CPU-sorted draw (OpenGL 3.3): the records in drawing order in an RGBA32F texture, record r in
+# texels (3 (r % per_row) + k, r / per_row), k = 0, 1, 2; one draw call per view (``first`` = 3
+# times the view's first record), one triangle per record
 SPLAT_VERTEX_HOST = f"""
 #version 330 core
-#extension {LAYER_EXTENSION} : require
-in vec4 r0;
-in vec4 r1;
-in vec4 r2;
-in int layer;
-{_QUAD}
+{_LAYER}
+uniform sampler2D records;
+uniform int per_row;
+uniform int layer;
+{_SPLAT}
 void main() {{
-    splat(r0, r1, r2);
-    gl_Layer = layer;
+    int r = gl_VertexID / 3;
+    ivec2 t = ivec2(3 * (r % per_row), r / per_row);
+    splat(texelFetch(records, t, 0), texelFetch(records, t + ivec2(1, 0), 0), texelFetch(records, t + ivec2(2, 0), 0),
+          gl_VertexID % 3);
+    SET_LAYER(layer);
 }}
 """
 
 SPLAT_FRAGMENT = f"""
 #version 330 core
 {_CONSTANTS}
-flat in vec2 mean;
-flat in vec4 conic_op;
-flat in vec3 colour;
+in Splat {{
+    flat vec2 mean;
+    flat vec4 conic_op;
+    flat vec3 colour;
+}} splat_in;
 out vec4 result;
 void main() {{
-    vec2 d = gl_FragCoord.xy - mean;
-    float sigma = 0.5 * (conic_op.x * d.x * d.x + conic_op.z * d.y * d.y) + conic_op.y * d.x * d.y;
-    float alpha = min(ALPHA_MAX, conic_op.w * exp(-sigma));
+    vec2 d = gl_FragCoord.xy - splat_in.mean;
+    vec4 c = splat_in.conic_op;
+    float sigma = 0.5 * (c.x * d.x * d.x + c.z * d.y * d.y) + c.y * d.x * d.y;
+    float alpha = min(ALPHA_MAX, c.w * exp(-sigma));
     if (sigma < 0.0 || alpha < ALPHA_MIN) discard;
-    result = vec4(colour * alpha, alpha);  // blended: C += (1 - A) c alpha, A += (1 - A) alpha
+    result = vec4(splat_in.colour * alpha, alpha);  // blended: C += (1 - A) c alpha, A += (1 - A) alpha
 }}
 """
 
@@ -257,11 +269,11 @@ void main() {{
 # like a splat: C += (1 - A) bg, A unchanged
 BACKGROUND_VERTEX = f"""
 #version 330 core
-#extension {LAYER_EXTENSION} : require
+{_LAYER}
 void main() {{
     vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
     gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-    gl_Layer = gl_InstanceID;
+    SET_LAYER(gl_InstanceID);
 }}
 """
 
@@ -270,4 +282,34 @@ BACKGROUND_FRAGMENT = """
 uniform vec3 background;
 out vec4 result;
 void main() { result = vec4(background, 0.0); }
+"""
+
+
+def vertex_shader(source: str, vertex_layer: bool) -> str:
+    """``source`` (one of the vertex shaders above) writing gl_Layer itself (``vertex_layer``:
+    the driver has LAYER_EXTENSION) or handing it to :func:`geometry_shader`."""
+    head, rest = source.lstrip().split("\n", 1)
+    return f"{head}\n#define VERTEX_LAYER\n{rest}" if vertex_layer else f"{head}\n{rest}"
+
+
+def geometry_shader(splat: bool) -> str:
+    """A pass-through geometry shader that writes gl_Layer (for drivers without LAYER_EXTENSION),
+    handing on the Splat block when ``splat``."""
+    block = "flat vec2 mean; flat vec4 conic_op; flat vec3 colour;"
+    return f"""
+#version 330 core
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+flat in int layer_v[];
+{f"in Splat {{ {block} }} splat_in[]; out Splat {{ {block} }} splat_out;" if splat else ""}
+void main() {{
+    for (int k = 0; k < 3; ++k) {{
+        gl_Position = gl_in[k].gl_Position;
+        gl_Layer = layer_v[0];
+        {"splat_out.mean = splat_in[k].mean; splat_out.conic_op = splat_in[k].conic_op; "
+         "splat_out.colour = splat_in[k].colour;" if splat else ""}
+        EmitVertex();
+    }}
+    EndPrimitive();
+}}
 """
