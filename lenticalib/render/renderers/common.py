@@ -66,3 +66,23 @@ def check_render_inputs(gaussians, viewmats, Ks, width, height, background):
             raise InputError(f"expected 3 finite values (RGB), got shape {background.shape}",
                              source="background")
     return v, k, background
+
+
+def check_finite_gaussians(g: Gaussians) -> None:
+    """InputError (naming ``gaussians``) for non-finite parameters or a zero-length quaternion
+    (``g`` numpy): what the renderers that compute on the host refuse before any work."""
+    for name in ("means", "quats", "scales", "opacities", "sh"):
+        if not np.isfinite(getattr(g, name)).all():
+            raise InputError(f"{name} has non-finite values", source="gaussians")
+    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
+        raise InputError("quats has a zero-length quaternion", source="gaussians")
+
+
+def jacobian_limits(width: int, height: int, fx, fy, cx, cy):
+    """gsplat's clamp of x/z and y/z inside the EWA Jacobian (1.3 x the field of view's
+    half-extent): ``(lim_x_pos, lim_x_neg, lim_y_pos, lim_y_neg)``, with ``cx``, ``cy`` in gsplat's
+    frame (+ 0.5); scalars or arrays (one per view)."""
+    tan_fovx = 0.5 * width / fx
+    tan_fovy = 0.5 * height / fy
+    return ((width - cx) / fx + 0.3 * tan_fovx, cx / fx + 0.3 * tan_fovx,
+            (height - cy) / fy + 0.3 * tan_fovy, cy / fy + 0.3 * tan_fovy)

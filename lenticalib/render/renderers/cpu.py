@@ -55,9 +55,8 @@ from numba import prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ...core.errors import InputError
 from ..gaussians import Gaussians
-from .common import TILE_SIZE, check_render_inputs
+from .common import TILE_SIZE, check_finite_gaussians, check_render_inputs, jacobian_limits
 from .cpu_project import (_B, _CA, _CB, _CC, _CHUNKS, _EXT_Y, _G, _MX, _MY, _OP, _Q, _R, _RECORD, _SLOPE,
                           ALPHA_MIN, _bin, _front_to_back, _project, _world_covariances)
 
@@ -266,11 +265,7 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
     """
     viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
     g = gaussians.to_numpy()
-    for name in ("means", "quats", "scales", "opacities", "sh"):
-        if not np.isfinite(getattr(g, name)).all():
-            raise InputError(f"{name} has non-finite values", source="gaussians")
-    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
-        raise InputError("quats has a zero-length quaternion", source="gaussians")
+    check_finite_gaussians(g)
     bg = np.zeros(3, dtype=np.float32) if background is None else background.astype(np.float32)
     n = viewmats.shape[0]
     out = np.empty((n, height, width, 4), dtype=np.float32)
@@ -288,8 +283,9 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
     workers = 4 * nb.get_num_threads()
     for view in range(n):
         k = Ks[view]
-        _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
-                 k[0, 2] + 0.5, k[1, 2] + 0.5, width, height, tiles_x, tiles_y, records, boxes, depth)
+        fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2] + 0.5, k[1, 2] + 0.5
+        _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], fx, fy, cx, cy,
+                 jacobian_limits(width, height, fx, fy, cx, cy), width, height, tiles_x, tiles_y, records, boxes, depth)
         order = _front_to_back(depth, index)
         offsets, ids, packed = _bin(order, boxes, records, tiles_x * tiles_y, tiles_x, _CHUNKS)
         # busiest tiles first, dealt to the workers in turn, so that the threads finish together

@@ -91,9 +91,10 @@ def _sh_colour(sh, i, degree, x, y, z, c):  # pragma: no cover - compiled
 
 
 @nb.njit(parallel=True, cache=True)
-def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, width, height, tiles_x, tiles_y,
+def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, width, height, tiles_x, tiles_y,
              records, boxes, depth):  # pragma: no cover - compiled
-    """Project every Gaussian into one view (gsplat's frame: cx, cy already + 0.5).
+    """Project every Gaussian into one view (gsplat's frame: cx, cy already + 0.5; ``limits`` the
+    Jacobian's clamp, :func:`.common.jacobian_limits`).
 
     Writes, per Gaussian, ``records`` (G, _RECORD) float32 (mean 2D, conic (a, b, c) of
     [[a, b], [b, c]], opacity, colour, ellipse half-extents), ``boxes`` (G, 4) int32 the tiles
@@ -107,12 +108,7 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, width, heigh
     px = -(r00 * t0 + r10 * t1 + r20 * t2)
     py = -(r01 * t0 + r11 * t1 + r21 * t2)
     pz = -(r02 * t0 + r12 * t1 + r22 * t2)
-    tan_fovx = 0.5 * width / fx
-    tan_fovy = 0.5 * height / fy
-    lim_x_pos = (width - cx) / fx + 0.3 * tan_fovx
-    lim_x_neg = cx / fx + 0.3 * tan_fovx
-    lim_y_pos = (height - cy) / fy + 0.3 * tan_fovy
-    lim_y_neg = cy / fy + 0.3 * tan_fovy
+    lim_x_pos, lim_x_neg, lim_y_pos, lim_y_neg = limits
     for i in prange(g):
         wx, wy, wz = np.float64(means[i, 0]), np.float64(means[i, 1]), np.float64(means[i, 2])
         x = r00 * wx + r01 * wy + r02 * wz + t0

@@ -79,10 +79,10 @@ from ...core.errors import DisplayError, InputError
 from ..gaussians import Gaussians
 from ..gl_context import headless_context
 from . import gl_shaders as sh
-from .common import check_render_inputs
+from .common import check_finite_gaussians, check_render_inputs
 from .cpu_project import _RECORD
 from .gl_sort import GLSorter
-from .gl_upload import camera_table, check_finite, host_records, pack_gaussians, record_table
+from .gl_upload import camera_table, host_records, pack_gaussians, record_table
 
 __all__ = ["GLSplatRenderer", "render_gl"]
 
@@ -232,7 +232,7 @@ class GLSplatRenderer:
         if viewmats.shape[0] != self.n_views:
             raise InputError(f"{viewmats.shape[0]} views, this renderer draws {self.n_views}", source="viewmats")
         g = gaussians.to_numpy()
-        check_finite(g)
+        check_finite_gaussians(g)
         ctx = self.ctx
         self.stage_ms = {"project": 0.0, "sort": 0.0, "draw": 0.0}
         clock = [time.perf_counter()]

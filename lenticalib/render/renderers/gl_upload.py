@@ -3,27 +3,16 @@
 :func:`pack_gaussians` and :func:`camera_table` build the GAUSS and CAMS buffers of
 :mod:`.gl_shaders` (the GPU sort's path); :func:`host_records` and :func:`record_table` are the CPU
 sort's path: the ``cpu`` renderer's own projection and depth order, per view, and the record
-texture they are drawn from.  :func:`check_finite` refuses what :func:`.cpu.render_cpu` refuses.
+texture they are drawn from.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ...core.errors import InputError
 from ..gaussians import Gaussians
-from .common import TILE_SIZE
+from .common import TILE_SIZE, jacobian_limits
 from .cpu_project import _RECORD, _front_to_back, _project, _world_covariances
-
-
-def check_finite(g: Gaussians) -> None:
-    """InputError (naming ``gaussians``) for non-finite parameters or a zero-length quaternion;
-    ``g`` numpy, as :func:`.cpu.render_cpu` refuses them."""
-    for name in ("means", "quats", "scales", "opacities", "sh"):
-        if not np.isfinite(getattr(g, name)).all():
-            raise InputError(f"{name} has non-finite values", source="gaussians")
-    if not (np.linalg.norm(g.quats, axis=1) > 0).all():
-        raise InputError("quats has a zero-length quaternion", source="gaussians")
 
 
 def camera_table(viewmats: np.ndarray, Ks: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -33,13 +22,11 @@ def camera_table(viewmats: np.ndarray, Ks: np.ndarray, width: int, height: int) 
     rot, t = viewmats[:, :3, :3], viewmats[:, :3, 3]
     fx, fy = Ks[:, 0, 0], Ks[:, 1, 1]
     cx, cy = Ks[:, 0, 2] + 0.5, Ks[:, 1, 2] + 0.5
-    tan_fovx, tan_fovy = 0.5 * width / fx, 0.5 * height / fy
     out = np.zeros((n, 6, 4))
     out[:, :3, :3], out[:, :3, 3] = rot, t
     out[:, 3] = np.stack([fx, fy, cx, cy], axis=1)
     out[:, 4, :3] = -np.einsum("nji,nj->ni", rot, t)
-    out[:, 5] = np.stack([(width - cx) / fx + 0.3 * tan_fovx, cx / fx + 0.3 * tan_fovx,
-                          (height - cy) / fy + 0.3 * tan_fovy, cy / fy + 0.3 * tan_fovy], axis=1)
+    out[:, 5] = np.stack(jacobian_limits(width, height, fx, fy, cx, cy), axis=1)
     return out.astype(np.float32)
 
 
@@ -68,8 +55,9 @@ def host_records(g: Gaussians, viewmats: np.ndarray, Ks: np.ndarray, width: int,
     drawn = []
     for view in range(viewmats.shape[0]):
         k = Ks[view]
-        _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], k[0, 0], k[1, 1],
-                 k[0, 2] + 0.5, k[1, 2] + 0.5, width, height, tiles_x, tiles_y, records, boxes, depth)
+        fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2] + 0.5, k[1, 2] + 0.5
+        _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], fx, fy, cx, cy,
+                 jacobian_limits(width, height, fx, fy, cx, cy), width, height, tiles_x, tiles_y, records, boxes, depth)
         drawn.append(records[_front_to_back(depth, index)])
     return drawn
 
