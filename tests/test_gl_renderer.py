@@ -314,7 +314,8 @@ def test_without_opengl_43_the_cpu_sort_is_used_and_said(ctx):
     old = _OpenGL41(ctx)
     gaussians = random_scene(3, n=80)
     with ctx:
-        with pytest.raises(DisplayError, match=r"needs OpenGL 4\.3 compute shaders, the driver has OpenGL 4\.1") as err:
+        with pytest.raises(DisplayError,
+                           match=r"the gpu sort cannot run here: OpenGL 4\.1 has no compute shaders \(4\.3 needed\)") as err:
             GLSplatRenderer(old, 4, W, H, sort="gpu")
         assert "sort='cpu'" in str(err.value) and "\n" not in str(err.value)
         renderer = GLSplatRenderer(old, 4, W, H)
@@ -327,6 +328,29 @@ def test_without_opengl_43_the_cpu_sort_is_used_and_said(ctx):
         native = GLSplatRenderer(ctx, 4, W, H)
         assert native.sort_kind == "gpu" and native.fallback_reason is None
         native.release()
+    np.testing.assert_array_equal(out, _render(ctx, gaussians, *CAMERAS, W, H, sort="cpu"))
+
+
+class _NoVertexStorage(_OpenGL41):
+    """An OpenGL 4.5 context whose driver allows no storage buffers in vertex shaders (4.3 permits it)."""
+
+    version_code = 450
+
+    @property
+    def info(self):
+        return dict(self._ctx.info, GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS=0)
+
+
+def test_a_driver_without_vertex_storage_buffers_gets_the_cpu_sort_and_says_so(ctx):
+    gaussians = random_scene(3, n=80)
+    with ctx:
+        renderer = GLSplatRenderer(_NoVertexStorage(ctx), 4, W, H)
+        assert renderer.sort_kind == "cpu"
+        assert renderer.fallback_reason == ("the gl renderer projects and sorts on the CPU: the driver allows 0 "
+                                            "storage buffers in a vertex shader (2 needed)")
+        renderer.render(gaussians, *CAMERAS)
+        out = renderer.read()
+        renderer.release()
     np.testing.assert_array_equal(out, _render(ctx, gaussians, *CAMERAS, W, H, sort="cpu"))
 
 
@@ -356,7 +380,7 @@ np.save({str(tmp_path / "out.npy")!r}, out)
     done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "version 410" in done.stdout
-    assert ("OpenGL 4.1 has no compute shaders (4.3 needed): the gl renderer projects and sorts on the CPU"
+    assert ("the gl renderer projects and sorts on the CPU: OpenGL 4.1 has no compute shaders (4.3 needed)"
             in done.stderr)
     expected = render_cpu(random_scene(3, n=80), *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
     _assert_close(np.load(tmp_path / "out.npy"), expected)

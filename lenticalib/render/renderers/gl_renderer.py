@@ -89,6 +89,7 @@ __all__ = ["GLSplatRenderer", "render_gl"]
 _log = logging.getLogger(__name__)
 
 _HINT = "or use the cpu renderer"
+_VERTEX_STORAGE_BLOCKS = 2  # the GPU-sort path's vertex shader reads SPLATS and VALS (gl_shaders)
 
 
 def _driver_limits(ctx) -> tuple[int, int]:
@@ -105,6 +106,17 @@ def _storage_limit(ctx) -> int:
 def _vertex_layer(ctx) -> bool:
     """Whether the vertex shaders may write gl_Layer (else a pass-through geometry shader does)."""
     return sh.LAYER_EXTENSION in ctx.extensions
+
+
+def _gpu_sort_missing(ctx) -> str | None:
+    """What the GPU-sort path needs and ``ctx``'s driver lacks (one phrase), or None: OpenGL 4.3
+    compute shaders, and storage buffers in the vertex shader (4.3 allows a driver none)."""
+    if ctx.version_code < 430:
+        return f"OpenGL {_gl_version(ctx)} has no compute shaders (4.3 needed)"
+    blocks = int(ctx.info.get("GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS", 0) or 0)
+    if blocks < _VERTEX_STORAGE_BLOCKS:
+        return f"the driver allows {blocks} storage buffers in a vertex shader ({_VERTEX_STORAGE_BLOCKS} needed)"
+    return None
 
 
 def _gl_version(ctx) -> str:
@@ -150,16 +162,13 @@ class GLSplatRenderer:
             raise InputError(f"must be 'gpu', 'cpu' or None, got {sort!r}", source="sort")
         self.ctx = ctx
         self.n_views, self.width, self.height = int(n_views), int(width), int(height)
-        has_compute = ctx.version_code >= 430
-        if sort == "gpu" and not has_compute:
-            raise DisplayError(f"the gpu sort needs OpenGL 4.3 compute shaders, the driver has OpenGL "
-                               f"{_gl_version(ctx)}",
-                               hint="use sort='cpu', which sorts on the host")
-        self.sort_kind = sort or ("gpu" if has_compute else "cpu")
+        missing = _gpu_sort_missing(ctx)
+        if sort == "gpu" and missing:
+            raise DisplayError(f"the gpu sort cannot run here: {missing}", hint="use sort='cpu', which sorts on the host")
+        self.sort_kind = sort or ("cpu" if missing else "gpu")
         self.fallback_reason = None
-        if sort is None and not has_compute:
-            self.fallback_reason = (f"OpenGL {_gl_version(ctx)} has no compute shaders (4.3 needed): "
-                                    f"the gl renderer projects and sorts on the CPU")
+        if sort is None and missing:
+            self.fallback_reason = f"the gl renderer projects and sorts on the CPU: {missing}"
         largest, layers = _driver_limits(ctx)
         if largest and max(self.width, self.height) > largest:
             raise DisplayError(f"the OpenGL driver takes textures up to {largest} pixels, the views are "
