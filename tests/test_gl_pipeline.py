@@ -156,3 +156,20 @@ def test_no_opengl_at_all_is_one_line_naming_the_fallback(avatar, panel, tmp_pat
         assert len(lines) == 1 and named in lines[0] and "no offscreen OpenGL" in lines[0], result.stderr
         assert "can run here: cpu" in lines[0] or "can run here: fast" in lines[0]
         assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("where", ["offscreen", "window"])
+def test_torch_can_load_its_compiler_after_an_opengl_context(where, xvfb):
+    # Mesa's llvmpipe and triton (torch's compiler) each bring an LLVM: triton imported after a
+    # context existed crashed the process (segmentation fault) until contexts load triton first
+    import subprocess
+    import sys
+
+    opening = ("from lenticalib.render.gl_context import headless_context\nctx = headless_context()\n"
+               "with ctx:\n    print(ctx.info['GL_RENDERER'])\n") if where == "offscreen" else (
+        "from lenticalib.render.monitors import list_monitors\nfrom lenticalib.render.present import WindowPresenter\n"
+        "presenter = WindowPresenter(list_monitors()[0])\npresenter.open()\nprint(presenter.ctx.info['GL_RENDERER'])\n")
+    script = opening + "import torch._dynamo\nprint('loaded')\n"
+    done = subprocess.run([sys.executable, "-c", script], env=xvfb.env(), capture_output=True, text=True,
+                          timeout=120, cwd=os.getcwd())
+    assert done.returncode == 0 and "loaded" in done.stdout, (done.returncode, done.stderr[-1500:])

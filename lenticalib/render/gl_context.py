@@ -24,6 +24,24 @@ void main() {
 """
 
 
+def load_llvm_users_first() -> None:
+    """Import triton (torch's kernel compiler, installed with CUDA builds of torch) before the
+    first OpenGL context of the process, where it is installed.  Mesa's llvmpipe loads its LLVM
+    with symbols visible to later libraries; triton bundles another LLVM, and importing it after a
+    context exists (which torch does on its own, e.g. for operations it decomposes) crashes the
+    process with a segmentation fault.  In this order both work.  Costs about 0.15 s, once."""
+    import importlib
+    import importlib.util
+    import sys
+
+    if "triton" in sys.modules or importlib.util.find_spec("triton") is None:
+        return
+    try:
+        importlib.import_module("triton")
+    except Exception:  # a broken triton is torch's business, not the presenter's
+        pass
+
+
 def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
     """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X
     server -- a GPU driver's, or Mesa's surfaceless llvmpipe -- else the platform's default),
@@ -33,6 +51,7 @@ def offscreen_context(backend: str | None = None, require: int = 330, hint: str 
 
     if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
         backend = "egl"
+    load_llvm_users_first()
     kwargs = {"standalone": True, "require": require}
     if backend:
         kwargs["backend"] = backend

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..core.errors import DisplayError, ImageError
 from ..core.sizes import check_raster_size
-from .gl_context import VIEWPORT_TRIANGLE
+from .gl_context import VIEWPORT_TRIANGLE, load_llvm_users_first
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0
@@ -233,6 +233,7 @@ class WindowPresenter(Presenter):
     def open(self) -> None:
         import moderngl
 
+        load_llvm_users_first()  # before the window's context (see gl_context)
         glfw = init_glfw()
         handle = self._monitor_handle(glfw) if self.windowed is None else glfw.get_primary_monitor()
         mode = glfw.get_video_mode(handle)
