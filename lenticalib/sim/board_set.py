@@ -1,4 +1,4 @@
-"""A synthetic camera-calibration set: photos of a chessboard by a known camera, and the truth.
+"""A synthetic camera-calibration set: photos of a chessboard or ChArUco board by a known camera, and the truth.
 
 Layout written into ``DIR`` (the folder ``lenticalib camera simulate DIR`` makes):
 
@@ -7,7 +7,8 @@ Layout written into ``DIR`` (the folder ``lenticalib camera simulate DIR`` makes
     DIR/board.png               also holds the raster the panel showed
     DIR/truth.cameramodel       the true intrinsics as an mrcal model: LENSMODEL_OPENCV5 (the
                                 simulated camera is OpenCV's k1 k2 p1 p2 k3 model)
-    DIR/simulation.json         seed, kind, conditions, the camera (every field), for a panel set
+    DIR/simulation.json         seed, kind, conditions, ``cut`` (share of photos with the board
+                                partly outside the frame: ChArUco sets), the camera (every field), for a panel set
                                 the panel optics, and for every photo the true board pose
                                 ``rt_cam_board`` (mrcal rt: Rodrigues rad, translation mm), for a
                                 panel set also the camera's world pose; and the render time
@@ -43,6 +44,7 @@ SIMULATION_NAME = "simulation.json"
 TRUTH_NAME = "truth.cameramodel"
 DOCUMENT = FORMATS["lenticalib.camera-simulation"]
 PANEL_SIZE = (3840, 2160)
+CHARUCO_CUT = 0.35  # share of a ChArUco set's photos with the board partly outside the frame
 CONTENTS = (CAPTURE_FOLDER, SIMULATION_NAME, TRUTH_NAME, "board.json", "board.png")
 
 
@@ -79,7 +81,7 @@ def truth_cameramodel(camera):
 def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", seed: int = 0, photos: int = 24,
                        resolution: tuple[int, int] = (1600, 1200), conditions: str = "standard",
                        subsamples: int = 2, progress: Callable[[], None] | None = None, scene=None,
-                       board=None) -> dict:
+                       board=None, pattern: str = "chessboard", cut: float | None = None) -> dict:
     """Photograph a board ``photos`` times into ``directory`` (an existing, empty or fresh folder).
 
     ARGUMENTS
@@ -97,7 +99,11 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     board        a panel set's board (:func:`lenticalib.calib.intrinsics.board.panel_board`, e.g. from
                  the user's ``camera patterns`` folder) instead of the default one, whose soft edges
                  span two of the scene's lens pitches; without ``scene`` the panel drawn from
-                 ``seed`` then has the board's panel size and pixel pitch
+                 ``seed`` then has the board's panel size and pixel pitch; for a print set, a
+                 printed board (:func:`lenticalib.calib.intrinsics.board.print_board`)
+    pattern      the default board's pattern, "chessboard" or "charuco" (ignored with ``board``)
+    cut          share of the photos whose board runs off the frame (:func:`.boards.board_poses`);
+                 None: ``CHARUCO_CUT`` for a ChArUco board, 0 for a chessboard (it must be whole)
 
     RETURNED VALUE
     the ``simulation.json`` document (also written).
@@ -116,13 +122,22 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
         # the edges matched to the sheet, as 'camera patterns --profile' does (a profile's period / 3)
         if board is None:
             board = panel_board(optics.width, optics.height, optics.pixel_pitch,
-                                lens_pitch_px=optics.lens_pitch / optics.pixel_pitch)
+                                lens_pitch_px=optics.lens_pitch / optics.pixel_pitch, pattern=pattern)
         raster = panel_raster(board)
         write_image(folder / PANEL_IMAGE, raster)
     else:
         camera, optics = calibration_camera(seed, resolution, conditions, subsamples), None
-        board = print_board()
-    poses: list[BoardPose] = board_poses(camera, board, photos, seed)
+        if board is None:
+            board = print_board(pattern=pattern)
+        elif board.kind != "print":
+            raise InputError("a print set needs a printed board", source="board",
+                             hint="make one with print_board()")
+    if cut is None:
+        cut = CHARUCO_CUT if board.charuco else 0.0
+    if cut > 0 and not board.charuco:
+        raise InputError("only a ChArUco board may run off the frame (a chessboard must be whole)", source="cut",
+                         hint="use a ChArUco board, or cut 0")
+    poses: list[BoardPose] = board_poses(camera, board, photos, seed, cut=cut)
     for k, pose in enumerate(poses):
         rng = np.random.default_rng([int(seed), k, 0x5107])
         start = time.perf_counter()
@@ -153,7 +168,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                 "camera": camera.to_dict(), "optics": None if optics is None else optics.to_dict(),
                 "pose_frame": ("camera frame <- board frame (origin inner corner (0,0)"
                                + (", in the panel's pixel plane z = +g)" if kind == "panel" else ")")),
-                "photos": records, "seconds_per_photo": round(float(np.mean(seconds)), 3),
+                "cut": float(cut), "photos": records, "seconds_per_photo": round(float(np.mean(seconds)), 3),
                 "truth": TRUTH_NAME}
     write_document(folder / SIMULATION_NAME, DOCUMENT, document)
     return document

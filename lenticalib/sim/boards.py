@@ -23,7 +23,13 @@ Poses (:func:`board_poses`): a fixed seed spreads the boards over the image -- a
 at the four image corners, the four edges and the centre -- tilted by ``tilt`` degrees about a
 random axis and rolled, at a distance that makes them ``fill`` of the image width, each checked to
 lie wholly inside the frame with a margin.  mrcal needs exactly this: tilted views and corners
-observed near the image corners.
+observed near the image corners.  With ``cut`` > 0 (ChArUco boards) that share of the poses is
+instead a closer board pushed past an image corner or edge, so that only part of its corners
+(``CUT_INSIDE``) is in the photo: the extreme corners and edges of the image get observations, as
+a user who follows "let the board reach every corner of the image" takes them.
+
+ChArUco boards (printed): the ArUco markers of :meth:`~lenticalib.calib.intrinsics.board.Board.marker_bits`
+are drawn in the white squares with the same soft ink edges.
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ GRID_STEP = 4  # pixels between exactly undistorted grid points (as in .render)
 EDGE_SOFTNESS = 0.02  # half-width of the ink edge ramp, in squares
 PAPER_BORDER = 0.6  # white paper around the outer squares, in squares
 REFLECTANCE = {"black": 0.05, "white": 0.85, "background": 0.22}
+CUT_INSIDE = (0.3, 0.8)  # share of the corners of a cut board that lie inside the photo
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,8 +138,39 @@ def project_camera(camera: Camera, points_cam: np.ndarray) -> np.ndarray:
     return out.reshape(-1, 2)
 
 
+def _place(camera: Camera, board, target: np.ndarray, f: float, theta: float, alpha: float, psi: float) -> BoardPose:
+    """The board pose whose centre is seen at pixel ``target``, ``f`` of the image wide, tilted by
+    ``theta`` about the in-board axis at angle ``alpha`` and rolled by ``psi`` (radians)."""
+    bw = board.size_mm[0]
+    centre = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])
+    xn, yn = camera.normalized(target[:1], target[1:])
+    ray = np.array([xn[0], yn[0], 1.0])
+    distance = camera.fx * bw / (f * camera.width)
+    rot = (_front_rotation(ray) @ _axis_rotation([0, 0, 1], psi)
+           @ _axis_rotation([math.cos(alpha), math.sin(alpha), 0.0], theta))
+    return BoardPose(rot, distance * ray / np.linalg.norm(ray) - rot @ centre)
+
+
+def inside_share(camera: Camera, board, pose: BoardPose, margin: float = 3.0) -> float:
+    """Share of the board's inner corners that ``camera`` sees inside its frame, ``margin`` pixels
+    from the edges (in front of the camera, and within the field its pixels cover: the distortion
+    polynomial folds back far outside the frame, so a projection alone is not enough)."""
+    p = pose.to_camera(board.object_points().reshape(-1, 3))
+    w, h = camera.width, camera.height
+    cx, cy = camera.normalized(np.array([0.0, w - 1.0, 0.0, w - 1.0, 0.0, w - 1.0, (w - 1) / 2, (w - 1) / 2]),
+                               np.array([0.0, 0.0, h - 1.0, h - 1.0, (h - 1) / 2, (h - 1) / 2, 0.0, h - 1.0]))
+    front = p[:, 2] > 1e-6
+    xn = np.where(front, p[:, 0] / np.where(front, p[:, 2], 1.0), np.inf)
+    yn = np.where(front, p[:, 1] / np.where(front, p[:, 2], 1.0), np.inf)
+    within = (xn >= cx.min()) & (xn <= cx.max()) & (yn >= cy.min()) & (yn <= cy.max())
+    q = project_camera(camera, np.where(front[:, None], p, 1.0))
+    inside = within & (q[:, 0] >= margin) & (q[:, 1] >= margin) & (q[:, 0] <= w - 1 - margin) & (q[:, 1] <= h - 1 - margin)
+    return float(inside.mean())
+
+
 def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[float, float] = (15.0, 40.0),
-                fill: tuple[float, float] = (0.3, 0.55), roll: float = 20.0, margin: float = 0.02) -> list[BoardPose]:
+                fill: tuple[float, float] = (0.3, 0.55), roll: float = 20.0, margin: float = 0.02,
+                cut: float = 0.0) -> list[BoardPose]:
     """``count`` board poses spread over the image of ``camera``, fully determined by ``seed``.
 
     ARGUMENTS
@@ -142,20 +180,23 @@ def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[flo
     fill      (min, max) share of the image width the squares span
     roll      bound of the board's rotation about its normal, degrees (keep < 90: see .corners)
     margin    share of the image width kept free at every edge
+    cut       share of the poses (0..1) that put the board partly outside the frame, past an image
+              corner or edge (for ChArUco boards, whose partial views are usable), with
+              ``CUT_INSIDE`` of its corners inside; 0 (default): every board wholly inside
 
     RETURNED VALUE
     list of :class:`BoardPose`; anchors cycle through the four image corners, the four edges
-    and the centre (shuffled per cycle).
+    and the centre (shuffled per cycle).  A cut pose is anchored at a corner or an edge.
     """
     rng = np.random.default_rng([int(seed), 0x9053])
     w, h = camera.width, camera.height
     bw, bh = board.size_mm
-    centre = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])
     outline = board_outline(board)
     anchors = [(ax, ay) for ax in (-1, 1) for ay in (-1, 1)] + [(0, -1), (0, 1), (-1, 0), (1, 0), (0, 0)]
     order: list[tuple[int, int]] = []
     while len(order) < count:
         order += [anchors[i] for i in rng.permutation(len(anchors))]
+    cut_rng = np.random.default_rng([int(seed), 0xC07])
     poses = []
     for ax, ay in order[:count]:
         f = rng.uniform(*fill)
@@ -163,16 +204,14 @@ def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[flo
         alpha = rng.uniform(0.0, 2.0 * math.pi)
         psi = math.radians(rng.uniform(-roll, roll))
         edge = margin * w * (1.0 + rng.uniform(0.0, 1.5))  # free pixels kept at the image edge
+        if cut > 0 and cut_rng.random() < cut:
+            poses.append(_cut_pose(camera, board, (ax, ay), f, theta, alpha, psi, cut_rng))
+            continue
         lo_ok, hi_ok = np.array([edge, edge]), np.array([w - 1 - edge, h - 1 - edge])
         half = 0.5 * f * np.array([1.0, (bh / bw) * (w / h)])
         target = (0.5 + np.array([ax, ay]) * np.maximum(0.5 - half, 0.0)) * (w, h) - 0.5  # moved inside below
         for _ in range(100):
-            xn, yn = camera.normalized(target[:1], target[1:])
-            ray = np.array([xn[0], yn[0], 1.0])
-            distance = camera.fx * bw / (f * w)
-            rot = (_front_rotation(ray) @ _axis_rotation([0, 0, 1], psi)
-                   @ _axis_rotation([math.cos(alpha), math.sin(alpha), 0.0], theta))
-            pose = BoardPose(rot, distance * ray / np.linalg.norm(ray) - rot @ centre)
+            pose = _place(camera, board, target, f, theta, alpha, psi)
             q = project_camera(camera, pose.to_camera(outline))
             span, room = q.max(0) - q.min(0), hi_ok - lo_ok
             if np.any(pose.to_camera(outline)[:, 2] <= 0) or np.any(span > room):
@@ -188,6 +227,38 @@ def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[flo
                              hint="use a smaller board or a wider lens")
         poses.append(pose)
     return poses
+
+
+def _cut_pose(camera: Camera, board, anchor, f, theta, alpha, psi, rng) -> BoardPose:
+    """A board past the image corner or edge ``anchor`` (the centre anchor becomes a random corner),
+    ``1.2-1.6 f`` of the image wide, with a share of its corners in :data:`CUT_INSIDE` inside."""
+    w, h = camera.width, camera.height
+    if anchor == (0, 0):
+        anchor = (int(rng.choice([-1, 1])), int(rng.choice([-1, 1])))
+    a = np.array(anchor, np.float64)
+    f = f * rng.uniform(1.2, 1.6)
+    centre_px = np.array([w, h]) / 2 - 0.5
+    lo, hi = CUT_INSIDE
+    want = rng.uniform(lo + 0.1, hi - 0.1)
+    t_in, t_out = 0.0, 0.75  # fractions of the way from the image centre to the edge point, and beyond
+    pose = None
+    for _ in range(40):
+        t = 0.5 * (t_in + t_out)
+        target = centre_px + t * a * centre_px
+        pose = _place(camera, board, target, f, theta, alpha, psi)
+        share = inside_share(camera, board, pose)
+        if lo <= share <= hi and abs(share - want) < 0.05:
+            return pose
+        if share > want:
+            t_in = t  # push further out
+            if t_out - t_in < 1e-3:
+                t_out += 0.5
+        else:
+            t_out = t
+    if pose is not None and lo <= inside_share(camera, board, pose) <= hi:
+        return pose
+    raise InputError("cannot place a board partly outside the camera frame", source="board_poses",
+                     hint="use a smaller board or a wider lens")
 
 
 @njit(cache=True, inline="always")
@@ -214,12 +285,43 @@ def _blackness(u, v, cols, rows, soft):
     return total
 
 
+@njit(cache=True, inline="always")
+def _marker_blackness(u, v, ids, bits, share, soft):
+    """Share of black ink of the ArUco markers at square coordinates (u, v): the marker of the white
+    square holding the point (``ids`` (rows + 1, cols + 1), -1 for none), ``share`` of a square wide
+    and centred, its cells ``bits`` (markers, n, n) with edges ramped over ``soft`` squares."""
+    ku = math.floor(u)
+    kv = math.floor(v)
+    if ku < 0 or kv < 0 or kv >= ids.shape[0] or ku >= ids.shape[1]:
+        return 0.0
+    k = ids[kv, ku]
+    if k < 0:
+        return 0.0
+    n = bits.shape[1]
+    cell = share / n
+    x = (u - ku - 0.5 * (1.0 - share)) / cell  # in cells from the marker's top-left corner
+    y = (v - kv - 0.5 * (1.0 - share)) / cell
+    c0 = math.floor(x + 0.5) - 1
+    r0 = math.floor(y + 0.5) - 1
+    total = 0.0
+    for c in range(c0, c0 + 2):
+        if c < 0 or c >= n:
+            continue
+        bu = _ramp((x - c) * cell, soft) * _ramp((c + 1 - x) * cell, soft)
+        for r in range(r0, r0 + 2):
+            if r < 0 or r >= n or bits[k, r, c] == 0:
+                continue
+            total += bu * _ramp((y - r) * cell, soft) * _ramp((r + 1 - y) * cell, soft)
+    return total
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def _print_kernel(gx, gy, step, n, rot, t, square, cols, rows, border, soft, refl, grad, out):
+def _print_kernel(gx, gy, step, n, rot, t, square, cols, rows, border, soft, refl, grad, ids, bits, share, out):
     """Reflectance seen by every sensor pixel (mean of n x n rays) into ``out`` (h, w) float32.
 
     ``refl`` = (black, white, background); ``grad`` = (gx, gy) relative light change per mm along
-    the board's x and y about its centre.
+    the board's x and y about its centre; ``ids``, ``bits``, ``share``: the ChArUco markers
+    (:func:`_marker_blackness`; ids all -1 for a chessboard).
     """
     h, w = out.shape
     nx, ny, nz = rot[0, 2], rot[1, 2], rot[2, 2]
@@ -254,9 +356,19 @@ def _print_kernel(gx, gy, step, n, rot, t, square, cols, rows, border, soft, ref
                         acc += refl[2]
                         continue
                     light = 1.0 + grad[0] * (bx - cxb) + grad[1] * (by - cyb)
-                    acc += (refl[1] - (refl[1] - refl[0]) * _blackness(bx / square + 1.0, by / square + 1.0,
-                                                                      cols, rows, soft)) * light
+                    u, v = bx / square + 1.0, by / square + 1.0
+                    black = _blackness(u, v, cols, rows, soft) + _marker_blackness(u, v, ids, bits, share, soft)
+                    acc += (refl[1] - (refl[1] - refl[0]) * min(black, 1.0)) * light
             out[i, j] = acc / (n * n)
+
+
+def _markers(board) -> tuple[np.ndarray, np.ndarray, float]:
+    """(ids int64 (rows + 1, cols + 1), bits uint8 (markers, n, n), marker share of a square) for the
+    print kernel: a ChArUco board's markers, or none (ids -1) for a chessboard."""
+    if getattr(board, "charuco", False):
+        return (np.ascontiguousarray(board.marker_ids()), np.ascontiguousarray(board.marker_bits().astype(np.uint8)),
+                float(board.marker_mm) / float(board.square_mm))
+    return np.full((board.rows + 1, board.cols + 1), -1, np.int64), np.zeros((1, 1, 1), np.uint8), 0.5
 
 
 def print_board_radiance(camera: Camera, board, pose: BoardPose, rng: np.random.Generator) -> np.ndarray:
@@ -277,7 +389,7 @@ def print_board_radiance(camera: Camera, board, pose: BoardPose, rng: np.random.
                   np.ascontiguousarray(pose.translation, np.float64), float(board.square_mm), int(board.cols),
                   int(board.rows), PAPER_BORDER, EDGE_SOFTNESS,
                   np.array([REFLECTANCE["black"], REFLECTANCE["white"], REFLECTANCE["background"]]),
-                  np.array([slope * math.cos(angle), slope * math.sin(angle)]), out)
+                  np.array([slope * math.cos(angle), slope * math.sin(angle)]), *_markers(board), out)
     return np.repeat(out[:, :, None], 3, axis=2)
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..calib.captures import MIN_PHOTO_PIXELS
-from ..calib.intrinsics.board import read_board
+from ..calib.intrinsics.board import PATTERNS, read_board
 from ..calib.intrinsics.report import REPORT_FILES
 from ..core.documents import read_json_file
 from ..core.errors import InputError
@@ -283,12 +283,12 @@ CAMERA_SET_EXTRA = ("report", "camera.cameramodel")  # what the suggested next s
 def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", seed: int | None = None,
                         photos: int = 24, resolution: tuple[int, int] = BOARD_RESOLUTION,
                         conditions: str = "standard", subsamples: int = BOARD_SUBSAMPLES,
-                        progress: Callable[..., None] | None = None) -> SimulationRun:
+                        progress: Callable[..., None] | None = None, pattern: str = "chessboard") -> SimulationRun:
     """A synthetic camera-calibration set in ``directory`` (new, or one this function wrote before;
     staged, whole or not at all): ``photos`` photos of a ``kind`` ('panel' or 'print') board by a
     known camera of ``resolution`` (:data:`~lenticalib.core.sizes.MIN_CAMERA_SIDE`..:data:`~lenticalib.core.sizes.MAX_SIDE` pixels per side), ``DIR/truth.cameramodel`` and the
-    board poses in ``DIR/simulation.json`` (:func:`~.board_set.simulate_board_set`).  ``progress``
-    once per photo.  InputError naming the argument before any photo."""
+    board poses in ``DIR/simulation.json`` (:func:`~.board_set.simulate_board_set`); ``pattern``
+    "chessboard" or "charuco" (then some boards run off the frame).  ``progress`` once per photo.  InputError naming the argument before any photo."""
     from .board_set import CAPTURE_FOLDER, CONTENTS, simulate_board_set
 
     check_sides(*resolution, "resolution", MIN_CAMERA_SIDE)
@@ -296,6 +296,8 @@ def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", se
     if not 1 <= subsamples <= 8:
         raise InputError(f"{subsamples} subsamples is out of range", source="subsamples", hint="use 1..8")
     check_seed(seed)
+    if pattern not in PATTERNS:
+        raise InputError(f"unknown board pattern {pattern!r}", source="pattern", hint="use " + " or ".join(PATTERNS))
     contents = (CONTENTS + CAMERA_SET_EXTRA + (f"{CAPTURE_FOLDER}/board-[0-9][0-9]*.jpg",)
                 + tuple(f"report/{name}" for name in REPORT_FILES))
     check_output_folder(directory, "camera simulation", contents)
@@ -303,6 +305,6 @@ def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", se
     start = time.perf_counter()
     with staged_folder(directory, "camera simulation", contents) as stage:
         doc = simulate_board_set(stage, kind=kind, seed=seed, photos=photos, resolution=tuple(resolution),
-                                 conditions=conditions, subsamples=subsamples, progress=progress)
+                                 conditions=conditions, subsamples=subsamples, progress=progress, pattern=pattern)
     seconds = round(time.perf_counter() - start, 2)
     return SimulationRun("board", Path(directory), doc, None, seed, tuple(resolution), photos, seconds)

@@ -21,6 +21,18 @@ Two kinds:
     print   printed on paper (PDF and 300 dpi PNG, landscape), with the square size printed on it
             and a 100 mm scale bar to check that the printer did not scale it.
 
+Two patterns (``pattern``):
+
+    chessboard  plain squares; the whole board must be in a photo (OpenCV's chessboard detector).
+    charuco     a ChArUco board (OpenCV's aruco module): the same squares with an ArUco marker of
+                ``dictionary`` in every white square, ``marker_mm`` wide and centred, the markers
+                numbered row by row over the white squares as OpenCV's ``CharucoBoard`` (4.6 and
+                later) numbers them, square (0, 0) black.  Every inner corner is identified by the
+                markers around it, so a photo that shows only part of the board is still a valid
+                observation: let the board run off the image edges and corners.  On the panel the
+                marker cells are whole panel pixels and the square side is even, so the markers
+                are exactly centred; their edges get the same soft ramps as the squares'.
+
 Board frame (mm): origin at inner corner (0, 0), x along a row of corners, y down a column,
 z into the board; corner (i, j) at ``(j s, i s, 0)`` (:meth:`Board.object_points`, mrcal's
 ``ref_calibration_object`` layout).
@@ -28,7 +40,9 @@ z into the board; corner (i, j) at ``(j s, i s, 0)`` (:meth:`Board.object_points
 Manifest ``board.json``: ``{"format": "lenticalib.camera-board", "format_version": 1, "kind", "cols", "rows",
 "square_mm", ...}`` plus, for a panel board, ``panel`` (width, height, pixel_pitch_mm), ``square_px``,
 ``origin_px`` (panel pixel coordinates of inner corner (0, 0), pixel edges at whole numbers) and
-``edge_px``; for a printed one ``paper`` (name, width_mm, height_mm) and ``origin_mm`` on the sheet.
+``edge_px``; for a printed one ``paper`` (name, width_mm, height_mm) and ``origin_mm`` on the sheet.  A ChArUco board adds ``pattern`` ("charuco"), ``dictionary`` (an
+OpenCV name, e.g. "DICT_4X4_100"), ``squares`` ([cols + 1, rows + 1]), ``marker_mm`` and, on the
+panel, ``marker_px``; a manifest without ``pattern`` is a chessboard.
 Drawing the boards: :mod:`.draw`.
 """
 
@@ -62,6 +76,10 @@ MIN_CORNERS = 3  # inner corners per side, at least
 MAX_CORNERS = 200  # inner corners per side, at most
 PAGE_MARGIN = 12.0  # mm
 PAGE_FOOTER = 30.0  # mm below the board for the text and the scale bar
+PATTERNS = ("chessboard", "charuco")
+MARKER_SHARE = 0.6  # ChArUco marker side / square side (0.2 of a square of clean chessboard around a corner)
+DICTIONARY_RE = r"DICT_([4-7])X\1_(50|100|250|1000)"
+DICTIONARY_EXAMPLE = "DICT_4X4_100"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,6 +101,10 @@ class Board:
     paper: Mapping[str, Any] | None = None
     origin_mm: tuple[float, float] | None = None
     edge_px: int | None = None
+    pattern: str = "chessboard"
+    dictionary: str | None = None
+    marker_mm: float | None = None
+    marker_px: int | None = None
 
     def __post_init__(self):
         if not (isinstance(self.cols, int) and isinstance(self.rows, int)
@@ -93,12 +115,54 @@ class Board:
             raise InputError(f"square size must be a number > 0 mm, got {self.square_mm!r}", source="board")
         if self.kind not in KINDS:
             raise InputError(f"board kind must be one of {', '.join(KINDS)}, got {self.kind!r}", source="board")
+        if self.pattern not in PATTERNS:
+            raise InputError(f"board pattern must be one of {', '.join(PATTERNS)}, got {self.pattern!r}",
+                             source="pattern")
+        if self.pattern == "charuco":
+            check_dictionary(self.dictionary, self.markers)
+            if not (isinstance(self.marker_mm, (int, float)) and math.isfinite(self.marker_mm)
+                    and 0 < self.marker_mm < self.square_mm):
+                raise InputError(f"the marker size must be a number of mm between 0 and the square size "
+                                 f"({self.square_mm:g} mm), got {self.marker_mm!r}", source="marker_mm",
+                                 hint="give the side of the black ArUco markers in mm (without their white margin)")
 
+    @property
+    def charuco(self) -> bool:
+        """Whether this is a ChArUco board (corners identified by markers; partial views allowed)."""
+        return self.pattern == "charuco"
+
+    @property
+    def squares(self) -> tuple[int, int]:
+        """(columns, rows) of squares: one more than the inner corners each way."""
+        return self.cols + 1, self.rows + 1
+
+    @property
+    def markers(self) -> int:
+        """Number of ArUco markers a ChArUco board of these squares holds (one per white square)."""
+        return (self.squares[0] * self.squares[1]) // 2
+
+    def marker_ids(self) -> np.ndarray:
+        """int ``(rows + 1, cols + 1)``: the ArUco id in each square, -1 in the black squares (square
+        (i, j) is black when i + j is even); ids run row by row, as OpenCV's CharucoBoard has them."""
+        ii, jj = np.meshgrid(np.arange(self.rows + 1), np.arange(self.cols + 1), indexing="ij")
+        white = (ii + jj) % 2 == 1
+        ids = np.full(white.shape, -1, np.int64)
+        ids[white] = np.arange(int(white.sum()))
+        return ids
+
+    def marker_bits(self) -> np.ndarray:
+        """bool ``(markers, n, n)``: True where marker k is black, its black border included (n = the
+        dictionary's bits + 2), rows down the marker as drawn."""
+        import cv2
+
+        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        n = d.markerSize + 2
+        return np.stack([cv2.aruco.generateImageMarker(d, k, n, borderBits=1) < 128 for k in range(self.markers)])
     @property
     def symmetric(self) -> bool:
         """True when a half turn maps the pattern onto itself (cols + rows even): the photos then
         cannot tell corner (0, 0) from the opposite one by colour."""
-        return (self.cols + self.rows) % 2 == 0
+        return (self.cols + self.rows) % 2 == 0 and not self.charuco
 
     @property
     def size_mm(self) -> tuple[float, float]:
@@ -112,6 +176,9 @@ class Board:
 
     def describe(self) -> str:
         """One line: ``"15x8 inner corners, 34.448 mm squares (panel board)"``."""
+        if self.charuco:
+            return (f"ChArUco {self.cols + 1}x{self.rows + 1} squares ({self.cols}x{self.rows} inner corners), "
+                    f"{self.square_mm:g} mm squares, {self.marker_mm:g} mm {self.dictionary} markers ({self.kind} board)")
         return f"{self.cols}x{self.rows} inner corners, {self.square_mm:g} mm squares ({self.kind} board)"
 
     def to_dict(self) -> dict[str, Any]:
@@ -122,6 +189,11 @@ class Board:
                                         "column, z into the board; mm" + (
                                             "; the corners lie in the panel's pixel plane"
                                             if self.kind == "panel" else "")}
+        if self.charuco:
+            out.update(pattern=self.pattern, dictionary=self.dictionary, squares=list(self.squares),
+                       marker_mm=float(self.marker_mm))
+            if self.marker_px is not None:
+                out["marker_px"] = int(self.marker_px)
         if self.panel is not None:
             out["panel"] = dict(self.panel)
             out["square_px"] = self.square_px
@@ -147,7 +219,9 @@ class Board:
                         origin_px=tuple(data["origin_px"]) if data.get("origin_px") is not None else None,
                         paper=dict(data["paper"]) if isinstance(data.get("paper"), Mapping) else None,
                         origin_mm=tuple(data["origin_mm"]) if data.get("origin_mm") is not None else None,
-                edge_px=data.get("edge_px"))
+                        edge_px=data.get("edge_px"), pattern=data.get("pattern", "chessboard"),
+                        dictionary=data.get("dictionary"), marker_mm=data.get("marker_mm"),
+                        marker_px=data.get("marker_px"))
         except KeyError as exc:
             raise InputError(f"board manifest lacks the field {exc.args[0]!r}", source=source) from None
         except InputError as exc:
@@ -163,6 +237,36 @@ def parse_squares(text: str, source: str = "squares") -> tuple[int, int]:
                       example="15x8")
 
 
+def check_dictionary(name, markers: int) -> str:
+    """``name`` if it is an OpenCV ArUco dictionary (DICT_4X4_50 ... DICT_7X7_1000) that holds
+    ``markers`` markers; InputError naming ``dictionary`` otherwise."""
+    import re
+
+    if not (isinstance(name, str) and re.fullmatch(DICTIONARY_RE, name)):
+        raise InputError(f"unknown ArUco dictionary {name!r}", source="dictionary",
+                         hint=f"use an OpenCV name DICT_<n>X<n>_<size>, n 4..7, size 50/100/250/1000 "
+                              f"(e.g. {DICTIONARY_EXAMPLE})")
+    if int(name.rsplit("_", 1)[1]) < markers:
+        raise InputError(f"{name} holds {name.rsplit('_', 1)[1]} markers, the board needs {markers}",
+                         source="dictionary", hint="use a larger dictionary (e.g. DICT_4X4_250) or fewer squares")
+    return name
+
+
+def default_dictionary(markers: int) -> str:
+    """The smallest 4x4 OpenCV dictionary with at least ``markers`` markers (4x4 bits are the
+    largest cells, the easiest to read in a small or blurred photo)."""
+    for size in (50, 100, 250, 1000):
+        if size >= markers:
+            return f"DICT_4X4_{size}"
+    raise InputError(f"a board of {markers} markers is larger than any ArUco dictionary", source="squares",
+                     hint="use fewer squares")
+
+
+def _marker_bits_count(dictionary: str) -> int:
+    """Cells across a marker of ``dictionary``, its black border included."""
+    return int(dictionary[5]) + 2
+
+
 def _refuse_symmetric(cols: int, rows: int, source: str) -> None:
     if (cols + rows) % 2 == 0:
         raise InputError(f"a {cols}x{rows} board looks the same after a half turn, so photos cannot tell "
@@ -171,7 +275,8 @@ def _refuse_symmetric(cols: int, rows: int, source: str) -> None:
 
 
 def panel_board(width: int, height: int, pixel_pitch_mm: float,
-                squares: tuple[int, int] | None = None, lens_pitch_px: float | None = None) -> Board:
+                squares: tuple[int, int] | None = None, lens_pitch_px: float | None = None,
+                pattern: str = "chessboard", dictionary: str | None = None) -> Board:
     """The board for a ``width x height`` panel of pixel pitch ``pixel_pitch_mm``.
 
     ``squares``: inner corners (cols, rows); default 9 squares along the shorter side and as
@@ -182,7 +287,16 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
     Edge ramps (``edge_px``, see :func:`.draw.panel_raster`): a twelfth of a square, at least
     ``MIN_EDGE_PX``, and at least two lens pitches when ``lens_pitch_px`` (the horizontal lens pitch
     in panel pixels, a profile's period / 3) is known.
+
+    ``pattern`` "charuco": the squares' side is made even and every white square holds a marker
+    of ``dictionary`` (default: :func:`default_dictionary`) about ``MARKER_SHARE`` of a square wide,
+    made of whole-pixel cells and exactly centred; the edge ramps are at most half a cell wide
+    (at least ``MIN_EDGE_PX``) so the markers stay readable.  Symmetric counts are allowed (the
+    markers tell the corners apart).
     """
+    if pattern not in PATTERNS:
+        raise InputError(f"unknown board pattern {pattern!r}", source="pattern", hint="use " + " or ".join(PATTERNS))
+    charuco = pattern == "charuco"
     if not (isinstance(pixel_pitch_mm, (int, float)) and math.isfinite(pixel_pitch_mm) and pixel_pitch_mm > 0):
         raise InputError(f"pixel pitch must be a number > 0 mm, got {pixel_pitch_mm!r}", source="pixel_pitch_mm")
     if squares is None:
@@ -192,9 +306,12 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
             n_long += 1 if abs(n_long + 1 - 9 * long_ / short) < abs(n_long - 1 - 9 * long_ / short) else -1
         cols_sq, rows_sq = (n_long, 9) if width >= height else (9, n_long)
     else:
-        _refuse_symmetric(*squares, "squares")
+        if not charuco:
+            _refuse_symmetric(*squares, "squares")
         cols_sq, rows_sq = squares[0] + 1, squares[1] + 1
     square_px = int(math.floor(PANEL_FILL * min(width / cols_sq, height / rows_sq)))
+    if charuco:
+        square_px -= square_px % 2
     if square_px < MIN_SQUARE_PX:
         raise InputError(f"{cols_sq - 1}x{rows_sq - 1} inner corners leave squares of {square_px} panel pixels "
                          f"on a {width}x{height} panel", source="squares",
@@ -206,17 +323,36 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
         edge = max(edge, math.ceil(2 * lens_pitch_px))
     edge = min(edge, square_px // 3)
     square_mm = round(square_px * float(pixel_pitch_mm), 10)
+    extra: dict[str, Any] = {}
+    if charuco:
+        dictionary = check_dictionary(dictionary or default_dictionary((cols_sq * rows_sq) // 2),
+                                      (cols_sq * rows_sq) // 2)
+        n = _marker_bits_count(dictionary)
+        cell = int(MARKER_SHARE * square_px / n)
+        if n % 2 and cell % 2:
+            cell -= 1  # an odd marker in an even square would sit half a pixel off centre
+        if cell < 2:
+            raise InputError(f"{cols_sq}x{rows_sq} squares of {square_px} panel pixels leave no room for "
+                             f"{dictionary} markers", source="squares",
+                             hint=f"use fewer squares (a marker needs at least {2 * n} pixels)")
+        edge = max(MIN_EDGE_PX, min(edge, cell // 2))
+        extra = dict(pattern="charuco", dictionary=dictionary, marker_px=cell * n,
+                     marker_mm=round(cell * n * float(pixel_pitch_mm), 10))
     return Board(cols=cols_sq - 1, rows=rows_sq - 1, square_mm=square_mm, kind="panel",
                  panel={"width": int(width), "height": int(height), "pixel_pitch_mm": float(pixel_pitch_mm)},
-                 square_px=square_px, origin_px=(ox + square_px, oy + square_px), edge_px=int(edge))
+                 square_px=square_px, origin_px=(ox + square_px, oy + square_px), edge_px=int(edge), **extra)
 
 
-def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, int] | None = None) -> Board:
+def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, int] | None = None,
+                pattern: str = "chessboard", dictionary: str | None = None) -> Board:
     """The printable board: squares of ``square_mm`` on a landscape ``paper`` sheet (A4 or letter).
 
     ``squares``: inner corners (cols, rows); default as many as fit within the margins and above
-    the footer, one count odd and one even.
+    the footer, one count odd and one even.  ``pattern`` "charuco": markers of ``dictionary``
+    (default :func:`default_dictionary`), ``MARKER_SHARE`` of a square wide.
     """
+    if pattern not in PATTERNS:
+        raise InputError(f"unknown board pattern {pattern!r}", source="pattern", hint="use " + " or ".join(PATTERNS))
     if paper not in PAPERS:
         raise InputError(f"unknown paper {paper!r}", source="paper", hint="use " + " or ".join(PAPERS))
     if not (math.isfinite(square_mm) and 3.0 <= square_mm <= 200.0):
@@ -233,7 +369,8 @@ def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, 
             else:
                 rows_sq -= 1
     else:
-        _refuse_symmetric(*squares, "squares")
+        if pattern != "charuco":
+            _refuse_symmetric(*squares, "squares")
         cols_sq, rows_sq = squares[0] + 1, squares[1] + 1
     if cols_sq > fit_c or rows_sq > fit_r or min(cols_sq, rows_sq) < MIN_CORNERS + 1:
         raise InputError(f"{square_mm:g} mm squares do not make a board of at least {MIN_CORNERS}x{MIN_CORNERS} inner "
@@ -242,9 +379,14 @@ def print_board(square_mm: float = 20.0, paper: str = "A4", squares: tuple[int, 
     bw, bh = cols_sq * square_mm, rows_sq * square_mm
     x0 = (pw - bw) / 2
     y0 = PAGE_MARGIN + (ph - 2 * PAGE_MARGIN - PAGE_FOOTER - bh) / 2
+    extra: dict[str, Any] = {}
+    if pattern == "charuco":
+        markers = (cols_sq * rows_sq) // 2
+        extra = dict(pattern="charuco", dictionary=check_dictionary(dictionary or default_dictionary(markers), markers),
+                     marker_mm=round(MARKER_SHARE * float(square_mm), 6))
     return Board(cols=cols_sq - 1, rows=rows_sq - 1, square_mm=float(square_mm), kind="print",
                  paper={"name": paper, "width_mm": pw, "height_mm": ph},
-                 origin_mm=(round(x0 + square_mm, 6), round(y0 + square_mm, 6)))
+                 origin_mm=(round(x0 + square_mm, 6), round(y0 + square_mm, 6)), **extra)
 
 
 def write_manifest(board: Board, folder: str | os.PathLike) -> Path:

@@ -1,4 +1,5 @@
-"""Chessboard corners in photos: OpenCV's ``findChessboardCornersSB``, labelled the same way in every photo.
+"""Board corners in photos: chessboards with OpenCV's ``findChessboardCornersSB`` (labelled the same
+way in every photo), ChArUco boards with OpenCV's aruco module (every corner identified).
 
 Detection runs on an 8-bit grey image (:func:`grey8`: camera JPEGs as they are, 16-bit linear
 PNGs from a raw converter scaled to their 99.5th percentile and given an sRGB-like curve) with
@@ -22,6 +23,14 @@ counts odd or both even) cannot be told apart after a half turn; then the labell
 row runs most nearly left to right in the image is kept (so such boards must not be photographed
 rolled by more than 90 degrees).
 
+ChArUco boards (:func:`find_charuco_corners`): ``cv2.aruco.CharucoDetector`` with the board's
+dictionary and geometry finds the markers (refining their edges to find more), and every inner
+corner next to at least two found markers is located and refined to sub-pixel by OpenCV.  Each
+such corner carries its id, hence its row and column: the corners are returned in the same
+``(rows, cols, 2)`` array with NaN where a corner was not identified (outside the photo, hidden,
+or too blurred), so a board cut by the frame is still a labelled observation.  A photo needs at
+least ``MIN_CHARUCO_CORNERS`` identified corners, on two rows and two columns at least.
+
 Photos are processed in a process pool of ``jobs`` workers (:func:`detect_photos`).
 """
 
@@ -40,6 +49,8 @@ from ...core.imageio import read_image
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
 SUBPIX_LIMITS = (2, 25)  # pixels
+CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
+MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
 
 
 @dataclasses.dataclass
@@ -132,10 +143,82 @@ def find_corners(grey: np.ndarray, cols: int, rows: int, symmetric: bool = False
     return np.ascontiguousarray(orient(corners, grey, symmetric))
 
 
-def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False) -> PhotoCorners:
-    """Read one photo (EXIF orientation applied) and find the board in it (a worker's task)."""
+def charuco_detector(board):
+    """A ``cv2.aruco.CharucoDetector`` of the ChArUco ``board`` (:class:`~.board.Board`): its squares,
+    square and marker size (mm) and dictionary; markers refined to find more of them."""
+    import cv2
+
+    aruco = cv2.aruco
+    dictionary = aruco.getPredefinedDictionary(getattr(aruco, board.dictionary))
+    cboard = aruco.CharucoBoard((board.cols + 1, board.rows + 1), float(board.square_mm), float(board.marker_mm),
+                                dictionary)
+    charuco = aruco.CharucoParameters()
+    charuco.tryRefineMarkers = True
+    return aruco.CharucoDetector(cboard, charuco, aruco.DetectorParameters(), aruco.RefineParameters())
+
+
+def find_charuco_corners(grey: np.ndarray, board) -> np.ndarray:
+    """The identified inner corners of a ChArUco ``board`` in a uint8 grey image: float64
+    ``(rows, cols, 2)`` pixels, NaN where a corner was not identified (all NaN when none was).
+    OpenCV's corner id k is row ``k // cols``, column ``k % cols``."""
+    corners = np.full((board.rows, board.cols, 2), np.nan)
+    found, ids, _, _ = charuco_detector(board).detectBoard(np.ascontiguousarray(grey))
+    if ids is None or found is None or len(ids) == 0:
+        return corners
+    ids = np.asarray(ids, np.int64).ravel()
+    q = np.asarray(found, np.float64).reshape(-1, 2)
+    h, w = grey.shape
+    keep = (ids >= 0) & (ids < board.rows * board.cols) & np.all(np.isfinite(q), axis=1)
+    keep &= (q[:, 0] >= 0) & (q[:, 1] >= 0) & (q[:, 0] <= w - 1) & (q[:, 1] <= h - 1)
+    corners[ids[keep] // board.cols, ids[keep] % board.cols] = q[keep]
+    return _refine_charuco(grey, corners, board)
+
+
+def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
+    """``cv2.cornerSubPix`` once more on the identified corners, in a half-window of
+    ``CHARUCO_WINDOW`` times the shortest side between identified neighbours in the photo: as large as
+    the clean chessboard around every corner allows (the markers start ``(1 - share) / 2`` of a square
+    away), OpenCV's own window is smaller."""
+    import cv2
+
+    if CHARUCO_WINDOW <= 0:
+        return corners
+    sides = [np.linalg.norm(np.diff(corners, axis=a), axis=-1) for a in (0, 1)]
+    sides = np.concatenate([d[np.isfinite(d)] for d in sides])
+    seen = np.isfinite(corners[..., 0])
+    if not sides.size:
+        return corners
+    share = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
+    win = int(np.clip(CHARUCO_WINDOW * share * float(np.min(sides)), *SUBPIX_LIMITS))
+    refined = cv2.cornerSubPix(grey, corners[seen].reshape(-1, 1, 2).astype(np.float32), (win, win), (-1, -1),
+                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
+    out = corners.copy()
+    out[seen] = refined.reshape(-1, 2)
+    return out
+
+
+def charuco_shortfall(corners: np.ndarray) -> str | None:
+    """Why the identified corners (``(rows, cols, 2)``, NaN = missing) of one photo are too few to
+    use, or None when they are enough (:data:`MIN_CHARUCO_CORNERS`, on two rows and two columns)."""
+    seen = np.isfinite(corners[..., 0])
+    n = int(seen.sum())
+    if n < MIN_CHARUCO_CORNERS:
+        return (f"only {n} of {seen.size} ChArUco corners identified, at least {MIN_CHARUCO_CORNERS} are needed "
+                "(show more of the board, sharper)")
+    if np.count_nonzero(seen.any(axis=1)) < 2 or np.count_nonzero(seen.any(axis=0)) < 2:
+        return f"the {n} ChArUco corners identified lie on one line (show more of the board)"
+    return None
+
+
+def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False, board=None) -> PhotoCorners:
+    """Read one photo (EXIF orientation applied) and find the board in it (a worker's task).
+    ``board``: a ChArUco :class:`~.board.Board` (then ``cols``, ``rows``, ``symmetric`` are its own)."""
     image = read_image(path, camera_orientation=True)
     size = (int(image.shape[1]), int(image.shape[0]))
+    if board is not None and board.charuco:
+        corners = find_charuco_corners(grey8(image), board)
+        why = charuco_shortfall(corners)
+        return PhotoCorners(str(path), size, None if why else corners, why)
     corners = find_corners(grey8(image), cols, rows, symmetric)
     if corners is None:
         return PhotoCorners(str(path), size, None, "board not found (all of it must be in the photo, sharp)")
@@ -145,6 +228,7 @@ def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False) -> Ph
 def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
                   progress: Callable[[], None] | None = None) -> list[PhotoCorners]:
     """Find ``board`` in every photo of ``paths`` (in that order) with ``jobs`` worker threads.
+    A ChArUco board's corners come with NaN for the corners not identified (:func:`find_charuco_corners`).
 
     ``progress`` is called once per finished photo.  An unreadable photo raises the
     :class:`~lenticalib.core.errors.ImageError` of :func:`lenticalib.core.imageio.read_image`.  Threads, not
@@ -152,7 +236,7 @@ def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
     threads need no ``__main__`` guard in a caller's script.
     """
     paths = [str(Path(p)) for p in paths]
-    args = (board.cols, board.rows, board.symmetric)
+    args = (board.cols, board.rows, board.symmetric, board if getattr(board, "charuco", False) else None)
     if jobs <= 1 or len(paths) <= 1:
         results = []
         for p in paths:

@@ -33,7 +33,8 @@ def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], le
     """The scale ``k`` (module docstring) and how it was found.
 
     ARGUMENTS
-    corners      float64 ``(Nframes, rows, cols, 2)`` pixels, the photos the full solve used
+    corners      float64 ``(Nframes, rows, cols, 2)`` pixels, the photos the full solve used (NaN:
+                 a ChArUco corner not identified)
     board        the board; imagersize (width, height) pixels; lensmodel the chosen model
 
     RETURNED VALUE
@@ -71,7 +72,8 @@ def _observed_region(corners: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Grid points ``q`` (n, 2) inside the convex hull of every observed corner."""
     import cv2
 
-    points = corners.reshape(-1, 2).astype(np.float32)
+    points = corners.reshape(-1, 2)
+    points = points[np.all(np.isfinite(points), axis=1)].astype(np.float32)  # ChArUco: identified corners only
     hull = cv2.convexHull(points)
     return np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), False) >= 0 for x, y in q])
 

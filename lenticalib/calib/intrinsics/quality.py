@@ -32,21 +32,22 @@ def residual_stats(solve: Solve, photos: list[str] | None = None) -> dict:
 
     Keys: ``rms_px`` (per coordinate, as mrcal reports it), ``worst_px`` (largest inlier
     residual length), ``noise_px`` (the observed pixel noise: standard deviation of the inlier
-    residual coordinates, what mrcal propagates), ``corners`` (observed), ``outliers``,
+    residual coordinates, what mrcal propagates), ``corners`` (observed: a ChArUco corner not
+    identified in a photo is not counted), ``outliers`` (observed corners the solve rejected),
     ``per_frame`` (list of {photo, rms_px, outliers}).
     """
-    r, inlier = solve.residuals, solve.inlier
+    r, inlier, observed = solve.residuals, solve.inlier, solve.observed
     lengths = np.linalg.norm(r, axis=-1)
     per_frame = []
     for k in range(r.shape[0]):
         rk = r[k][inlier[k]]
         per_frame.append({"photo": photos[k] if photos else k,
                           "rms_px": round(float(np.sqrt(np.mean(rk * rk))), 4) if rk.size else None,
-                          "outliers": int((~inlier[k]).sum())})
+                          "outliers": int((observed[k] & ~inlier[k]).sum())})
     kept = r[inlier]
     return {"rms_px": round(solve.rms, 5), "worst_px": round(float(lengths[inlier].max()), 4),
-            "noise_px": round(float(np.std(kept)), 5), "corners": int(inlier.size),
-            "outliers": int((~inlier).sum()), "per_frame": per_frame}
+            "noise_px": round(float(np.std(kept)), 5), "corners": int(observed.sum()),
+            "outliers": int((observed & ~inlier).sum()), "per_frame": per_frame}
 
 
 def board_centres(optimization_inputs: dict) -> np.ndarray:

@@ -172,8 +172,9 @@ def _residuals_figure(fig, subject) -> None:
     top = max(float(np.percentile(lengths[s.inlier], 99.5)) * 1.5, 1e-6)
     bins = np.linspace(0.0, top, 40)
     ax.hist(np.clip(lengths[s.inlier], 0, top), bins=bins, color="tab:blue", label="corners kept")
-    if (~s.inlier).any():
-        ax.hist(np.clip(lengths[~s.inlier], 0, top), bins=bins, color="tab:red", label="outliers (clipped at right)")
+    rejected = s.observed & ~s.inlier
+    if rejected.any():
+        ax.hist(np.clip(lengths[rejected], 0, top), bins=bins, color="tab:red", label="outliers (clipped at right)")
     rms = qual["residuals"]["rms_px"]
     ax.axvline(rms * math.sqrt(2), color="black", ls="--", label=f"RMS length {rms * math.sqrt(2):.3f} px")
     ax.set_xlabel("residual length (px)")
@@ -206,8 +207,9 @@ def _coverage_figure(fig, subject) -> None:
     frame = np.broadcast_to(np.arange(n)[:, None, None], obs.shape[:3])
     sc = ax.scatter(obs[..., 0][s.inlier], obs[..., 1][s.inlier], c=frame[s.inlier] + 1, s=6, cmap="turbo",
                     vmin=0.5, vmax=n + 0.5, label="corners kept")
-    if (~s.inlier).any():
-        ax.plot(obs[..., 0][~s.inlier], obs[..., 1][~s.inlier], "x", color="black", ms=6, label="outliers")
+    rejected = s.observed & ~s.inlier
+    if rejected.any():
+        ax.plot(obs[..., 0][rejected], obs[..., 1][rejected], "x", color="black", ms=6, label="outliers")
     _outline(ax, w, h)
     ax.legend(loc="lower right", framealpha=0.85)
     ax.set_title(f"Observed corners of {n} photos over the {w}x{h} image: {100 * qual['coverage']:.0f}% of an 8x6 "
@@ -231,7 +233,7 @@ def _uncertainty_figure(fig, subject) -> None:
         if levels:
             cs = ax.contour(grid[0, :, 0], grid[:, 0, 1], stdev, levels=levels, colors="white", linewidths=1.0)
             ax.clabel(cs, fmt="%g px", fontsize=10)
-        ax.plot(obs[..., 0].ravel(), obs[..., 1].ravel(), ".", color="cyan", ms=1.5, alpha=0.6,
+        ax.plot(obs[..., 0][cal.solve.observed], obs[..., 1][cal.solve.observed], ".", color="cyan", ms=1.5, alpha=0.6,
                 label="observed corners")
         _outline(ax, w, h, color="grey")
         ax.legend(loc="lower right", framealpha=0.85)

@@ -2,8 +2,9 @@
 
 Procedure (after mrcal's own ``mrcal-calibrate-cameras``):
 
-1. observations ``(Nframes, rows, cols, 3)``: (x, y, weight 1); the camera is the reference
-   (extrinsics index -1), so every frame pose is ``rt_cam_board``.
+1. observations ``(Nframes, rows, cols, 3)``: (x, y, weight 1); a corner not identified in a
+   photo (NaN, from a ChArUco board cut by the frame) is (-1, -1, -1), which mrcal ignores; the
+   camera is the reference (extrinsics index -1), so every frame pose is ``rt_cam_board``.
 2. a focal-length estimate from the board homographies (``cv2.initCameraMatrix2D``), then
    ``mrcal.seed_stereographic``; pre-solves with ``LENSMODEL_STEREOGRAPHIC``: the geometry only, then
    the geometry and the core (fx, fy, cx, cy).
@@ -114,6 +115,13 @@ class Solve:
     seconds: float
 
     @property
+    def observed(self) -> np.ndarray:
+        """bool ``(Nframes, rows, cols)``: the corners seen in the photos (not the (-1, -1) of a
+        ChArUco corner that was not identified); ``observed & ~inlier`` are the outliers."""
+        obs = self.optimization_inputs["observations_board"]
+        return (obs[..., 0] >= 0) & (obs[..., 1] >= 0)
+
+    @property
     def rms(self) -> float:
         """RMS of the inlier residuals per coordinate (px), as mrcal reports it."""
         r = self.residuals[self.inlier]
@@ -163,9 +171,11 @@ def board_residuals(optimization_inputs: dict) -> np.ndarray:
 
 
 def coverage(observations: np.ndarray, imagersize: tuple[int, int], grid=COVERAGE_GRID) -> float:
-    """Share of the cells of a ``grid`` (nx, ny) over the image holding at least one observed corner."""
+    """Share of the cells of a ``grid`` (nx, ny) over the image holding at least one observed corner
+    (corners that are NaN or negative, i.e. not identified, are left out)."""
     w, h = imagersize
     q = observations.reshape(-1, observations.shape[-1])[:, :2]
+    q = q[np.all(np.isfinite(q), axis=1) & np.all(q >= 0, axis=1)]
     cx = np.clip((q[:, 0] + 0.5) / w * grid[0], 0, grid[0] - 1).astype(int)
     cy = np.clip((q[:, 1] + 0.5) / h * grid[1], 0, grid[1] - 1).astype(int)
     return len(set(zip(cx.tolist(), cy.tolist()))) / (grid[0] * grid[1])
@@ -175,9 +185,11 @@ def _focal_estimate(corners: np.ndarray, board, imagersize) -> float:
     import cv2
 
     obj = board.object_points().reshape(-1, 3).astype(np.float32)
+    seen = [np.isfinite(c[..., 0]).ravel() for c in corners]
     try:
-        k = cv2.initCameraMatrix2D([obj] * len(corners), [c.reshape(-1, 1, 2).astype(np.float32) for c in corners],
-                                   tuple(int(v) for v in imagersize))
+        k = cv2.initCameraMatrix2D([obj[m] for m in seen if m.sum() >= 4],
+                                   [c.reshape(-1, 1, 2)[m].astype(np.float32) for c, m in zip(corners, seen)
+                                    if m.sum() >= 4], tuple(int(v) for v in imagersize))
         f = 0.5 * (k[0, 0] + k[1, 1])
     except cv2.error:
         f = float("nan")
@@ -264,7 +276,8 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
     """Solve one camera from the board corners of several photos.
 
     ARGUMENTS
-    corners      float64 ``(Nframes, rows, cols, 2)``: the corners of each photo (pixels)
+    corners      float64 ``(Nframes, rows, cols, 2)``: the corners of each photo (pixels), NaN
+                 where a corner was not identified (ChArUco boards cut by the frame)
     board        the :class:`~.board.Board` (its ``square_mm`` sets the unit of the poses: mm)
     imagersize   (width, height) of the photos, pixels
     lensmodel    force this mrcal lens model; None: chosen by the data (module docstring)
@@ -277,6 +290,7 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
     start = time.perf_counter()
     n = len(corners)
     observations = np.concatenate([np.asarray(corners, np.float64), np.ones(corners.shape[:3] + (1,))], axis=-1)
+    observations[~np.isfinite(corners).all(axis=-1)] = -1.0  # mrcal ignores x < 0, y < 0, weight < 0
     indices = np.stack([np.arange(n), np.zeros(n, int), -np.ones(n, int)], axis=1).astype(np.int32)
     imagersizes = np.array([imagersize], dtype=np.int32)
     spacing = float(board.square_mm)
