@@ -1,12 +1,14 @@
-"""``lenticalib camera``: calibrate the camera (its intrinsics, with mrcal) from photos of a chessboard.
+"""``lenticalib camera``: calibrate the camera (its intrinsics, with mrcal) from photos of a board.
 
-    lenticalib camera patterns -o DIR (--profile P | --panel WxH --pixel-pitch MM)
+    lenticalib camera patterns -o DIR (--profile P | --panel WxH --pixel-pitch MM) [--board charuco]
         DIR/board.png (the board as a panel raster), DIR/board.json, DIR/print/board-print.pdf
-        and .png (a board to print, with its own DIR/print/board.json)
+        and .png (a board to print, with its own DIR/print/board.json); a chessboard, or a
+        ChArUco board (markers identify every corner, so the board may run off the photo)
     lenticalib camera calibrate PHOTOS... -o camera.cameramodel [--report DIR]
         corners, mrcal solve, camera model, report; the board comes from the board.json next
-        to the photos (DIR/captures/*.jpg -> DIR/board.json) or --board/--square
-    lenticalib camera simulate DIR
+        to the photos (DIR/captures/*.jpg -> DIR/board.json), --board/--square (a chessboard) or
+        --charuco/--square/--marker/--dictionary (a ChArUco board)
+    lenticalib camera simulate DIR [--board charuco]
         a synthetic set: DIR/captures/board-NN.jpg photographed by a known camera, with
         DIR/truth.cameramodel and the true board poses in DIR/simulation.json
 
@@ -20,13 +22,20 @@ import argparse
 
 from ._camera_calibrate import add_calibrate_arguments, run_calibrate
 
+PATTERNS = ("chessboard", "charuco")  # lenticalib.calib.intrinsics.board.PATTERNS (not imported: --help stays instant)
+
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="camera_command", metavar="SUBCOMMAND")
     sub.required = True
-    text = "write the calibration chessboard: a panel raster to show, and a sheet to print"
+    text = "write the calibration board: a panel raster to show, and a sheet to print"
     p = sub.add_parser("patterns", help=text, description=text)
+    p.add_argument("--board", choices=PATTERNS, default="chessboard", dest="pattern",
+                   help="'chessboard' (default): must be wholly in every photo; 'charuco': ArUco markers in the "
+                        "white squares identify every corner, so photos may show part of the board")
+    p.add_argument("--dictionary", metavar="NAME", help="ArUco dictionary of a ChArUco board (default: the smallest "
+                   "4x4 one that holds its markers, e.g. DICT_4X4_100)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for board.png, board.json and print/")
     p.add_argument("--profile", metavar="P", help="the panel's profile (size; pixel pitch from its physical block)")
     p.add_argument("--panel", metavar="WxH", help="panel raster size in pixels (instead of --profile)")
@@ -58,6 +67,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     s.add_argument("--conditions", choices=("standard", "hard"), default="standard",
                    help="'hard': a phone's S-curve, exposure drift and high-ISO noise")
     s.add_argument("--subsamples", type=int, default=2, metavar="N", help="rays per pixel side, 1..8 (default 2)")
+    s.add_argument("--board", choices=PATTERNS, default="chessboard", dest="pattern",
+                   help="the board photographed: 'chessboard' (default), or 'charuco' (then about a third of the "
+                        "photos show the board partly outside the frame)")
     s.add_argument("--json", action="store_true", help="print a JSON summary instead of sentences")
     s.set_defaults(run=run_simulate)
 
@@ -95,7 +107,8 @@ def _panel_geometry(args: argparse.Namespace):
 FLAGS = {"pixel_pitch_mm": "--pixel-pitch", "lens_pitch_mm": "--lens-pitch", "resolution": "--resolution",
          "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed", "kind": "--kind",
          "conditions": "--conditions", "squares": "--squares", "paper": "--paper",
-         "square_mm": "--print-square"}  # the library's argument names
+         "square_mm": "--print-square", "dictionary": "--dictionary",
+         "pattern": "--board"}  # the library's argument names
 
 
 def run_patterns(args: argparse.Namespace) -> int:
@@ -107,17 +120,28 @@ def run_patterns(args: argparse.Namespace) -> int:
 
     width, height, pitch, lens_px = _panel_geometry(args)
     squares = parse_squares(args.squares, "--squares") if args.squares else None
+    if args.dictionary is not None and args.pattern != "charuco":
+        from ..core.errors import InputError
+
+        raise InputError("applies to a ChArUco board only", source="--dictionary", hint="add --board charuco")
     with flag_names(FLAGS):
         board, sheet = write_board_folder(args.output, width, height, pitch, squares=squares,
                                           lens_pitch_mm=args.lens_pitch, lens_pitch_px=lens_px,
-                                          print_square_mm=args.print_square, paper=args.paper)
+                                          print_square_mm=args.print_square, paper=args.paper,
+                                          pattern=args.pattern, dictionary=args.dictionary)
     out = Path(args.output)
+    markers = (f", {board.dictionary} markers of {board.marker_px} px = {board.marker_mm:.4f} mm"
+               if board.charuco else "")
     print(f"wrote {out / PANEL_IMAGE} ({width}x{height}: {board.cols}x{board.rows} inner corners, squares of "
-          f"{board.square_px} px = {board.square_mm:.4f} mm, edges {board.edge_px} px) and {out / MANIFEST_NAME}")
+          f"{board.square_px} px = {board.square_mm:.4f} mm{markers}, edges {board.edge_px} px) and "
+          f"{out / MANIFEST_NAME}")
+    markers = f", {sheet.dictionary} markers of {sheet.marker_mm:g} mm" if sheet.charuco else ""
     print(f"wrote {out / PRINT_FOLDER / PRINT_PDF} and {PRINT_PNG} ({sheet.cols}x{sheet.rows} inner corners, "
-          f"{sheet.square_mm:g} mm squares on {args.paper}; print at 100 % and check the 100 mm bar)")
+          f"{sheet.square_mm:g} mm squares{markers} on {args.paper}; print at 100 % and check the 100 mm bar)")
+    reach = ("the board reaching and running off the image corners and edges" if board.charuco
+             else "the board wholly in every photo and reaching the image corners")
     print(f"next: 'lenticalib show {out / PANEL_IMAGE}', photograph the panel 15-30 times from varied, tilted "
-          f"views with the board reaching the image corners, save the photos in {out / 'captures'}/, then "
+          f"views with {reach}, save the photos in {out / 'captures'}/, then "
           f"'lenticalib camera calibrate {out / 'captures'} -o camera.cameramodel --report camera-report'")
     return 0
 
@@ -136,7 +160,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     with progress_bar(args.photos, "photographing") as bar, flag_names(FLAGS):
         done = simulate_camera_set(args.directory, kind=args.kind, seed=args.seed, photos=args.photos,
                                    resolution=resolution, conditions=args.conditions, subsamples=args.subsamples,
-                                   progress=bar.update)
+                                   progress=bar.update, pattern=args.pattern)
     doc, seed, seconds = done.summary, done.seed, done.seconds
     if args.json:
         print(json.dumps({"directory": str(args.directory), "kind": args.kind, "seed": seed, "photos": args.photos,
@@ -144,7 +168,8 @@ def run_simulate(args: argparse.Namespace) -> int:
                           "seconds_per_photo": doc["seconds_per_photo"], "truth": f"{args.directory}/{TRUTH_NAME}"}))
         return 0
     cam = doc["camera"]
-    print(f"wrote {args.photos} photos of a {args.kind} board to {args.directory}/{CAPTURE_FOLDER} "
+    what = "ChArUco board (some partly outside the frame)" if args.pattern == "charuco" else "board"
+    print(f"wrote {args.photos} photos of a {args.kind} {what} to {args.directory}/{CAPTURE_FOLDER} "
           f"({resolution[0]}x{resolution[1]}, seed {seed}, {doc['seconds_per_photo']:.2f} s per photo)")
     print(f"truth: {args.directory}/{TRUTH_NAME} (fx {cam['fx']:.2f}, fy {cam['fy']:.2f}, cx {cam['cx']:.2f}, "
           f"cy {cam['cy']:.2f} px; k1 k2 p1 p2 k3 {', '.join(f'{v:.5f}' for v in cam['distortion'])}); the board "

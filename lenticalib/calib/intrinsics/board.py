@@ -237,6 +237,13 @@ def parse_squares(text: str, source: str = "squares") -> tuple[int, int]:
                       example="15x8")
 
 
+def parse_charuco_squares(text: str, source: str = "board_squares") -> tuple[int, int]:
+    """``"5x7"`` -> (5, 7) squares of a ChArUco board (columns, rows, as OpenCV's CharucoBoard counts
+    them); InputError naming ``source`` otherwise."""
+    return parse_pair(text, source, MIN_CORNERS + 1, MAX_CORNERS + 1, form="COLSxROWS", unit="squares",
+                      example="5x7")
+
+
 def check_dictionary(name, markers: int) -> str:
     """``name`` if it is an OpenCV ArUco dictionary (DICT_4X4_50 ... DICT_7X7_1000) that holds
     ``markers`` markers; InputError naming ``dictionary`` otherwise."""

@@ -1,4 +1,4 @@
-"""``calibrate_camera``: photos of a chessboard -> an mrcal ``.cameramodel`` and a report, in one call.
+"""``calibrate_camera``: photos of a chessboard or ChArUco board -> an mrcal ``.cameramodel`` and a report, in one call.
 
 Order of work: every check first (arguments, photos readable and of one size, board geometry,
 output paths writable, mrcal importable, enough photos), then corner detection (``jobs``
@@ -6,8 +6,11 @@ threads), the count of photos with the board (too few ends here, before the solv
 solve, the cross-validation, the model (written atomically) and the report folder (staged).
 
 Errors name the argument at fault by its parameter name (``source="photos"``, ``"square_mm"``,
-``"jobs"``, ``"lensmodel"``; hints mention ``board_corners`` and ``square_mm``); a command-line
-front end maps them to its flags.
+``"jobs"``, ``"lensmodel"``, ``"board_squares"``, ``"marker_mm"``, ``"dictionary"``; hints mention
+``board_corners`` and ``square_mm``); a command-line front end maps them to its flags.
+
+ChArUco boards: a photo needs only part of the board (:mod:`.corners`); a photo with too few
+identified corners is left out with its reason in the summary, like a photo without the board.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ MIN_VIEWS = 10  # photos with the board found, at least
 MAX_JOBS = 64
 TOO_FEW_HINT = ("photograph the board at least 10 times (15-30 is better): tilt the camera 20-40 degrees "
                 "in varied directions, and let the board reach every corner of the image")
+NOT_FOUND_HINT = {"chessboard": "is wholly in the photos and sharp",
+                  "charuco": "is sharp in the photos and its dictionary, squares and marker size are right"}
 REPORT_WHAT = "calibration report"
 
 StageFn = Callable[[str, int], Callable[..., None]]
@@ -87,22 +92,45 @@ def photo_size(path) -> tuple[int, int]:
 
 
 def photos_board(photos: list[Path], board_corners: tuple[int, int] | None = None,
-                 square_mm: float | None = None):
-    """(:class:`~.board.Board`, its board.json or None): a printed board of ``board_corners`` (inner
-    corners, columns x rows) and ``square_mm``, or the ``board.json`` beside the photos or up to two
-    folders above; InputError naming the argument otherwise."""
+                 square_mm: float | None = None, *, board_squares: tuple[int, int] | None = None,
+                 marker_mm: float | None = None, dictionary: str | None = None):
+    """(:class:`~.board.Board`, its board.json or None): a printed chessboard of ``board_corners``
+    (inner corners, columns x rows) and ``square_mm``; a printed ChArUco board of ``board_squares``
+    (squares, columns x rows, as OpenCV's CharucoBoard counts them), ``square_mm``, ``marker_mm``
+    and ``dictionary``; or the ``board.json`` beside the photos or up to two folders above.
+    InputError naming the argument otherwise."""
     from .board import Board, find_board_manifest, read_board
 
-    if (board_corners is None) != (square_mm is None):
-        raise InputError("needs both board_corners and square_mm",
-                         source="board_corners" if board_corners is not None else "square_mm",
+    if board_corners is not None and board_squares is not None:
+        raise InputError("give either a chessboard's inner corners or a ChArUco board's squares, not both",
+                         source="board_squares", hint="board_corners for a chessboard, board_squares for ChArUco")
+    charuco_args = {"marker_mm": marker_mm, "dictionary": dictionary}
+    if board_squares is None and any(v is not None for v in charuco_args.values()):
+        name = next(k for k, v in charuco_args.items() if v is not None)
+        raise InputError("applies to a ChArUco board only", source=name,
+                         hint="give board_squares (the ChArUco board's squares) with it, or leave it out")
+    given = board_corners if board_corners is not None else board_squares
+    if (given is None) != (square_mm is None):
+        raise InputError("needs both the board's size and square_mm",
+                         source=("board_squares" if board_squares is not None else "board_corners")
+                         if given is not None else "square_mm",
                          hint="e.g. 11x6 inner corners of 20 mm squares, or neither to use board.json")
-    if board_corners is not None:
+    if given is not None:
         if not (math.isfinite(square_mm) and 0.1 <= square_mm <= 1000):
             raise InputError(f"{square_mm} mm squares is out of range", source="square_mm",
                              hint="give the square size in mm, 0.1..1000")
-        cols, rows = board_corners
-        return Board(cols=cols, rows=rows, square_mm=float(square_mm), kind="print"), None
+        if board_corners is not None:
+            cols, rows = board_corners
+            return Board(cols=cols, rows=rows, square_mm=float(square_mm), kind="print"), None
+        if marker_mm is None:
+            raise InputError("a ChArUco board needs its marker size", source="marker_mm",
+                             hint="give the side of the black markers in mm (e.g. 12 for 20 mm squares)")
+        if dictionary is None:
+            raise InputError("a ChArUco board needs its ArUco dictionary", source="dictionary",
+                             hint="give the OpenCV name it was made with, e.g. DICT_4X4_50 or DICT_5X5_100")
+        cols, rows = board_squares
+        return Board(cols=cols - 1, rows=rows - 1, square_mm=float(square_mm), kind="print", pattern="charuco",
+                     dictionary=dictionary, marker_mm=float(marker_mm)), None
     manifest = find_board_manifest(photos)
     if manifest is None:
         raise InputError("no board geometry: no board.json beside the photos or up to two folders above",
@@ -113,14 +141,18 @@ def photos_board(photos: list[Path], board_corners: tuple[int, int] | None = Non
 
 def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[int, int] | None = None,
                      square_mm: float | None = None, report_dir: str | os.PathLike | None = None,
-                     lensmodel: str | None = None, jobs: int = 2, stage: StageFn | None = None) -> CameraCalibration:
-    """Calibrate one camera from photos of a chessboard; write the model (and the report).
+                     lensmodel: str | None = None, jobs: int = 2, stage: StageFn | None = None,
+                     board_squares: tuple[int, int] | None = None, marker_mm: float | None = None,
+                     dictionary: str | None = None) -> CameraCalibration:
+    """Calibrate one camera from photos of a chessboard or a ChArUco board; write the model (and the report).
 
     ARGUMENTS
     photos         photo files (.jpg, .jpeg, .png) or folders of them
     output         the ``.cameramodel`` to write (atomically)
     board_corners  (columns, rows) of inner corners of a printed board, with ``square_mm`` (its
                    square size in mm); both None: the ``board.json`` beside the photos
+    board_squares  (columns, rows) of squares of a printed ChArUco board, with ``square_mm``,
+                   ``marker_mm`` (marker side, mm) and ``dictionary`` (OpenCV name, e.g. DICT_4X4_50)
     report_dir     the report folder (figures and ``summary.json``, staged); None: no report
     lensmodel      force an mrcal lens model; None: chosen by the data
     jobs           photos searched for corners in parallel, 1..64
@@ -145,7 +177,8 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     if report_dir is not None:
         check_output_folder(report_dir, REPORT_WHAT, REPORT_FILES)
     photos = collect_photos(photos)
-    board, manifest = photos_board(photos, board_corners, square_mm)
+    board, manifest = photos_board(photos, board_corners, square_mm, board_squares=board_squares,
+                                   marker_mm=marker_mm, dictionary=dictionary)
     if len(photos) < MIN_VIEWS:
         raise InputError(f"only {len(photos)} photos given; at least {MIN_VIEWS} views of the board are needed",
                          source="photos", hint=TOO_FEW_HINT)
@@ -168,8 +201,8 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     used = [f for f in found if f.corners is not None]
     if len(used) < MIN_VIEWS:
         raise InputError(f"the board was found in {len(used)} of {len(photos)} photos; at least {MIN_VIEWS} are needed",
-                         source="photos", hint=f"check the board ({board.describe()}) is wholly in the photos and "
-                         f"sharp, and {TOO_FEW_HINT}")
+                         source="photos", hint=f"check the board ({board.describe()}) "
+                         f"{NOT_FOUND_HINT[board.pattern]}, and {TOO_FEW_HINT}")
     corners = np.stack([f.corners for f in used])
     cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", 3))
     model = cal.cameramodel()
@@ -189,8 +222,10 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
 
 def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel_pitch_mm: float, *,
                        squares: tuple[int, int] | None = None, lens_pitch_mm: float | None = None,
-                       lens_pitch_px: float | None = None, print_square_mm: float = 20.0, paper: str = "A4"):
-    """Write the calibration chessboard of a ``width`` x ``height`` panel of ``pixel_pitch_mm`` into
+                       lens_pitch_px: float | None = None, print_square_mm: float = 20.0, paper: str = "A4",
+                       pattern: str = "chessboard", dictionary: str | None = None):
+    """Write the calibration board (``pattern`` "chessboard" or "charuco", then with markers of
+    ``dictionary``, default the smallest 4x4 dictionary that holds them) of a ``width`` x ``height`` panel of ``pixel_pitch_mm`` into
     the folder ``output`` (staged, whole or not at all): ``board.png`` (the panel raster),
     ``board.json``, and ``print/`` (a sheet of ``print_square_mm`` squares on ``paper``, PDF and PNG,
     with its own ``board.json``).  ``squares``: inner corners (columns, rows) of the panel board
@@ -211,8 +246,9 @@ def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel
             raise InputError(f"lens pitch {lens_pitch_mm!r} mm is out of range", source="lens_pitch_mm",
                              hint="give the sheet's horizontal lens pitch in mm, 0.005..50")
         lens_pitch_px = lens_pitch_mm / pixel_pitch_mm
-    board = panel_board(width, height, float(pixel_pitch_mm), squares, lens_pitch_px=lens_pitch_px)
-    sheet = print_board(print_square_mm, paper)
+    board = panel_board(width, height, float(pixel_pitch_mm), squares, lens_pitch_px=lens_pitch_px,
+                        pattern=pattern, dictionary=dictionary)
+    sheet = print_board(print_square_mm, paper, pattern=pattern, dictionary=dictionary)
     contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER,
                 *(f"{PRINT_FOLDER}/{name}" for name in (PRINT_PDF, PRINT_PNG, MANIFEST_NAME)))
     check_output_folder(output, "camera board folder", contents)
