@@ -38,7 +38,7 @@ def test_panel_board_is_read_by_opencv_with_every_corner_where_it_was_drawn():
     assert board.charuco and board.square_px % 2 == 0 and board.dictionary == "DICT_4X4_100"
     cell = board.marker_px // 6  # 4x4 bits and a black border
     assert cell * 6 == board.marker_px and (board.square_px - board.marker_px) % 2 == 0  # whole cells, centred
-    assert 2 <= board.edge_px <= max(2, cell // 2)
+    assert board.edge_px == 5 and board.marker_edge_px == 3  # squares: a twelfth of a square; markers: half a cell
     grey = panel_raster(board)[..., 0]
     found = find_charuco_corners(grey, board)
     assert np.isfinite(found).all()

@@ -132,6 +132,14 @@ class Board:
         return self.pattern == "charuco"
 
     @property
+    def marker_edge_px(self) -> int:
+        """Width of the ramps of a ChArUco panel board's marker edges, panel pixels: the squares'
+        ``edge_px`` but at most half a marker cell (at least ``MIN_EDGE_PX``); the markers only
+        identify the corners, which lie on the squares' edges."""
+        cell = int(self.marker_px or 0) // _marker_bits_count(self.dictionary)
+        return max(MIN_EDGE_PX, min(int(self.edge_px or 0), cell // 2))
+
+    @property
     def squares(self) -> tuple[int, int]:
         """(columns, rows) of squares: one more than the inner corners each way."""
         return self.cols + 1, self.rows + 1
@@ -297,8 +305,9 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
 
     ``pattern`` "charuco": the squares' side is made even and every white square holds a marker
     of ``dictionary`` (default: :func:`default_dictionary`) about ``MARKER_SHARE`` of a square wide,
-    made of whole-pixel cells and exactly centred; the edge ramps are at most half a cell wide
-    (at least ``MIN_EDGE_PX``) so the markers stay readable.  Symmetric counts are allowed (the
+    made of whole-pixel cells and exactly centred.  The squares keep their edge ramps (the corners
+    lie on them); the markers' ramps are :attr:`Board.marker_edge_px`, at most half a cell, so
+    the markers stay readable.  Symmetric counts are allowed (the
     markers tell the corners apart).
     """
     if pattern not in PATTERNS:
@@ -342,7 +351,6 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
             raise InputError(f"{cols_sq}x{rows_sq} squares of {square_px} panel pixels leave no room for "
                              f"{dictionary} markers", source="squares",
                              hint=f"use fewer squares (a marker needs at least {2 * n} pixels)")
-        edge = max(MIN_EDGE_PX, min(edge, cell // 2))
         extra = dict(pattern="charuco", dictionary=dictionary, marker_px=cell * n,
                      marker_mm=round(cell * n * float(pixel_pitch_mm), 10))
     return Board(cols=cols_sq - 1, rows=rows_sq - 1, square_mm=square_mm, kind="panel",

@@ -175,25 +175,38 @@ def find_charuco_corners(grey: np.ndarray, board) -> np.ndarray:
 
 
 def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
-    """``cv2.cornerSubPix`` once more on the identified corners, in a half-window of
-    ``CHARUCO_WINDOW`` times the shortest side between identified neighbours in the photo: as large as
-    the clean chessboard around every corner allows (the markers start ``(1 - share) / 2`` of a square
-    away), OpenCV's own window is smaller."""
+    """``cv2.cornerSubPix`` once more on the identified corners, each in a half-window of
+    ``CHARUCO_WINDOW`` times the clean chessboard around it: the markers start ``(1 - share) / 2``
+    of a square away, the square measured as the shortest distance to an identified neighbouring
+    corner in the photo (per corner: a tilted board's squares differ across the photo)."""
     import cv2
 
-    if CHARUCO_WINDOW <= 0:
-        return corners
-    sides = [np.linalg.norm(np.diff(corners, axis=a), axis=-1) for a in (0, 1)]
-    sides = np.concatenate([d[np.isfinite(d)] for d in sides])
     seen = np.isfinite(corners[..., 0])
-    if not sides.size:
+    if CHARUCO_WINDOW <= 0 or not seen.any():
         return corners
-    share = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
-    win = int(np.clip(CHARUCO_WINDOW * share * float(np.min(sides)), *SUBPIX_LIMITS))
-    refined = cv2.cornerSubPix(grey, corners[seen].reshape(-1, 1, 2).astype(np.float32), (win, win), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
+    rows, cols = seen.shape
+    side = np.full((rows, cols), np.inf)
+    for axis in (0, 1):
+        d = np.linalg.norm(np.diff(corners, axis=axis), axis=-1)  # NaN where a neighbour is missing
+        d = np.where(np.isfinite(d), d, np.inf)
+        lo = [slice(None), slice(None)]
+        hi = [slice(None), slice(None)]
+        lo[axis], hi[axis] = slice(0, -1), slice(1, None)
+        side[tuple(lo)] = np.minimum(side[tuple(lo)], d)
+        side[tuple(hi)] = np.minimum(side[tuple(hi)], d)
+    gap = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
+    finite = np.isfinite(side) & seen
+    if not finite.any():
+        return corners
+    side = np.where(np.isfinite(side), side, np.median(side[finite]))
+    win = np.clip(np.floor(CHARUCO_WINDOW * gap * side), *SUBPIX_LIMITS).astype(int)
     out = corners.copy()
-    out[seen] = refined.reshape(-1, 2)
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
+    for w in np.unique(win[seen]):
+        pick = seen & (win == w)
+        refined = cv2.cornerSubPix(grey, corners[pick].reshape(-1, 1, 2).astype(np.float32), (int(w), int(w)),
+                                   (-1, -1), criteria)
+        out[pick] = refined.reshape(-1, 2)
     return out
 
 

@@ -8,7 +8,8 @@ size, the square size printed on it and a 100 mm scale bar to check the printer'
 ChArUco boards (:attr:`.board.Board.charuco`): the same squares with the ArUco markers in the white
 squares (:meth:`.board.Board.marker_bits`).  On the panel the hard-edged board (every edge on a
 pixel edge) is filtered with a box ``edge_px`` wide along each axis: across one edge that is the
-same linear ramp as the chessboard's, and the markers' edges get it too.
+same linear ramp as the chessboard's; the markers' edges get a ramp ``marker_edge_px`` wide (at
+most half a marker cell: the markers only identify the corners, which lie on the squares' edges).
 """
 
 from __future__ import annotations
@@ -57,10 +58,23 @@ def panel_raster(board: Board) -> np.ndarray:
     return np.repeat(value[:, :, None], 3, axis=2)
 
 
-def _charuco_blackness(board: Board) -> np.ndarray:
-    """float64 ``(H, W)``: share of black in light at every panel pixel of a ChArUco panel board."""
+def _box(black: np.ndarray, e: float) -> np.ndarray:
+    """``black`` filtered along both axes by the box [c - e/2, c + e/2] about every pixel centre c
+    (weights: the share of each whole pixel it covers): a hard edge on a pixel edge becomes the
+    linear ramp ``e`` pixels wide of :func:`panel_raster`; ``e`` <= 0 leaves it hard."""
     from scipy.ndimage import correlate1d
 
+    if e <= 0:
+        return black
+    half = e / 2.0
+    k = np.arange(-math.ceil(half - 0.5), math.ceil(half - 0.5) + 1, dtype=np.float64)
+    weights = np.clip(np.minimum(k + 0.5, half) - np.maximum(k - 0.5, -half), 0.0, None) / e
+    return correlate1d(correlate1d(black, weights, axis=0, mode="nearest"), weights, axis=1, mode="nearest")
+
+
+def _charuco_blackness(board: Board) -> np.ndarray:
+    """float64 ``(H, W)``: share of black in light at every panel pixel of a ChArUco panel board:
+    the squares with ramps ``edge_px`` wide, the markers with ramps ``marker_edge_px`` wide."""
     w, h, s = int(board.panel["width"]), int(board.panel["height"]), int(board.square_px)
     x0, y0 = board.origin_px[0] - s, board.origin_px[1] - s
     bits = board.marker_bits()
@@ -68,23 +82,16 @@ def _charuco_blackness(board: Board) -> np.ndarray:
     cell = int(board.marker_px) // n
     inset = (s - cell * n) // 2
     ids = board.marker_ids()
-    black = np.zeros((h, w))
+    squares, markers = np.zeros((h, w)), np.zeros((h, w))
     for i in range(board.rows + 1):
         for j in range(board.cols + 1):
             y, x = y0 + i * s, x0 + j * s
             if ids[i, j] < 0:
-                black[y:y + s, x:x + s] = 1.0
+                squares[y:y + s, x:x + s] = 1.0
             else:
                 marker = np.kron(bits[ids[i, j]].astype(np.float64), np.ones((cell, cell)))
-                black[y + inset:y + inset + cell * n, x + inset:x + inset + cell * n] = marker
-    e = float(board.edge_px or 0)
-    if e <= 0:
-        return black
-    # the box [c - e/2, c + e/2] about a pixel centre c, as weights of the whole pixels it covers
-    half = e / 2.0
-    k = np.arange(-math.ceil(half - 0.5), math.ceil(half - 0.5) + 1, dtype=np.float64)
-    weights = np.clip(np.minimum(k + 0.5, half) - np.maximum(k - 0.5, -half), 0.0, None) / e
-    return correlate1d(correlate1d(black, weights, axis=0, mode="nearest"), weights, axis=1, mode="nearest")
+                markers[y + inset:y + inset + cell * n, x + inset:x + inset + cell * n] = marker
+    return _box(squares, float(board.edge_px or 0)) + _box(markers, float(board.marker_edge_px))
 
 
 def write_print_sheet(board: Board, folder: str | os.PathLike) -> list[Path]:
