@@ -164,7 +164,8 @@ def inside_share(camera: Camera, board, pose: BoardPose, margin: float = 3.0) ->
     yn = np.where(front, p[:, 1] / np.where(front, p[:, 2], 1.0), np.inf)
     within = (xn >= cx.min()) & (xn <= cx.max()) & (yn >= cy.min()) & (yn <= cy.max())
     q = project_camera(camera, np.where(front[:, None], p, 1.0))
-    inside = within & (q[:, 0] >= margin) & (q[:, 1] >= margin) & (q[:, 0] <= w - 1 - margin) & (q[:, 1] <= h - 1 - margin)
+    inside = (within & (q[:, 0] >= margin) & (q[:, 1] >= margin) & (q[:, 0] <= w - 1 - margin)
+              & (q[:, 1] <= h - 1 - margin))
     return float(inside.mean())
 
 

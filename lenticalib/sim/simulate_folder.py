@@ -288,7 +288,8 @@ def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", se
     staged, whole or not at all): ``photos`` photos of a ``kind`` ('panel' or 'print') board by a
     known camera of ``resolution`` (:data:`~lenticalib.core.sizes.MIN_CAMERA_SIDE`..:data:`~lenticalib.core.sizes.MAX_SIDE` pixels per side), ``DIR/truth.cameramodel`` and the
     board poses in ``DIR/simulation.json`` (:func:`~.board_set.simulate_board_set`); ``pattern``
-    "chessboard" or "charuco" (then some boards run off the frame).  ``progress`` once per photo.  InputError naming the argument before any photo."""
+    "chessboard" or "charuco" (then some boards run off the frame).  ``progress`` once per photo.
+    InputError naming the argument before any photo."""
     from .board_set import CAPTURE_FOLDER, CONTENTS, simulate_board_set
 
     check_sides(*resolution, "resolution", MIN_CAMERA_SIDE)

@@ -40,9 +40,10 @@ z into the board; corner (i, j) at ``(j s, i s, 0)`` (:meth:`Board.object_points
 Manifest ``board.json``: ``{"format": "lenticalib.camera-board", "format_version": 1, "kind", "cols", "rows",
 "square_mm", ...}`` plus, for a panel board, ``panel`` (width, height, pixel_pitch_mm), ``square_px``,
 ``origin_px`` (panel pixel coordinates of inner corner (0, 0), pixel edges at whole numbers) and
-``edge_px``; for a printed one ``paper`` (name, width_mm, height_mm) and ``origin_mm`` on the sheet.  A ChArUco board adds ``pattern`` ("charuco"), ``dictionary`` (an
-OpenCV name, e.g. "DICT_4X4_100"), ``squares`` ([cols + 1, rows + 1]), ``marker_mm`` and, on the
-panel, ``marker_px``; a manifest without ``pattern`` is a chessboard.
+``edge_px``; for a printed one ``paper`` (name, width_mm, height_mm) and ``origin_mm`` on the sheet.
+A ChArUco board adds ``pattern`` ("charuco"), ``dictionary`` (an OpenCV name, e.g. "DICT_4X4_100"),
+``squares`` ([cols + 1, rows + 1]), ``marker_mm`` and, on the panel, ``marker_px``; a manifest
+without ``pattern`` is a chessboard.
 Drawing the boards: :mod:`.draw`.
 """
 
@@ -186,7 +187,8 @@ class Board:
         """One line: ``"15x8 inner corners, 34.448 mm squares (panel board)"``."""
         if self.charuco:
             return (f"ChArUco {self.cols + 1}x{self.rows + 1} squares ({self.cols}x{self.rows} inner corners), "
-                    f"{self.square_mm:g} mm squares, {self.marker_mm:g} mm {self.dictionary} markers ({self.kind} board)")
+                    f"{self.square_mm:g} mm squares, {self.marker_mm:g} mm {self.dictionary} markers "
+                    f"({self.kind} board)")
         return f"{self.cols}x{self.rows} inner corners, {self.square_mm:g} mm squares ({self.kind} board)"
 
     def to_dict(self) -> dict[str, Any]:

@@ -225,10 +225,10 @@ def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel
                        lens_pitch_px: float | None = None, print_square_mm: float = 20.0, paper: str = "A4",
                        pattern: str = "chessboard", dictionary: str | None = None):
     """Write the calibration board (``pattern`` "chessboard" or "charuco", then with markers of
-    ``dictionary``, default the smallest 4x4 dictionary that holds them) of a ``width`` x ``height`` panel of ``pixel_pitch_mm`` into
-    the folder ``output`` (staged, whole or not at all): ``board.png`` (the panel raster),
-    ``board.json``, and ``print/`` (a sheet of ``print_square_mm`` squares on ``paper``, PDF and PNG,
-    with its own ``board.json``).  ``squares``: inner corners (columns, rows) of the panel board
+    ``dictionary``, default the smallest 4x4 dictionary that holds them) of a ``width`` x ``height``
+    panel of ``pixel_pitch_mm`` into the folder ``output`` (staged, whole or not at all):
+    ``board.png`` (the panel raster), ``board.json``, and ``print/`` (a sheet of ``print_square_mm``
+    squares on ``paper``, PDF and PNG, with its own ``board.json``).  ``squares``: inner corners (columns, rows) of the panel board
     (default: 9 squares down the short side); the lens pitch (``lens_pitch_mm`` from a data sheet,
     or ``lens_pitch_px`` panel pixels from a profile) widens the squares' soft edges to span at
     least two lenses.  Returns (panel board, printed board); InputError naming the argument first.
