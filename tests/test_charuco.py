@@ -226,3 +226,31 @@ def test_a_charuco_board_given_by_options_calibrates(tmp_path, cli):
     assert summary["board"]["pattern"] == "charuco" and summary["photos"]["used"] >= 10
     for rejected in summary["photos"]["rejected"]:
         assert "ChArUco corners" in rejected["reason"] or "outliers" in rejected["reason"]
+
+
+@pytest.mark.slow
+def test_simulate_photographs_a_charuco_patterns_folder_and_camera_simulate_makes_charuco_sets(tmp_path, cli):
+    """The panel board of 'camera patterns --board charuco' through the virtual lens sheet, with some
+    boards cut by the frame, calibrates; 'camera simulate --board charuco' writes a ChArUco set."""
+    from lenticalib.calib.camera_file import load_camera_model
+
+    folder = tmp_path / "board"
+    code, _, err = cli("camera", "patterns", "-o", folder, "--panel", "1920x1080", "--pixel-pitch", "0.36",
+                       "--lens-pitch", "1.9", "--board", "charuco")
+    assert code == 0, err
+    code, _, err = cli("simulate", folder, "--seed", 4, "--photos", 12, "--resolution", "1280x960")
+    assert code == 0, err
+    doc = json.loads((folder / "simulation.json").read_text())
+    assert doc["board"]["pattern"] == "charuco" and doc["cut"] > 0
+    code, out, err = cli("camera", "calibrate", folder / "captures", "-o", tmp_path / "c.cameramodel", "--json")
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["photos"]["used"] >= 10 and summary["board"]["pattern"] == "charuco"
+    assert summary["residuals"]["corners"] < 12 * 15 * 8  # partial boards: not every corner of every photo
+    fitted, truth = load_camera_model(tmp_path / "c.cameramodel"), load_camera_model(folder / "truth.cameramodel")
+    assert np.allclose(fitted.intrinsics[:2], truth.intrinsics[:2], rtol=0.01)
+    code, out, err = cli("camera", "simulate", tmp_path / "sim", "--seed", 3, "--photos", 10, "--kind", "print",
+                         "--resolution", "800x600", "--subsamples", 1, "--board", "charuco")
+    assert code == 0, err
+    assert "ChArUco board (some partly outside the frame)" in out
+    assert boards.read_board(tmp_path / "sim" / "board.json").charuco
