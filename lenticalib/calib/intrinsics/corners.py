@@ -25,7 +25,10 @@ rolled by more than 90 degrees).
 
 ChArUco boards (:func:`find_charuco_corners`): ``cv2.aruco.CharucoDetector`` with the board's
 dictionary and geometry finds the markers (refining their edges to find more), and every inner
-corner next to at least two found markers is located and refined to sub-pixel by OpenCV.  Each
+corner next to at least one found marker (``minMarkers`` 1: a board cut by the frame keeps the
+corners of its cut rows whose other marker is outside) is located by OpenCV and refined once
+more (:func:`_refine_charuco`); a corner whose refinement window would leave the image is dropped
+(OpenCV pads the image by replicating its edge, which pulls such corners by up to a pixel).  Each
 such corner carries its id, hence its row and column: the corners are returned in the same
 ``(rows, cols, 2)`` array with NaN where a corner was not identified (outside the photo, hidden,
 or too blurred), so a board cut by the frame is still a labelled observation.  A photo needs at
@@ -154,6 +157,7 @@ def charuco_detector(board):
                                 dictionary)
     charuco = aruco.CharucoParameters()
     charuco.tryRefineMarkers = True
+    charuco.minMarkers = 1  # a corner next to one readable marker: the board's edge rows at the image edge
     return aruco.CharucoDetector(cboard, charuco, aruco.DetectorParameters(), aruco.RefineParameters())
 
 
@@ -207,6 +211,10 @@ def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
         refined = cv2.cornerSubPix(grey, corners[pick].reshape(-1, 1, 2).astype(np.float32), (int(w), int(w)),
                                    (-1, -1), criteria)
         out[pick] = refined.reshape(-1, 2)
+    # a window that leaves the image sees OpenCV's replicated border, which pulls the corner: drop it
+    h, w = grey.shape
+    border = np.minimum.reduce([out[..., 0], out[..., 1], w - 1 - out[..., 0], h - 1 - out[..., 1]])
+    out[seen & ~(border >= win + 1)] = np.nan
     return out
 
 
