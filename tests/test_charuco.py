@@ -254,3 +254,20 @@ def test_simulate_photographs_a_charuco_patterns_folder_and_camera_simulate_make
     assert code == 0, err
     assert "ChArUco board (some partly outside the frame)" in out
     assert boards.read_board(tmp_path / "sim" / "board.json").charuco
+
+
+def test_a_photo_with_too_few_corners_is_named_with_its_reason_in_the_summary():
+    from lenticalib.calib.intrinsics.report import summary_lines
+
+    summary = {"output": "c.cameramodel", "lensmodel": "LENSMODEL_OPENCV8", "lensmodel_choice": "forced",
+               "photos": {"used": 11, "given": 12, "rejected": [
+                   {"photo": "/x/board-04.jpg", "reason": "only 5 of 66 ChArUco corners identified, at least 10 "
+                                                         "are needed (show more of the board, sharper)"}]},
+               "residuals": {"rms_px": 0.1, "worst_px": 0.3, "outliers": 0, "corners": 600, "noise_px": 0.1},
+               "coverage": 0.9, "intrinsics": {"fx": 1.0, "fy": 1.0, "cx": 0.0, "cy": 0.0},
+               "field_of_view_deg": [60.0, 45.0], "working_distance_mm": 500.0,
+               "uncertainty": {k: {"centre": 0.1, "worst": 0.2, "top_left": 0.1, "top_right": 0.1, "bottom_left": 0.1,
+                                   "bottom_right": 0.1} for k in ("at_working_distance", "at_infinity")},
+               "cross_validation": {"scale": 1.0, "skipped": "not run"}, "report": None}
+    lines = summary_lines(summary)
+    assert [line for line in lines if "board-04.jpg: only 5 of 66 ChArUco corners identified" in line]

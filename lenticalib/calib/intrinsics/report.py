@@ -131,6 +131,7 @@ def summary_lines(summary: dict) -> list[str]:
              f"{near['centre']:.3f} px "
              f"at the centre, {min(corners):.3f}-{max(corners):.3f} px at the image corners; at infinity "
              f"{far['centre']:.3f} px / {far['worst']:.3f} px worst"]
+    lines[3:3] = [f"  not used: {Path(r['photo']).name}: {r['reason']}" for r in summary["photos"]["rejected"]]
     cv = summary.get("cross_validation") or {}
     if cv.get("skipped"):
         lines.append(f"cross-validation skipped: {cv['skipped']}")
