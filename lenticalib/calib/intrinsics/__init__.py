@@ -1,13 +1,14 @@
 """Camera intrinsics: calibrating the camera that photographs the panel, with mrcal.
 
-A chessboard is shown on the panel (or printed), photographed 15-30 times from varied, tilted
-views, its corners found in every photo, and one camera model solved with mrcal together with
-every board pose.  Part of the calib layer: imports only core and calib.  Modules, in the order
+A chessboard or a ChArUco board is shown on the panel (or printed), photographed 15-30 times from
+varied, tilted views (a ChArUco board may run off the frame), its corners found in every photo,
+and one camera model solved with mrcal together with every board pose.  Part of the calib layer: imports only core and calib.  Modules, in the order
 ``lenticalib camera`` uses them:
 
-    board     the chessboard: geometry, design (panel or printed), ``board.json``
+    board     the board (chessboard or ChArUco): geometry, design (panel or printed), ``board.json``
     draw      the panel raster and the printable sheet (PDF, 300 dpi PNG)
-    corners   corner detection (OpenCV's findChessboardCornersSB), in parallel over photos
+    corners   corner detection (OpenCV's findChessboardCornersSB; ChArUco: cv2.aruco's
+              CharucoDetector, partial boards), in parallel over photos
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
     crossval  cross-validation: is mrcal's uncertainty as large as the real error?
     quality   residuals, noise, coverage and projection uncertainty of a solve; truth comparison
