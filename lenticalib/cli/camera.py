@@ -138,7 +138,7 @@ def run_patterns(args: argparse.Namespace) -> int:
     markers = f", {sheet.dictionary} markers of {sheet.marker_mm:g} mm" if sheet.charuco else ""
     print(f"wrote {out / PRINT_FOLDER / PRINT_PDF} and {PRINT_PNG} ({sheet.cols}x{sheet.rows} inner corners, "
           f"{sheet.square_mm:g} mm squares{markers} on {args.paper}; print at 100 % and check the 100 mm bar)")
-    reach = ("the board reaching and running off the image corners and edges" if board.charuco
+    reach = ("the board reaching the image corners and edges (it may run off them)" if board.charuco
              else "the board wholly in every photo and reaching the image corners")
     print(f"next: 'lenticalib show {out / PANEL_IMAGE}', photograph the panel 15-30 times from varied, tilted "
           f"views with {reach}, save the photos in {out / 'captures'}/, then "
