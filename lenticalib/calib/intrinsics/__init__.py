@@ -6,6 +6,7 @@ and one camera model solved with mrcal together with every board pose.  Part of 
 ``lenticalib camera`` uses them:
 
     board     the board (chessboard or ChArUco): geometry, design (panel or printed), ``board.json``
+    charuco   ChArUco names and sizes: the ArUco dictionaries, the marker size
     draw      the panel raster and the printable sheet (PDF, 300 dpi PNG)
     corners   corner detection (OpenCV's findChessboardCornersSB; ChArUco: cv2.aruco's
               CharucoDetector, partial boards), in parallel over photos

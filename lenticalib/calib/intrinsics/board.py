@@ -60,6 +60,7 @@ import numpy as np
 from ...core.documents import FORMATS, check_envelope, read_json_file, write_document
 from ...core.errors import InputError
 from ...core.sizes import parse_pair
+from .charuco import MARKER_SHARE, check_dictionary, default_dictionary, marker_bits_count
 
 DOCUMENT = FORMATS["lenticalib.camera-board"]
 MANIFEST_NAME = "board.json"
@@ -78,9 +79,6 @@ MAX_CORNERS = 200  # inner corners per side, at most
 PAGE_MARGIN = 12.0  # mm
 PAGE_FOOTER = 30.0  # mm below the board for the text and the scale bar
 PATTERNS = ("chessboard", "charuco")
-MARKER_SHARE = 0.6  # ChArUco marker side / square side (0.2 of a square of clean chessboard around a corner)
-DICTIONARY_RE = r"DICT_([4-7])X\1_(50|100|250|1000)"
-DICTIONARY_EXAMPLE = "DICT_4X4_100"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,7 +135,7 @@ class Board:
         """Width of the ramps of a ChArUco panel board's marker edges, panel pixels: the squares'
         ``edge_px`` but at most half a marker cell (at least ``MIN_EDGE_PX``); the markers only
         identify the corners, which lie on the squares' edges."""
-        cell = int(self.marker_px or 0) // _marker_bits_count(self.dictionary)
+        cell = int(self.marker_px or 0) // marker_bits_count(self.dictionary)
         return max(MIN_EDGE_PX, min(int(self.edge_px or 0), cell // 2))
 
     @property
@@ -254,36 +252,6 @@ def parse_charuco_squares(text: str, source: str = "board_squares") -> tuple[int
                       example="5x7")
 
 
-def check_dictionary(name, markers: int) -> str:
-    """``name`` if it is an OpenCV ArUco dictionary (DICT_4X4_50 ... DICT_7X7_1000) that holds
-    ``markers`` markers; InputError naming ``dictionary`` otherwise."""
-    import re
-
-    if not (isinstance(name, str) and re.fullmatch(DICTIONARY_RE, name)):
-        raise InputError(f"unknown ArUco dictionary {name!r}", source="dictionary",
-                         hint=f"use an OpenCV name DICT_<n>X<n>_<size>, n 4..7, size 50/100/250/1000 "
-                              f"(e.g. {DICTIONARY_EXAMPLE})")
-    if int(name.rsplit("_", 1)[1]) < markers:
-        raise InputError(f"{name} holds {name.rsplit('_', 1)[1]} markers, the board needs {markers}",
-                         source="dictionary", hint="use a larger dictionary (e.g. DICT_4X4_250) or fewer squares")
-    return name
-
-
-def default_dictionary(markers: int) -> str:
-    """The smallest 4x4 OpenCV dictionary with at least ``markers`` markers (4x4 bits are the
-    largest cells, the easiest to read in a small or blurred photo)."""
-    for size in (50, 100, 250, 1000):
-        if size >= markers:
-            return f"DICT_4X4_{size}"
-    raise InputError(f"a board of {markers} markers is larger than any ArUco dictionary", source="squares",
-                     hint="use fewer squares")
-
-
-def _marker_bits_count(dictionary: str) -> int:
-    """Cells across a marker of ``dictionary``, its black border included."""
-    return int(dictionary[5]) + 2
-
-
 def _refuse_symmetric(cols: int, rows: int, source: str) -> None:
     if (cols + rows) % 2 == 0:
         raise InputError(f"a {cols}x{rows} board looks the same after a half turn, so photos cannot tell "
@@ -345,7 +313,7 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
     if charuco:
         dictionary = check_dictionary(dictionary or default_dictionary((cols_sq * rows_sq) // 2),
                                       (cols_sq * rows_sq) // 2)
-        n = _marker_bits_count(dictionary)
+        n = marker_bits_count(dictionary)
         cell = int(MARKER_SHARE * square_px / n)
         if n % 2 and cell % 2:
             cell -= 1  # an odd marker in an even square would sit half a pixel off centre
