@@ -125,7 +125,7 @@ def test_a_charuco_set_with_boards_cut_by_the_frame_calibrates_with_their_corner
     import mrcal
 
     from lenticalib.calib.intrinsics.board import read_board
-    from lenticalib.sim.boards import BoardPose, inside_share
+    from lenticalib.sim.board_poses import BoardPose, inside_share
     from lenticalib.sim.camera import Camera
 
     folder, doc, model_path, summary, run = cut_set

@@ -15,7 +15,9 @@ never device or cli.
     capture_camera   SimCamera: the capture camera ``--camera sim`` (registered in
                      lenticalib.calib.cameras)
     crosstalk_truth  the true mixing matrix and view cone, by ray tracing from an eye
-    boards           chessboards (on the panel or printed) photographed by a known camera
+    boards           chessboards and ChArUco boards (on the panel or printed) photographed by a
+                     known camera
+    board_poses      where the simulated boards stand: spread over the image, some cut by the frame
     board_set        simulate_board_set(): a synthetic ``lenticalib camera`` set, truth cameramodel
 
 Heavy modules (numba, OpenCV) load on first use of :func:`photograph`; importing the package

@@ -37,7 +37,8 @@ from ..core.atomic import write_bytes_atomic
 from ..core.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
 from ..core.imageio import write_image
-from .boards import (BoardPose, board_poses, calibration_camera, camera_for_pose, photograph_print_board)
+from .board_poses import BoardPose, board_poses
+from .boards import calibration_camera, camera_for_pose, photograph_print_board
 
 CAPTURE_FOLDER = "captures"
 SIMULATION_NAME = "simulation.json"
