@@ -79,7 +79,7 @@ def truth_cameramodel(camera):
 def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", seed: int = 0, photos: int = 24,
                        resolution: tuple[int, int] = (1600, 1200), conditions: str = "standard",
                        subsamples: int = 2, progress: Callable[[], None] | None = None, scene=None,
-                       board=None) -> dict:
+                       board=None, lens: str = "standard", cut: float = 0.0) -> dict:
     """Photograph a board ``photos`` times into ``directory`` (an existing, empty or fresh folder).
 
     ARGUMENTS
@@ -88,6 +88,8 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     photos       number of photos
     resolution   camera (width, height) in pixels
     conditions   "standard" or "hard" (:func:`.boards.calibration_camera`)
+    lens         a print set's lens kind (:data:`.boards.LENSES`)
+    cut          share of the photos whose board reaches out of the frame (:func:`.boards.board_poses`)
     subsamples   rays per sensor pixel side
     progress     called after every photo
     scene        a panel set's :class:`.scene.Scene` to use instead of the one drawn from ``seed``
@@ -104,6 +106,9 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     """
     if kind not in ("panel", "print"):
         raise InputError(f"unknown board kind {kind!r}", source="kind", hint="use panel or print")
+    if kind == "panel" and lens != "standard":
+        raise InputError(f"lens {lens!r} applies to print sets only", source="lens",
+                         hint="a panel set's camera comes from its scene")
     folder = Path(directory)
     captures = folder / CAPTURE_FOLDER
     captures.mkdir(exist_ok=True)
@@ -120,9 +125,9 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
         raster = panel_raster(board)
         write_image(folder / PANEL_IMAGE, raster)
     else:
-        camera, optics = calibration_camera(seed, resolution, conditions, subsamples), None
+        camera, optics = calibration_camera(seed, resolution, conditions, subsamples, lens), None
         board = print_board()
-    poses: list[BoardPose] = board_poses(camera, board, photos, seed)
+    poses: list[BoardPose] = board_poses(camera, board, photos, seed, cut=cut)
     for k, pose in enumerate(poses):
         rng = np.random.default_rng([int(seed), k, 0x5107])
         start = time.perf_counter()
@@ -148,6 +153,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                                                      f"(seed {seed}, {kind} board)")
 
     document = {**DOCUMENT.envelope(), "kind": kind, "seed": int(seed), "conditions": conditions,
+                "lens": lens if kind == "print" else "panel scene", "cut": float(cut),
                 "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
                 "lenticalib_version": __version__, "resolution": list(resolution), "board": board.to_dict(),
                 "camera": camera.to_dict(), "optics": None if optics is None else optics.to_dict(),

@@ -62,10 +62,22 @@ class BoardPose:
         return np.asarray(points, np.float64) @ self.rotation.T + self.translation
 
 
+LENSES = {
+    # name: (horizontal field of view, degrees), k1, k2, k3 ranges drawn uniformly
+    "standard": ((50.0, 70.0), (-0.25, 0.05), (-0.02, 0.08), (-0.01, 0.01)),
+    "mild": ((45.0, 60.0), (-0.08, -0.02), (0.0, 0.03), (0.0, 0.0)),
+    "strong": ((60.0, 70.0), (-0.34, -0.28), (0.08, 0.12), (0.0, 0.005)),
+    "wide": ((85.0, 95.0), (-0.30, -0.24), (0.06, 0.09), (0.0, 0.004)),
+}
+"""Lens kinds of :func:`calibration_camera`: "standard" spans everyday lenses; "mild" and
+"strong" barrel distortion at a normal field of view, "wide" a wide-angle lens."""
+
+
 def calibration_camera(seed: int, resolution: tuple[int, int] = (1600, 1200), conditions: str = "standard",
-                       subsamples: int = 2) -> Camera:
-    """A plausible camera to calibrate, fully determined by ``seed``: a 50-70 degree lens with real
-    radial and tangential distortion, sensor noise, defocus, sharpening and JPEG.
+                       subsamples: int = 2, lens: str = "standard") -> Camera:
+    """A plausible camera to calibrate, fully determined by ``seed``: a lens of kind ``lens``
+    (:data:`LENSES`; "standard": 50-70 degrees) with real radial and tangential distortion, sensor
+    noise, defocus, sharpening and JPEG.
 
     ``conditions``: "standard", or "hard" (a phone: S-shaped tone curve, +-4 % exposure drift
     between photos, high-ISO noise).  No lateral chromatic aberration (it would make the grey
@@ -74,11 +86,14 @@ def calibration_camera(seed: int, resolution: tuple[int, int] = (1600, 1200), co
     """
     if conditions not in ("standard", "hard"):
         raise InputError(f"unknown conditions {conditions!r}", source="conditions", hint="use standard or hard")
+    if lens not in LENSES:
+        raise InputError(f"unknown lens {lens!r}", source="lens", hint="use " + ", ".join(LENSES))
     rng = np.random.default_rng([int(seed), 0xB0A2D])
     w, h = resolution
-    hfov = math.radians(rng.uniform(50.0, 70.0))
+    fov, k1r, k2r, k3r = LENSES[lens]
+    hfov = math.radians(rng.uniform(*fov))
     fx = 0.5 * w / math.tan(0.5 * hfov)
-    k1, k2, k3 = rng.uniform(-0.25, 0.05), rng.uniform(-0.02, 0.08), rng.uniform(-0.01, 0.01)
+    k1, k2, k3 = rng.uniform(*k1r), rng.uniform(*k2r), rng.uniform(*k3r)
     p1, p2 = rng.uniform(-0.002, 0.002, size=2)
     hard = conditions == "hard"
     return Camera(width=int(w), height=int(h), fx=fx, fy=fx * rng.uniform(0.998, 1.002),
@@ -132,7 +147,8 @@ def project_camera(camera: Camera, points_cam: np.ndarray) -> np.ndarray:
 
 
 def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[float, float] = (15.0, 40.0),
-                fill: tuple[float, float] = (0.3, 0.55), roll: float = 20.0, margin: float = 0.02) -> list[BoardPose]:
+                fill: tuple[float, float] = (0.3, 0.55), roll: float = 20.0, margin: float = 0.02,
+                cut: float = 0.0) -> list[BoardPose]:
     """``count`` board poses spread over the image of ``camera``, fully determined by ``seed``.
 
     ARGUMENTS
@@ -142,11 +158,20 @@ def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[flo
     fill      (min, max) share of the image width the squares span
     roll      bound of the board's rotation about its normal, degrees (keep < 90: see .corners)
     margin    share of the image width kept free at every edge
+    cut       share of the poses (rounded) whose board reaches out of the frame at its anchor's
+              edges: 15-35 % of its span along each of those edges lies outside, as a user
+              filling the image corners produces (drawn from a separate stream: the other poses
+              are those of ``cut=0``)
 
     RETURNED VALUE
     list of :class:`BoardPose`; anchors cycle through the four image corners, the four edges
     and the centre (shuffled per cycle).
     """
+    if not 0.0 <= cut <= 1.0:
+        raise InputError(f"cut share {cut} is out of range", source="cut", hint="use 0..1")
+    cut_rng = np.random.default_rng([int(seed), 0xC07])
+    n_cut = int(round(cut * count))
+    cut_at = set(cut_rng.permutation(count)[:n_cut].tolist())
     rng = np.random.default_rng([int(seed), 0x9053])
     w, h = camera.width, camera.height
     bw, bh = board.size_mm
@@ -157,7 +182,7 @@ def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[flo
     while len(order) < count:
         order += [anchors[i] for i in rng.permutation(len(anchors))]
     poses = []
-    for ax, ay in order[:count]:
+    for k, (ax, ay) in enumerate(order[:count]):
         f = rng.uniform(*fill)
         theta = math.radians(rng.uniform(*tilt))
         alpha = rng.uniform(0.0, 2.0 * math.pi)
@@ -186,8 +211,44 @@ def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[flo
         else:
             raise InputError("cannot place the board inside the camera frame", source="board_poses",
                              hint="use a smaller board or a wider lens")
-        poses.append(pose)
+        poses.append(_cut_pose(camera, board, cut_rng, tilt, fill, roll, centre, outline) if k in cut_at else pose)
     return poses
+
+
+def _cut_pose(camera: Camera, board, rng, tilt, fill, roll, centre, outline) -> BoardPose:
+    """A pose whose board reaches out of the frame at an image corner or edge (see :func:`board_poses`)."""
+    w, h = camera.width, camera.height
+    bw = board.size_mm[0]
+    anchors = [(ax, ay) for ax in (-1, 1) for ay in (-1, 1)] + [(0, -1), (0, 1), (-1, 0), (1, 0)]
+    ax, ay = anchors[int(rng.integers(len(anchors)))]
+    f = rng.uniform(*fill)
+    theta = math.radians(rng.uniform(*tilt))
+    alpha = rng.uniform(0.0, 2.0 * math.pi)
+    psi = math.radians(rng.uniform(-roll, roll))
+    out = rng.uniform(0.15, 0.35, size=2)  # share of the board's image span beyond the edge
+    target = np.array([w, h]) / 2 - 0.5
+    pose = None
+    for _ in range(60):
+        xn, yn = camera.normalized(target[:1], target[1:])
+        ray = np.array([xn[0], yn[0], 1.0])
+        rot = (_front_rotation(ray) @ _axis_rotation([0, 0, 1], psi)
+               @ _axis_rotation([math.cos(alpha), math.sin(alpha), 0.0], theta))
+        pose = BoardPose(rot, camera.fx * bw / (f * w) * ray / np.linalg.norm(ray) - rot @ centre)
+        q = project_camera(camera, pose.to_camera(outline))
+        lo, hi = q.min(0), q.max(0)
+        span = hi - lo
+        # wanted: lo = -out * span at a -1 anchor, hi = size - 1 + out * span at a +1 anchor, centred at 0
+        want = np.array([w - 1.0, h - 1.0]) / 2 - (lo + hi) / 2
+        for axis, a in enumerate((ax, ay)):
+            size = (w, h)[axis] - 1.0
+            if a < 0:
+                want[axis] = -out[axis] * span[axis] - lo[axis]
+            elif a > 0:
+                want[axis] = size + out[axis] * span[axis] - hi[axis]
+        if np.all(np.abs(want) < 1.0):
+            break
+        target = np.clip(target + 0.8 * want, [0.0, 0.0], [w - 1.0, h - 1.0])
+    return pose
 
 
 @njit(cache=True, inline="always")
