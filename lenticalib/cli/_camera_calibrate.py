@@ -18,7 +18,7 @@ def add_calibrate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--square", type=float, metavar="MM", help="square size of the board in mm (with --board)")
     parser.add_argument("--report", metavar="DIR", help="folder for the figures and summary.json")
     parser.add_argument("--lensmodel", metavar="NAME", help="force an mrcal lens model (default: chosen by the "
-                        "data between LENSMODEL_OPENCV8 and a splined model)")
+                        "data among LENSMODEL_OPENCV5, LENSMODEL_OPENCV8 and a splined model)")
     parser.add_argument("--jobs", type=int, default=2, metavar="N", help="photos processed in parallel (default 2)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of sentences")
 
