@@ -23,7 +23,9 @@ Poses (:func:`board_poses`): a fixed seed spreads the boards over the image -- a
 at the four image corners, the four edges and the centre -- tilted by ``tilt`` degrees about a
 random axis and rolled, at a distance that makes them ``fill`` of the image width, each checked to
 lie wholly inside the frame with a margin.  mrcal needs exactly this: tilted views and corners
-observed near the image corners.
+observed near the image corners.  With ``cut`` a share of the boards instead reaches out of the
+frame at an image corner or edge, as a user filling the image corners photographs them.
+Lens kinds (:data:`LENSES`): everyday lenses, mild and strong barrel distortion, a wide angle.
 """
 
 from __future__ import annotations
