@@ -24,7 +24,7 @@ def add_calibrate_arguments(parser: argparse.ArgumentParser) -> None:
                         "(with --charuco; e.g. DICT_4X4_50, DICT_5X5_100, DICT_6X6_250)")
     parser.add_argument("--report", metavar="DIR", help="folder for the figures and summary.json")
     parser.add_argument("--lensmodel", metavar="NAME", help="force an mrcal lens model (default: chosen by the "
-                        "data between LENSMODEL_OPENCV8 and a splined model)")
+                        "data among LENSMODEL_OPENCV5, LENSMODEL_OPENCV8 and a splined model)")
     parser.add_argument("--jobs", type=int, default=2, metavar="N", help="photos processed in parallel (default 2)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of sentences")
 

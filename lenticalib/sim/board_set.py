@@ -82,7 +82,8 @@ def truth_cameramodel(camera):
 def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", seed: int = 0, photos: int = 24,
                        resolution: tuple[int, int] = (1600, 1200), conditions: str = "standard",
                        subsamples: int = 2, progress: Callable[[], None] | None = None, scene=None,
-                       board=None, pattern: str = "chessboard", cut: float | None = None) -> dict:
+                       board=None, pattern: str = "chessboard", lens: str = "standard",
+                       cut: float | None = None) -> dict:
     """Photograph a board ``photos`` times into ``directory`` (an existing, empty or fresh folder).
 
     ARGUMENTS
@@ -91,6 +92,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
     photos       number of photos
     resolution   camera (width, height) in pixels
     conditions   "standard" or "hard" (:func:`.boards.calibration_camera`)
+    lens         a print set's lens kind (:data:`.boards.LENSES`)
     subsamples   rays per sensor pixel side
     progress     called after every photo
     scene        a panel set's :class:`.scene.Scene` to use instead of the one drawn from ``seed``
@@ -103,14 +105,18 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                  ``seed`` then has the board's panel size and pixel pitch; for a print set, a
                  printed board (:func:`lenticalib.calib.intrinsics.board.print_board`)
     pattern      the default board's pattern, "chessboard" or "charuco" (ignored with ``board``)
-    cut          share of the photos whose board runs off the frame (:func:`.boards.board_poses`);
-                 None: ``CHARUCO_CUT`` for a ChArUco board, 0 for a chessboard (it must be whole)
+    cut          share of the photos whose board runs off the frame (:func:`.board_poses.board_poses`);
+                 None: ``CHARUCO_CUT`` for a ChArUco board, 0 for a chessboard (calibration refuses
+                 a cut chessboard photo: a bench set shows what that costs)
 
     RETURNED VALUE
     the ``simulation.json`` document (also written).
     """
     if kind not in ("panel", "print"):
         raise InputError(f"unknown board kind {kind!r}", source="kind", hint="use panel or print")
+    if kind == "panel" and lens != "standard":
+        raise InputError(f"lens {lens!r} applies to print sets only", source="lens",
+                         hint="a panel set's camera comes from its scene")
     folder = Path(directory)
     captures = folder / CAPTURE_FOLDER
     captures.mkdir(exist_ok=True)
@@ -127,7 +133,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
         raster = panel_raster(board)
         write_image(folder / PANEL_IMAGE, raster)
     else:
-        camera, optics = calibration_camera(seed, resolution, conditions, subsamples), None
+        camera, optics = calibration_camera(seed, resolution, conditions, subsamples, lens), None
         if board is None:
             board = print_board(pattern=pattern)
         elif board.kind != "print":
@@ -135,9 +141,6 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                              hint="make one with print_board()")
     if cut is None:
         cut = CHARUCO_CUT if board.charuco else 0.0
-    if cut > 0 and not board.charuco:
-        raise InputError("only a ChArUco board may run off the frame (a chessboard must be whole)", source="cut",
-                         hint="use a ChArUco board, or cut 0")
     poses: list[BoardPose] = board_poses(camera, board, photos, seed, cut=cut)
     for k, pose in enumerate(poses):
         rng = np.random.default_rng([int(seed), k, 0x5107])
@@ -164,6 +167,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                                                      f"(seed {seed}, {kind} board)")
 
     document = {**DOCUMENT.envelope(), "kind": kind, "seed": int(seed), "conditions": conditions,
+                "lens": lens if kind == "print" else "panel scene",
                 "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
                 "lenticalib_version": __version__, "resolution": list(resolution), "board": board.to_dict(),
                 "camera": camera.to_dict(), "optics": None if optics is None else optics.to_dict(),

@@ -23,6 +23,7 @@ Poses: :mod:`.board_poses`.
 
 ChArUco boards (printed): the ArUco markers of :meth:`~lenticalib.calib.intrinsics.board.Board.marker_bits`
 are drawn in the white squares with the same soft ink edges.
+Lens kinds (:data:`LENSES`): everyday lenses, mild and strong barrel distortion, a wide angle.
 """
 
 from __future__ import annotations
@@ -42,10 +43,22 @@ PAPER_BORDER = 0.6  # white paper around the outer squares, in squares
 REFLECTANCE = {"black": 0.05, "white": 0.85, "background": 0.22}
 
 
+LENSES = {
+    # name: (horizontal field of view, degrees), k1, k2, k3 ranges drawn uniformly
+    "standard": ((50.0, 70.0), (-0.25, 0.05), (-0.02, 0.08), (-0.01, 0.01)),
+    "mild": ((45.0, 60.0), (-0.08, -0.02), (0.0, 0.03), (0.0, 0.0)),
+    "strong": ((60.0, 70.0), (-0.34, -0.28), (0.08, 0.12), (0.0, 0.005)),
+    "wide": ((85.0, 95.0), (-0.30, -0.24), (0.06, 0.09), (0.0, 0.004)),
+}
+"""Lens kinds of :func:`calibration_camera`: "standard" spans everyday lenses; "mild" and
+"strong" barrel distortion at a normal field of view, "wide" a wide-angle lens."""
+
+
 def calibration_camera(seed: int, resolution: tuple[int, int] = (1600, 1200), conditions: str = "standard",
-                       subsamples: int = 2) -> Camera:
-    """A plausible camera to calibrate, fully determined by ``seed``: a 50-70 degree lens with real
-    radial and tangential distortion, sensor noise, defocus, sharpening and JPEG.
+                       subsamples: int = 2, lens: str = "standard") -> Camera:
+    """A plausible camera to calibrate, fully determined by ``seed``: a lens of kind ``lens``
+    (:data:`LENSES`; "standard": 50-70 degrees) with real radial and tangential distortion, sensor
+    noise, defocus, sharpening and JPEG.
 
     ``conditions``: "standard", or "hard" (a phone: S-shaped tone curve, +-4 % exposure drift
     between photos, high-ISO noise).  No lateral chromatic aberration (it would make the grey
@@ -54,11 +67,14 @@ def calibration_camera(seed: int, resolution: tuple[int, int] = (1600, 1200), co
     """
     if conditions not in ("standard", "hard"):
         raise InputError(f"unknown conditions {conditions!r}", source="conditions", hint="use standard or hard")
+    if lens not in LENSES:
+        raise InputError(f"unknown lens {lens!r}", source="lens", hint="use " + ", ".join(LENSES))
     rng = np.random.default_rng([int(seed), 0xB0A2D])
     w, h = resolution
-    hfov = math.radians(rng.uniform(50.0, 70.0))
+    fov, k1r, k2r, k3r = LENSES[lens]
+    hfov = math.radians(rng.uniform(*fov))
     fx = 0.5 * w / math.tan(0.5 * hfov)
-    k1, k2, k3 = rng.uniform(-0.25, 0.05), rng.uniform(-0.02, 0.08), rng.uniform(-0.01, 0.01)
+    k1, k2, k3 = rng.uniform(*k1r), rng.uniform(*k2r), rng.uniform(*k3r)
     p1, p2 = rng.uniform(-0.002, 0.002, size=2)
     hard = conditions == "hard"
     return Camera(width=int(w), height=int(h), fx=fx, fy=fx * rng.uniform(0.998, 1.002),

@@ -204,7 +204,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                          source="photos", hint=f"check the board ({board.describe()}) "
                          f"{NOT_FOUND_HINT[board.pattern]}, and {TOO_FEW_HINT}")
     corners = np.stack([f.corners for f in used])
-    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", 3))
+    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", 4))
     model = cal.cameramodel()
     step = steps("cross-validating", 1)
     check = cross_validation(corners, board, size, cal.lensmodel)

@@ -1,0 +1,214 @@
+#!/usr/bin/env python3
+"""Benchmark ``lenticalib camera calibrate`` against plain OpenCV and the simulator's true camera.
+
+For every set of ``SETS`` and every seed: the package's simulator photographs a printed board
+(:func:`lenticalib.sim.board_set.simulate_board_set`: a known camera, defocus, noise, JPEG; some
+boards reach out of the frame), then
+
+- lenticalib calibrates the photos (:func:`lenticalib.calib.intrinsics.pipeline.calibrate_camera`,
+  the library function behind ``lenticalib camera calibrate``: its lens-model choice, outlier
+  rejection and cross-validated uncertainty);
+- OpenCV calibrates the very corners lenticalib detected in the photos it used, as a user
+  would: ``cv2.calibrateCamera`` with ``CALIB_RATIONAL_MODEL`` (mrcal's ``LENSMODEL_OPENCV8``).
+
+Both models are compared with the true camera over the whole image, as
+``mrcal-show-projection-diff`` does: ``mrcal.projection_diff`` on a 60-point-wide grid, points
+at infinity, after the rotation that best lines the two up over the whole image (``--radius``
+pixels around the centre to fit it over a smaller region); ``worst`` and ``rms`` are the
+lengths of the differences (px).  Honesty of lenticalib's reported uncertainty (mrcal's
+``projection_uncertainty`` times the cross-validation scale written into the model): the
+solved model against the truth with the true board poses
+(:func:`lenticalib.calib.intrinsics.quality.compare_to_truth`, the "mean-pcam" reference that
+uncertainty describes) on a 40 x 30 grid, at infinity and at the working distance: ``in3s`` the
+share of grid points whose error is within 3 sigma (Mahalanobis; ~99 % when honest), ``z@worst``
+the error in sigmas at the worst point, ``z50`` the median (1.18 for an honest sigma: a much
+smaller one means an inflated uncertainty).
+
+    python tools/bench_camera.py [--sets mild,strong,wide,phone] [--seeds 1-3] [--size 3000x2000]
+                                 [--jobs 2] [--keep DIR]
+
+Targets (issue 23): lenticalib's worst error <= OpenCV's on every set, <= 0.2 px at 3000x2000,
+the truth within the reported 3 sigma.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+BOARDS = {
+    # board kind -> simulate_board_set keywords; a board kind's calibration needs no more than the photos
+    "chessboard": {"kind": "print"},
+}
+
+# name -> board kind, lens (lenticalib.sim.boards.LENSES), conditions ("hard": a phone's tone curve,
+# noise and exposure drift), photos, share of photos whose board reaches out of the frame
+SETS = {
+    "mild": {"board": "chessboard", "lens": "mild", "conditions": "standard", "photos": 22, "cut": 0.25},
+    "strong": {"board": "chessboard", "lens": "strong", "conditions": "standard", "photos": 22, "cut": 0.25},
+    "wide": {"board": "chessboard", "lens": "wide", "conditions": "standard", "photos": 28, "cut": 0.25},
+    "phone": {"board": "chessboard", "lens": "standard", "conditions": "hard", "photos": 18, "cut": 0.25},
+}
+
+GRID_WIDTH = 60
+
+
+def parse_range(text: str) -> list[int]:
+    out = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out += list(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def truth_diff(model, truth, radius: float | None) -> dict:
+    """Worst and RMS length (px) of ``model`` - ``truth`` projections over the whole image, at
+    infinity, after the best-fit rotation (``mrcal.projection_diff``, fit within ``radius`` px of
+    the centre; None: the whole image)."""
+    import mrcal
+    import numpy as np
+
+    w, h = truth.imagersize()
+    r = radius if radius is not None else 2.0 * float(np.hypot(w, h))
+    difflen, _, _, _ = mrcal.projection_diff((model, truth), gridn_width=GRID_WIDTH, distance=None,
+                                             use_uncertainties=False, focus_radius=r)
+    d = np.asarray(difflen, np.float64).ravel()
+    d = d[np.isfinite(d)]
+    return {"worst": float(d.max()), "rms": float(np.sqrt(np.mean(d * d)))}
+
+
+def opencv_model(corners, board, size):
+    """``cv2.calibrateCamera`` with ``CALIB_RATIONAL_MODEL`` on ``corners`` (Nframes, rows, cols, 2),
+    as an mrcal LENSMODEL_OPENCV8 cameramodel."""
+    import cv2
+    import mrcal
+    import numpy as np
+
+    obj = board.object_points().reshape(-1, 1, 3).astype(np.float32)
+    img = [c.reshape(-1, 1, 2).astype(np.float32) for c in corners]
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    _, k, dist, _, _ = cv2.calibrateCamera([obj] * len(img), img, tuple(size), None, None,
+                                           flags=cv2.CALIB_RATIONAL_MODEL, criteria=criteria)
+    d = np.zeros(8)
+    d[:min(8, dist.size)] = dist.ravel()[:8]
+    intrinsics = np.concatenate([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]], d])
+    return mrcal.cameramodel(intrinsics=("LENSMODEL_OPENCV8", intrinsics), imagersize=tuple(size))
+
+
+def run_set(name: str, seed: int, size, root: Path, radius: float | None) -> dict:
+    import mrcal
+    import numpy as np
+
+    from lenticalib.calib.intrinsics.crossval import read_scale
+    from lenticalib.calib.intrinsics.pipeline import calibrate_camera
+    from lenticalib.calib.intrinsics.quality import compare_to_truth
+    from lenticalib.sim.board_set import read_truth_poses, simulate_board_set
+
+    spec = SETS[name]
+    folder = root / f"{name}-{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    if not (folder / "simulation.json").exists():
+        simulate_board_set(folder, seed=seed, photos=spec["photos"], resolution=tuple(size),
+                           conditions=spec["conditions"], lens=spec["lens"], cut=spec["cut"],
+                           **BOARDS[spec["board"]])
+    t1 = time.perf_counter()
+    out = folder / "camera.cameramodel"
+    run = calibrate_camera([folder / "captures"], out, jobs=1)
+    t2 = time.perf_counter()
+    truth = mrcal.cameramodel(str(folder / "truth.cameramodel"))
+    model = mrcal.cameramodel(str(out))
+    scale = read_scale(out.read_text())
+    oi = model.optimization_inputs()
+    obs = oi["observations_board"]
+    corners = obs[..., :2]
+    from lenticalib.calib.intrinsics.board import read_board
+
+    board = read_board(folder / "board.json")
+    cv = opencv_model(corners, board, size)
+    poses = read_truth_poses(folder)
+    rt = np.array([poses[Path(p).name] for p in run.summary["photos"]["frames"]])
+    honesty = {}
+    for where, distance in (("inf", None), ("near", run.quality["working_distance_mm"])):
+        c = compare_to_truth(model, truth, rt, distance)
+        z = c["normalised"] / scale
+        worst = np.unravel_index(np.argmax(np.linalg.norm(c["error"], axis=-1)), z.shape)
+        honesty[where] = {"in3s": float(np.mean(z < 3.0)), "z_worst": float(z[worst]), "z50": float(np.median(z))}
+    return {"set": name, "seed": seed, "photos": spec["photos"], "used": int(obs.shape[0]),
+            "outliers": int((obs[..., 2] <= 0).sum()), "lensmodel": model.intrinsics()[0].replace("LENSMODEL_", ""),
+            "scale": scale, "lenticalib": truth_diff(model, truth, radius), "opencv": truth_diff(cv, truth, radius),
+            "honesty": honesty, "seconds": {"simulate": t1 - t0, "calibrate": t2 - t1}}
+
+
+def _job(args):
+    return run_set(*args)
+
+
+def print_table(rows: list[dict]) -> None:
+    head = (f"{'set':<7}{'seed':>5}{'used':>8}{'out':>5}  {'lensmodel':<22}{'lc worst':>9}{'lc rms':>8}"
+            f"{'cv worst':>9}{'cv rms':>8}{'  ok':>4}{'k':>6}{'in3s':>7}{'z@worst':>8}{'z50':>6}{'s':>6}")
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        lc, cv, hon = r["lenticalib"], r["opencv"], r["honesty"]["inf"]
+        ok = "yes" if lc["worst"] <= cv["worst"] and lc["worst"] <= 0.2 else "no"
+        model = r["lensmodel"] if len(r["lensmodel"]) <= 21 else r["lensmodel"][:18] + "..."
+        print(f"{r['set']:<7}{r['seed']:>5}{r['used']:>5}/{r['photos']:<2}{r['outliers']:>5}  {model:<22}"
+              f"{lc['worst']:>9.3f}{lc['rms']:>8.3f}{cv['worst']:>9.3f}{cv['rms']:>8.3f}{ok:>4}{r['scale']:>6.2f}"
+              f"{100 * hon['in3s']:>6.1f}%{hon['z_worst']:>8.2f}{hon['z50']:>6.2f}{r['seconds']['calibrate']:>6.0f}")
+    print()
+    print("per set, median over seeds (px): lenticalib worst / rms, OpenCV worst / rms; "
+          "truth within 3 sigma at infinity and at the working distance")
+    for name in dict.fromkeys(r["set"] for r in rows):
+        rs = [r for r in rows if r["set"] == name]
+        med = lambda f: statistics.median(f(r) for r in rs)  # noqa: E731
+        print(f"  {name:<7} {med(lambda r: r['lenticalib']['worst']):.3f} / {med(lambda r: r['lenticalib']['rms']):.3f}"
+              f"   {med(lambda r: r['opencv']['worst']):.3f} / {med(lambda r: r['opencv']['rms']):.3f}"
+              f"   in3s {100 * med(lambda r: r['honesty']['inf']['in3s']):.1f}% / "
+              f"{100 * med(lambda r: r['honesty']['near']['in3s']):.1f}%"
+              f"   lenticalib <= OpenCV on {sum(r['lenticalib']['worst'] <= r['opencv']['worst'] for r in rs)}"
+              f"/{len(rs)}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sets", default=",".join(SETS), help="comma-separated names of SETS")
+    ap.add_argument("--seeds", default="1-3", help="seeds, e.g. 1-3 or 1,4")
+    ap.add_argument("--size", default="3000x2000", help="photo size WxH")
+    ap.add_argument("--jobs", type=int, default=2, help="sets run in parallel (processes)")
+    ap.add_argument("--radius", type=float, default=None,
+                    help="fit the rotation within this many px of the centre (default: the whole image)")
+    ap.add_argument("--keep", default=None, help="keep the sets in this folder (and reuse simulated photos)")
+    ap.add_argument("--json", action="store_true", help="print the rows as JSON too")
+    a = ap.parse_args(argv)
+    names = [s for s in a.sets.split(",") if s]
+    unknown = [s for s in names if s not in SETS]
+    if unknown:
+        ap.error(f"unknown sets {unknown}; known: {', '.join(SETS)}")
+    size = tuple(int(v) for v in a.size.lower().split("x"))
+    tasks = [(n, s) for n in names for s in parse_range(a.seeds)]
+    with tempfile.TemporaryDirectory(prefix="bench-camera-") as tmp:
+        root = Path(a.keep) if a.keep else Path(tmp)
+        args = [(n, s, size, root, a.radius) for n, s in tasks]
+        if a.jobs > 1 and len(args) > 1:
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(max_workers=a.jobs) as pool:
+                rows = list(pool.map(_job, args))
+        else:
+            rows = [_job(x) for x in args]
+    print(f"camera calibration vs truth, {size[0]}x{size[1]}, errors in px over the whole image "
+          f"(mrcal.projection_diff at infinity, best-fit rotation)")
+    print_table(rows)
+    if a.json:
+        print(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
