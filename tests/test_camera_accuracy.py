@@ -3,6 +3,8 @@
 Fixed seeds, small images; each test fails when the property it guards is broken.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -93,3 +95,33 @@ def test_lens_kinds_and_boards_reaching_out_of_the_frame():
     np.testing.assert_allclose(standard.distortion, (-0.19731983792878297, 0.009174333324626534,
                                                      -0.0008140429378479931, -0.0010514484496005427,
                                                      0.0048507578929338924), rtol=1e-12)
+
+
+def test_a_photo_whose_corners_all_disagree_is_left_out_and_the_rest_solved(tmp_path, monkeypatch):
+    """A misread board (here: one photo's corners shuffled) used to leave a pose the solve could not
+    constrain, and mrcal's uncertainty then failed with a traceback; it is now named and left out."""
+    from lenticalib.calib.intrinsics import corners as corners_module
+    from lenticalib.calib.intrinsics.pipeline import calibrate_camera
+    from lenticalib.sim.board_set import simulate_board_set
+
+    folder = tmp_path / "set"
+    folder.mkdir()
+    simulate_board_set(folder, kind="print", seed=5, photos=12, resolution=(800, 600), subsamples=1)
+    detect = corners_module.detect_photos
+
+    misread_name = []
+
+    def misread(*args, **kwargs):
+        found = detect(*args, **kwargs)
+        misread_name.append(Path(found[3].path).name)
+        c = found[3].corners
+        shuffled = np.random.default_rng(0).permutation(c.reshape(-1, 2))
+        found[3].corners = shuffled.reshape(c.shape)
+        return found
+
+    monkeypatch.setattr(corners_module, "detect_photos", misread)
+    run = calibrate_camera([folder / "captures"], tmp_path / "c.cameramodel")
+    rejected = {Path(r["photo"]).name: r["reason"] for r in run.summary["photos"]["rejected"]}
+    assert list(rejected) == misread_name and "disagree with the other photos" in rejected[misread_name[0]]
+    assert run.summary["photos"]["used"] == 11
+    assert run.summary["residuals"]["rms_px"] < 0.2

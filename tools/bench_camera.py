@@ -44,6 +44,7 @@ from pathlib import Path
 BOARDS = {
     # board kind -> simulate_board_set keywords; a board kind's calibration needs no more than the photos
     "chessboard": {"kind": "print"},
+    "charuco": {"kind": "print", "pattern": "charuco"},
 }
 
 # name -> board kind, lens (lenticalib.sim.boards.LENSES), conditions ("hard": a phone's tone curve,
@@ -53,6 +54,11 @@ SETS = {
     "strong": {"board": "chessboard", "lens": "strong", "conditions": "standard", "photos": 22, "cut": 0.25},
     "wide": {"board": "chessboard", "lens": "wide", "conditions": "standard", "photos": 28, "cut": 0.25},
     "phone": {"board": "chessboard", "lens": "standard", "conditions": "hard", "photos": 18, "cut": 0.25},
+    # the same lenses with ChArUco boards: a photo whose board runs off the frame still counts
+    "mild-charuco": {"board": "charuco", "lens": "mild", "conditions": "standard", "photos": 22, "cut": 0.25},
+    "strong-charuco": {"board": "charuco", "lens": "strong", "conditions": "standard", "photos": 22, "cut": 0.25},
+    "wide-charuco": {"board": "charuco", "lens": "wide", "conditions": "standard", "photos": 28, "cut": 0.25},
+    "phone-charuco": {"board": "charuco", "lens": "standard", "conditions": "hard", "photos": 18, "cut": 0.25},
 }
 
 GRID_WIDTH = 60
@@ -82,17 +88,22 @@ def truth_diff(model, truth, radius: float | None) -> dict:
     return {"worst": float(d.max()), "rms": float(np.sqrt(np.mean(d * d)))}
 
 
-def opencv_model(corners, board, size):
-    """``cv2.calibrateCamera`` with ``CALIB_RATIONAL_MODEL`` on ``corners`` (Nframes, rows, cols, 2),
-    as an mrcal LENSMODEL_OPENCV8 cameramodel."""
+def opencv_model(observations, board, size):
+    """``cv2.calibrateCamera`` with ``CALIB_RATIONAL_MODEL`` on the corners of ``observations``
+    (Nframes, rows, cols, 3): x, y, weight, a corner not identified (a ChArUco board's, weight < 0)
+    left out, as an mrcal LENSMODEL_OPENCV8 cameramodel."""
     import cv2
     import mrcal
     import numpy as np
 
-    obj = board.object_points().reshape(-1, 1, 3).astype(np.float32)
-    img = [c.reshape(-1, 1, 2).astype(np.float32) for c in corners]
+    points = board.object_points().reshape(-1, 3).astype(np.float32)
+    obj, img = [], []
+    for frame in observations:
+        seen = frame[..., 2].reshape(-1) >= 0
+        obj.append(points[seen].reshape(-1, 1, 3))
+        img.append(frame[..., :2].reshape(-1, 2)[seen].reshape(-1, 1, 2).astype(np.float32))
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    _, k, dist, _, _ = cv2.calibrateCamera([obj] * len(img), img, tuple(size), None, None,
+    _, k, dist, _, _ = cv2.calibrateCamera(obj, img, tuple(size), None, None,
                                            flags=cv2.CALIB_RATIONAL_MODEL, criteria=criteria)
     d = np.zeros(8)
     d[:min(8, dist.size)] = dist.ravel()[:8]
@@ -126,11 +137,10 @@ def run_set(name: str, seed: int, size, root: Path, radius: float | None) -> dic
     scale = read_scale(out.read_text())
     oi = model.optimization_inputs()
     obs = oi["observations_board"]
-    corners = obs[..., :2]
     from lenticalib.calib.intrinsics.board import read_board
 
     board = read_board(folder / "board.json")
-    cv = opencv_model(corners, board, size)
+    cv = opencv_model(obs, board, size)
     poses = read_truth_poses(folder)
     rt = np.array([poses[Path(p).name] for p in run.summary["photos"]["frames"]])
     honesty = {}

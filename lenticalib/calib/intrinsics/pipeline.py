@@ -28,6 +28,7 @@ from ...core.outputs import check_output_file, check_output_folder, staged_folde
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 MIN_VIEWS = 10  # photos with the board found, at least
+MIN_INLIER_CORNERS = 8  # corners of a photo the solve must keep (fewer: the photo is left out and the rest solved again)
 MAX_JOBS = 64
 TOO_FEW_HINT = ("photograph the board at least 10 times (15-30 is better): tilt the camera 20-40 degrees "
                 "in varied directions, and let the board reach every corner of the image")
@@ -205,6 +206,18 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                          f"{NOT_FOUND_HINT[board.pattern]}, and {TOO_FEW_HINT}")
     corners = np.stack([f.corners for f in used])
     cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", 4))
+    kept = cal.solve.inlier.sum(axis=(1, 2))
+    lost = kept < MIN_INLIER_CORNERS
+    if lost.any() and len(used) - int(lost.sum()) >= MIN_VIEWS:
+        # a photo whose corners the solve rejected (nearly) all of disagrees with the others (a
+        # misread board): its pose would be unconstrained, so it is left out and the rest solved again
+        for f, n in zip(used, kept):
+            if n < MIN_INLIER_CORNERS:
+                f.corners, f.reason = None, (f"its corners disagree with the other photos ({int(n)} of them fit): "
+                                             "a misread or moving board")
+        used = [f for f in used if f.corners is not None]
+        corners = np.stack([f.corners for f in used])
+        cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving again", 4))
     model = cal.cameramodel()
     step = steps("cross-validating", 1)
     check = cross_validation(corners, board, size, cal.lensmodel)
