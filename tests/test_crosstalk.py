@@ -483,7 +483,7 @@ def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     ratios, rr, cc, _ = _ratios(luma, mask, pattern_set, Glare(0.0, 0.0, float("nan")))
     shifts = np.array([band.shift for band in pattern_set.bands])
     fit = cone.fit_cone(ratios, rr, cc, shifts, n, mask.shape)
-    assert checks.photo_misfit(fit, ratios, rr, cc, shifts).max() < checks.MAX_MISFIT
+    assert checks.photo_disagreement(fit, ratios, rr, cc, shifts)[0].max() < checks.MAX_DISAGREEMENT
     centre = (rr >= 70) & (rr < 170) & (cc >= 100) & (cc < 220)
     centre_fit = cone.fit_cone(ratios[centre], rr[centre], cc[centre], shifts, n, mask.shape, degree=3, start=fit)
     row = _row_from(centre_fit, ratios[centre], rr[centre], cc[centre], shifts, n)[0]
