@@ -1,13 +1,16 @@
 """Checks of the band photos: duplicates, and a photo whose band is not where the others put it.
 
 How well a photo agrees with the view-cone model is judged on a scale the photos themselves set
-(:func:`photo_disagreement`): the photo's misfit to the model over the misfit the photos show
-against the same model moved half the views away, which is what a photo of another band shows.
-Both hold the photos' noise, moire and model error and both scale with the cone's contrast, so
-one limit serves a sharp lens sheet and a soft one, close up and from afar.  On the virtual
-panel (own-view shares 0.26-0.64, 400-900 mm): 0.02-0.26 for right photos (about 0.6 before a
-close camera's moire is averaged out, 0.05 after), 1.0-1.8 for a photo of another band or of a
-half pattern; a soft sheet's band one view away from where it belongs: 0.5, two views: 0.8.
+(:func:`photo_disagreement`): the photo's misfit to the model beyond its own noise, over the
+misfit (beyond noise) the photos show against the same model moved half the views away, which
+is what a photo of another band shows.  The noise is taken out (it is what differs between
+neighbouring pixels), and both misfits scale with the cone's contrast, so one limit serves a
+sharp lens sheet and a soft one, clean and noisy photos, close up and from afar.  On the virtual
+panel (own-view shares 0.26-0.64, 400-900 mm): 0-0.12 for right photos (more before a close
+camera's moire is averaged out along the columns), 7-9 for a photo of a half pattern, about 1 for
+a band elsewhere.  The former limit, a misfit of 0.15 of the cone's peak-to-peak contrast with the
+noise left in, refused right photos of a soft sheet (own-view share 0.26) with a noise of 0.04 of
+white per working pixel; these pass with disagreements below 0.2.
 """
 
 from __future__ import annotations
@@ -131,12 +134,14 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) 
     if best is not None:
         j, alone, a = best
         raise CaptureError(f"does not show pattern {bands[j].name} where the other band photos say it should be "
-                           f"(misfit {alone:.2f} of a band elsewhere's, exposure {a:.2f} of the others')",
+                           f"(disagreement {alone:.2f}, exposure {a:.2f} of the others'; right photos show below "
+                           f"{MAX_DISAGREEMENT}, a photo of another band about 1)",
                            source=str(capture.photo(bands[j].name)),
                            hint=f"show {bands[j].file} of this folder full screen and photograph it again from "
                                 "the same place")
     worst = int(np.argmax(disagreement))
-    raise CaptureError(f"the band photos do not agree with each other (worst: {bands[worst].name}, misfit "
-                       f"{disagreement[worst]:.2f} of a band elsewhere's)", source=str(capture.directory / "captures"),
+    raise CaptureError(f"the band photos do not agree with each other (worst: {bands[worst].name}, disagreement "
+                       f"{disagreement[worst]:.2f}; right photos show below {MAX_DISAGREEMENT}, a photo of another band "
+                       "about 1)", source=str(capture.directory / "captures"),
                        hint="photograph every pattern of this folder from one camera position, with the exposure "
                             "locked; they may be photos of another pattern set")
