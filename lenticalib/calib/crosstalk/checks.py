@@ -22,7 +22,7 @@ import numpy as np
 from ...core.errors import CaptureError
 from . import cone
 
-MAX_DISAGREEMENT = 0.5  # a photo's misfit over what a photo of another band would show (photo_disagreement)
+MAX_DISAGREEMENT = 0.5  # a photo's misfit beyond noise, over what a photo of another band shows (photo_disagreement)
 EXPOSURE_RANGE = (0.6, 1.6)  # a band photo's exposure relative to white, as the cone fit finds it
 NOISE_STEP = 2  # rows between the pixels whose residuals give a photo's noise (1: neighbours share the camera's blur)
 CHECK_SAMPLES = 6000  # working pixels the band-photo check fits (a fifth of the cone fit's: seconds, not minutes)
@@ -108,10 +108,11 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) 
     judged against a fit of the others (a wrong photo pulls a fit that includes it towards itself):
     the one that disagrees while all the others then agree is named.
 
-    Runs before the cone fit of the measurement, on its own quick fit of :data:`CHECK_SAMPLES`
-    working pixels drawn with a fixed seed (``ratios`` float (n, K), ``rows``/``cols`` int (n,),
-    ``shifts`` float (K,) views, ``shape`` (h, w) of the working image), so a wrong photo is
-    named in seconds.  Only this fit is judged: the measurement's fit of the whole panel is not
+    Runs right after the photos are read (before the glare fit and the cone fits of the
+    measurement), on its own quick fit of :data:`CHECK_SAMPLES` working pixels drawn with a fixed
+    seed by :func:`sample_pairs` (with the pixels below them, for the noise), so a wrong photo is
+    named in seconds.  ``ratios`` float (n, K), ``rows``/``cols`` int (n,), ``shifts`` float (K,)
+    views, ``shape`` (h, w) of the working image.  Only this fit is judged: the measurement's fit of the whole panel is not
     checked again (its residual is reported in the diagnostics, ``cone_residual_rms``)."""
     pick, partner = sample_pairs(rows, cols, CHECK_SAMPLES)
     below = (ratios[partner], rows[partner], cols[partner])
