@@ -483,7 +483,7 @@ def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     ratios, rr, cc, _ = _ratios(luma, mask, pattern_set, Glare(0.0, 0.0, float("nan")))
     shifts = np.array([band.shift for band in pattern_set.bands])
     fit = cone.fit_cone(ratios, rr, cc, shifts, n, mask.shape)
-    assert checks.photo_misfit(fit, ratios, rr, cc, shifts).max() < checks.MAX_MISFIT
+    assert checks.photo_disagreement(fit, ratios, rr, cc, shifts)[0].max() < checks.MAX_DISAGREEMENT
     centre = (rr >= 70) & (rr < 170) & (cc >= 100) & (cc < 220)
     centre_fit = cone.fit_cone(ratios[centre], rr[centre], cc[centre], shifts, n, mask.shape, degree=3, start=fit)
     row = _row_from(centre_fit, ratios[centre], rr[centre], cc[centre], shifts, n)[0]
@@ -491,3 +491,72 @@ def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     overlap = np.clip(np.minimum(m + 0.5, spread / 2) - np.maximum(m - 0.5, -spread / 2), 0, None)
     truth = 0.01 + 0.55 * overlap / spread
     assert np.abs(row - truth / truth.sum()).max() < 0.005
+
+
+
+def _soft_sheet_ratios(shifts, noise, seed=11):
+    """Band ratios of a soft lens sheet (own-view share about 0.25, the cone broadening towards the
+    panel's sides as off axis) for band shifts ``shifts`` (views) with ``noise`` (share of white,
+    per working pixel): (ratios float (n, K), rows, cols) of a 160 x 240 working image."""
+    n = VIEWS
+    rows, cols = (a.ravel() for a in np.mgrid[0:160, 0:240])
+    delta = 0.16 * cols + 0.004 * rows - 19.0  # views
+    width = 1.25 * (1 + 0.3 * ((cols - 120) / 120) ** 2)[:, None]
+    t = np.mod(delta[:, None] + np.asarray(shifts)[None, :] + n / 2, n) - n / 2
+    ratios = 0.004 + 0.27 * np.exp(-0.5 * (t / width) ** 2)
+    return ratios + np.random.default_rng(seed).normal(0, noise, ratios.shape), rows, cols
+
+
+@pytest.mark.parametrize("noise", [0.02, 0.08])
+def test_band_check_passes_a_noisy_soft_sheet_and_names_a_band_photo_out_of_place(profile, noise):
+    """Issue 23: right photos of a soft lens sheet were refused ('do not agree with each other'): the
+    check's limit was a share of the cone's contrast with the photos' noise left in (here a misfit of
+    0.29 of the contrast at 0.08 noise, limit 0.15).  Judged beyond the noise and against what a photo
+    of another band shows, they pass; a band two views from its place is still named."""
+    from pathlib import Path
+
+    from lenticalib.calib.crosstalk import checks
+
+    bands = design_crosstalk_patterns(profile).bands
+    shifts = np.array([band.shift for band in bands])
+    capture = types.SimpleNamespace(directory=Path("set"), photo=lambda name: Path("set/captures") / f"{name}.png")
+    ratios, rows, cols = _soft_sheet_ratios(shifts, noise)
+    checks.check_band_photos(ratios, rows, cols, shifts, bands, capture, VIEWS, (160, 240))
+    moved = shifts.copy()
+    moved[7] -= 2.0  # band-07 photographed two views from where it belongs (the camera moved aside)
+    ratios[:, 7] = _soft_sheet_ratios(moved, noise, seed=12)[0][:, 7]
+    with pytest.raises(CaptureError, match="does not show pattern band-07") as err:
+        checks.check_band_photos(ratios, rows, cols, shifts, bands, capture, VIEWS, (160, 240))
+    assert str(err.value).startswith(str(Path("set/captures/band-07.png")))
+
+
+@pytest.mark.slow
+def test_soft_sheet_from_afar_is_measured_and_a_wrong_photo_in_it_refused_early(capture_set, tmp_path, monkeypatch):
+    """Issue 23: a soft lens sheet (own-view share 0.26) photographed from 850 mm is measured, within
+    0.01 and 3 sigma of the truth; the half pattern photographed in place of band-07 is named right
+    after the photos are read, before the glare fit and any cone fit of the whole panel."""
+    from lenticalib.calib.crosstalk import cone, photometry
+    from lenticalib.calib.crosstalk.checks import CHECK_SAMPLES
+    from lenticalib.calib.crosstalk.measure import measure_crosstalk
+
+    soft = random_scene(3, width=1280, height=720, resolution=(1500, 1000), subsamples=2, distance=850.0,
+                        blur=(0.6, 0.6))
+    truth_profile = soft.truth_profile(VIEWS)
+    fitted = truth_profile.replace(offset=truth_profile.offset + 0.05 * truth_profile.period / VIEWS)
+    folder = capture_set(soft, design_crosstalk_patterns(fitted), raw=True)
+    m = measure_crosstalk(folder, fitted, photos="linear")
+    truth = np.asarray(json.loads((folder / "crosstalk-truth.json").read_text())["matrix"])[0]
+    assert truth[0] < 0.3
+    assert np.abs(m.row - truth).max() < 0.01
+    assert np.all(np.abs(m.row - truth) <= 3 * m.row_sigma)
+
+    work = []
+    real_fit_cone, real_fit_glare = cone.fit_cone, photometry.fit_glare
+    monkeypatch.setattr(cone, "fit_cone", lambda ratios, *a, **k: work.append(len(ratios)) or real_fit_cone(ratios, *a, **k))
+    monkeypatch.setattr(photometry, "fit_glare", lambda *a, **k: work.append("glare") or real_fit_glare(*a, **k))
+    wrong = _copy_set(folder, tmp_path)
+    shutil.copy(wrong / "captures" / "half-0.png", wrong / "captures" / "band-07.png")
+    with pytest.raises(CaptureError, match="does not show pattern band-07") as err:
+        measure_crosstalk(wrong, fitted, photos="linear")
+    assert str(err.value).startswith(str(wrong / "captures" / "band-07.png"))
+    assert work and "glare" not in work and max(work) <= CHECK_SAMPLES, work

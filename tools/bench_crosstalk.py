@@ -2,21 +2,24 @@
 """Benchmark ``lenticalib crosstalk measure`` against the virtual panel's true mixing matrix.
 
 For every case of ``CASES`` (sharp and blurry lens sheets, both slant signs, both subpixel
-orders, camera distances from 400 to 900 mm): draw the scene, photograph the calibration
+orders, camera distances from 400 to 1100 mm; cases 9-12 (issue 23): soft sheets with own-view
+shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, a far one): draw the scene, photograph the calibration
 patterns, **fit** a profile, draw the crosstalk patterns from that fitted profile (not the true
 one), photograph them from the same camera position (same scene), measure, and compare with the
 truth (``lenticalib.sim.crosstalk_truth``: the light an eye at each zone centre receives).
 
-Prints one row per case, then the worst cases.  Targets (issue 12): every entry of M within 0.01
+Prints one row per case (a refusal of the photos, which are all right, is a failure: a false
+refusal), then the worst cases.  Targets (issue 12): every entry of M within 0.01
 of the truth, the own-view share within 0.01, and the reported uncertainty containing the true
 error (|error| <= 3 sigma for every entry).  Also prints the crosstalk pre-compensation study on
 the true M (RMS error of the view seen at each zone centre vs. intended, with and without) and
 its cost on this machine (median of 5, 32 views of 960x540).  Every case is measured twice: from
 16-bit linear photos (``simulate --raw``, ``--photos linear``: the acceptance) and from the
-camera's JPEGs (sRGB assumed; their unknown tone curve is in the reported uncertainty).
+camera's JPEGs (sRGB assumed; their unknown tone curve is in the reported uncertainty);
+``--photos raw`` measures the linear photos only.
 
-    python tools/bench_crosstalk.py [--cases 1-8] [--resolution 3000x2000] [--conditions standard]
-                                    [--keep DIR [--reuse]] [--jobs J]
+    python tools/bench_crosstalk.py [--cases 1-12] [--resolution 3000x2000] [--conditions standard]
+                                    [--keep DIR [--reuse]] [--jobs J] [--photos raw,jpeg]
 """
 
 from __future__ import annotations
@@ -29,15 +32,23 @@ import tempfile
 import time
 from pathlib import Path
 
-# (seed, blur in subpixel widths, slant sign, order, distance mm)
+# (seed, blur in subpixel widths, slant sign, order, distance mm[, other fixed scene ranges])
 CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.15, -1, "BGR", 600.0),
          (104, 0.35, +1, "RGB", 750.0), (105, 0.25, +1, "BGR", 500.0), (106, 0.25, -1, "RGB", 850.0),
-         (107, 0.18, +1, "BGR", 700.0), (108, 0.32, -1, "RGB", 450.0)]
+         (107, 0.18, +1, "BGR", 700.0), (108, 0.32, -1, "RGB", 450.0),
+         # soft lens sheets (own-view share about 0.3), far and steep cameras (issue 23); a sixth
+         # element fixes more of the scene (lenticalib.sim.scene.random_scene's ranges)
+         (109, 0.60, +1, "RGB", 850.0, {}),  # blurry, far
+         (110, 0.70, -1, "BGR", 700.0, {"blur_growth": 1.5}),  # blurry, the cone broadening fast off axis
+         (111, 0.50, +1, "BGR", 800.0, {"offset": 180.0}),  # blurry, a steep camera (180 mm off axis)
+         (112, 0.35, -1, "RGB", 1100.0, {})]  # far
 
 
-def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = False) -> dict:
+def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = False,
+             kinds: tuple[str, ...] = ("raw", "jpeg")) -> dict:
     import numpy as np
 
+    from lenticalib.core.errors import CaptureError
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
     from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
     from lenticalib.calib.fit import fit_capture_set
@@ -46,10 +57,11 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     from lenticalib.sim.capture import CROSSTALK_TRUTH_NAME, simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
-    seed, blur, sign, order, distance = CASES[index - 1]
+    seed, blur, sign, order, distance, *more = CASES[index - 1]
+    fixed = more[0] if more else {}
     draw = random_scene(seed, resolution=resolution, conditions=conditions)
     scene = random_scene(seed, resolution=resolution, conditions=conditions, blur=(blur, blur), order=order,
-                         distance=distance, slant=sign * abs(draw.optics.slant))
+                         distance=distance, slant=sign * abs(draw.optics.slant), **fixed)
     folder = root / f"case-{index}"
     cal = folder / "cal"
     t0 = time.perf_counter()
@@ -70,13 +82,20 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     out = {"case": index, "seed": seed, "blur": blur, "slant": scene.optics.slant, "order": order,
            "distance": distance, "period": scene.optics.period_at(scene.camera.distance),
            "tone_gamma": scene.camera.tone_gamma, "glare_true": scene.camera.glare_fraction, "fit_s": t1 - t0}
+    out["fixed"] = fixed
     for kind, raw in (("raw", True), ("jpeg", False)):
+        if kind not in kinds:
+            continue
         folder_k = folder / f"xt-{kind}"
         if not (reuse and _complete(folder_k, pattern_set)):
             write_patterns(folder_k, pattern_set)
             simulate_capture_set(folder_k, scene, raw=raw)
         t2 = time.perf_counter()
-        m = measure_crosstalk(folder_k, profile, photos="linear" if raw else "srgb")
+        try:
+            m = measure_crosstalk(folder_k, profile, photos="linear" if raw else "srgb")
+        except CaptureError as refusal:  # a false refusal: every photo of the set is right
+            out[kind] = {"refused": str(refusal), "measure_s": time.perf_counter() - t2}
+            continue
         t3 = time.perf_counter()
         truth = np.asarray(json.loads((folder_k / CROSSTALK_TRUTH_NAME).read_text())["matrix"])
         n = m.views
@@ -87,7 +106,8 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
                      "max_err": float(np.abs(err).max()), "own_err": float(err[0, 0]), "max_z": float(z.max()),
                      "rms_z": float(np.sqrt(np.mean((err[0] / np.maximum(m.row_sigma, 1e-12)) ** 2))),
                      "glare": m.photometry["glare"]["fraction"], "measure_s": t3 - t2,
-                     "truth_row": truth[0].tolist(), "row": m.row.tolist()}
+                     "truth_row": truth[0].tolist(), "row": m.row.tolist(), "refused": None,
+                     "column_average": any("moire" in w for w in m.warnings)}
     return out
 
 
@@ -139,10 +159,13 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--reuse", action="store_true", help="with --keep: reuse each case's fitted profile "
                         "(fitted-profile.json) and its crosstalk photos instead of photographing and fitting again")
+    parser.add_argument("--photos", default="raw,jpeg", help="which photos to measure each case from: raw "
+                        "(16-bit linear), jpeg (camera JPEGs), or both (raw,jpeg)")
     args = parser.parse_args()
     lo, _, hi = args.cases.partition("-")
     cases = list(range(int(lo), int(hi or lo) + 1))
     resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
+    kinds = tuple(k for k in ("raw", "jpeg") if k in args.photos.split(","))
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench-crosstalk-"))
     root.mkdir(parents=True, exist_ok=True)
     if args.jobs > 1:
@@ -152,30 +175,46 @@ def main() -> int:
         os.environ.setdefault("NUMBA_NUM_THREADS", "1")
         with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
             rows = list(pool.map(run_case, cases, [root] * len(cases), [resolution] * len(cases),
-                                 [args.conditions] * len(cases), [args.reuse] * len(cases)))
+                                 [args.conditions] * len(cases), [args.reuse] * len(cases), [kinds] * len(cases)))
     else:
-        rows = [run_case(c, root, resolution, args.conditions, args.reuse) for c in cases]
+        rows = [run_case(c, root, resolution, args.conditions, args.reuse, kinds) for c in cases]
     print("case seed  blur  slant    order  D mm   Delta_r  gamma  photos  own true  own meas  +-sigma  max|err|  "
-          "max|z|  rms z  glare (true)     fit s  measure s")
+          "max|z|  in 3 sigma  rms z  glare (true)     fit s  measure s  scene fixed")
+    refusals = []
     for r in rows:
-        for kind in ("raw", "jpeg"):
+        for kind in kinds:
             k = r[kind]
-            print(f"{r['case']:4d} {r['seed']:4d}  {r['blur']:.2f}  {r['slant']:+.4f}  {r['order']}    {r['distance']:4.0f}  "
-                  f"{r['period']:7.3f}  {r['tone_gamma']:.3f}  {kind:6s}  {k['own_true']:.4f}    {k['own']:.4f}    "
-                  f"{k['own_sigma']:.4f}   {k['max_err']:.4f}   {k['max_z']:5.2f}  {k['rms_z']:5.2f}  {k['glare']:.4f} "
-                  f"({r['glare_true']:.4f})  {r['fit_s']:6.1f}  {k['measure_s']:6.1f}")
-    ok = True
-    for kind in ("raw", "jpeg"):
-        worst = max(r[kind]["max_err"] for r in rows)
-        worst_own = max(abs(r[kind]["own_err"]) for r in rows)
-        worst_z = max(r[kind]["max_z"] for r in rows)
-        print(f"{kind}: worst |M - M_true| {worst:.4f} (target 0.01); worst own-view share error {worst_own:.4f} "
-              f"(target 0.01); worst |z| {worst_z:.2f} (target <= 3); median measure time "
-              f"{statistics.median(r[kind]['measure_s'] for r in rows):.1f} s")
-        if kind == "raw":
-            ok = worst <= 0.01 and worst_own <= 0.01 and worst_z <= 3
-    for line in compensation_summary([r["raw"] | {"case": r["case"]} for r in rows]):
+            head = (f"{r['case']:4d} {r['seed']:4d}  {r['blur']:.2f}  {r['slant']:+.4f}  {r['order']}    "
+                    f"{r['distance']:4.0f}  {r['period']:7.3f}  {r['tone_gamma']:.3f}  {kind:6s}")
+            if k["refused"]:
+                refusals.append(f"case {r['case']} {kind}: REFUSED {k['refused']}")
+                print(f"{head}  REFUSED (a false refusal: every photo is right)  {r['fit_s']:6.1f}  {k['measure_s']:6.1f}")
+                continue
+            print(f"{head}  {k['own_true']:.4f}    {k['own']:.4f}    "
+                  f"{k['own_sigma']:.4f}   {k['max_err']:.4f}   {k['max_z']:5.2f}  {'yes' if k['max_z'] <= 3 else 'NO':10s}  "
+                  f"{k['rms_z']:5.2f}  {k['glare']:.4f} ({r['glare_true']:.4f})  {r['fit_s']:6.1f}  {k['measure_s']:6.1f}"
+                  f"  {json.dumps(r.get('fixed') or {})}")
+    for line in refusals:
         print(line)
+    ok = True
+    for kind in kinds:
+        done = [r for r in rows if not r[kind]["refused"]]
+        if not done:
+            print(f"{kind}: every case refused")
+            ok = False
+            continue
+        worst = max(r[kind]["max_err"] for r in done)
+        worst_own = max(abs(r[kind]["own_err"]) for r in done)
+        worst_z = max(r[kind]["max_z"] for r in done)
+        print(f"{kind}: worst |M - M_true| {worst:.4f} (target 0.01); worst own-view share error {worst_own:.4f} "
+              f"(target 0.01); worst |z| {worst_z:.2f} (target <= 3); false refusals {len(rows) - len(done)} "
+              f"(target 0); median measure time {statistics.median(r[kind]['measure_s'] for r in done):.1f} s")
+        if kind == "raw":
+            ok = worst <= 0.01 and worst_own <= 0.01 and worst_z <= 3 and len(done) == len(rows)
+    measured = [r["raw"] | {"case": r["case"]} for r in rows if "raw" in kinds and not r["raw"]["refused"]]
+    if measured:
+        for line in compensation_summary(measured):
+            print(line)
     (root / "bench.json").write_text(json.dumps(rows, indent=1))
     print("PASS" if ok else "FAIL")
     return 0 if ok else 1

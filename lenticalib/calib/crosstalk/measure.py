@@ -160,11 +160,44 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
         raise CaptureError(f"is overexposed: {100 * clip_fraction:.0f}% of the panel is clipped", source=str(white_path),
                            hint="lower the exposure until white is not pure white, lock it, and retake every photo")
     shifts = register_photos(luma, pattern_set.names, capture.photos, lit0, FRAME_FRACTION, warnings)
+    column_average = _check_bands(luma, mask, pattern_set, capture, warnings)
+    if progress:
+        progress("band photos checked")
     power, tone_residual = tone_spread(codes, warnings, capture.photo("half-0")) if photos == "srgb" else (1.0, math.nan)
     if progress:
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
-                    power, tone_residual, photos, factor, start, progress)
+                    power, tone_residual, photos, factor, start, progress, column_average)
+
+
+def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
+    """The band photos' checks (:mod:`.checks`), right after the photos are read and registered and
+    before any of the measurement's own work (glare, cone fits, uncertainties): the column average
+    to measure with (0 or ``COLUMN_AVERAGE``), or CaptureError naming the photo (or the set).
+
+    The checks judge the ratios without the glare correction: the glare adds a smooth floor the
+    cone model holds, and its fit and removal would take as long as the checks."""
+    bands = pattern_set.bands
+    shifts = np.array([p.shift for p in bands])
+    no_glare = photometry.Glare(0.0, 0.0, math.nan)
+    ratios, rows, cols, _ = _ratios(luma, mask, pattern_set, no_glare, column_average=0.0)
+    check_distinct(ratios, bands, capture)
+    try:
+        check_band_photos(ratios, rows, cols, shifts, bands, capture, pattern_set.views, mask.shape)
+        return 0.0
+    except CaptureError as refusal:
+        # a close camera may resolve the moire of a one-view band (which subpixel each lens shows):
+        # the same photos averaged along the panel's columns, where the sweep stays put, must then
+        # agree.  If they do not either, a photo the first check named stays named; otherwise the
+        # averaged photos' verdict stands (their misfits hold neither noise nor moire)
+        averaged = _ratios(luma, mask, pattern_set, no_glare, column_average=COLUMN_AVERAGE)
+        try:
+            check_band_photos(*averaged[:3], shifts, bands, capture, pattern_set.views, mask.shape)
+        except CaptureError as second:
+            raise (second if refusal.source == str(capture.directory / "captures") else refusal) from None
+    warnings.append("the band photos show a moire of the lit subpixels (a close camera): they were averaged "
+                    f"along the panel's columns (sigma {COLUMN_AVERAGE:.3f} of the panel's height)")
+    return COLUMN_AVERAGE
 
 
 def _ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE):
@@ -196,33 +229,16 @@ def _ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVE
 
 
 def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power, tone_residual, photos,
-             factor, start, progress) -> Measurement:
+             factor, start, progress, column_average) -> Measurement:
     import cv2
 
     n = pattern_set.views
     lit = luma["white"] - luma["black"]
     outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
-    ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare, column_average=0.0)
+    ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare, column_average=column_average)
     bands = pattern_set.bands
-    check_distinct(ratios, bands, capture)
     band_shifts = np.array([p.shift for p in bands])
-    column_average = 0.0
-    try:
-        check_band_photos(ratios, rows, cols, band_shifts, bands, capture, n, mask.shape)
-    except CaptureError as refusal:
-        # a close camera may resolve the moire of a one-view band (which subpixel each lens shows):
-        # the same photos averaged along the panel's columns, where the sweep stays put, must then
-        # agree; if they do not either, the first refusal stands
-        averaged = _ratios(luma, mask, pattern_set, glare, column_average=COLUMN_AVERAGE)
-        try:
-            check_band_photos(*averaged[:3], band_shifts, bands, capture, n, mask.shape)
-        except CaptureError:
-            raise refusal from None
-        ratios, rows, cols, white = averaged
-        column_average = COLUMN_AVERAGE
-        warnings.append("the band photos show a moire of the lit subpixels (a close camera): they were averaged "
-                        f"along the panel's columns (sigma {COLUMN_AVERAGE:.3f} of the panel's height)")
     panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
     if progress:
         progress("view cone")

@@ -128,7 +128,7 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     pattern_set, _ = open_crosstalk_set(directory, profile, "profile")
     eye_views, eye_note = (eye or EyeSeparation()).resolve(pattern_set.views)
     if progress_total is not None:
-        progress_total(len(pattern_set.patterns) + 2)
+        progress_total(len(pattern_set.patterns) + 3)
     measurement = measure_crosstalk(directory, profile, photos=photos, profile_source="profile", progress=progress)
     provenance = make_provenance("crosstalk measurement", inputs=measurement.inputs,
                                  **({"profile_file": str(profile_file)} if profile_file is not None else {}),
