@@ -271,7 +271,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
     # the power's 1-sigma relative to the curve the photos were linearised with
     tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
-                  else curve.sigma / curve.power)
+                  else curve.sigma)
     for label, p in (("tone-", 1.0 - tone_sigma), ("tone+", 1.0 + tone_sigma)):
         r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p, column_average)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)

@@ -130,12 +130,14 @@ def register_photos(luma, names, photos, lit, frame_fraction, warnings):
 
 
 def measure_tone(capture, warnings: list[str]) -> tone.ToneCurve | None:
-    """The camera's tone curve from the 8-bit black, white and half photos (:func:`.tone.fit_tone_curve`);
-    None, with a warning, where they are not 8-bit or too few places show both halves partly lit
-    (the photos are then decoded as plain sRGB).  CaptureError when the halves do not add up to
-    white under any curve (photos of other patterns, a moved camera, a changed exposure)."""
+    """The camera's tone curve from the 8-bit black, white, half and level photos
+    (:func:`.tone.fit_tone_curve`); None, with a warning, where they are not 8-bit or show too
+    little to fit (the photos are then decoded as plain sRGB).  CaptureError naming the photo when
+    the halves do not add up to white, or a level photo is not its share of white, under the
+    fitted curve (photos of other patterns, a moved camera, a changed exposure)."""
+    names = tone.PHOTOS + (tone.LEVELS if all(n in capture.patterns.names for n in tone.LEVELS) else ())
     images = {}
-    for name in tone.PHOTOS:
+    for name in names:
         raw = read_image(capture.photo(name), camera_orientation=True)
         if raw.dtype != np.uint8 or raw.ndim != 3 or raw.shape[2] < 3:
             warnings.append("the photos are not 8-bit colour: decoded as plain sRGB, the tone curve not measured")
@@ -145,12 +147,20 @@ def measure_tone(capture, warnings: list[str]) -> tone.ToneCurve | None:
         return None  # the photo-size check of load_all names the odd one
     curve = tone.fit_tone_curve(images, tone.tile_size(images["white"].shape[1]))
     if curve is None:
-        warnings.append("too few places show both half photos partly lit to measure the camera's tone curve: the "
+        warnings.append("the black, white and half photos show too little to measure the camera's tone curve: the "
                         "photos are decoded as plain sRGB, and the uncertainty allows for a camera that is not")
         return None
+    hint = "photograph every pattern of this folder in its own photo, with the camera still and the exposure locked"
     if curve.residual > tone.MAX_RESIDUAL:
         raise CaptureError(f"half-0 and half-1 do not add up to white (relative residual {curve.residual:.2f})",
-                           source=str(capture.photo("half-0")), hint="photograph every pattern of this folder in "
-                                                                     "its own photo, with the camera still and the "
-                                                                     "exposure locked")
+                           source=str(capture.photo("half-0")), hint=hint)
+    for name, residual in zip(tone.LEVELS, curve.level_residuals):
+        if abs(residual) > tone.MAX_LEVEL_BIAS:
+            k = name.rsplit("in", 1)[1]
+            raise CaptureError(f"is not 1/{k} of white's light ({1 + residual:.2f} of it under the tone curve)",
+                               source=str(capture.photo(name)), hint=hint)
+    if not curve.levels:
+        warnings.append("this pattern set has no level patterns (drawn by an older lenticalib): the camera's tone "
+                        "curve is a power on sRGB fitted to the half photos alone; for JPEG photos write the patterns "
+                        "again with 'lenticalib crosstalk patterns' (three more photos)")
     return curve
