@@ -64,7 +64,8 @@ class ToneCurve:
     sRGB's at code 255); ``model`` "curve" or "power" (with ``power``); ``sigma`` its 1-sigma as a
     power on the linearised light; ``residual`` the relative RMS of the half relation;
     ``level_residuals`` each level photo's median light over its share of white's, less 1; ``tiles`` how many tiles it
-    rests on; ``strips`` the strips' powers (model "power") or log-slopes (model "curve")."""
+    rests on; ``strips`` the strips' powers (model "power") or log-slopes (model "curve"); ``levels`` whether
+    the level photos took part; ``code_range`` the median codes of black and white."""
 
     model: str
     table: np.ndarray
@@ -75,6 +76,7 @@ class ToneCurve:
     strips: tuple[float, ...] = ()
     level_residuals: tuple[float, ...] = ()
     levels: bool = False
+    code_range: tuple[int, int] = (0, 255)
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
@@ -83,7 +85,7 @@ class ToneCurve:
     def to_dict(self) -> dict:
         data = {"model": "sRGB decoding ** power" if self.model == "power" else
                 f"sRGB decoding x piecewise-linear factor (knots every {KNOT} codes)",
-                "power_sigma": round(self.sigma, 4), "half_residual": round(self.residual, 4), "tiles": self.tiles,
+                "power_sigma": round(self.sigma, 4), "code_range": list(self.code_range), "half_residual": round(self.residual, 4), "tiles": self.tiles,
                 "strips": [round(v, 4) for v in self.strips],
                 "relations": "half and level photos" if self.levels else "half photos (exposures free)"}
         if self.model == "power":
@@ -228,6 +230,13 @@ def _curve(relations) -> np.ndarray:
     return srgb + basis @ theta
 
 
+def _level_biases(hist, table) -> tuple[float, ...]:
+    """Each level photo's median light over its share of white's (above black), less 1, under ``table``."""
+    lit = np.maximum((hist["white"] - hist["black"]) @ table, 1e-9)
+    return tuple(float(np.median(k * ((hist[name] - hist["black"]) @ table) / lit) - 1.0)
+                 for name, k in zip(LEVELS, LEVEL_PERIODS))
+
+
 def _log_slope(table, reference, codes) -> float:
     """The power ``d`` that best maps ``reference`` onto ``table`` over ``codes`` (both scaled to 1 at the
     last code): ``log(table / reference) ~ d log(reference)``."""
@@ -263,6 +272,10 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     rows = picked // lit.shape[1]
     edges = np.quantile(rows, np.linspace(0, 1, GROUPS + 1))
     group = np.clip(np.searchsorted(edges, rows, side="right") - 1, 0, GROUPS - 1)
+    # the codes the measurement reads: from black to white (median tiles)
+    black = int(np.ceil(np.median(hist["black"] @ np.arange(256))))
+    white = int(np.floor(np.median(hist["white"] @ np.arange(256))))
+    codes = np.arange(min(black + 2, white - 1), white + 1)
     strips = []
     if not levels:
         power, residual = _best_power(hist)
@@ -272,25 +285,26 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
                 strips.append(_best_power({k: v[sel] for k, v in hist.items()})[0])
         spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else abs(power - 1.0)
         sigma = math.sqrt(spread ** 2 + POWER_FLOOR ** 2) / power
-        return ToneCurve("power", decode_lut(power), sigma, residual, int(picked.size), power, tuple(strips))
+        return ToneCurve("power", decode_lut(power), sigma, residual, int(picked.size), power, tuple(strips),
+                         code_range=(black, white))
+    # a level photo of another pattern would bend the fit: each is judged first under the halves' power
+    halves_power, halves_residual = _best_power({k: v[mixed] for k, v in hist.items()})
+    biases = _level_biases(hist, srgb_decode_lut() ** halves_power)
+    if max(abs(b) for b in biases) > MAX_LEVEL_BIAS:
+        return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(picked.size), halves_power,
+                         level_residuals=biases, levels=True, code_range=(black, white))
     relations = _relations(hist, mixed)
     power = _level_power(relations)
     table = _curve(relations)
     # the power unless a bend of its mid-tones fits clearly better (a camera's S-curve): the curve's
     # freedom otherwise follows the level photos' texture (sharpening, JPEG) more than the camera
     model = "curve" if _bend_gain(relations, power) > CURVE_GAIN else "power"
-    # the codes the measurement reads: from black to white (median tiles)
-    black = int(np.ceil(np.median(hist["black"] @ np.arange(256))))
-    white = int(np.floor(np.median(hist["white"] @ np.arange(256))))
-    codes = np.arange(min(black + 2, white - 1), white + 1)
     if model == "curve" and not np.all(np.diff(table[codes]) > 0):
         model = "power"
     if model == "power":
         table = srgb_decode_lut() ** power
     residual = _half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
-    lit_tiles = np.maximum((hist["white"] - hist["black"]) @ table, 1e-9)
-    level_residuals = tuple(float(np.median(k * ((hist[name] - hist["black"]) @ table) / lit_tiles) - 1.0)
-                            for name, k in zip(LEVELS, LEVEL_PERIODS))
+    level_residuals = _level_biases(hist, table)
     for g in range(GROUPS):
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
@@ -300,4 +314,4 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
     return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
                      int(picked.size), power if model == "power" else math.nan, tuple(strips), level_residuals,
-                     levels=True)
+                     levels=True, code_range=(black, white))
