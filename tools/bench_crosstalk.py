@@ -93,9 +93,16 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
                      "max_err": float(np.abs(err).max()), "own_err": float(err[0, 0]), "max_z": float(z.max()),
                      "rms_z": float(np.sqrt(np.mean((err[0] / np.maximum(m.row_sigma, 1e-12)) ** 2))),
                      "glare": m.photometry["glare"]["fraction"], "measure_s": t3 - t2,
-                     "tone": (m.photometry.get("tone_curve") or {}).get("model", "none")[:5],
+                     "tone": _tone_model(m.photometry.get("tone_curve")),
                      "truth_row": truth[0].tolist(), "row": m.row.tolist()}
     return out
+
+
+def _tone_model(curve: dict | None) -> str:
+    """The tone curve's model in a word: none (linear photos), power, curve, or sRGB (not measured)."""
+    if curve is None:
+        return "none"
+    return "curve" if "piecewise" in curve["model"] else "power"
 
 
 def _complete(folder: Path, pattern_set) -> bool:
