@@ -189,7 +189,8 @@ def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp
     result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
     assert result.returncode == 0, result.stderr
     names = sorted(p.stem for p in (xt / "captures").iterdir())
-    assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)])
+    assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)]
+                           + ["level-1in8", "level-1in4", "level-1in2"])
     assert (xt / "crosstalk-truth.json").exists()
     code, _, stderr = cli("crosstalk", "measure", xt, "-o", tmp_path / "crosstalk.json")
     assert code == 0, stderr
@@ -296,7 +297,7 @@ def test_every_crosstalk_band_is_captured_and_a_stale_band_is_not(captured_4k_cr
     from lenticalib.calib.crosstalk.patterns import seen_columns
 
     xt, pattern_set, report, notes = captured_4k_crosstalk
-    assert len(report.taken) == 14 and report.retakes == {}, notes
+    assert len(report.taken) == len(pattern_set.patterns) == 17 and report.retakes == {}, notes
     bands = pattern_set.bands
     unseen = [b.name for b in bands if not seen_columns(pattern_set, b).any()]
     assert len(unseen) >= 2  # the case the capture must not mistake for an unchanged panel

@@ -44,7 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     m.add_argument("--cone-angle", type=float, metavar="DEG", help="the panel's full view-cone angle in degrees "
                    "(data sheet), for --eye-separation-mm")
     m.add_argument("--photos", choices=("srgb", "linear"), default="srgb",
-                   help="how the photos encode light: srgb (camera JPEGs; default) or linear (16-bit from RAW)")
+                   help="how the photos encode light: srgb (camera JPEGs, their tone curve measured from the "
+                        "photos; default) or linear (16-bit from RAW)")
     m.add_argument("--json", action="store_true", help="print the crosstalk document")
     m.set_defaults(run=run_measure)
     c = sub.add_parser("check", help="pass/fail a crosstalk measurement against limits",

@@ -4,8 +4,9 @@ Part of the calib layer: imports only core and calib.  Modules, in the order a m
 uses them:
 
     patterns     the sweep patterns and their manifest (``lenticalib crosstalk patterns``)
-    photos       reading the photos: linear light, the panel's lit area, registration, the halves
-    photometry   camera response (tone-curve tiles) and veiling glare, from the photos
+    photos       reading the photos: linear light, the panel's lit area, registration
+    tone         the camera's tone curve, from the black, white, half and level photos
+    photometry   the camera's veiling glare, from the photos
     checks       duplicate photos and band photos that do not fit the others
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps
     measure      the measurement: the mixing matrix and the view cone from the photos

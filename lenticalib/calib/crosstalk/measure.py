@@ -3,7 +3,8 @@
 Frames: photo pixels -> working pixels (the photo area-averaged by ``factor``); view offsets in
 views.  The method is in ``docs/crosstalk.md``; in short:
 
-1. photos -> linear light (sRGB decoding, or ``linear`` for 16-bit linear photos from RAW),
+1. photos -> linear light (camera JPEGs through the camera's tone curve, measured on the black,
+   white and half photos (:mod:`.tone`); ``linear`` for 16-bit linear photos from RAW),
    summed over R, G, B and area-averaged to working pixels; every photo registered to white
    on the panel's outline (:mod:`lenticalib.calib.register`), the black photo subtracted, the
    camera's veiling glare measured outside the panel and removed (:mod:`.photometry`);
@@ -14,9 +15,10 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    circulant ``M``;
 4. uncertainties: the spread between 16 strips of rows of the centre region (noise, moire, local
    non-uniformity; a robust spread) and, in quadrature, what the photometric assumptions could
-   move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the decoded light:
-   ``d`` = 0.05 for camera JPEGs, which are sRGB only to about +-8 %, more when the two half
-   photos say so; 0.005 for linear photos) and the dark floor every entry sits on.
+   move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the linearised light:
+   ``d`` the measured curve's own 1-sigma for camera JPEGs, 0.05 where it could not be measured
+   (cameras are sRGB only to about +-8 %); 0.005 for linear photos) and the dark floor every
+   entry sits on.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct
-from .photos import MAX_CLIPPED, load_all, panel_mask, register_photos, tone_spread
+from .photos import MAX_CLIPPED, load_all, measure_tone, panel_mask, register_photos
 from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
@@ -45,7 +47,7 @@ SWEEP_BLUR_PIXELS = 1.5  # working pixels: the camera's blur of the sweep (defoc
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCKS = 16  # the centre region is split into this many strips of rows for the statistical spread
 GLARE_RELATIVE_SIGMA = 0.3
-TONE_FLOOR = 0.05  # 1-sigma of the power on sRGB-decoded light: camera JPEGs are sRGB only to about +-8 %
+TONE_FLOOR = 0.05  # 1-sigma of the power on sRGB-decoded light where the tone curve could not be measured
 LINEAR_TONE_SIGMA = 0.005  # the same for linear photos (sensor non-linearity)
 PHOTO_MODES = ("srgb", "linear")
 FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
@@ -151,7 +153,8 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
         raise InputError(f"unknown photo encoding {photos!r}", source="photos", hint="use srgb or linear")
     pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
     warnings: list[str] = []
-    luma, clipped, factor, codes = load_all(capture, pattern_set, photos, progress)
+    curve = measure_tone(capture, warnings) if photos == "srgb" else None
+    luma, clipped, factor = load_all(capture, pattern_set, photos, progress, None if curve is None else curve.lut())
     white_path = capture.photo("white")
     lit0 = luma["white"] - luma["black"]
     mask = panel_mask(lit0, white_path)
@@ -163,11 +166,10 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     column_average = _check_bands(luma, mask, pattern_set, capture, warnings)
     if progress:
         progress("band photos checked")
-    power, tone_residual = tone_spread(codes, warnings, capture.photo("half-0")) if photos == "srgb" else (1.0, math.nan)
     if progress:
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
-                    power, tone_residual, photos, factor, start, progress, column_average)
+                    curve, photos, factor, start, progress, column_average)
 
 
 def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
@@ -228,7 +230,7 @@ def _ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVE
     return ratios.astype(np.float64), rows, cols, white
 
 
-def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power, tone_residual, photos,
+def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve, photos,
              factor, start, progress, column_average) -> Measurement:
     import cv2
 
@@ -283,7 +285,9 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
         r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, g, p, column_average)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
-    tone_sigma = max(TONE_FLOOR, abs(power - 1.0) / 2.0) if photos == "srgb" else LINEAR_TONE_SIGMA
+    # the power's 1-sigma relative to the curve the photos were linearised with
+    tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
+                  else curve.sigma)
     for label, p in (("tone-", 1.0 - tone_sigma), ("tone+", 1.0 + tone_sigma)):
         r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p, column_average)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
@@ -327,8 +331,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, power,
             regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
                                             + glare_sigma[0] ** 2 + tone_sig[0] ** 2 + model_sigma[0] ** 2)
     photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
-                         "tone_power_best": power, "tone_power_sigma": tone_sigma,
-                         "half_residual": None if not math.isfinite(tone_residual) else round(tone_residual, 4),
+                         "tone_curve": None if curve is None else curve.to_dict(),
+                         "tone_power_sigma": round(tone_sigma, 4),
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),

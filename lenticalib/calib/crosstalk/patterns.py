@@ -19,7 +19,11 @@ panel (a slow spatial sweep: ``sweep / N`` pixels per view, ``LENSES_PER_VIEW`` 
 photos with shifts ``k N / BAND_PATTERNS`` put every part of the panel at every offset.  The two
 *half* patterns light the half of the views around ``b`` and the other half: their light adds
 up to white's at every camera pixel whatever the camera's tone curve does to each, which is what
-measures the tone curve (:mod:`.photometry`).  ``black`` and ``white`` are the references.  Every
+measures the tone curve (:mod:`.tone`).  The three *level* patterns light every subpixel of one
+panel row in 8, 4 and 2 (all views): to the camera, which cannot resolve single rows of the panel
+well, a grey of exactly 1/8, 1/4 and 1/2 of white's light (above black) however the panel's own
+tone response runs, which pins the camera's tone curve between black and white.  ``black`` and
+``white`` are the references.  Every
 pattern carries the calibration patterns' registration frame (the same even frame on all four
 sides), so shake is measured and undone as in the fit.
 
@@ -48,6 +52,7 @@ from ..patterns import FRAME_LEVEL, frame_width
 DOCUMENT = FORMATS["lenticalib.crosstalk-patterns"]
 FORMAT_NAME, FORMAT_VERSION = DOCUMENT.name, DOCUMENT.version
 BAND_PATTERNS = 10
+LEVEL_ROW_PERIODS = (8, 4, 2)  # the level patterns light one panel row in this many: 1/8, 1/4, 1/2 of white
 SWEEP_FRACTION = 0.5  # sweep period, at least this share of the panel width ...
 LENSES_PER_VIEW = 16  # ... and long enough that one view spans this many lenses (Delta_r / 3 pixels each) ...
 MAX_SWEEP_FRACTION = 1.6  # ... but at most this many panel widths (every sixth of the panel still sees all offsets)
@@ -56,13 +61,20 @@ _ROWS_PER_CHUNK = 128
 
 @dataclasses.dataclass(frozen=True)
 class CrosstalkPattern:
-    """One crosstalk pattern: ``kind`` "black", "white", "band" or "half"; ``shift`` in views;
-    ``complement``: light what the pattern would leave dark (the second half pattern)."""
+    """One crosstalk pattern: ``kind`` "black", "white", "band", "half" or "level"; ``shift`` in views;
+    ``complement``: light what the pattern would leave dark (the second half pattern);
+    ``row_period``: a level pattern lights every subpixel of one panel row in this many."""
 
     name: str
     kind: str
     shift: float = 0.0
     complement: bool = False
+    row_period: int = 0
+
+    @property
+    def fraction(self) -> float:
+        """The share of white's light (above black) a level pattern sends: 1 / ``row_period``."""
+        return 1.0 / self.row_period if self.row_period else math.nan
 
     @property
     def file(self) -> str:
@@ -73,8 +85,11 @@ class CrosstalkPattern:
         return self.kind
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "file": self.file, "kind": self.kind, "shift": self.shift,
+        data = {"name": self.name, "file": self.file, "kind": self.kind, "shift": self.shift,
                 "complement": self.complement}
+        if self.kind == "level":
+            data["row_period"] = self.row_period
+        return data
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,14 +148,19 @@ class CrosstalkPatternSet:
         return render_crosstalk_pattern(self, pattern)
 
 
-def design_crosstalk_patterns(profile: PanelProfile, sweep: float | None = None) -> CrosstalkPatternSet:
-    """The crosstalk pattern set for ``profile``: black, white, ``BAND_PATTERNS`` band sweeps, two halves."""
+def design_crosstalk_patterns(profile: PanelProfile, sweep: float | None = None,
+                              levels: bool = True) -> CrosstalkPatternSet:
+    """The crosstalk pattern set for ``profile``: black, white, ``BAND_PATTERNS`` band sweeps, two halves
+    and (``levels``) the three level patterns; ``levels=False``: a set as lenticalib drew it before
+    the levels (still measured, with the tone curve from the halves alone)."""
     if sweep is None:
         sweep = default_sweep(profile)
     n = profile.views
     patterns = [CrosstalkPattern("black", "black"), CrosstalkPattern("white", "white")]
     patterns += [CrosstalkPattern(f"band-{k:02d}", "band", shift=k * n / BAND_PATTERNS) for k in range(BAND_PATTERNS)]
     patterns += [CrosstalkPattern("half-0", "half"), CrosstalkPattern("half-1", "half", complement=True)]
+    if levels:
+        patterns += [CrosstalkPattern(f"level-1in{k}", "level", row_period=k) for k in LEVEL_ROW_PERIODS]
     return CrosstalkPatternSet(profile, float(sweep), tuple(patterns))
 
 
@@ -169,6 +189,8 @@ def lit_subpixels(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern, r
         return np.zeros((len(rows), nsub), dtype=bool)
     if pattern.kind == "white":
         return np.ones((len(rows), nsub), dtype=bool)
+    if pattern.kind == "level":
+        return np.repeat((np.asarray(rows) % pattern.row_period == 0)[:, None], nsub, axis=1)
     w = view_coordinate(profile, rows)
     return _lit(pattern_set, pattern, w - band_centre(pattern_set, _slot_positions(profile, rows), pattern.shift))
 
@@ -200,8 +222,8 @@ def seen_columns(pattern_set: CrosstalkPatternSet, pattern: CrosstalkPattern) ->
     their photos show only the other views' crosstalk.  Taken at each pixel's middle subpixel.
     """
     width = pattern_set.width
-    if pattern.kind in ("black", "white"):
-        return np.full(width, pattern.kind == "white")
+    if pattern.kind in ("black", "white", "level"):
+        return np.full(width, pattern.kind != "black")
     centre = band_centre(pattern_set, 3 * np.arange(width) + 1, pattern.shift)
     return _lit(pattern_set, pattern, pattern_set.views / 2.0 - centre)
 
@@ -234,7 +256,9 @@ def crosstalk_set_from_manifest(data: dict[str, Any], source: str) -> CrosstalkP
     sweep = data.get("sweep_pixels")
     if not (isinstance(sweep, (int, float)) and math.isfinite(sweep) and sweep > 0):
         raise InputError("field 'sweep_pixels' is missing or not a positive number", source=source)
-    expected = design_crosstalk_patterns(profile, float(sweep))
+    patterns = data.get("patterns")
+    levels = isinstance(patterns, list) and any(isinstance(p, dict) and p.get("kind") == "level" for p in patterns)
+    expected = design_crosstalk_patterns(profile, float(sweep), levels=levels)
     if not manifest_matches(data, expected):
         raise InputError("describes crosstalk patterns this lenticalib did not draw (edited, or from another "
                          "version)", source=source,

@@ -1,13 +1,7 @@
-"""Photometry of the crosstalk photos: the tone-curve check's tiles and the camera's veiling glare.
+"""Photometry of the crosstalk photos: the camera's veiling glare (its tone curve: :mod:`.tone`).
 
-Frames: photo pixels (full resolution) for the tiles, *working* pixels (the photo area-averaged
-by an integer ``factor``) for the glare.  Light is linear, in units where the
-camera's saturation is about 1.
-
-Tone curve.  A camera's JPEG is not linear light.  The two half patterns light complementary
-halves of the views, so in linear light ``half-0 + half-1 = white`` (each above black) at every
-pixel; :func:`block_medians` gives the noise-free code values that check is made on
-(:func:`lenticalib.calib.crosstalk.photos.tone_spread`).
+Frames: *working* pixels (the photo area-averaged by an integer ``factor``).  Light is linear, in
+units where the camera's saturation is about 1.
 
 Veiling glare.  A camera spreads a few per cent of the light of the whole image into a wide halo;
 between views that looks exactly like the panel's own crosstalk (a floor under every view).  It
@@ -23,21 +17,7 @@ import math
 
 import numpy as np
 
-BLOCK = 6  # pixels per side of the tiles whose medians the half photos are compared on
 GLARE_SIGMAS = (0.015, 0.02, 0.03, 0.04, 0.05, 0.065, 0.08, 0.1, 0.13)  # of the image width
-
-
-def block_medians(image: np.ndarray, block: int) -> np.ndarray:
-    """Median of each ``block`` x ``block`` tile, per channel: uint8 (h // block, w // block, c).
-
-    A median commutes with any monotone tone curve, so the median code value of a tile is the
-    code of the tile's median light: noise averages out without the bias that averaging code
-    values through a curved response would bring.
-    """
-    h, w, c = image.shape
-    hh, ww = h // block, w // block
-    tiles = image[:hh * block, :ww * block].reshape(hh, block, ww, block, c).transpose(0, 2, 4, 1, 3)
-    return np.median(tiles.reshape(hh, ww, c, block * block), axis=3).astype(np.float32)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """Reading the crosstalk photos: linear light at working resolution, the panel's lit area,
-registration on its outline, and how well the two half photos add up (``docs/crosstalk.md``).
+registration on its outline, and the camera's tone curve from the black, white and half photos
+(:mod:`.tone`; ``docs/crosstalk.md``).
 
 Frames: photo pixels -> working pixels (area-averaged by an integer factor so that the working
 image is about ``WORKING_WIDTH`` pixels across).  Light: linear, R + G + B.
@@ -7,28 +8,33 @@ image is about ``WORKING_WIDTH`` pixels across).  Light: linear, R + G + B.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
-from ...core.colour import srgb_decode, srgb_decode_lut
+from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
 from ...core.imageio import read_image
-from . import photometry
+from . import tone
 
 WORKING_WIDTH = 1000  # working pixels across (about)
 MAX_CLIPPED = 0.02
 MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
 
 
-def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo."""
+def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo; ``lut`` (float32 (256,)):
+    the light of each 8-bit code of an "srgb" photo (the camera's measured tone curve,
+    :mod:`.tone`), plain sRGB decoding when None."""
     if raw.ndim != 3 or raw.shape[2] < 3:
         raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
     raw = raw[:, :, :3]
     if raw.dtype == np.uint8:
-        lut = (np.arange(256) / 255.0 if mode == "linear" else srgb_decode_lut()).astype(np.float32)
+        if mode == "linear":
+            lut = np.arange(256, dtype=np.float32) / np.float32(255.0)
+        elif lut is None:
+            lut = tone.decode_lut()
         return lut[raw].sum(axis=2, dtype=np.float32), raw.max(axis=2) >= 250
     top = 65535.0 if raw.dtype == np.uint16 else 1.0
     value = raw.astype(np.float32) / np.float32(top)
@@ -44,15 +50,15 @@ def working(image: np.ndarray, factor: int) -> np.ndarray:
     return cv2.resize(image[:hh * factor, :ww * factor].astype(np.float32), (ww, hh), interpolation=cv2.INTER_AREA)
 
 
-def load_all(capture, pattern_set, mode, progress):
-    """Working-resolution linear luma of every photo, the white photo's clipped map, and factor."""
+def load_all(capture, pattern_set, mode, progress, lut=None):
+    """Working-resolution linear luma of every photo, the white photo's clipped map, and factor
+    (``lut``: the tone curve of 8-bit "srgb" photos, :func:`linear_rgb_sum`)."""
     from ..captures import check_photo_size
 
     luma: dict[str, np.ndarray] = {}
     clipped = None
     size = None
     factor = 1
-    codes: dict[str, np.ndarray] = {}
     for pattern in pattern_set.patterns:
         path = capture.photo(pattern.name)
         raw = read_image(path, camera_orientation=True)
@@ -64,16 +70,13 @@ def load_all(capture, pattern_set, mode, progress):
         elif (w, h) != size:
             raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
                                hint="take every photo of the set with the same camera settings, without cropping")
-        linear, clip = linear_rgb_sum(raw, mode, path)
+        linear, clip = linear_rgb_sum(raw, mode, path, lut)
         luma[pattern.name] = working(linear, factor)
         if pattern.name == "white":
             clipped = working(clip.astype(np.float32), factor)
-        if pattern.kind == "half" or pattern.name in ("white", "black"):
-            if raw.dtype == np.uint8:
-                codes[pattern.name] = photometry.block_medians(raw[:, :, :3], photometry.BLOCK)
         if progress:
             progress(f"read {path.name}")
-    return luma, clipped, factor, codes
+    return luma, clipped, factor
 
 
 def panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
@@ -126,31 +129,38 @@ def register_photos(luma, names, photos, lit, frame_fraction, warnings):
     return shifts
 
 
-def tone_spread(codes: dict[str, np.ndarray], warnings: list[str], first_photo: Path) -> tuple[float, float]:
-    """(best power on sRGB-decoded light for half-0 + half-1 = white, its residual); (1, nan) without codes."""
-    if not all(k in codes for k in ("half-0", "half-1", "white", "black")):
-        return 1.0, math.nan
-    dec = {k: srgb_decode(v / 255.0) for k, v in codes.items()}
-    w = dec["white"] - dec["black"]
-    keep = (w > 0.3 * np.percentile(w, 95)) & (codes["white"] < 250)
-    if keep.sum() < 200:
-        return 1.0, math.nan
-    best = (1.0, math.inf)
-    for power in np.arange(0.7, 1.5001, 0.01):
-        parts = [np.maximum(dec[k][keep], 0.0) ** power for k in ("half-0", "half-1", "white", "black")]
-        a = np.stack([parts[0] - parts[3], parts[1] - parts[3]], axis=1)
-        y = parts[2] - parts[3]
-        gains, *_ = np.linalg.lstsq(a / y[:, None], np.ones_like(y), rcond=None)
-        resid = float(np.sqrt(np.mean(((a @ gains) / y - 1.0) ** 2)))
-        if resid < best[1]:
-            best = (float(power), resid)
-    if best[1] > 0.15:
-        raise CaptureError(f"half-0 and half-1 do not add up to white (relative residual {best[1]:.2f})",
-                           source=str(first_photo), hint="photograph every pattern of this folder in its own photo, "
-                                                         "with the camera still and the exposure locked")
-    if abs(best[0] - 1.0) > 0.15:
-        warnings.append(f"the photos do not look like plain sRGB (the half patterns add up best after a power "
-                        f"{best[0]:.2f} on the decoded light): a tone curve or picture style bends them; the "
-                        "uncertainty includes it, but for a precise measurement use a neutral picture style or "
-                        "linear photos from RAW ('lenticalib crosstalk measure --photos linear')")
-    return best
+def measure_tone(capture, warnings: list[str]) -> tone.ToneCurve | None:
+    """The camera's tone curve from the 8-bit black, white, half and level photos
+    (:func:`.tone.fit_tone_curve`); None, with a warning, where they are not 8-bit or show too
+    little to fit (the photos are then decoded as plain sRGB).  CaptureError naming the photo when
+    the halves do not add up to white, or a level photo is not its share of white, under the
+    fitted curve (photos of other patterns, a moved camera, a changed exposure)."""
+    names = tone.PHOTOS + (tone.LEVELS if all(n in capture.patterns.names for n in tone.LEVELS) else ())
+    images = {}
+    for name in names:
+        raw = read_image(capture.photo(name), camera_orientation=True)
+        if raw.dtype != np.uint8 or raw.ndim != 3 or raw.shape[2] < 3:
+            warnings.append("the photos are not 8-bit colour: decoded as plain sRGB, the tone curve not measured")
+            return None
+        images[name] = raw[:, :, :3]
+    if len({v.shape for v in images.values()}) > 1:
+        return None  # the photo-size check of load_all names the odd one
+    curve = tone.fit_tone_curve(images, tone.tile_size(images["white"].shape[1]))
+    if curve is None:
+        warnings.append("the black, white and half photos show too little to measure the camera's tone curve: the "
+                        "photos are decoded as plain sRGB, and the uncertainty allows for a camera that is not")
+        return None
+    hint = "photograph every pattern of this folder in its own photo, with the camera still and the exposure locked"
+    if curve.residual > tone.MAX_RESIDUAL:
+        raise CaptureError(f"half-0 and half-1 do not add up to white (relative residual {curve.residual:.2f})",
+                           source=str(capture.photo("half-0")), hint=hint)
+    for name, residual in zip(tone.LEVELS, curve.level_residuals):
+        if abs(residual) > tone.MAX_LEVEL_BIAS:
+            k = name.rsplit("in", 1)[1]
+            raise CaptureError(f"is not 1/{k} of white's light ({1 + residual:.2f} of it under the tone curve)",
+                               source=str(capture.photo(name)), hint=hint)
+    if not curve.levels:
+        warnings.append("this pattern set has no level patterns (drawn by an older lenticalib): the camera's tone "
+                        "curve is a power on sRGB fitted to the half photos alone; for JPEG photos write the patterns "
+                        "again with 'lenticalib crosstalk patterns' (three more photos)")
+    return curve

@@ -1,0 +1,317 @@
+"""The camera's tone curve, measured from the crosstalk photos themselves (``docs/crosstalk.md``).
+
+A camera JPEG is not linear light, and not quite sRGB either: a camera's picture style bends the
+curve by several per cent (a phone's S-curve by tens), which moves the measured view cone by a few
+hundredths.  Two relations of the patterns hold in linear light whatever the panel's own tone
+response does (its subpixels are only ever full on or off), at every place of the panel:
+
+    half-0 + half-1 = white + black               (complementary halves of the views)
+    level-1inK - black = (white - black) / K      (every subpixel of one panel row in K, K = 8, 4, 2)
+
+Where the band of either half passes the camera both halves are partly lit, and the first relation
+fixes how the curve bends (only its part that is not antisymmetric about the half-way light); the
+levels pin it at 1/8, 1/4 and 1/2 of white everywhere on the panel.
+
+The relations hold for the light of a pixel, not for its code: each photo is linearised pixel by
+pixel and averaged over small tiles (``tile`` x ``tile`` photo pixels, all three channels) before
+the photos are compared.  Each tile's code histogram is kept (a sparse matrix, tiles x 256 codes),
+so a tile's mean light under a curve is one matrix product, and the relations are linear in the
+curve's 256 values.
+
+Two models, by what the set holds:
+
+- ``curve`` (sets with the level patterns): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``, with ``D``
+  the sRGB decoding of the 8-bit code ``c`` and ``B_j`` hat functions on knots every ``KNOT`` codes
+  (zero at code 256: the scale), fitted by linear least squares to both relations with a small
+  second-difference penalty; assumes the exposure locked over the photos;
+- ``power`` (sets drawn before the levels): ``L(c) = D(c) ** p``, each half photo with its own
+  exposure, ``p`` from the first relation alone.
+
+The 1-sigma is stated as a power ``1 +- sigma`` on the linearised light (what the measurement
+propagates): the spread of the curves fitted to ``GROUPS`` strips of the panel (each curve's
+log-slope against the whole fit's), over the square root of their number, with a floor of
+``POWER_FLOOR`` for what the model and the camera's processing leave.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ...core.colour import srgb_decode_lut
+from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
+
+PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
+TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 wide
+LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
+KNOT = 16  # codes between the knots of the curve model
+SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
+CURVE_GAIN = 0.1  # the curve replaces the power where a bend fits the relations this much better (relative RMS)
+GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
+MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
+MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
+POWER_RANGE = (0.6, 1.6)
+POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
+MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
+MAX_LEVEL_BIAS = 0.25  # a level photo whose median light is further than this from its share of white's: another photo
+
+
+@dataclasses.dataclass(frozen=True)
+class ToneCurve:
+    """A fitted tone curve: ``table`` float32 (256,), the linear light of each 8-bit code (units:
+    sRGB's at code 255); ``model`` "curve" or "power" (with ``power``); ``sigma`` its 1-sigma as a
+    power on the linearised light; ``residual`` the relative RMS of the half relation;
+    ``level_residuals`` each level photo's median light over its share of white's, less 1; ``tiles`` how many tiles it
+    rests on; ``strips`` the strips' powers (model "power") or log-slopes (model "curve"); ``levels`` whether
+    the level photos took part; ``code_range`` the median codes of black and white."""
+
+    model: str
+    table: np.ndarray
+    sigma: float
+    residual: float
+    tiles: int
+    power: float = 1.0
+    strips: tuple[float, ...] = ()
+    level_residuals: tuple[float, ...] = ()
+    levels: bool = False
+    code_range: tuple[int, int] = (0, 255)
+
+    def lut(self) -> np.ndarray:
+        """float32 (256,): the linear light of each 8-bit code."""
+        return self.table
+
+    def to_dict(self) -> dict:
+        data = {"model": "sRGB decoding ** power" if self.model == "power" else
+                f"sRGB decoding x piecewise-linear factor (knots every {KNOT} codes)",
+                "power_sigma": round(self.sigma, 4), "code_range": list(self.code_range), "half_residual": round(self.residual, 4), "tiles": self.tiles,
+                "strips": [round(v, 4) for v in self.strips],
+                "relations": "half and level photos" if self.levels else "half photos (exposures free)"}
+        if self.model == "power":
+            data["power"] = round(self.power, 4)
+        else:
+            data["light_of_code"] = [round(float(v), 6) for v in self.table]
+        if self.levels:
+            data["level_residuals"] = [round(v, 4) for v in self.level_residuals]
+        return data
+
+
+def tile_size(width: int) -> int:
+    """Side of the tiles (photo pixels) for photos ``width`` pixels wide: at least 4."""
+    return max(4, int(round(width / TILE_PER_WIDTH)))
+
+
+def decode_lut(power: float = 1.0) -> np.ndarray:
+    """float32 (256,): sRGB-decoded light of each 8-bit code, to the power ``power``."""
+    return (srgb_decode_lut() ** power).astype(np.float32)
+
+
+def tile_means(image: np.ndarray, tile: int) -> np.ndarray:
+    """float32 (h // tile, w // tile): mean code of each tile over its pixels and channels (uint8 (h, w, c) in)."""
+    h, w, c = image.shape
+    hh, ww = h // tile, w // tile
+    blocks = image[:hh * tile, :ww * tile].reshape(hh, tile, ww, tile, c)
+    return blocks.mean(axis=(1, 3, 4), dtype=np.float32)
+
+
+def tile_max(image: np.ndarray, tile: int) -> np.ndarray:
+    """uint8 (h // tile, w // tile): the largest code of each tile over its pixels and channels."""
+    h, w, c = image.shape
+    hh, ww = h // tile, w // tile
+    return image[:hh * tile, :ww * tile].reshape(hh, tile, ww, tile, c).max(axis=(1, 3, 4))
+
+
+def tile_histograms(image: np.ndarray, tile: int, picked: np.ndarray):
+    """scipy CSR (len(picked), 256): the share of each code in the ``picked`` tiles (flat tile indices
+    of the (h // tile, w // tile) grid), over their ``tile`` x ``tile`` pixels and all channels."""
+    from scipy.sparse import csr_matrix
+
+    h, w, c = image.shape
+    ww = w // tile
+    ty, tx = np.divmod(picked, ww)
+    dy, dx = np.mgrid[0:tile, 0:tile]
+    rows = (ty[:, None, None] * tile + dy[None]).reshape(len(picked), -1)
+    cols = (tx[:, None, None] * tile + dx[None]).reshape(len(picked), -1)
+    codes = image[rows, cols].reshape(len(picked), -1).astype(np.int64)
+    index = np.repeat(np.arange(len(picked)), codes.shape[1])
+    data = np.full(codes.size, 1.0 / codes.shape[1], np.float64)
+    return csr_matrix((data, (index, codes.ravel())), shape=(len(picked), 256))
+
+
+def _half_residual(table, hist, gains=None):
+    """(relative RMS, gains (2,)) of ``a0 half-0 + a1 half-1 = white + black`` under ``table``;
+    ``gains`` None: the best (least squares)."""
+    means = {k: hist[k] @ table for k in PHOTOS}
+    lit = np.maximum(means["white"] - means["black"], 1e-9)
+    y = (means["white"] + means["black"]) / lit
+    a = np.stack([means["half-0"] / lit, means["half-1"] / lit], axis=1)
+    if gains is None:
+        gains, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return float(np.sqrt(np.mean((a @ gains - y) ** 2))), gains
+
+
+def _best_power(hist) -> tuple[float, float]:
+    from scipy.optimize import minimize_scalar
+
+    srgb = srgb_decode_lut()
+    grid = np.linspace(*POWER_RANGE, 21)
+    values = [_half_residual(srgb ** p, hist)[0] for p in grid]
+    i = int(np.argmin(values))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best = minimize_scalar(lambda p: _half_residual(srgb ** p, hist)[0], bounds=(lo, hi), method="bounded",
+                           options={"xatol": 1e-4})
+    return float(best.x), float(best.fun)
+
+
+def _basis() -> np.ndarray:
+    """float64 (256, 16): the sRGB decoding times hat functions on the knots 0, 16, ... 240."""
+    codes = np.arange(256)[:, None]
+    knots = np.arange(0, 256, KNOT)[None, :]
+    return srgb_decode_lut()[:, None] * np.maximum(0.0, 1.0 - np.abs(codes - knots) / KNOT)
+
+
+def _relations(hist, mixed) -> list:
+    """The linear relations of the curve's 256 values, as (sparse (tiles, 256) relation, sparse (tiles,
+    256) white - black, weights (tiles,)) triples: the half relation on the ``mixed`` tiles and each
+    level's on all, relative to white's light (the weights: 1 / white's light under sRGB)."""
+    lit = hist["white"] - hist["black"]
+    weight = 1.0 / np.maximum(lit @ srgb_decode_lut(), 1e-6)
+    relations = [((hist["half-0"] + hist["half-1"] - hist["white"] - hist["black"])[mixed], lit[mixed],
+                  weight[mixed])]
+    for name, k in zip(LEVELS, LEVEL_PERIODS):
+        relations.append(((hist[name] - hist["black"]) - lit / k, lit, weight))
+    return relations
+
+
+def _misfit(table, relations) -> float:
+    """RMS of the relations under ``table`` (float (256,)), each over white's light under it."""
+    return float(np.sqrt(np.mean(np.concatenate([(r @ table) / np.maximum(lit @ table, 1e-12)
+                                                 for r, lit, _ in relations]) ** 2)))
+
+
+def _level_power(relations) -> float:
+    """The power ``p`` of ``D ** p`` that fits the relations best (the exposure locked)."""
+    from scipy.optimize import minimize_scalar
+
+    srgb = srgb_decode_lut()
+    best = minimize_scalar(lambda p: _misfit(srgb ** p, relations), bounds=POWER_RANGE, method="bounded",
+                           options={"xatol": 1e-4})
+    return float(best.x)
+
+
+def _bent(power: float, bend: float) -> np.ndarray:
+    """float64 (256,): ``D ** power x exp(bend v (1 - v))``, ``v`` the code over 255: the power with one
+    smooth bend of the mid-tones (the test for a curve that is not a power)."""
+    v = np.arange(256) / 255.0
+    return srgb_decode_lut() ** power * np.exp(bend * v * (1.0 - v))
+
+
+def _bend_gain(relations, power: float) -> float:
+    """How much better (relative RMS of the relations, 0..1) the power fits with a bend of the mid-tones."""
+    from scipy.optimize import minimize
+
+    plain = _misfit(_bent(power, 0.0), relations)
+    best = minimize(lambda x: _misfit(_bent(x[0], x[1]), relations), [power, 0.0], method="Nelder-Mead",
+                    options={"xatol": 1e-4, "fatol": 1e-9})
+    return 1.0 - float(best.fun) / max(plain, 1e-12)
+
+
+def _curve(relations) -> np.ndarray:
+    """float64 (256,): the curve model fitted to the relations (linear least squares, smoothed)."""
+    srgb, basis = srgb_decode_lut(), _basis()
+    a = np.vstack([(r @ basis) * w[:, None] for r, _, w in relations])
+    b = -np.concatenate([(r @ srgb) * w for r, _, w in relations])
+    n = basis.shape[1]
+    penalty = np.sqrt(SMOOTHING * a.shape[0]) * np.diff(np.eye(n), 2, axis=0)
+    ridge = np.sqrt(1e-6 * a.shape[0]) * np.eye(n)
+    theta, *_ = np.linalg.lstsq(np.vstack([a, penalty, ridge]), np.concatenate([b, np.zeros(2 * n - 2)]),
+                                rcond=None)
+    return srgb + basis @ theta
+
+
+def _level_biases(hist, table) -> tuple[float, ...]:
+    """Each level photo's median light over its share of white's (above black), less 1, under ``table``."""
+    lit = np.maximum((hist["white"] - hist["black"]) @ table, 1e-9)
+    return tuple(float(np.median(k * ((hist[name] - hist["black"]) @ table) / lit) - 1.0)
+                 for name, k in zip(LEVELS, LEVEL_PERIODS))
+
+
+def _log_slope(table, reference, codes) -> float:
+    """The power ``d`` that best maps ``reference`` onto ``table`` over ``codes`` (both scaled to 1 at the
+    last code): ``log(table / reference) ~ d log(reference)``."""
+    x = np.log(reference[codes] / reference[codes[-1]])
+    y = np.log(np.maximum(table[codes], 1e-12) / table[codes[-1]]) - x
+    return float(np.dot(x, y) / max(np.dot(x, x), 1e-12))
+
+
+def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None:
+    """The tone curve from uint8 RGB photos ``images`` (photo pixels, (h, w, 3)) of "black", "white",
+    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (then the power, or the curve where
+    it fits clearly better; without them the power from the halves alone);
+    ``tile``: side of the tiles in photo pixels.  None where the photos give too little to fit
+    (fewer than ``MIN_TILES`` tiles)."""
+    means = {k: tile_means(images[k], tile) for k in PHOTOS}
+    lit = means["white"] - means["black"]
+    level = np.percentile(lit, 95)
+    if not level > 0:
+        return None
+    inside = (lit > 0.3 * level) & (tile_max(images["white"], tile) < 250)
+    share0 = (means["half-0"] - means["black"]) / np.maximum(lit, 1e-6)
+    share1 = (means["half-1"] - means["black"]) / np.maximum(lit, 1e-6)
+    # in codes: a tile whose halves are each lit by 5-95 % of white's code (the bend shows there)
+    mixed = inside & (share0 > 0.05) & (share1 > 0.05) & (share0 < 0.95) & (share1 < 0.95)
+    levels = all(k in images for k in LEVELS)
+    picked = np.flatnonzero((inside if levels else mixed).ravel())
+    if np.count_nonzero(mixed) < MIN_TILES or picked.size < MIN_TILES:
+        return None
+    if picked.size > MAX_TILES:
+        picked = np.sort(np.random.default_rng(0).choice(picked, MAX_TILES, replace=False))
+    hist = {k: tile_histograms(images[k], tile, picked) for k in PHOTOS + (LEVELS if levels else ())}
+    mixed = mixed.ravel()[picked]
+    rows = picked // lit.shape[1]
+    edges = np.quantile(rows, np.linspace(0, 1, GROUPS + 1))
+    group = np.clip(np.searchsorted(edges, rows, side="right") - 1, 0, GROUPS - 1)
+    # the codes the measurement reads: from black to white (median tiles)
+    black = int(np.ceil(np.median(hist["black"] @ np.arange(256))))
+    white = int(np.floor(np.median(hist["white"] @ np.arange(256))))
+    codes = np.arange(min(black + 2, white - 1), white + 1)
+    strips = []
+    if not levels:
+        power, residual = _best_power(hist)
+        for g in range(GROUPS):
+            sel = group == g
+            if sel.sum() >= MIN_TILES // GROUPS:
+                strips.append(_best_power({k: v[sel] for k, v in hist.items()})[0])
+        spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else abs(power - 1.0)
+        sigma = math.sqrt(spread ** 2 + POWER_FLOOR ** 2) / power
+        return ToneCurve("power", decode_lut(power), sigma, residual, int(picked.size), power, tuple(strips),
+                         code_range=(black, white))
+    # a level photo of another pattern would bend the fit: each is judged first under the halves' power
+    halves_power, halves_residual = _best_power({k: v[mixed] for k, v in hist.items()})
+    biases = _level_biases(hist, srgb_decode_lut() ** halves_power)
+    if max(abs(b) for b in biases) > MAX_LEVEL_BIAS:
+        return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(picked.size), halves_power,
+                         level_residuals=biases, levels=True, code_range=(black, white))
+    relations = _relations(hist, mixed)
+    power = _level_power(relations)
+    table = _curve(relations)
+    # the power unless a bend of its mid-tones fits clearly better (a camera's S-curve): the curve's
+    # freedom otherwise follows the level photos' texture (sharpening, JPEG) more than the camera
+    model = "curve" if _bend_gain(relations, power) > CURVE_GAIN else "power"
+    if model == "curve" and not np.all(np.diff(table[codes]) > 0):
+        model = "power"
+    if model == "power":
+        table = srgb_decode_lut() ** power
+    residual = _half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
+    level_residuals = _level_biases(hist, table)
+    for g in range(GROUPS):
+        sel = group == g
+        if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
+            part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel])
+            fitted = _curve(part) if model == "curve" else srgb_decode_lut() ** _level_power(part)
+            strips.append(_log_slope(fitted, table, codes))
+    spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
+    return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
+                     int(picked.size), power if model == "power" else math.nan, tuple(strips), level_residuals,
+                     levels=True, code_range=(black, white))
