@@ -99,3 +99,22 @@ def unbind_egl() -> None:
     display = lib.eglGetCurrentDisplay()
     if display:
         lib.eglMakeCurrent(display, None, None, None)
+
+
+_PROBE: list = []  # the outcome of the one probe of this process: [None] or [DisplayError]
+
+
+def headless_unavailable(hint: str) -> str | None:
+    """Why no headless OpenGL 3.3 context can be made here (one line, ``hint`` appended: the other
+    backend to use), or None.  One context is made and released for the whole process, however
+    many backends ask (the gl renderer and the gl encoder both do, before a session starts)."""
+    if not _PROBE:
+        try:
+            headless_context().release()
+            _PROBE.append(None)
+        except DisplayError as exc:
+            _PROBE.append(exc)
+    exc = _PROBE[0]
+    if exc is None:
+        return None
+    return str(DisplayError(exc.message, source=exc.source, hint="; ".join(h for h in (exc.hint, hint) if h)))

@@ -107,19 +107,15 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
                         on_warning(note)
                 told = len(pipeline.notes)
                 t0 = time.perf_counter()
-                drawn = 0.0
-                if output == "preview":
-                    view = views[centre]
-                    presenter.show(view if isinstance(view, np.ndarray) else views_on_host(view[None])[0])
-                elif on_gpu:  # the raster drawn straight into the window: its draw is compose, the rest present
-                    draws = []
-                    presenter.show_drawn(lambda framebuffer: draws.append(pipeline.draw_raster(framebuffer)))
-                    drawn = sum(draws)
-                    stages["compose"] += drawn
-                elif output == "panel":  # headless presents nothing: no present stage
-                    presenter.show(raster)
-                if output != "headless":
-                    stages["present"] = max(1e3 * (time.perf_counter() - t0) - drawn, 0.0)
+                if on_gpu:  # the raster drawn straight into the window: its draw is compose, the rest present
+                    pipeline.present_drawn(presenter, stages)
+                elif output != "headless":  # headless presents nothing: no present stage
+                    if output == "preview":
+                        view = views[centre]
+                        presenter.show(view if isinstance(view, np.ndarray) else views_on_host(view[None])[0])
+                    else:
+                        presenter.show(raster)
+                    stages["present"] = 1e3 * (time.perf_counter() - t0)
                 times.add(**stages)
                 if any(k in ("escape", "q") for k in presenter.keys()):
                     break

@@ -36,7 +36,7 @@ import numpy as np
 from ...core.errors import DisplayError, ImageError
 from ...core.profile import PanelProfile
 from ...core.routing import view_map
-from ..gl_context import VIEWPORT_TRIANGLE, headless_context, offscreen_context
+from ..gl_context import VIEWPORT_TRIANGLE, headless_context, headless_unavailable, offscreen_context
 from ..sampling import column_sampling, row_sampling
 from .common import output_like
 
@@ -278,18 +278,9 @@ def encode_gl(views: np.ndarray, profile: PanelProfile, out: np.ndarray | None =
             return encoder.encode(views, output_like(views, profile, out), compensator=compensator)
 
 
-_AVAILABLE: list = []
-
-
 def _unavailable(device=None) -> str | None:
-    """Why the gl encoder cannot run here (no OpenGL 3.3 context), or None; asked once per process."""
-    if not _AVAILABLE:
-        try:
-            headless_context(hint=_HINT).release()
-            _AVAILABLE.append(None)
-        except DisplayError as exc:
-            _AVAILABLE.append(str(exc))
-    return _AVAILABLE[0]
+    """Why the gl encoder cannot run here (no OpenGL 3.3 context), or None (one probe per process)."""
+    return headless_unavailable(_HINT)
 
 
 encode_gl.unavailable = _unavailable

@@ -77,7 +77,7 @@ import numpy as np
 
 from ...core.errors import DisplayError, InputError
 from ..gaussians import Gaussians
-from ..gl_context import headless_context
+from ..gl_context import headless_context, headless_unavailable
 from . import gl_shaders as sh
 from .common import check_finite_gaussians, check_render_inputs
 from .cpu_project import _RECORD
@@ -406,18 +406,9 @@ def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, ba
             return renderer.read()
 
 
-_AVAILABLE: list = []
-
-
 def _unavailable(device=None) -> str | None:
-    """Why the gl renderer cannot run here (no OpenGL 3.3 context), or None; asked once per process."""
-    if not _AVAILABLE:
-        try:
-            headless_context(require=330, hint=_HINT).release()
-            _AVAILABLE.append(None)
-        except DisplayError as exc:
-            _AVAILABLE.append(str(exc))
-    return _AVAILABLE[0]
+    """Why the gl renderer cannot run here (no OpenGL 3.3 context), or None (one probe per process)."""
+    return headless_unavailable(_HINT)
 
 
 render_gl.unavailable = _unavailable
