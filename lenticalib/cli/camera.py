@@ -32,8 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     text = "write the calibration board: a panel raster to show, and a sheet to print"
     p = sub.add_parser("patterns", help=text, description=text)
     p.add_argument("--board", choices=PATTERNS, default="chessboard", dest="pattern",
-                   help="'chessboard' (default): must be wholly in every photo; 'charuco': ArUco markers in the "
-                        "white squares identify every corner, so photos may show part of the board")
+                   help="'chessboard' (default): a photo may show part of it (a block of at least 3 x 3 inner "
+                        "corners); 'charuco': ArUco markers in the white squares identify every corner, so any "
+                        "part of the board with a few markers counts")
     p.add_argument("--dictionary", metavar="NAME", help="ArUco dictionary of a ChArUco board (default: the smallest "
                    "4x4 one that holds its markers, e.g. DICT_4X4_100)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for board.png, board.json and print/")
@@ -138,8 +139,7 @@ def run_patterns(args: argparse.Namespace) -> int:
     markers = f", {sheet.dictionary} markers of {sheet.marker_mm:g} mm" if sheet.charuco else ""
     print(f"wrote {out / PRINT_FOLDER / PRINT_PDF} and {PRINT_PNG} ({sheet.cols}x{sheet.rows} inner corners, "
           f"{sheet.square_mm:g} mm squares{markers} on {args.paper}; print at 100 % and check the 100 mm bar)")
-    reach = ("the board reaching the image corners and edges (it may run off them)" if board.charuco
-             else "the board wholly in every photo and reaching the image corners")
+    reach = "the board reaching the image corners and edges (it may run off them)"
     print(f"next: 'lenticalib show {out / PANEL_IMAGE}', photograph the panel 15-30 times from varied, tilted "
           f"views with {reach}, save the photos in {out / 'captures'}/, then "
           f"'lenticalib camera calibrate {out / 'captures'} -o camera.cameramodel --report camera-report'")

@@ -98,9 +98,14 @@ def _place(camera: Camera, board, target: np.ndarray, f: float, theta: float, al
 
 
 def inside_share(camera: Camera, board, pose: BoardPose, margin: float = 3.0) -> float:
-    """Share of the board's inner corners that ``camera`` sees inside its frame, ``margin`` pixels
-    from the edges (in front of the camera, and within the field its pixels cover: the distortion
-    polynomial folds back far outside the frame, so a projection alone is not enough)."""
+    """Share of the board's inner corners that ``camera`` sees inside its frame (:func:`inside_mask`)."""
+    return float(inside_mask(camera, board, pose, margin).mean())
+
+
+def inside_mask(camera: Camera, board, pose: BoardPose, margin: float = 3.0) -> np.ndarray:
+    """bool ``(rows * cols,)``: which of the board's inner corners ``camera`` sees inside its frame,
+    ``margin`` pixels from the edges (in front of the camera, and within the field its pixels cover:
+    the distortion polynomial folds back far outside the frame, so a projection alone is not enough)."""
     p = pose.to_camera(board.object_points().reshape(-1, 3))
     w, h = camera.width, camera.height
     cx, cy = camera.normalized(np.array([0.0, w - 1.0, 0.0, w - 1.0, 0.0, w - 1.0, (w - 1) / 2, (w - 1) / 2]),
@@ -110,9 +115,8 @@ def inside_share(camera: Camera, board, pose: BoardPose, margin: float = 3.0) ->
     yn = np.where(front, p[:, 1] / np.where(front, p[:, 2], 1.0), np.inf)
     within = (xn >= cx.min()) & (xn <= cx.max()) & (yn >= cy.min()) & (yn <= cy.max())
     q = project_camera(camera, np.where(front[:, None], p, 1.0))
-    inside = (within & (q[:, 0] >= margin) & (q[:, 1] >= margin) & (q[:, 0] <= w - 1 - margin)
-              & (q[:, 1] <= h - 1 - margin))
-    return float(inside.mean())
+    return (within & (q[:, 0] >= margin) & (q[:, 1] >= margin) & (q[:, 0] <= w - 1 - margin)
+            & (q[:, 1] <= h - 1 - margin))
 
 
 def board_poses(camera: Camera, board, count: int, seed: int, *, tilt: tuple[float, float] = (15.0, 40.0),

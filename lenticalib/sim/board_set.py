@@ -106,8 +106,8 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
                  printed board (:func:`lenticalib.calib.intrinsics.board.print_board`)
     pattern      the default board's pattern, "chessboard" or "charuco" (ignored with ``board``)
     cut          share of the photos whose board runs off the frame (:func:`.board_poses.board_poses`);
-                 None: ``CHARUCO_CUT`` for a ChArUco board, 0 for a chessboard (calibration refuses
-                 a cut chessboard photo: a bench set shows what that costs)
+                 None: ``CHARUCO_CUT`` for a ChArUco board, 0 for a chessboard (a cut chessboard
+                 photo is used for the block of its corners in view)
 
     RETURNED VALUE
     the ``simulation.json`` document (also written).

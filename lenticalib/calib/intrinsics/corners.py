@@ -9,6 +9,17 @@ seen in that photo.  Measured on simulated 1280 x 960 JPEGs of tilted printed bo
 1584 corners): corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and
 0.68 s with SB's own ``CALIB_CB_ACCURACY`` refinement.
 
+A chessboard partly outside the photo (:func:`locate_chessboard`): when the whole board is not
+found, ``findChessboardCornersSBWithMeta`` with ``CALIB_CB_LARGER`` searches for the largest block
+of corners, starting from several smallest blocks (``PART_SIZES``; each start finds different
+blocks, the largest consistent one is kept).  That search can return corners it made up (inside
+a square, or a real corner under another label, near the photo's edge): those are dropped
+(:func:`.partial.consistent`), a block whose cells are not single squares in checker order is
+refused (:func:`.partial.checkered`), and the block is placed into the board's grid
+(:func:`.partial.place`: the pose absorbs where, a quarter turn is told by the board's counts and
+edges).  A photo needs ``MIN_CHESSBOARD_CORNERS`` such corners on ``MIN_GRID`` rows and columns.
+The corners not in the photo are NaN, as for a ChArUco board.
+
 Corners: float64 ``(rows, cols, 2)`` camera pixel coordinates, OpenCV's (and mrcal's) convention:
 (0, 0) is the centre of the top-left pixel.  [i, j] is board corner (row i, column j), i.e. board
 point ``(j s, i s, 0)`` (:mod:`.board`).
@@ -62,6 +73,10 @@ SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest squ
 SUBPIX_LIMITS = (2, 25)  # pixels
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
+PART_SIZES = ((3, 3), (5, 3), (3, 5), (5, 4), (4, 5))  # smallest blocks the searches for a part of a board start from
+NOT_FOUND = "no chessboard found (at least 3 x 3 of its inner corners must be in the photo, sharp)"
+MIN_GRID = 3  # rows and columns of inner corners a partly visible chessboard must show, at least
+MIN_CHESSBOARD_CORNERS = 12  # inner corners a photo of part of a chessboard must show, at least
 MIN_SQUARE_PX = 10.0  # smallest square side (px) whose corners are located reliably
 
 
@@ -108,6 +123,13 @@ def _sample(grey: np.ndarray, points: np.ndarray) -> np.ndarray:
     return values
 
 
+def unmirror(corners: np.ndarray) -> np.ndarray:
+    """A ``(rows, cols, 2)`` grid labelled so that going along a row and then down a column turns
+    clockwise in the image (the board seen from its front): a mirrored labelling has its columns flipped."""
+    along, down = corners[0, -1] - corners[0, 0], corners[-1, 0] - corners[0, 0]
+    return corners[:, ::-1] if along[0] * down[1] - along[1] * down[0] < 0 else corners
+
+
 def orient(corners: np.ndarray, grey: np.ndarray, symmetric: bool) -> np.ndarray:
     """The corners relabelled so that [0, 0] is the board's top-left inner corner as drawn.
 
@@ -116,10 +138,7 @@ def orient(corners: np.ndarray, grey: np.ndarray, symmetric: bool) -> np.ndarray
     grey        the uint8 grey image they were found in
     symmetric   whether the board looks the same after a half turn (see the module docstring)
     """
-    c = corners
-    along, down = c[0, -1] - c[0, 0], c[-1, 0] - c[0, 0]
-    if along[0] * down[1] - along[1] * down[0] < 0:  # mirrored labelling: flip the columns
-        c = c[:, ::-1]
+    c = unmirror(corners)
     if symmetric:
         turned = c[::-1, ::-1]
         return c if (c[0, -1] - c[0, 0])[0] >= (turned[0, -1] - turned[0, 0])[0] else turned
@@ -136,28 +155,98 @@ def orient(corners: np.ndarray, grey: np.ndarray, symmetric: bool) -> np.ndarray
 
 
 def square_side(corners: np.ndarray) -> float:
-    """The shortest distance (px) between neighbouring corners of a ``(rows, cols, 2)`` grid."""
-    return float(min(np.linalg.norm(np.diff(corners, axis=0), axis=-1).min(),
-                     np.linalg.norm(np.diff(corners, axis=1), axis=-1).min()))
+    """The shortest distance (px) between neighbouring corners of a ``(rows, cols, 2)`` grid (NaN
+    corners, not seen, left out)."""
+    return float(min(np.nanmin(np.linalg.norm(np.diff(corners, axis=0), axis=-1), initial=np.inf),
+                     np.nanmin(np.linalg.norm(np.diff(corners, axis=1), axis=-1), initial=np.inf)))
 
 
-def find_corners(grey: np.ndarray, cols: int, rows: int, symmetric: bool = False) -> np.ndarray | None:
-    """The board's inner corners in a uint8 grey image: float64 ``(rows, cols, 2)`` pixels, or None."""
+def _subpix(grey: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """``cv2.cornerSubPix`` on a ``(r, c, 2)`` grid in a half-window of ``SUBPIX_WINDOW`` times its
+    smallest square; a corner whose window would leave the image (OpenCV pads with the edge pixels,
+    which pulls it) comes back NaN."""
     import cv2
+
+    win = int(np.clip(SUBPIX_WINDOW * square_side(corners), *SUBPIX_LIMITS))
+    h, w = grey.shape
+
+    def clear(q):
+        border = np.minimum.reduce([q[..., 0], q[..., 1], w - 1 - q[..., 0], h - 1 - q[..., 1]])
+        return border >= win + 1
+
+    out = np.full(corners.shape, np.nan)
+    keep = clear(corners)
+    if keep.any():
+        refined = cv2.cornerSubPix(grey, corners[keep].reshape(-1, 1, 2).astype(np.float32), (win, win), (-1, -1),
+                                   (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
+        out[keep] = refined.reshape(-1, 2)
+    out[~clear(out)] = np.nan
+    return out
+
+
+def locate_chessboard(grey: np.ndarray, cols: int, rows: int,
+                      symmetric: bool = False) -> tuple[np.ndarray | None, str | None]:
+    """The board's inner corners in a uint8 grey image, the whole board or the part in the photo:
+    (float64 ``(rows, cols, 2)`` pixels with NaN where a corner is not in the photo, None), or
+    (None, why not).  A whole board is labelled by :func:`orient`; a part by :func:`.partial.place`
+    (a sub-grid of at least ``MIN_GRID`` x ``MIN_GRID`` corners, found with ``CALIB_CB_LARGER``).
+    The labelling is worked out on the detector's corners, then carried over to the refined ones
+    (:func:`_subpix`: NaN where too near the photo's edge)."""
+    import cv2
+
+    from .partial import checkered, consistent, junctions, median_step, place, unmirrored
 
     flags = 0
     for name in FLAGS_NAMES:
         flags |= getattr(cv2, name)
     found, corners = cv2.findChessboardCornersSB(grey, (int(cols), int(rows)), flags=flags)
-    if not found or corners is None:
-        return None
-    corners = np.asarray(corners, np.float64).reshape(rows, cols, 2)
-    side = square_side(corners)
-    win = int(np.clip(SUBPIX_WINDOW * side, *SUBPIX_LIMITS))
-    refined = cv2.cornerSubPix(grey, corners.reshape(-1, 1, 2).astype(np.float32), (win, win), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
-    corners = refined.reshape(rows, cols, 2).astype(np.float64)
-    return np.ascontiguousarray(orient(corners, grey, symmetric))
+    part = not (found and corners is not None)
+    if not part:
+        block = np.asarray(corners, np.float64).reshape(rows, cols, 2)
+    else:
+        block, most = None, 0
+        for size in PART_SIZES:  # the searches from different smallest blocks find different ones: the largest
+            found, corners, meta = cv2.findChessboardCornersSBWithMeta(grey, size, flags | cv2.CALIB_CB_LARGER)
+            if not found or corners is None or meta is None or np.asarray(meta).ndim != 2:
+                continue
+            b = consistent(grey, np.asarray(corners, np.float64).reshape(*np.asarray(meta).shape, 2))
+            n = int(np.isfinite(b[..., 0]).sum())
+            if n > most and min(b.shape[:2]) >= MIN_GRID and checkered(grey, b):
+                block, most = b, n
+        if block is None:
+            return None, NOT_FOUND
+    if not part:
+        labelled = orient(block, grey, symmetric)
+    else:
+        labelled, why = place(grey, unmirrored(block), rows, cols)
+        if labelled is None:
+            return None, why
+    refined = _subpix(grey, block)
+    if part:
+        refined[~junctions(grey, refined, median_step(block))] = np.nan
+    source = {tuple(p): k for k, p in enumerate(block.reshape(-1, 2)) if np.isfinite(p).all()}  # relabelled, not moved
+    out = np.full((rows, cols, 2), np.nan)
+    seen = np.isfinite(labelled[..., 0])
+    out[seen] = refined.reshape(-1, 2)[[source[tuple(p)] for p in labelled[seen]]]
+    return out, None
+
+
+def find_corners(grey: np.ndarray, cols: int, rows: int, symmetric: bool = False) -> np.ndarray | None:
+    """The board's inner corners in a uint8 grey image (:func:`locate_chessboard`): float64
+    ``(rows, cols, 2)`` pixels, NaN where not in the photo, or None."""
+    return locate_chessboard(grey, cols, rows, symmetric)[0]
+
+
+def chessboard_shortfall(corners: np.ndarray) -> str | None:
+    """Why the corners (``(rows, cols, 2)``, NaN = not seen) of a partly visible chessboard are too
+    few to use, or None: at least :data:`MIN_CHESSBOARD_CORNERS`, on ``MIN_GRID`` rows and columns."""
+    seen = np.isfinite(corners[..., 0])
+    n = int(seen.sum())
+    lines = min(np.count_nonzero(seen.any(axis=1)), np.count_nonzero(seen.any(axis=0)))
+    if n < MIN_CHESSBOARD_CORNERS or lines < MIN_GRID:
+        return (f"only {n} of the chessboard's {seen.size} inner corners in the photo, at least "
+                f"{MIN_CHESSBOARD_CORNERS} on {MIN_GRID} rows and columns are needed (show more of the board)")
+    return None
 
 
 def charuco_detector(board):
@@ -254,9 +343,10 @@ def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False, board
         corners = find_charuco_corners(grey8(image), board)
         why = charuco_shortfall(corners)
         return PhotoCorners(str(path), size, None if why else corners, why)
-    corners = find_corners(grey8(image), cols, rows, symmetric)
-    if corners is None:
-        return PhotoCorners(str(path), size, None, "board not found (all of it must be in the photo, sharp)")
+    corners, why = locate_chessboard(grey8(image), cols, rows, symmetric)
+    why = why or chessboard_shortfall(corners)
+    if why:
+        return PhotoCorners(str(path), size, None, why)
     side = square_side(corners)
     if side < MIN_SQUARE_PX:
         return PhotoCorners(str(path), size, None, f"board squares only {side:.0f} px across in places (corners "

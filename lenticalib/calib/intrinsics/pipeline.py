@@ -9,8 +9,9 @@ Errors name the argument at fault by its parameter name (``source="photos"``, ``
 ``"jobs"``, ``"lensmodel"``, ``"board_squares"``, ``"marker_mm"``, ``"dictionary"``; hints mention
 ``board_corners`` and ``square_mm``); a command-line front end maps them to its flags.
 
-ChArUco boards: a photo needs only part of the board (:mod:`.corners`); a photo with too few
-identified corners is left out with its reason in the summary, like a photo without the board.
+A photo needs only part of the board (:mod:`.corners`: a chessboard's visible block of corners
+placed into the board's grid by :mod:`.partial`, a ChArUco board's identified corners); a photo
+with too few corners is left out with its reason in the summary, like a photo without the board.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ MIN_INLIER_CORNERS = 8  # corners of a photo the solve must keep (fewer: the pho
 MAX_JOBS = 64
 TOO_FEW_HINT = ("photograph the board at least 10 times (15-30 is better): tilt the camera 20-40 degrees "
                 "in varied directions, and let the board reach every corner of the image")
-NOT_FOUND_HINT = {"chessboard": "is wholly in the photos and sharp",
+NOT_FOUND_HINT = {"chessboard": "is sharp in the photos, at least 3 x 3 of its inner corners in each",
                   "charuco": "is sharp in the photos and its dictionary, squares and marker size are right"}
 REPORT_WHAT = "calibration report"
 

@@ -1,0 +1,117 @@
+"""A chessboard running off the photo: its visible block of corners is used, placed into the board's grid.
+
+Fixed seeds, small simulated photos; each test fails when the property it guards breaks.
+"""
+
+import numpy as np
+import pytest
+
+from lenticalib.calib.intrinsics.board import print_board
+from lenticalib.calib.intrinsics.corners import MIN_CHESSBOARD_CORNERS, detect_photo
+from lenticalib.sim.board_poses import board_poses, inside_mask, project_camera
+from lenticalib.sim.boards import calibration_camera, photograph_print_board
+
+RESOLUTION = (1500, 1000)
+
+
+def _photos(tmp_path, lens, seed, count, cut, board=None):
+    """``count`` JPEGs of a printed board by the simulator's camera; (paths, true corners (rows, cols, 2)
+    each, NaN where a corner is outside the photo)."""
+    camera = calibration_camera(seed, RESOLUTION, lens=lens)
+    board = board or print_board()
+    points = board.object_points().reshape(-1, 3)
+    paths, truths = [], []
+    for k, pose in enumerate(board_poses(camera, board, count, seed, cut=cut)):
+        path = tmp_path / f"{lens}-{seed}-{k}.jpg"
+        path.write_bytes(photograph_print_board(camera, board, pose, np.random.default_rng([seed, k])))
+        paths.append(path)
+        p = pose.to_camera(points)
+        q = project_camera(camera, p)
+        # the lens polynomial folds rays from outside the field back into the frame: those are not seen
+        xn, yn = camera.normalized(q[:, 0], q[:, 1])
+        folded = np.hypot(xn - p[:, 0] / p[:, 2], yn - p[:, 1] / p[:, 2]) > 1e-6
+        q[folded | ~inside_mask(camera, board, pose, margin=0.0)] = np.nan
+        truths.append(q.reshape(board.rows, board.cols, 2))
+    return paths, truths
+
+
+def _relabelling(found, truth):
+    """The rigid relabelling (quarter turns and a shift of whole squares) that takes the found
+    corners' labels to the true ones, from each found corner's nearest true corner; None if there is none."""
+    seen = np.argwhere(np.isfinite(found[..., 0]))
+    labels = np.argwhere(np.isfinite(truth[..., 0]))
+    points = truth[np.isfinite(truth[..., 0])]
+    nearest = labels[np.argmin(np.linalg.norm(found[tuple(seen.T)][:, None] - points[None], axis=-1), axis=1)]
+    for turn in ([[1, 0], [0, 1]], [[0, -1], [1, 0]], [[-1, 0], [0, -1]], [[0, 1], [-1, 0]]):
+        shift = nearest - seen @ np.array(turn).T
+        if (shift == shift[0]).all():
+            return np.array(turn), shift[0]
+    return None
+
+
+@pytest.mark.parametrize("lens, seed", [("wide", 1), ("strong", 2)])
+def test_a_cut_chessboard_gives_its_corners_in_view_as_a_block_of_the_board(tmp_path, lens, seed):
+    board = print_board()
+    paths, truths = _photos(tmp_path, lens, seed, 5, cut=1.0)
+    used = placed = 0
+    for path, truth in zip(paths, truths):
+        inside = np.isfinite(truth[..., 0])
+        assert not inside.all()  # the board runs off the photo
+        found = detect_photo(str(path), board.cols, board.rows, board.symmetric)
+        if found.corners is None:  # OpenCV's search for a larger pattern can miss a part: refused, not misread
+            assert "no chessboard found" in found.reason or "only" in found.reason
+            continue
+        used += 1
+        seen = np.isfinite(found.corners[..., 0])
+        assert MIN_CHESSBOARD_CORNERS <= seen.sum() < seen.size
+        # a block of the board: every corner where the true corner of a shifted (or turned) label is
+        relabel = _relabelling(found.corners, truth)
+        assert relabel is not None, path.name
+        turn, shift = relabel
+        where = np.argwhere(seen) @ turn.T + shift
+        error = np.linalg.norm(found.corners[seen] - truth[tuple(where.T)], axis=-1)
+        assert error.max() < 0.3 and np.sqrt(np.mean(error ** 2)) < 0.1, (path.name, error.max())
+        placed += bool((turn == np.eye(2)).all() and not shift.any())  # the board's edges in view placed it
+    assert used >= 3 and placed >= 2, (used, placed)
+
+
+def test_whole_boards_are_found_whole_as_before(tmp_path):
+    board = print_board()
+    paths, truths = _photos(tmp_path, "mild", 3, 2, cut=0.0)
+    for path, truth in zip(paths, truths):
+        found = detect_photo(str(path), board.cols, board.rows, board.symmetric)
+        assert found.corners is not None and np.isfinite(found.corners).all()
+        assert np.abs(found.corners - truth).max() < 0.2
+
+
+def test_a_photo_of_another_board_or_of_no_board_is_refused(tmp_path):
+    import cv2
+
+    board = print_board()
+    other = print_board().__class__(cols=7, rows=4, square_mm=30.0, kind="print")  # wholly in view, smaller
+    (path,), _ = _photos(tmp_path, "mild", 4, 1, cut=0.0, board=other)
+    found = detect_photo(str(path), board.cols, board.rows, board.symmetric)
+    assert found.corners is None and "not this board's 11 x 6" in found.reason
+    blank = tmp_path / "wall.png"
+    noise = np.random.default_rng(0).normal(128, 20, (400, 600)).clip(0, 255).astype(np.uint8)
+    cv2.imwrite(str(blank), cv2.GaussianBlur(noise, (0, 0), 2))
+    found = detect_photo(str(blank), board.cols, board.rows, board.symmetric)
+    assert found.corners is None and "no chessboard found" in found.reason
+
+
+def test_corners_the_detector_made_up_are_left_out(tmp_path):
+    """OpenCV's search for a larger pattern can return made-up corners (inside a square, or a real
+    corner under another label): they are dropped, the others kept."""
+    from lenticalib.calib.intrinsics.corners import grey8
+    from lenticalib.calib.intrinsics.partial import consistent
+    from lenticalib.core.imageio import read_image
+
+    (path,), (truth,) = _photos(tmp_path, "mild", 5, 1, cut=0.0)
+    grey = grey8(read_image(path))
+    block = truth[1:5, 2:9].copy()
+    block[1, 3] += 0.35 * np.linalg.norm(block[1, 4] - block[1, 3]) * np.array([0.6, 0.8])  # inside a square
+    block[3, 6] = truth[0, 0]  # a real corner, wrong label
+    kept = consistent(grey, block)
+    assert kept.shape == block.shape
+    assert np.isnan(kept[1, 3]).all() and np.isnan(kept[3, 6]).all()
+    assert np.isfinite(kept[..., 0]).sum() == block.shape[0] * block.shape[1] - 2
