@@ -10,9 +10,11 @@ the corners of boards cut by the frame near the image corners of the wide-angle 
 The solve cannot average such an error away: it is the same in every photo at that radius.
 
 How.  Around each corner the board's own corners give the map from board squares to pixels: a
-quadratic in (u, v) (squares along a row and down a column) fitted to the corner's neighbours
-within ``NEIGHBOURS`` rows and columns (at least ``MIN_NEIGHBOURS`` of them), pinned at the
-corner's current position.  The image is resampled through that map (``cv2.remap``, bicubic) into
+cubic in (u, v) (squares along a row and down a column) fitted to the corner's neighbours within
+``NEIGHBOURS`` rows and columns (one more for a corner on the edge of what is seen; at least
+``MIN_NEIGHBOURS`` of them, on four rows and four columns), pinned at the corner's current
+position.  (A quadratic from the eight nearest left -0.08 px at the wide lens's image corners
+where the cubic leaves -0.04 px, seed 1.)  The image is resampled through that map (``cv2.remap``, bicubic) into
 a patch in which the board's lines are straight and square to the patch's axes, one patch pixel
 about one image pixel; ``cornerSubPix`` runs there with the same window, and its answer is mapped
 back.  Twice, re-centred.  A corner without enough neighbours keeps its plain ``cornerSubPix``
@@ -25,22 +27,22 @@ from __future__ import annotations
 
 import numpy as np
 
-NEIGHBOURS = 1  # rows and columns either side whose corners fit the local map
-MIN_NEIGHBOURS = 6  # neighbours the quadratic map needs (6 unknowns per coordinate, pinned: 5)
+NEIGHBOURS = 2  # rows and columns either side whose corners fit the local map
+MIN_NEIGHBOURS = 12  # neighbours the cubic map needs (10 unknowns per coordinate, pinned: 9)
 PASSES = 2
 BORDER_PX = 2  # patch pixels beyond the window that cornerSubPix reads
 
 
 def _terms(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Quadratic map terms without the constant: (n, 5) of u, v, u^2, u v, v^2."""
-    return np.stack([u, v, u * u, u * v, v * v], axis=-1)
+    """Cubic map terms without the constant: (n, 9) of u, v, u^2, u v, v^2, u^3, u^2 v, u v^2, v^3."""
+    return np.stack([u, v, u * u, u * v, v * v, u ** 3, u * u * v, u * v * v, v ** 3], axis=-1)
 
 
 def local_map(corners: np.ndarray, i: int, j: int, centre: np.ndarray) -> np.ndarray | None:
-    """Coefficients (5, 2) of the quadratic map from square offsets (u, v) about corner (i, j) to
-    pixel offsets from ``centre``, fitted to its seen neighbours within ``NEIGHBOURS`` rows and
-    columns, or (a corner on the edge of what is seen) twice that; None with too few of them."""
-    for reach in (NEIGHBOURS, 2 * NEIGHBOURS):
+    """Coefficients (9, 2) of the cubic map from square offsets (u, v) about corner (i, j) to pixel
+    offsets from ``centre``, fitted to its seen neighbours within ``NEIGHBOURS`` rows and columns,
+    or (a corner on the edge of what is seen) one more; None with too few of them."""
+    for reach in (NEIGHBOURS, NEIGHBOURS + 1):
         coef = _fit(corners, i, j, centre, reach)
         if coef is not None:
             return coef
@@ -55,7 +57,7 @@ def _fit(corners: np.ndarray, i: int, j: int, centre: np.ndarray, reach: int) ->
     ii, jj = ii[keep], jj[keep]
     seen = np.isfinite(corners[ii, jj, 0])
     ii, jj = ii[seen], jj[seen]
-    if len(ii) < MIN_NEIGHBOURS or len(set(ii.tolist())) < 3 or len(set(jj.tolist())) < 3:
+    if len(ii) < MIN_NEIGHBOURS or len(set(ii.tolist())) < 4 or len(set(jj.tolist())) < 4:
         return None
     terms = _terms((jj - j).astype(np.float64), (ii - i).astype(np.float64))
     coef, *_ = np.linalg.lstsq(terms, corners[ii, jj] - centre, rcond=None)
