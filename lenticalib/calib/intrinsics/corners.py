@@ -7,9 +7,10 @@ PNGs from a raw converter scaled to their 99.5th percentile and given an sRGB-li
 refined by ``cv2.cornerSubPix`` in a window of ``SUBPIX_WINDOW`` times the smallest square side
 seen in that photo, then once more in patches where the board's lines are straight
 (:mod:`.rectified`: through a distorting lens the bent lines pull a plain window's corner by
-0.005-0.014 px outward, up to 0.13 px near a wide-angle lens's image corners).  Measured on simulated 1280 x 960 JPEGs of tilted printed boards (24 photos,
-1584 corners): corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and
-0.68 s with SB's own ``CALIB_CB_ACCURACY`` refinement.
+0.005-0.014 px outward, up to 0.13 px near a wide-angle lens's image corners).  Measured on
+simulated 1280 x 960 JPEGs of tilted printed boards (24 photos, 1584 corners), before that second
+pass: corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and 0.68 s
+with SB's own ``CALIB_CB_ACCURACY`` refinement.
 
 A chessboard partly outside the photo (:func:`locate_chessboard`): when the whole board is not
 found, ``findChessboardCornersSBWithMeta`` with ``CALIB_CB_LARGER`` searches for the largest block
