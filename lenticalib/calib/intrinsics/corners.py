@@ -127,10 +127,21 @@ def _sample(grey: np.ndarray, points: np.ndarray) -> np.ndarray:
     return values
 
 
+def axes(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(step along a row, step down a column) of ``block`` (r, c, 2; NaN: none), px: the linear part
+    of an affine map fitted from labels to pixels."""
+    rows, cols = np.indices(block.shape[:2])
+    ok = np.isfinite(block[..., 0])
+    terms = np.stack([np.ones(ok.sum()), rows[ok], cols[ok]], axis=1).astype(np.float64)
+    coef, *_ = np.linalg.lstsq(terms, block[ok], rcond=None)
+    return coef[2], coef[1]
+
+
 def unmirror(corners: np.ndarray) -> np.ndarray:
-    """A ``(rows, cols, 2)`` grid labelled so that going along a row and then down a column turns
-    clockwise in the image (the board seen from its front): a mirrored labelling has its columns flipped."""
-    along, down = corners[0, -1] - corners[0, 0], corners[-1, 0] - corners[0, 0]
+    """A ``(rows, cols, 2)`` grid (NaN: not seen) labelled so that going along a row and then down a
+    column turns clockwise in the image (the board seen from its front): a mirrored labelling has
+    its columns flipped.  The turn is that of the fitted axes (:func:`axes`)."""
+    along, down = axes(corners)
     return corners[:, ::-1] if along[0] * down[1] - along[1] * down[0] < 0 else corners
 
 
@@ -203,7 +214,7 @@ def locate_chessboard(grey: np.ndarray, cols: int, rows: int,
     (:func:`_subpix`: NaN where too near the photo's edge)."""
     import cv2
 
-    from .partial import checkered, consistent, junctions, median_step, place, unmirrored
+    from .partial import checkered, consistent, junctions, median_step, place
 
     flags = 0
     for name in FLAGS_NAMES:
@@ -227,7 +238,7 @@ def locate_chessboard(grey: np.ndarray, cols: int, rows: int,
     if not part:
         labelled = orient(block, grey, symmetric)
     else:
-        labelled, why = place(grey, unmirrored(block), rows, cols)
+        labelled, why = place(grey, unmirror(block), rows, cols)
         if labelled is None:
             return None, why
     refined = _subpix(grey, block)

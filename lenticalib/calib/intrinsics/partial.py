@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .corners import _sample
+from .corners import _sample, axes
 
 EDGE_PAPER_AT = 1.3  # squares beyond a block's outer corner row where paper shows if it is the board's edge
 EDGE_MARGIN_PX = 3.0  # such a sample must be this far inside the photo to count
@@ -133,23 +133,6 @@ def consistent(grey: np.ndarray, block: np.ndarray) -> np.ndarray:
     if keep_r.size == 0:
         return out[:0, :0]
     return out[keep_r[0]:keep_r[-1] + 1, keep_c[0]:keep_c[-1] + 1]
-
-
-def axes(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(step along a row, step down a column) of ``block`` (r, c, 2; NaN: none), px: the linear part
-    of an affine map fitted from labels to pixels."""
-    rows, cols = np.indices(block.shape[:2])
-    ok = np.isfinite(block[..., 0])
-    terms = np.stack([np.ones(ok.sum()), rows[ok], cols[ok]], axis=1).astype(np.float64)
-    coef, *_ = np.linalg.lstsq(terms, block[ok], rcond=None)
-    return coef[2], coef[1]
-
-
-def unmirrored(block: np.ndarray) -> np.ndarray:
-    """``block`` labelled so that going along a row and then down a column turns clockwise in the
-    image (:func:`.corners.unmirror`, from the fitted axes: corners may be missing)."""
-    along, down = axes(block)
-    return block[:, ::-1] if along[0] * down[1] - along[1] * down[0] < 0 else block
 
 
 def checkered(grey: np.ndarray, block: np.ndarray) -> bool:
