@@ -1,4 +1,4 @@
-"""Corners refined where the board's lines are straight (:mod:`lenticalib.calib.intrinsics.rectified`).
+"""Corners refined where the board's lines are straight (:mod:`lenticalib.calib.intrinsics.straightened`).
 
 A noiseless chessboard through a strongly distorting lens, rendered exactly (each pixel's ray
 through the lens onto the board), so any error left is the locator's own.

@@ -13,7 +13,7 @@ with its standard error: a systematic corner error that the solve cannot average
 
     python tools/bench_corners.py DIR/wide-1 DIR/strong-1 [--window 0.35] [--jobs 2]
 
-``--plain`` measures plain ``cornerSubPix`` (without :mod:`lenticalib.calib.intrinsics.rectified`);
+``--plain`` measures plain ``cornerSubPix`` (without :mod:`lenticalib.calib.intrinsics.straightened`);
 ``--window`` sets ``corners.SUBPIX_WINDOW`` (the cornerSubPix half-window as a share of the
 smallest square) to compare windows on the same photos.
 """

@@ -6,7 +6,7 @@ PNGs from a raw converter scaled to their 99.5th percentile and given an sRGB-li
 ``findChessboardCornersSB(CALIB_CB_EXHAUSTIVE | CALIB_CB_NORMALIZE_IMAGE)``; each corner is then
 refined by ``cv2.cornerSubPix`` in a window of ``SUBPIX_WINDOW`` times the smallest square side
 seen in that photo, then once more in patches where the board's lines are straight
-(:mod:`.rectified`: through a distorting lens the bent lines pull a plain window's corner by
+(:mod:`.straightened`: through a distorting lens the bent lines pull a plain window's corner by
 0.005-0.014 px outward, up to 0.13 px near a wide-angle lens's image corners).  Measured on
 simulated 1280 x 960 JPEGs of tilted printed boards (24 photos, 1584 corners), before that second
 pass: corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and 0.68 s
@@ -74,7 +74,7 @@ from ...core.imageio import read_image
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
 SUBPIX_LIMITS = (2, 25)  # pixels
-RECTIFY = True  # refine once more in patches where the board's lines are straight (:mod:`.rectified`)
+RECTIFY = True  # refine once more in patches where the board's lines are straight (:mod:`.straightened`)
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
 PART_SIZES = ((3, 3), (5, 3), (3, 5), (5, 4), (4, 5))  # smallest blocks the searches for a part of a board start from
@@ -197,7 +197,7 @@ def _subpix(grey: np.ndarray, corners: np.ndarray) -> np.ndarray:
         out[keep] = refined.reshape(-1, 2)
     out[~clear(out)] = np.nan
     if RECTIFY:
-        from .rectified import refine
+        from .straightened import refine
 
         out = refine(grey, out, np.full(out.shape[:2], win))
         out[~clear(out)] = np.nan
