@@ -63,6 +63,7 @@ SUBPIX_LIMITS = (2, 25)  # pixels
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
 MIN_SQUARE_PX = 10.0  # smallest square side (px) whose corners are located reliably
+MIN_CHARUCO_WINDOW = 4  # smallest clean half-window (px) in which a ChArUco corner is located reliably
 
 
 @dataclasses.dataclass
@@ -192,33 +193,68 @@ def find_charuco_corners(grey: np.ndarray, board) -> np.ndarray:
     return _refine_charuco(grey, corners, board)
 
 
+def _local_axes(corners: np.ndarray) -> np.ndarray:
+    """Per corner of a ``(rows, cols, 2)`` grid (NaN = missing), the image vectors (px) of one square
+    along the board's columns and rows: float64 ``(rows, cols, 2, 2)``, ``[..., :, 0]`` along +x,
+    ``[..., :, 1]`` along +y; central differences where both neighbours are known, one-sided where
+    one is, NaN where none is."""
+    axes = np.full(corners.shape[:2] + (2, 2), np.nan)
+    for k, axis in enumerate((1, 0)):
+        fwd = np.full(corners.shape, np.nan)
+        bwd = np.full(corners.shape, np.nan)
+        d = np.diff(corners, axis=axis)
+        if axis == 1:
+            fwd[:, :-1], bwd[:, 1:] = d, d
+        else:
+            fwd[:-1], bwd[1:] = d, d
+        both = np.isfinite(fwd[..., 0]) & np.isfinite(bwd[..., 0])
+        v = np.where(np.isfinite(fwd), fwd, bwd)
+        v[both] = 0.5 * (fwd[both] + bwd[both])
+        axes[..., :, k] = v
+    return axes
+
+
+def charuco_windows(corners: np.ndarray, board, axes: np.ndarray | None = None) -> np.ndarray:
+    """The ``cv2.cornerSubPix`` half-window (px, int) of each identified ChArUco corner: the
+    largest image-aligned square window that stays inside the clean chessboard around the corner
+    (the markers start ``gap = (1 - marker/square) / 2`` of a square away), mapped through the
+    corner's local image axes (:func:`_local_axes`, so a rolled or foreshortened board gets a window
+    that still misses its markers), times ``CHARUCO_WINDOW``; at most ``SUBPIX_LIMITS[1]``.  A
+    corner without an identified neighbour gets the median window.  int ``(rows, cols)``, 0 where
+    not identified.  ``axes``: float64 ``(rows, cols, 2, 2)``, the local axes (as :func:`_local_axes`
+    returns them) in another view of the corners (:mod:`.rectified`); None: from ``corners``."""
+    seen = np.isfinite(corners[..., 0])
+    win = np.zeros(seen.shape, int)
+    axes = _local_axes(corners) if axes is None else axes
+    ok = seen & np.all(np.isfinite(axes), axis=(-2, -1))
+    gap = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
+    half = np.full(seen.shape, np.nan)
+    if ok.any():
+        inv = np.linalg.inv(np.where(ok[..., None, None], axes, np.eye(2)))  # px -> squares
+        # the box corner (w, w), (w, -w) furthest from the corner in board squares: w * max |inv @ (1, +-1)|
+        reach = np.maximum(np.abs(inv @ np.array([1.0, 1.0])).max(axis=-1),
+                           np.abs(inv @ np.array([1.0, -1.0])).max(axis=-1))
+        half[ok] = CHARUCO_WINDOW * gap / reach[ok]
+    if not np.isfinite(half).any():
+        return win
+    half = np.where(np.isfinite(half), half, np.nanmedian(half))
+    win[seen] = np.minimum(np.floor(half[seen]), SUBPIX_LIMITS[1]).astype(int)
+    return win
+
+
 def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
-    """``cv2.cornerSubPix`` once more on the identified corners, each in a half-window of
-    ``CHARUCO_WINDOW`` times the clean chessboard around it: the markers start ``(1 - share) / 2``
-    of a square away, the square measured as the shortest distance to an identified neighbouring
-    corner in the photo (per corner: a tilted board's squares differ across the photo)."""
+    """``cv2.cornerSubPix`` once more on the identified corners, each in its own window
+    (:func:`charuco_windows`); a corner whose window would leave the image, or is smaller than
+    ``MIN_CHARUCO_WINDOW`` (small or steeply foreshortened squares), is dropped."""
     import cv2
 
     seen = np.isfinite(corners[..., 0])
     if CHARUCO_WINDOW <= 0 or not seen.any():
         return corners
-    rows, cols = seen.shape
-    side = np.full((rows, cols), np.inf)
-    for axis in (0, 1):
-        d = np.linalg.norm(np.diff(corners, axis=axis), axis=-1)  # NaN where a neighbour is missing
-        d = np.where(np.isfinite(d), d, np.inf)
-        lo = [slice(None), slice(None)]
-        hi = [slice(None), slice(None)]
-        lo[axis], hi[axis] = slice(0, -1), slice(1, None)
-        side[tuple(lo)] = np.minimum(side[tuple(lo)], d)
-        side[tuple(hi)] = np.minimum(side[tuple(hi)], d)
-    gap = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
-    finite = np.isfinite(side) & seen
-    if not finite.any():
-        return corners
-    side = np.where(np.isfinite(side), side, np.median(side[finite]))
-    win = np.clip(np.floor(CHARUCO_WINDOW * gap * side), *SUBPIX_LIMITS).astype(int)
+    win = charuco_windows(corners, board)
+    seen &= win >= MIN_CHARUCO_WINDOW
     out = corners.copy()
+    out[~seen] = np.nan
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     for w in np.unique(win[seen]):
         pick = seen & (win == w)

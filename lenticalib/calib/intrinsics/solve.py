@@ -53,6 +53,7 @@ SPLINE_KNOTS_X = 12
 SPLINE_MIN_FRAMES = 20
 SPLINE_MIN_COVERAGE = 0.7
 COVERAGE_GRID = (8, 6)
+HOLDOUT_T = 2.0  # standard errors by which a richer model must predict held-out photos better
 LENSMODEL_PATTERNS = (r"LENSMODEL_(PINHOLE|STEREOGRAPHIC|OPENCV4|OPENCV5|OPENCV8|OPENCV12)",
                       r"LENSMODEL_SPLINED_STEREOGRAPHIC_order=[23]_Nx=\d+_Ny=\d+_fov_x_deg=\d+(\.\d+)?")
 
@@ -259,9 +260,16 @@ def spline_model_name(opencv: Solve, imagersize) -> str:
             f"fov_x_deg={int(math.ceil(min(fov * 1.1, 179.0)))}")
 
 
-def choose(*solves: Solve) -> tuple:
-    """The solve with the lowest BIC over the corners every solve kept: (winner, candidate record of
-    each solve, in order); on a tie the earlier (simpler) solve."""
+def choose(*solves: Solve, holdout: list[np.ndarray] | None = None) -> tuple:
+    """The lens model to keep among ``solves`` (simplest first): (winner, candidate record of each
+    solve, in order).
+
+    ``holdout``: per solve, the per-photo squared errors with which the model solved on the other
+    half of the photos predicts each photo's corners (:func:`.crossval.holdout_rss`).  Given, a
+    richer solve replaces the one kept so far only when it predicts the photos better by more than
+    ``HOLDOUT_T`` standard errors of the photo-by-photo differences.  None (too few photos to
+    split): the lowest BIC over the corners every solve kept, the earlier (simpler) solve on a tie.
+    """
     common = np.logical_and.reduce([s.inlier for s in solves])
     n = 2 * int(common.sum())
     records = []
@@ -269,7 +277,20 @@ def choose(*solves: Solve) -> tuple:
         rss = float(np.sum(s.residuals[common] ** 2))
         bic = n * math.log(max(rss, 1e-300) / n) + s.n_intrinsics * math.log(n)
         records.append(_record(s, bic))
-    best = min(range(len(solves)), key=lambda k: (records[k]["bic"], k))
+    if holdout is None:
+        best = min(range(len(solves)), key=lambda k: (records[k]["bic"], k))
+        return (solves[best], *records)
+    counted = np.logical_and.reduce([np.isfinite(h) for h in holdout])
+    corners = common.sum(axis=(1, 2))[counted]
+    for r, h in zip(records, holdout):
+        r["holdout_rms_px"] = round(float(np.sqrt(np.sum(h[counted]) / max(2 * corners.sum(), 1))), 5)
+    best = 0
+    for k in range(1, len(solves)):
+        d = holdout[best][counted] - holdout[k][counted]  # > 0: solve k predicts that photo better
+        t = float(np.mean(d) / (np.std(d, ddof=1) / math.sqrt(len(d)))) if len(d) > 1 and np.std(d) > 0 else 0.0
+        records[k]["holdout_t"] = round(t, 2)
+        if t > HOLDOUT_T:
+            best = k
     return (solves[best], *records)
 
 
@@ -327,11 +348,37 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
     except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
         raise CalibrationError(f"the mrcal solve failed: {exc}", source="camera calibrate",
                                hint="check that the photos show the board sharply, from varied tilted views") from None
-    best, *records = choose(*solves)
+    from .crossval import MIN_FRAMES_PER_HALF, halves, holdout_rss
+
+    holdout = None
+    if n >= 2 * MIN_FRAMES_PER_HALF:
+        keep = np.logical_and.reduce([s.inlier for s in solves])
+        holdout = []
+        try:
+            for s in solves:
+                say(f"cross-validating {s.lensmodel}")
+                parts = []
+                for idx in halves(n):
+                    sub = np.stack([np.arange(len(idx)), np.zeros(len(idx), int), -np.ones(len(idx), int)],
+                                   axis=1).astype(np.int32)
+                    parts.append(_solve_model(mrcal, s.lensmodel, (seed[0], seed[1][idx]), observations[idx], sub,
+                                              imagersizes, spacing))
+                holdout.append(holdout_rss(mrcal, s, parts, keep))
+        except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
+            raise CalibrationError(f"the mrcal solve of half the photos failed: {exc}", source="camera calibrate",
+                                   hint="check that the photos show the board sharply, from varied tilted views") from None
+    best, *records = choose(*solves, holdout=holdout)
     kept = int(np.logical_and.reduce([s.inlier for s in solves]).sum())
-    scores = ", ".join(f"{r['bic']:.1f} for {r['lensmodel'] if 'SPLINED' not in r['lensmodel'] else 'the splined model'}"
-                       f" with {r['free_intrinsics']} intrinsics" for r in records)
-    why = f"{best.lensmodel}: lowest BIC over the {kept} corners every solve kept ({scores}){spline_note}"
+    label = lambda r: r["lensmodel"] if "SPLINED" not in r["lensmodel"] else "the splined model"  # noqa: E731
+    if holdout is None:
+        scores = ", ".join(f"{r['bic']:.1f} for {label(r)} with {r['free_intrinsics']} intrinsics" for r in records)
+        why = f"{best.lensmodel}: lowest BIC over the {kept} corners every solve kept ({scores}){spline_note}"
+    else:
+        scores = ", ".join(f"{r['holdout_rms_px']:.4f} px for {label(r)}"
+                           + (f" (t = {r['holdout_t']:.1f})" if "holdout_t" in r else "") for r in records)
+        why = (f"{best.lensmodel}: predicts the corners of the photos it was not solved on best, each half of the "
+               f"photos solved and the other predicted (RMS {scores}; a richer model must do better by more than "
+               f"{HOLDOUT_T:g} standard errors, photo by photo){spline_note}")
     return Calibration(best, records, why, time.perf_counter() - start)
 
 
