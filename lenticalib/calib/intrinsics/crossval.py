@@ -55,7 +55,7 @@ def holdout_rss(mrcal, solve, half_solves, keep: np.ndarray) -> np.ndarray:
     RETURNED VALUE
     float64 ``(Nframes,)``; NaN for a photo with fewer than 4 corners in ``keep``.
     """
-    from .solve import _optimize, board_residuals
+    from .solve import _optimize, board_residuals, frame_indices
 
     oi_full = solve.optimization_inputs
     rss = np.full(len(keep), np.nan)
@@ -63,10 +63,8 @@ def holdout_rss(mrcal, solve, half_solves, keep: np.ndarray) -> np.ndarray:
         oi = dict(trained.optimization_inputs)
         obs = oi_full["observations_board"][held].copy()
         obs[..., 2] = np.where(keep[held], 1.0, -1.0)
-        n = len(held)
         oi.update(observations_board=obs, rt_ref_frame=oi_full["rt_ref_frame"][held].copy(),
-                  indices_frame_camintrinsics_camextrinsics=np.stack(
-                      [np.arange(n), np.zeros(n, int), -np.ones(n, int)], axis=1).astype(np.int32),
+                  indices_frame_camintrinsics_camextrinsics=frame_indices(len(held)),
                   intrinsics=trained.optimization_inputs["intrinsics"].copy(),
                   do_optimize_intrinsics_core=False, do_optimize_intrinsics_distortions=False,
                   do_optimize_calobject_warp=False, do_optimize_frames=True,
