@@ -183,6 +183,11 @@ def print_table(rows: list[dict]) -> None:
               f"{100 * med(lambda r: r['honesty']['near']['in3s']):.1f}%"
               f"   lenticalib <= OpenCV on {sum(r['lenticalib']['worst'] <= r['opencv']['worst'] for r in rs)}"
               f"/{len(rs)}")
+    if len(rows) > 1:
+        # one run's z50 swings widely (a few lens parameters carry most of its error); over runs it
+        # should centre on 1.18
+        print(f"  all {len(rows)} runs: z50 median {statistics.median(r['honesty']['inf']['z50'] for r in rows):.2f} "
+              f"(1.18 when honest), in3s mean {100 * statistics.mean(r['honesty']['inf']['in3s'] for r in rows):.1f}%")
 
 
 def main(argv=None) -> int:
