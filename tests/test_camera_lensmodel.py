@@ -86,3 +86,40 @@ def test_charuco_corners_too_small_to_refine_are_dropped():
     assert np.isnan(_refine_charuco(grey, small, board)).all()
     large = _grid(MIN_CHARUCO_WINDOW / 0.2 + 10, 0.0)
     assert np.isfinite(_refine_charuco(grey, large, board)).all()
+
+
+def test_charuco_corners_located_in_rectified_views_lose_the_pull_of_the_lens_curvature():
+    """A ChArUco board near an image corner of the simulator's wide-angle lens at 3000 x 2000: the
+    bent edges pull the corners found in the photo inward; located again in views rectified with
+    the (here: true) model they are not pulled, and closer to the truth."""
+    import cv2
+    import mrcal
+
+    from lenticalib.calib.intrinsics.board import print_board
+    from lenticalib.calib.intrinsics.corners import find_charuco_corners, grey8
+    from lenticalib.calib.intrinsics.rectified import refine_rectified
+    from lenticalib.sim.board_poses import _place
+    from lenticalib.sim.board_set import truth_cameramodel
+    from lenticalib.sim.boards import calibration_camera, photograph_print_board
+
+    camera = calibration_camera(1, (3000, 2000), lens="wide")
+    board = print_board(pattern="charuco")
+    lensmodel, intrinsics = truth_cameramodel(camera).intrinsics()
+    pose = _place(camera, board, np.array([380.0, 1650.0]), 0.35, 0.3, 1.2, -0.2)
+    jpeg = photograph_print_board(camera, board, pose, np.random.default_rng(0))
+    grey = grey8(cv2.cvtColor(cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB))
+    found = find_charuco_corners(grey, board)
+    again = refine_rectified(grey, found, board, lensmodel, intrinsics)
+    truth = mrcal.project(mrcal.transform_point_rt(pose.rt(), board.object_points()), lensmodel, intrinsics)
+    out = truth - intrinsics[2:4]
+    radius = np.linalg.norm(out, axis=-1)
+    outer = radius > 0.7 * math.hypot(1500, 1000)
+
+    def radial_and_rms(corners):
+        ok = np.isfinite(corners[..., 0]) & outer
+        e = corners[ok] - truth[ok]
+        return float(np.mean(np.sum(e * out[ok], axis=-1) / radius[ok])), float(np.sqrt(np.mean(np.sum(e * e, -1)))), ok
+    pull, rms, seen = radial_and_rms(found)
+    pull_again, rms_again, seen_again = radial_and_rms(again)
+    assert seen.sum() >= 8 and (seen_again == seen).all()
+    assert pull < -0.03 and abs(pull_again) < 0.02 and rms_again < 0.6 * rms
