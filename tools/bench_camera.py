@@ -150,7 +150,9 @@ def run_set(name: str, seed: int, size, root: Path, radius: float | None) -> dic
         worst = np.unravel_index(np.argmax(np.linalg.norm(c["error"], axis=-1)), z.shape)
         honesty[where] = {"in3s": float(np.mean(z < 3.0)), "z_worst": float(z[worst]), "z50": float(np.median(z))}
     return {"set": name, "seed": seed, "photos": spec["photos"], "used": int(obs.shape[0]),
-            "outliers": int(((obs[..., 2] <= 0) & (obs[..., 0] >= 0)).sum()),  # not the unidentified ChArUco corners "lensmodel": model.intrinsics()[0].replace("LENSMODEL_", ""),
+            # the corners the solve rejected, not a ChArUco board's unidentified ones (x < 0)
+            "outliers": int(((obs[..., 2] <= 0) & (obs[..., 0] >= 0)).sum()),
+            "lensmodel": model.intrinsics()[0].replace("LENSMODEL_", ""),
             "scale": scale, "lenticalib": truth_diff(model, truth, radius), "opencv": truth_diff(cv, truth, radius),
             "honesty": honesty, "seconds": {"simulate": t1 - t0, "calibrate": t2 - t1}}
 
