@@ -207,7 +207,8 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                          source="photos", hint=f"check the board ({board.describe()}) "
                          f"{NOT_FOUND_HINT[board.pattern]}, and {TOO_FEW_HINT}")
     corners = np.stack([f.corners for f in used])
-    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", 4))
+    solving = solve_module.PROGRESS_STEPS
+    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving", solving))
     kept = cal.solve.inlier.sum(axis=(1, 2))
     lost = kept < MIN_INLIER_CORNERS
     if lost.any() and len(used) - int(lost.sum()) >= MIN_VIEWS:
@@ -219,7 +220,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                                              "a misread or moving board")
         used = [f for f in used if f.corners is not None]
         corners = np.stack([f.corners for f in used])
-        cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving again", 4))
+        cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving again", solving))
     if board.charuco:  # the corners located again without the lens's curvature (:mod:`.rectified`), solved again
         from .rectified import refine_photos
 
@@ -228,7 +229,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         for f, c in zip(used, corners):
             f.corners = c
         cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel,
-                                     progress=steps("solving with the refined corners", 4))
+                                     progress=steps("solving with the refined corners", solving))
     model = cal.cameramodel()
     step = steps("cross-validating", 1)
     check = cross_validation(corners, board, size, cal.lensmodel)

@@ -61,6 +61,7 @@ SPLINE_MIN_FRAMES = 20
 SPLINE_MIN_COVERAGE = 0.7
 COVERAGE_GRID = (8, 6)
 HOLDOUT_T = 2.0  # standard errors by which a richer model must predict held-out photos better
+PROGRESS_STEPS = 7  # messages calibrate() sends at most: seeding, three candidates, their three hold-outs
 LENSMODEL_PATTERNS = (r"LENSMODEL_(PINHOLE|STEREOGRAPHIC|OPENCV4|OPENCV5|OPENCV8|OPENCV12)",
                       r"LENSMODEL_SPLINED_STEREOGRAPHIC_order=[23]_Nx=\d+_Ny=\d+_fov_x_deg=\d+(\.\d+)?")
 
