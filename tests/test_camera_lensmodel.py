@@ -123,3 +123,21 @@ def test_charuco_corners_located_in_rectified_views_lose_the_pull_of_the_lens_cu
     pull_again, rms_again, seen_again = radial_and_rms(again)
     assert seen.sum() >= 8 and (seen_again == seen).all()
     assert pull < -0.03 and abs(pull_again) < 0.02 and rms_again < 0.6 * rms
+
+
+def test_charuco_markers_smaller_than_opencvs_default_minimum_are_read():
+    """A ChArUco board of 30 px squares (18 px markers, a perimeter of 2.4 % of a 3000 px wide photo:
+    OpenCV's default minimum is 3 %) is found, every corner at its place."""
+    import cv2
+
+    from lenticalib.calib.intrinsics.corners import find_charuco_corners
+
+    board = Board(11, 6, 20.0, kind="print", pattern="charuco", dictionary="DICT_4X4_50", marker_mm=12.0)
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)
+    drawn = cv2.aruco.CharucoBoard((12, 7), 20.0, 12.0, dictionary).generateImage((360, 210), marginSize=0)
+    photo = np.full((2000, 3000), 200, np.uint8)
+    photo[900:1110, 1300:1660] = cv2.GaussianBlur(drawn, (0, 0), 0.6)
+    found = find_charuco_corners(photo, board)
+    ii, jj = np.meshgrid(np.arange(6), np.arange(11), indexing="ij")
+    expected = np.stack([1300 + 30 * (jj + 1) - 0.5, 900 + 30 * (ii + 1) - 0.5], axis=-1)
+    assert np.isfinite(found).all() and np.abs(found - expected).max() < 0.2

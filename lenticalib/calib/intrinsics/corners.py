@@ -24,9 +24,12 @@ row runs most nearly left to right in the image is kept (so such boards must not
 rolled by more than 90 degrees).
 
 ChArUco boards (:func:`find_charuco_corners`): ``cv2.aruco.CharucoDetector`` with the board's
-dictionary and geometry finds the markers (refining their edges to find more), and every inner
-corner next to at least one found marker (``minMarkers`` 1: a board cut by the frame keeps the
-corners of its cut rows whose other marker is outside) is located by OpenCV and refined once
+dictionary and geometry finds the markers (refining their edges to find more; down to a perimeter
+of ``MIN_MARKER_PERIMETER_RATE`` of the photo's width: OpenCV's default, 3 %, left out the whole
+far boards of two photos of 28 of the bench's wide-angle set, squares 28-30 px at 3000 x 2000;
+the larger dimension, as OpenCV counts it), and every inner corner next to at least one found
+marker (``minMarkers`` 1: a board cut by the frame keeps the corners of its cut rows whose other
+marker is outside) is located by OpenCV and refined once
 more (:func:`_refine_charuco`) in the largest window that misses the markers
 (:func:`charuco_windows`: mapped through the corner's local image axes, so that a rolled or
 foreshortened board's markers stay out; a square window of 0.2 of the shortest square side
@@ -71,6 +74,7 @@ SUBPIX_LIMITS = (2, 25)  # pixels
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
 MIN_SQUARE_PX = 10.0  # smallest square side (px) whose corners are located reliably
+MIN_MARKER_PERIMETER_RATE = 0.01  # smallest marker perimeter the detector looks at, share of the photo's size
 MIN_CHARUCO_WINDOW = 4  # smallest clean half-window (px) in which a ChArUco corner is located reliably
 
 
@@ -181,7 +185,9 @@ def charuco_detector(board):
     charuco = aruco.CharucoParameters()
     charuco.tryRefineMarkers = True
     charuco.minMarkers = 1  # a corner next to one readable marker: the board's edge rows at the image edge
-    return aruco.CharucoDetector(cboard, charuco, aruco.DetectorParameters(), aruco.RefineParameters())
+    markers = aruco.DetectorParameters()
+    markers.minMarkerPerimeterRate = MIN_MARKER_PERIMETER_RATE
+    return aruco.CharucoDetector(cboard, charuco, markers, aruco.RefineParameters())
 
 
 def find_charuco_corners(grey: np.ndarray, board) -> np.ndarray:
