@@ -38,11 +38,22 @@ row runs most nearly left to right in the image is kept (so such boards must not
 rolled by more than 90 degrees).
 
 ChArUco boards (:func:`find_charuco_corners`): ``cv2.aruco.CharucoDetector`` with the board's
-dictionary and geometry finds the markers (refining their edges to find more), and every inner
-corner next to at least one found marker (``minMarkers`` 1: a board cut by the frame keeps the
-corners of its cut rows whose other marker is outside) is located by OpenCV and refined once
-more (:func:`_refine_charuco`); a corner whose refinement window would leave the image is dropped
-(OpenCV pads the image by replicating its edge, which pulls such corners by up to a pixel).  Each
+dictionary and geometry finds the markers (refining their edges to find more; down to a perimeter
+of ``MIN_MARKER_PERIMETER_RATE`` of the photo's width: OpenCV's default, 3 %, left out the whole
+far boards of two photos of 28 of the bench's wide-angle set, squares 28-30 px at 3000 x 2000;
+the larger dimension, as OpenCV counts it), and every inner corner next to at least one found
+marker (``minMarkers`` 1: a board cut by the frame keeps the corners of its cut rows whose other
+marker is outside) is located by OpenCV and refined once
+more (:func:`_refine_charuco`) in the largest window that misses the markers
+(:func:`charuco_windows`: mapped through the corner's local image axes, so that a rolled or
+foreshortened board's markers stay out; a square window of 0.2 of the shortest square side
+reached into the markers of rolled boards and put corners up to 1 px off, 0.050 px RMS on the
+simulator's wide-angle set at 3000 x 2000, 0.029 px with the mapped window).  A corner whose
+window would leave the image is dropped (OpenCV pads the image by replicating its edge, which
+pulls such corners by up to a pixel), and so is one whose window is under
+``MIN_CHARUCO_WINDOW`` px (small squares: 0.8 px RMS at 3 px, 0.07 px at 4 px, simulated at
+800 x 600).  After a first solve the pipeline locates them once more without the lens's
+curvature (:mod:`.rectified`).  Each
 such corner carries its id, hence its row and column: the corners are returned in the same
 ``(rows, cols, 2)`` array with NaN where a corner was not identified (outside the photo, hidden,
 or too blurred), so a board cut by the frame is still a labelled observation.  A photo needs at
@@ -82,6 +93,8 @@ NOT_FOUND = "no chessboard found (at least 3 x 3 of its inner corners must be in
 MIN_GRID = 3  # rows and columns of inner corners a partly visible chessboard must show, at least
 MIN_CHESSBOARD_CORNERS = 12  # inner corners a photo of part of a chessboard must show, at least
 MIN_SQUARE_PX = 10.0  # smallest square side (px) whose corners are located reliably
+MIN_MARKER_PERIMETER_RATE = 0.01  # smallest marker perimeter the detector looks at, share of the photo's size
+MIN_CHARUCO_WINDOW = 4  # smallest clean half-window (px) in which a ChArUco corner is located reliably
 
 
 @dataclasses.dataclass
@@ -281,7 +294,9 @@ def charuco_detector(board):
     charuco = aruco.CharucoParameters()
     charuco.tryRefineMarkers = True
     charuco.minMarkers = 1  # a corner next to one readable marker: the board's edge rows at the image edge
-    return aruco.CharucoDetector(cboard, charuco, aruco.DetectorParameters(), aruco.RefineParameters())
+    markers = aruco.DetectorParameters()
+    markers.minMarkerPerimeterRate = MIN_MARKER_PERIMETER_RATE
+    return aruco.CharucoDetector(cboard, charuco, markers, aruco.RefineParameters())
 
 
 def find_charuco_corners(grey: np.ndarray, board) -> np.ndarray:
@@ -301,33 +316,68 @@ def find_charuco_corners(grey: np.ndarray, board) -> np.ndarray:
     return _refine_charuco(grey, corners, board)
 
 
+def _local_axes(corners: np.ndarray) -> np.ndarray:
+    """Per corner of a ``(rows, cols, 2)`` grid (NaN = missing), the image vectors (px) of one square
+    along the board's columns and rows: float64 ``(rows, cols, 2, 2)``, ``[..., :, 0]`` along +x,
+    ``[..., :, 1]`` along +y; central differences where both neighbours are known, one-sided where
+    one is, NaN where none is."""
+    axes = np.full(corners.shape[:2] + (2, 2), np.nan)
+    for k, axis in enumerate((1, 0)):
+        fwd = np.full(corners.shape, np.nan)
+        bwd = np.full(corners.shape, np.nan)
+        d = np.diff(corners, axis=axis)
+        if axis == 1:
+            fwd[:, :-1], bwd[:, 1:] = d, d
+        else:
+            fwd[:-1], bwd[1:] = d, d
+        both = np.isfinite(fwd[..., 0]) & np.isfinite(bwd[..., 0])
+        v = np.where(np.isfinite(fwd), fwd, bwd)
+        v[both] = 0.5 * (fwd[both] + bwd[both])
+        axes[..., :, k] = v
+    return axes
+
+
+def charuco_windows(corners: np.ndarray, board, axes: np.ndarray | None = None) -> np.ndarray:
+    """The ``cv2.cornerSubPix`` half-window (px, int) of each identified ChArUco corner: the
+    largest image-aligned square window that stays inside the clean chessboard around the corner
+    (the markers start ``gap = (1 - marker/square) / 2`` of a square away), mapped through the
+    corner's local image axes (:func:`_local_axes`, so a rolled or foreshortened board gets a window
+    that still misses its markers), times ``CHARUCO_WINDOW``; at most ``SUBPIX_LIMITS[1]``.  A
+    corner without an identified neighbour gets the median window.  int ``(rows, cols)``, 0 where
+    not identified.  ``axes``: float64 ``(rows, cols, 2, 2)``, the local axes (as :func:`_local_axes`
+    returns them) in another view of the corners (:mod:`.rectified`); None: from ``corners``."""
+    seen = np.isfinite(corners[..., 0])
+    win = np.zeros(seen.shape, int)
+    axes = _local_axes(corners) if axes is None else axes
+    ok = seen & np.all(np.isfinite(axes), axis=(-2, -1))
+    gap = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
+    half = np.full(seen.shape, np.nan)
+    if ok.any():
+        inv = np.linalg.inv(np.where(ok[..., None, None], axes, np.eye(2)))  # px -> squares
+        # the box corner (w, w), (w, -w) furthest from the corner in board squares: w * max |inv @ (1, +-1)|
+        reach = np.maximum(np.abs(inv @ np.array([1.0, 1.0])).max(axis=-1),
+                           np.abs(inv @ np.array([1.0, -1.0])).max(axis=-1))
+        half[ok] = CHARUCO_WINDOW * gap / reach[ok]
+    if not np.isfinite(half).any():
+        return win
+    half = np.where(np.isfinite(half), half, np.nanmedian(half))
+    win[seen] = np.minimum(np.floor(half[seen]), SUBPIX_LIMITS[1]).astype(int)
+    return win
+
+
 def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
-    """``cv2.cornerSubPix`` once more on the identified corners, each in a half-window of
-    ``CHARUCO_WINDOW`` times the clean chessboard around it: the markers start ``(1 - share) / 2``
-    of a square away, the square measured as the shortest distance to an identified neighbouring
-    corner in the photo (per corner: a tilted board's squares differ across the photo)."""
+    """``cv2.cornerSubPix`` once more on the identified corners, each in its own window
+    (:func:`charuco_windows`); a corner whose window would leave the image, or is smaller than
+    ``MIN_CHARUCO_WINDOW`` (small or steeply foreshortened squares), is dropped."""
     import cv2
 
     seen = np.isfinite(corners[..., 0])
     if CHARUCO_WINDOW <= 0 or not seen.any():
         return corners
-    rows, cols = seen.shape
-    side = np.full((rows, cols), np.inf)
-    for axis in (0, 1):
-        d = np.linalg.norm(np.diff(corners, axis=axis), axis=-1)  # NaN where a neighbour is missing
-        d = np.where(np.isfinite(d), d, np.inf)
-        lo = [slice(None), slice(None)]
-        hi = [slice(None), slice(None)]
-        lo[axis], hi[axis] = slice(0, -1), slice(1, None)
-        side[tuple(lo)] = np.minimum(side[tuple(lo)], d)
-        side[tuple(hi)] = np.minimum(side[tuple(hi)], d)
-    gap = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
-    finite = np.isfinite(side) & seen
-    if not finite.any():
-        return corners
-    side = np.where(np.isfinite(side), side, np.median(side[finite]))
-    win = np.clip(np.floor(CHARUCO_WINDOW * gap * side), *SUBPIX_LIMITS).astype(int)
+    win = charuco_windows(corners, board)
+    seen &= win >= MIN_CHARUCO_WINDOW
     out = corners.copy()
+    out[~seen] = np.nan
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     for w in np.unique(win[seen]):
         pick = seen & (win == w)

@@ -18,6 +18,14 @@ model's note (``lenticalib-uncertainty-scale: k``), read back by
 :func:`lenticalib.calib.camera_file.load_camera_model`, and applied to every uncertainty
 lenticalib derives from the model (the report's maps, intrinsics draws, camera poses).  mrcal's
 own tools do not read it.
+
+The same split chooses the lens model (:func:`holdout_rss`, used by
+:func:`lenticalib.calib.intrinsics.solve.choose`): each candidate model is solved on one half
+and predicts the corners of the other half's photos (only their board poses are fitted, the
+intrinsics and the board's warp stay those of the half that was solved), and the other way
+round.  A richer model is kept only when it predicts the photos it was not solved on
+significantly better, photo by photo: it cannot win by fitting the noise of its own photos, nor
+by bending where the corners of one half do not reach but those of the other do.
 """
 
 from __future__ import annotations
@@ -27,6 +35,45 @@ import numpy as np
 NOTE_KEY = "lenticalib-uncertainty-scale"
 MIN_FRAMES_PER_HALF = 5
 GRID = 24  # cells across the image
+
+
+def halves(n: int) -> list[np.ndarray]:
+    """Frame indices of the two halves of ``n`` photos: even and odd frames."""
+    return [np.arange(i, n, 2) for i in (0, 1)]
+
+
+def holdout_rss(mrcal, solve, half_solves, keep: np.ndarray) -> np.ndarray:
+    """Per photo, the sum of squared errors (px^2) with which ``solve``'s lens model, solved on the
+    other half, predicts the photo's corners (module docstring).
+
+    ARGUMENTS
+    solve        the full solve (:class:`~.solve.Solve`): its board poses start each photo's pose fit
+    half_solves  the two :class:`~.solve.Solve` of the model on the even and the odd frames
+    keep         bool ``(Nframes, rows, cols)``: the corners to predict and to fit the poses to
+                 (those every full solve kept: a misread corner weighs on no candidate)
+
+    RETURNED VALUE
+    float64 ``(Nframes,)``; NaN for a photo with fewer than 4 corners in ``keep``.
+    """
+    from .solve import _optimize, board_residuals, frame_indices
+
+    oi_full = solve.optimization_inputs
+    rss = np.full(len(keep), np.nan)
+    for held, trained in zip(halves(len(keep))[::-1], half_solves):
+        oi = dict(trained.optimization_inputs)
+        obs = oi_full["observations_board"][held].copy()
+        obs[..., 2] = np.where(keep[held], 1.0, -1.0)
+        oi.update(observations_board=obs, rt_ref_frame=oi_full["rt_ref_frame"][held].copy(),
+                  indices_frame_camintrinsics_camextrinsics=frame_indices(len(held)),
+                  intrinsics=trained.optimization_inputs["intrinsics"].copy(),
+                  do_optimize_intrinsics_core=False, do_optimize_intrinsics_distortions=False,
+                  do_optimize_calobject_warp=False, do_optimize_frames=True,
+                  do_apply_outlier_rejection=False, do_apply_regularization=False)
+        _optimize(mrcal, **oi)
+        r = board_residuals(oi)
+        sq = np.where(keep[held], np.sum(r * r, axis=-1), 0.0).sum(axis=(1, 2))
+        rss[held] = np.where(keep[held].sum(axis=(1, 2)) >= 4, sq, np.nan)
+    return rss
 
 
 def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel: str) -> dict:
