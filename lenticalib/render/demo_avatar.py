@@ -1,8 +1,8 @@
 """A procedurally generated demo avatar: a stylised head of about 100k Gaussians, as a :class:`~.rig.Rig`.
 
 No downloads: :func:`make_demo_avatar` builds it from a seed in a few seconds
-(``tools/make_demo_avatar.py`` writes it to a rig file: 4.9 MB compressed at 100k Gaussians, made
-in about 3 s, so it is generated, not committed).
+(``tools/make_demo_avatar.py`` writes it to a rig file: 5.6 MB compressed at 100k Gaussians
+with its mesh, made in about 4 s, so it is generated, not committed).
 
 Frame and units: metres, world y up, the avatar facing +z, "left" the avatar's own left (+x).
 The head (chin to the top of the hair) is about 0.25 m tall and centred near the origin; a neck
