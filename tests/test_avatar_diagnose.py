@@ -352,3 +352,34 @@ def test_bad_input_is_one_line_before_rendering(cli, tmp_path, sphere_files):
     code, out, err = cli("avatar", "diagnose", sphere_files / "sphere.ply", "--mesh", sphere_files / "sphere.obj",
                          "--controls", "demo")
     assert code == 2 and "static avatar" in err and "--controls" in err
+
+
+def test_a_rig_is_diagnosed_in_the_pose_its_controls_give(cli, tmp_path):
+    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.rig_file import save_rig
+
+    save_rig(tmp_path / "demo.npz", make_demo_avatar(seed=1, count=4000))
+    args = ("avatar", "diagnose", tmp_path / "demo.npz", "--views", 3, "--view-size", "320x180", "--json")
+    code, out, err = cli(*args)
+    assert code == 0, err
+    rest = json.loads(out)
+    assert rest["controls"] is None and "canonical pose" in rest["mask_source"]
+    code, out, err = cli(*args, "--controls", "demo", "--frame", 45)
+    assert code == 0, err
+    demo = json.loads(out)
+    assert demo["controls"] == {"source": "demo", "frame": 45, "t": 1.5} and "the controls" in demo["mask_source"]
+    # a pose far from the canonical one: head turned 0.6 rad, moved 5 cm sideways; the mesh moves with
+    # it, so the outside-support share stays that of the hair (a still mesh would leave the head outside)
+    from lenticalib.render.rig import DEFAULT_LAYOUT
+
+    pose = np.zeros((2, DEFAULT_LAYOUT.dim), np.float32)
+    pose[:, DEFAULT_LAYOUT.slice("head").start + 1] = 0.6
+    pose[:, DEFAULT_LAYOUT.slice("translation").start] = 0.05
+    np.savez(tmp_path / "c.npz", t=np.array([0.0, 1.0]), controls=pose)
+    code, out, err = cli(*args, "--controls", tmp_path / "c.npz", "--frame", 1)
+    assert code == 0, err
+    turned = json.loads(out)
+    assert turned["controls"]["source"] == str(tmp_path / "c.npz")
+    assert turned["side"]["mean"]["O_alpha"] < 1.5 * rest["side"]["mean"]["O_alpha"] + 0.01
+    code, out, err = cli(*args, "--controls", tmp_path / "c.npz", "--frame", 2)
+    assert code == 2 and "--frame" in err and "past the 2 samples" in err
