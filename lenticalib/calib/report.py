@@ -24,7 +24,6 @@ title, axes labelled with units and a colour bar with units; sizes are :data:`FI
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import os
@@ -32,25 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.atomic import write_bytes_atomic
 from ..core.documents import FORMATS, write_document
+from ..core.figures import RECORD_KEY, figure_record, jsonable, read_figure_record, write_figures  # noqa: F401
 from ..core.routing import view_coordinate
 
 FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
 DOCUMENT = FORMATS["lenticalib.fit-report"]  # summary.json
 CROP = (24, 14)  # panel pixels (width, height) of the view-map crop: 72 x 14 subpixels, each resolved
-_DPI = 100
-_STYLE = {"font.size": 12, "axes.titlesize": 13, "axes.labelsize": 12, "xtick.labelsize": 11,
-          "ytick.labelsize": 11, "legend.fontsize": 11}
-
-
-def _jsonable(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
 def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
@@ -74,7 +62,7 @@ def fit_summary(result, capture_dir, report: str | os.PathLike | None = None,
                "profile": profile, "quality": result.quality}
     if getattr(result, "direction", None) is not None:
         summary["view_direction"] = result.direction
-    return json.loads(json.dumps(summary, default=_jsonable))
+    return json.loads(json.dumps(summary, default=jsonable))
 
 
 def write_report(result, directory: str | os.PathLike, capture_dir: str | os.PathLike,
@@ -91,63 +79,6 @@ def write_report(result, directory: str | os.PathLike, capture_dir: str | os.Pat
     summary = fit_summary(result, capture_dir, report=directory) if summary is None else summary
     write_document(directory / "summary.json", DOCUMENT, summary)
     return directory
-
-
-def write_figures(directory: Path, drawings, sizes: dict, subject) -> dict[str, dict]:
-    """Draw each ``(name, draw)`` of ``drawings`` as ``draw(fig, subject)`` on a figure of ``sizes[name]``
-    pixels (the report style: fonts of at least 10 pt) and write it as ``directory/name``, atomically.
-
-    ``draw`` may return a dict of the numbers its titles and labels state.  Each PNG records its
-    texts and those numbers (:func:`figure_record`) in a text chunk, read back by
-    :func:`read_figure_record`, so what a figure says can be checked against the summary it
-    illustrates.  Returns {name: record}.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    records = {}
-    with plt.rc_context(_STYLE):
-        for name, draw in drawings:
-            w, h = sizes[name]
-            fig = plt.figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
-            try:
-                record = figure_record(fig, draw(fig, subject) or {})
-                buf = io.BytesIO()
-                fig.savefig(buf, format="png", dpi=_DPI,
-                            metadata={RECORD_KEY: json.dumps(record, default=_jsonable, ensure_ascii=True)})
-            finally:
-                plt.close(fig)
-            write_bytes_atomic(directory / name, buf.getvalue())
-            records[name] = record
-    return records
-
-
-RECORD_KEY = "lenticalib-figure"  # the PNG text chunk holding a figure's record
-
-
-def figure_record(fig, numbers: dict) -> dict:
-    """What a drawn figure says: ``title`` (the figure's title), ``axes`` (per axes, colour bars
-    included: ``title``, ``xlabel``, ``ylabel``, ``texts`` written on it, ``legend``), and
-    ``numbers`` (the values its texts state, as the drawing returned them)."""
-    axes = []
-    for ax in fig.axes:
-        legend = ax.get_legend()
-        axes.append({"title": " ".join(t for t in (ax.get_title("left"), ax.get_title(), ax.get_title("right")) if t),
-                     "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(),
-                     "texts": [t.get_text() for t in ax.texts],
-                     "legend": [t.get_text() for t in legend.get_texts()] if legend else []})
-    suptitle = fig._suptitle.get_text() if getattr(fig, "_suptitle", None) is not None else ""
-    return {"title": suptitle or (axes[0]["title"] if axes else ""), "axes": axes, "numbers": numbers}
-
-
-def read_figure_record(path: str | os.PathLike) -> dict:
-    """The record :func:`write_figures` wrote into the PNG at ``path`` (see :func:`figure_record`)."""
-    from PIL import Image
-
-    with Image.open(path) as image:
-        return json.loads(image.text[RECORD_KEY])
 
 
 def _colorbar(fig, ax, mappable, label: str, extend: str = "neither"):

@@ -29,6 +29,7 @@ Files and documents
     arrayfile           ``.npy`` and ``.npz`` files read with every header checked first
     imageio             images as RGB numpy arrays ``(H, W, 3)``: read and written (atomically)
     colour              the sRGB transfer curve (IEC 61966-2-1) and its 8-bit form
+    figures             report figures: one style, one atomic PNG writer, the record of what they say
 
 Shared machinery
     plugins             the one loader behind every registry of backends by name (entry points)

@@ -24,6 +24,9 @@ The avatar
     demo_avatar         the built-in demo head (about 100k Gaussians) as a rig
     demo_avatar_parts   the demo head's parts: where their Gaussians sit, colours, bones
     demo_avatar_shapes  the demo head's geometry: surfaces and sampling them with Gaussians
+    demo_avatar_mesh    the demo head's triangle mesh (skin, eyes, ears, neck, collar), skinned
+    mesh                triangle meshes of avatars: OBJ and PLY files, the fit to an avatar's box
+    rig_mesh            the mesh a rig carries, skinned and blendshaped like its Gaussians
     avatar              an avatar to render: a PLY, a rig file, or a rig with a plug-in driver
     drivers             avatar drivers: a control vector -> posed Gaussians, frame by frame
     controls            control sources: ``latest(now)``, control files, the source for a spec
@@ -38,6 +41,12 @@ Presenting and the pipeline
     session             the pipeline set up from plain options: what ``play`` and ``render`` run
     live                ``play_avatar``: the live loop, with per-stage timings
     offline             ``render_avatar``: the pipeline offline, to PNG rasters or a lossless video
+
+Judging an avatar for the panel
+    side_metrics        the LentiAvatar side-view metrics of one view (O_alpha ... E_c), the crop
+    mesh_raster         the mesh mask: the pixels of each view the avatar's mesh covers
+    diagnose            ``diagnose_avatars``: every view of the cone rendered and measured
+    diagnose_report     the diagnostics' table, documents and figures
 
 On OpenGL (any GPU driver, or Mesa's llvmpipe)
     gl_context          offscreen OpenGL contexts (EGL first), shared by the presenter and the gl backends

@@ -22,11 +22,13 @@ from .gaussians import Gaussians
 
 class Avatar:
     """``kind`` ("static" or "animated"), ``layout`` (the control layout, None when static),
-    ``source`` (the file) and :meth:`pose`."""
+    ``source`` (the file), ``rig`` (the :class:`~.rig.Rig` of a rig file, whatever drives it;
+    None when static) and :meth:`pose`."""
 
     def __init__(self, kind: str, source: str, static: Gaussians | None = None, driver=None, layout=None,
-                 neutral: np.ndarray | None = None):
+                 neutral: np.ndarray | None = None, rig=None):
         self.kind = kind
+        self.rig = rig
         self.source = source
         self._static = static
         self._driver = driver
@@ -73,6 +75,6 @@ def load_avatar(path: str | Path, driver: str | None = None) -> Avatar:
         loaded = load_driver(driver or "rig", rig=rig)
         layout = loaded.layout or rig.layout
         return Avatar("animated", str(p), driver=loaded, layout=layout,
-                      neutral=np.zeros(layout.dim, dtype=np.float32))
+                      neutral=np.zeros(layout.dim, dtype=np.float32), rig=rig)
     raise InputError(f"avatar files must be .ply (static 3DGS) or .npz (a lenticalib rig), not {suffix or 'no suffix'!r}",
                      source=str(p), hint="python tools/make_demo_avatar.py demo.npz makes the demo avatar")

@@ -1,8 +1,8 @@
 """A procedurally generated demo avatar: a stylised head of about 100k Gaussians, as a :class:`~.rig.Rig`.
 
 No downloads: :func:`make_demo_avatar` builds it from a seed in a few seconds
-(``tools/make_demo_avatar.py`` writes it to a rig file: 4.9 MB compressed at 100k Gaussians, made
-in about 3 s, so it is generated, not committed).
+(``tools/make_demo_avatar.py`` writes it to a rig file: 5.6 MB compressed at 100k Gaussians
+with its mesh, made in about 4 s, so it is generated, not committed).
 
 Frame and units: metres, world y up, the avatar facing +z, "left" the avatar's own left (+x).
 The head (chin to the top of the hair) is about 0.25 m tall and centred near the origin; a neck
@@ -36,8 +36,9 @@ The rigid head pose (``head`` rotation, ``translation``) pivots about (0, -0.05,
 where the skull sits on the neck.  ``eyelids`` 0 open, 1 closed (left, right).
 
 Modules: the geometry (head surface, parameterised surfaces, sampling) is in
-:mod:`.demo_avatar_shapes`, the parts and the bones they follow in :mod:`.demo_avatar_parts`;
-this one adds the expression and blink blendshapes, the bone pivots and the baked light, and
+:mod:`.demo_avatar_shapes`, the parts and the bones they follow in :mod:`.demo_avatar_parts`,
+the triangle mesh of those surfaces that the rig carries (for the side-view diagnostics) in
+:mod:`.demo_avatar_mesh`; this one adds the expression and blink blendshapes, the bone pivots and the baked light, and
 builds the rig.
 """
 
@@ -51,6 +52,7 @@ import numpy as np
 from ..core.errors import InputError
 from .demo_avatar_parts import (DEMO_BONES, HEAD, NECK, make_brows, make_cavity, make_collar, make_ears, make_eyes,
                                 make_hair, make_lids, make_neck, make_skin, make_teeth)
+from .demo_avatar_mesh import demo_mesh_arrays
 from .demo_avatar_shapes import eye_centres, frame_quats, gauss, smoothstep
 from .gaussians import SH_C0
 from .rig import DEFAULT_LAYOUT, Rig
@@ -215,6 +217,7 @@ def demo_avatar_arrays(seed: int = 0, count: int = 100_000) -> dict[str, np.ndar
         "pose_pivot": np.array(POSE_PIVOT, np.float32),
         "pose_controls": np.array([layout.slice("head").start, layout.slice("translation").start], np.int32),
         "provenance": np.array(json.dumps(provenance, sort_keys=True)),
+        **demo_mesh_arrays(_expression_offsets, len(DEMO_EXPRESSIONS)),
         "part_names": names,  # not part of the format: dropped by make_demo_avatar, kept for inspection
     }
 

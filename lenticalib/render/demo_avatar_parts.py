@@ -157,27 +157,37 @@ def make_collar(rng, n):
     return Part("collar", surf.p, surf.normal, surf.tangent, surf.scales(), albedo, 0.97, None)
 
 
+def ear_geometry(side):
+    """One ear (``side`` 1 the avatar's left, -1 its right): ``param(uv, layer)`` the surface over
+    u 0..1 back from the root and v -1..1 bottom to top (``layer`` metres along ``out``, 0 the front
+    layer), ``half_width(v)`` the half width in u of the ear's outline about u = 0.5, and ``out``
+    (3,) the unit vector away from the head."""
+    root = np.array([side * 0.0705, 0.008, 0.006])
+    back = np.array([side * math.sin(math.radians(38)), 0.0, -math.cos(math.radians(38))])
+    upv = np.array([0.0, 1.0, 0.0])
+    out = np.cross(upv, back)
+    out *= np.sign(out[0] * side)             # away from the head
+
+    def half_width(v):
+        return 0.5 * (1 + 0.3 * v) * np.sqrt(np.clip(1 - v * v, 0, 1)) ** 0.7
+
+    def param(uv, layer):
+        u, v = uv[:, 0], uv[:, 1]
+        edge = np.clip(np.abs(u - 0.5) / np.maximum(half_width(v), 1e-3), 0, 1)
+        rim = smoothstep(0.6, 0.95, np.maximum(edge, np.abs(v))) * (u > 0.3)
+        bowl = np.exp(-(((u - 0.40) / 0.22) ** 2 + ((v + 0.05) / 0.40) ** 2))
+        depth = 0.0050 * rim - 0.0045 * bowl + 0.004 * np.clip(u, 0, None) ** 1.5 + layer
+        return (root[None] + (0.036 * u)[:, None] * back[None] + (0.033 * v)[:, None] * upv[None]
+                + depth[:, None] * out[None])
+
+    return param, half_width, out
+
+
 def make_ears(rng, n):
     """Two ears standing out from the sides: a rim (helix), a bowl, a lobe; two layers (front and back)."""
     parts = []
     for side, m in ((1, n // 2), (-1, n - n // 2)):
-        root = np.array([side * 0.0705, 0.008, 0.006])
-        back = np.array([side * math.sin(math.radians(38)), 0.0, -math.cos(math.radians(38))])
-        upv = np.array([0.0, 1.0, 0.0])
-        out = np.cross(upv, back)
-        out *= np.sign(out[0] * side)             # away from the head
-
-        def half_width(v):
-            return 0.5 * (1 + 0.3 * v) * np.sqrt(np.clip(1 - v * v, 0, 1)) ** 0.7
-
-        def param(uv, layer):
-            u, v = uv[:, 0], uv[:, 1]             # u 0..1 back from the root, v -1..1 bottom to top
-            edge = np.clip(np.abs(u - 0.5) / np.maximum(half_width(v), 1e-3), 0, 1)
-            rim = smoothstep(0.6, 0.95, np.maximum(edge, np.abs(v))) * (u > 0.3)
-            bowl = np.exp(-(((u - 0.40) / 0.22) ** 2 + ((v + 0.05) / 0.40) ** 2))
-            depth = 0.0050 * rim - 0.0045 * bowl + 0.004 * np.clip(u, 0, None) ** 1.5 + layer
-            return (root[None] + (0.036 * u)[:, None] * back[None] + (0.033 * v)[:, None] * upv[None]
-                    + depth[:, None] * out[None])
+        param, half_width, out = ear_geometry(side)
 
         for layer, k in ((0.0, int(round(m * 0.6))), (-0.0028, m - int(round(m * 0.6)))):
             surf = sample_surface(rng, lambda q, L=layer: param(q, L), k, (0.0, -1.0), (1.0, 1.0),

@@ -55,6 +55,7 @@ The file that holds a rig (numpy ``.npz``: the arrays, their shapes and checks) 
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -62,6 +63,9 @@ from ..core.errors import InputError
 from .gaussians import Gaussians
 from .rig_file import load_rig, save_rig  # noqa: F401  (public API: rigs are loaded and saved from here too)
 from .rig_file import rig_to_arrays
+
+if TYPE_CHECKING:
+    from .rig_mesh import RigMesh
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,6 +159,32 @@ def quat_to_matrix(q):
 
 # --------------------------------------------------------------------------------------------
 
+def with_rest_weight(skin_weights):
+    """Skinning weights (..., B) with the rest frame's weight as a last column, (..., B + 1), rows
+    summing to 1 (rows that sum a hair over 1, within the loader's tolerance, are scaled down)."""
+    import torch
+
+    w = skin_weights / skin_weights.sum(-1, keepdim=True).clamp(min=1.0)
+    return torch.cat((w, (1.0 - w.sum(-1, keepdim=True)).clamp(min=0.0)), -1).contiguous()
+
+
+def sparse_blend(c, blend_controls, index, shape, values, count: int):
+    """Sum of blendshape entries for controls c (..., D): entry n adds c[blend_controls[shape[n]]]
+    * values[n] (N, 3) to row index[n]; (..., count, 3) float32 torch."""
+    import torch
+
+    coeff = c[..., blend_controls][..., shape].unsqueeze(-1)              # (..., N, 1)
+    batch = tuple(c.shape[:-1])
+    return torch.zeros(batch + (count, 3), dtype=torch.float32, device=c.device).index_add_(
+        len(batch), index, coeff * values)
+
+
+def apply_blended(A, x):
+    """Points x (..., P, 3) mapped by blended transform rows A (..., P or 1, 16) of
+    :meth:`Rig.frame_transforms` (the rotation's columns, then the translation)."""
+    return A[..., 0:3] * x[..., 0:1] + A[..., 3:6] * x[..., 1:2] + A[..., 6:9] * x[..., 2:3] + A[..., 9:12]
+
+
 class Rig:
     """A deformable avatar: canonical Gaussians, blendshapes, bones, a rigid pose (module docstring).
 
@@ -166,9 +196,7 @@ class Rig:
                  blend_controls, blend_index, blend_shape, blend_pos, blend_rot, blend_color,
                  bone_names: tuple[str, ...], bone_parents: tuple[int, ...], bone_pivots,
                  bone_controls: tuple[int, ...], skin_weights, pose_pivot, pose_controls: tuple[int, int],
-                 provenance: dict):
-        import torch
-
+                 provenance: dict, mesh: RigMesh | None = None):
         self.layout = layout
         self.control_names = tuple(control_names)
         self.canonical = canonical
@@ -186,10 +214,8 @@ class Rig:
         self.pose_pivot = pose_pivot
         self.pose_controls = (int(pose_controls[0]), int(pose_controls[1]))
         self.provenance = dict(provenance)
-        # weights with the rest frame as a last column, (G, B + 1), rows summing to 1 (rows that
-        # sum a hair over 1, within the loader's tolerance, are scaled down)
-        w = skin_weights / skin_weights.sum(-1, keepdim=True).clamp(min=1.0)
-        self._weights = torch.cat((w, (1.0 - w.sum(-1, keepdim=True)).clamp(min=0.0)), -1).contiguous()
+        self.mesh = mesh
+        self._weights = with_rest_weight(skin_weights)
         self._any_bone = any(c >= 0 for c in self.bone_controls)
 
     # ---- properties
@@ -229,7 +255,8 @@ class Rig:
                    bone_names=self.bone_names, bone_parents=self.bone_parents,
                    bone_pivots=move(self.bone_pivots), bone_controls=self.bone_controls,
                    skin_weights=move(self.skin_weights), pose_pivot=move(self.pose_pivot),
-                   pose_controls=self.pose_controls, provenance=self.provenance)
+                   pose_controls=self.pose_controls, provenance=self.provenance,
+                   mesh=None if self.mesh is None else self.mesh.to(device))
 
     # ---- deformation
 
@@ -270,48 +297,22 @@ class Rig:
 
         # 1. blendshapes
         if self.blend_index.shape[0]:
-            coeff = c[..., self.blend_controls][..., self.blend_shape].unsqueeze(-1)  # (..., N, 1)
-            dim = len(batch)
-            means = torch.zeros(batch + (G, 3), dtype=torch.float32, device=c.device).index_add_(
-                dim, self.blend_index, coeff * self.blend_pos) + can.means
+            def blend(values):
+                return sparse_blend(c, self.blend_controls, self.blend_index, self.blend_shape, values, G)
+
+            means = blend(self.blend_pos) + can.means
             if self.blend_rot is not None:
-                omega = torch.zeros(batch + (G, 3), dtype=torch.float32, device=c.device).index_add_(
-                    dim, self.blend_index, coeff * self.blend_rot)
-                rot = quat_from_axis_angle(omega)
+                rot = quat_from_axis_angle(blend(self.blend_rot))
             if self.blend_color is not None:
-                dc = torch.zeros(batch + (G, 3), dtype=torch.float32, device=c.device).index_add_(
-                    dim, self.blend_index, coeff * self.blend_color)
+                dc = blend(self.blend_color)
                 sh = torch.cat(((can.sh[:, 0] + dc).unsqueeze(-2), can.sh[:, 1:].expand(batch + can.sh[:, 1:].shape)),
                                -2)
 
-        # 2. linear blend skinning and 3. the rigid pose, folded together: every bone's world
-        # transform (and the rest frame's identity) is composed with the pose, then blended once
-        # (the pose is affine and the weights sum to 1, so this equals skinning then posing)
-        r0, t0 = self.pose_controls
-        if self._any_bone or r0 >= 0 or t0 >= 0:
-            one = torch.ones(batch + (1,), dtype=torch.float32, device=c.device)
-            zero = torch.zeros(batch + (1,), dtype=torch.float32, device=c.device)
-            Rr = torch.eye(3, dtype=torch.float32, device=c.device).expand(batch + (1, 3, 3))
-            tr = torch.zeros(batch + (1, 3), dtype=torch.float32, device=c.device)
-            qr = torch.cat((one, zero, zero, zero), -1).unsqueeze(-2)                 # (..., 1, 4)
-            if self._any_bone:
-                Rw, tw, qw = self._bone_world(c)                         # (..., B, 3, 3), (..., B, 3), (..., B, 4)
-                Rr, tr, qr = torch.cat((Rw, Rr), -3), torch.cat((tw, tr), -2), torch.cat((qw, qr), -2)
-            if r0 >= 0:
-                qp = quat_from_axis_angle(c[..., r0:r0 + 3])             # (..., 4)
-                Rp = quat_to_matrix(qp)
-                tp = self.pose_pivot - (Rp @ self.pose_pivot.unsqueeze(-1)).squeeze(-1)
-                Rr = Rp.unsqueeze(-3) @ Rr
-                tr = (Rp.unsqueeze(-3) @ tr.unsqueeze(-1)).squeeze(-1) + tp.unsqueeze(-2)
-                qr = quat_multiply(qp.unsqueeze(-2), qr)
-            if t0 >= 0:
-                tr = tr + c[..., t0:t0 + 3].unsqueeze(-2)
-            # rows [R[:, 0], R[:, 1], R[:, 2], t, q]: (..., B + 1, 16), blended per Gaussian in one product
-            M = torch.cat((Rr.transpose(-1, -2).flatten(-2), tr, qr), -1)
+        # 2. linear blend skinning and 3. the rigid pose, folded together (:meth:`frame_transforms`)
+        M = self.frame_transforms(c)
+        if M is not None:
             A = self._weights @ M if self._any_bone else M               # (..., G, 16) or, all alike, (..., 1, 16)
-            x = means
-            means = (A[..., 0:3] * x[..., 0:1] + A[..., 3:6] * x[..., 1:2] + A[..., 6:9] * x[..., 2:3]
-                     + A[..., 9:12])
+            means = apply_blended(A, means)
             qb = A[..., 12:16]
             qb = qb * torch.rsqrt((qb * qb).sum(-1, keepdim=True))
             rot = qb if rot is None else quat_multiply(qb, rot)
@@ -328,6 +329,45 @@ class Rig:
                             sh[..., 4:, :].expand(batch + sh.shape[-3:-2] + (sh.shape[-2] - 4, 3))), -2)
         return Gaussians(means=means, quats=quats, scales=can.scales.expand(batch + (G, 3)),
                          opacities=can.opacities.expand(batch + (G,)), sh=sh.expand(batch + tuple(can.sh.shape)))
+
+    def frame_transforms(self, c):
+        """Every bone's world transform composed with the rigid pose, and the rest frame's, for
+        controls c (..., D): (..., B + 1, 16) rows ``[R[:, 0], R[:, 1], R[:, 2], t, q]`` (the rest
+        frame last), or None when the rig has neither bones nor a pose.  Blending them with weights
+        that sum to 1 equals skinning then posing (the pose is affine); :func:`apply_blended` maps
+        points with the blend."""
+        import torch
+
+        r0, t0 = self.pose_controls
+        if not (self._any_bone or r0 >= 0 or t0 >= 0):
+            return None
+        batch = tuple(c.shape[:-1])
+        one = torch.ones(batch + (1,), dtype=torch.float32, device=c.device)
+        zero = torch.zeros(batch + (1,), dtype=torch.float32, device=c.device)
+        Rr = torch.eye(3, dtype=torch.float32, device=c.device).expand(batch + (1, 3, 3))
+        tr = torch.zeros(batch + (1, 3), dtype=torch.float32, device=c.device)
+        qr = torch.cat((one, zero, zero, zero), -1).unsqueeze(-2)                 # (..., 1, 4)
+        if self._any_bone:
+            Rw, tw, qw = self._bone_world(c)                         # (..., B, 3, 3), (..., B, 3), (..., B, 4)
+            Rr, tr, qr = torch.cat((Rw, Rr), -3), torch.cat((tw, tr), -2), torch.cat((qw, qr), -2)
+        if r0 >= 0:
+            qp = quat_from_axis_angle(c[..., r0:r0 + 3])             # (..., 4)
+            Rp = quat_to_matrix(qp)
+            tp = self.pose_pivot - (Rp @ self.pose_pivot.unsqueeze(-1)).squeeze(-1)
+            Rr = Rp.unsqueeze(-3) @ Rr
+            tr = (Rp.unsqueeze(-3) @ tr.unsqueeze(-1)).squeeze(-1) + tp.unsqueeze(-2)
+            qr = quat_multiply(qp.unsqueeze(-2), qr)
+        if t0 >= 0:
+            tr = tr + c[..., t0:t0 + 3].unsqueeze(-2)
+        return torch.cat((Rr.transpose(-1, -2).flatten(-2), tr, qr), -1)
+
+    def pose_mesh(self, controls):
+        """The rig's mesh (:mod:`.rig_mesh`) posed by ``controls`` (D,): vertices (V, 3) float32
+        torch on the rig's device, world units; InputError naming ``mesh`` when the rig has none."""
+        if self.mesh is None:
+            raise InputError("the rig carries no mesh", source="mesh",
+                             hint="give the avatar's mesh as `mesh` (OBJ or PLY triangles in the avatar's frame and units)")
+        return self.mesh.pose(self, self.check_controls(controls))
 
     def _bone_world(self, c):
         """World rotation, translation and quaternion (w >= 0) of every bone for controls c (..., D)."""

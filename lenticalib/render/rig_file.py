@@ -31,6 +31,8 @@ G Gaussians, K SH coefficients, D controls, E blendshapes, N blendshape entries,
     pose_pivot      (3,)      float  pivot of the rigid head pose, world units
     pose_controls   (2,)      int    first rotation control and first translation control (3 each), -1 = none
     provenance      ()        str    a JSON object: what made the file, with which parameters
+    mesh_*                           optional: the avatar's triangle mesh, skinned like the Gaussians
+                                     (:mod:`.rig_mesh`: vertices, triangles, skin weights, blendshapes)
 
 Floats may be stored as float16/32/64 and are used as float32; a missing array (other than the
 two optional ones), a wrong shape or index, a non-finite value or another format or version is
@@ -55,6 +57,7 @@ from ..core.atomic import write_bytes_atomic
 from ..core.documents import FORMATS, OLD_VERSION_KEY, VERSION_KEY, check_envelope
 from ..core.errors import InputError
 from .gaussians import Gaussians
+from .rig_mesh import MESH_ARRAYS, MESH_BLEND_ARRAYS, mesh_from_arrays
 
 if TYPE_CHECKING:
     from .rig import Rig
@@ -65,7 +68,7 @@ _REQUIRED = ("format", "means", "quats", "log_scales", "opacity_logits", "sh", "
              "control_sizes", "control_dim", "control_names", "blend_controls", "blend_index", "blend_shape",
              "blend_pos", "bone_names", "bone_parents", "bone_pivots", "bone_controls", "skin_weights",
              "pose_pivot", "pose_controls", "provenance")
-_OPTIONAL = ("blend_rot", "blend_color", VERSION_KEY, OLD_VERSION_KEY)
+_OPTIONAL = ("blend_rot", "blend_color", VERSION_KEY, OLD_VERSION_KEY) + MESH_ARRAYS + MESH_BLEND_ARRAYS
 # The most bytes a rig's arrays may claim: over 2 million Gaussians with SH degree 3 and 50 bones.
 MAX_RIG_BYTES = 2 * GIB
 
@@ -108,6 +111,8 @@ def rig_to_arrays(rig: Rig) -> dict[str, np.ndarray]:
         out["blend_rot"] = arr(rig.blend_rot)
     if rig.blend_color is not None:
         out["blend_color"] = arr(rig.blend_color)
+    if rig.mesh is not None:
+        out.update(rig.mesh.to_arrays())
     return out
 
 
@@ -248,6 +253,8 @@ def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "
     if not isinstance(provenance, dict):
         raise InputError("array 'provenance' is not a JSON object string", source=source)
 
+    mesh = mesh_from_arrays(arrays, B, E, source, device)
+
     def t(a, dtype=torch.float32):
         return None if a is None else torch.from_numpy(np.ascontiguousarray(a)).to(device=device, dtype=dtype)
 
@@ -261,7 +268,7 @@ def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "
                blend_color=t(blend_color), bone_names=bone_names, bone_parents=tuple(int(p) for p in parents),
                bone_pivots=t(pivots), bone_controls=tuple(int(c) for c in bone_controls),
                skin_weights=t(weights), pose_pivot=t(pose_pivot),
-               pose_controls=(int(pose_controls[0]), int(pose_controls[1])), provenance=provenance)
+               pose_controls=(int(pose_controls[0]), int(pose_controls[1])), provenance=provenance, mesh=mesh)
 
 
 def load_rig(path: str | os.PathLike, device: str = "cpu") -> Rig:
