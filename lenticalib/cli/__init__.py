@@ -17,6 +17,7 @@ Subcommands (one module each)
     show       show an image, a pattern set or a folder of rasters on the panel, pixel-exact
     play       the live avatar loop drive -> render -> encode -> present, timed per stage
     render     the avatar pipeline offline, to PNG rasters or a lossless video
+    driver     the student driver: distil it per subject, predict controls from frames
     device     list panel controllers and Looking Glass units; info, read, flash and verify their
                calibration (a Looking Glass unit: info and read only)
     emulate    run an emulated panel controller on a pseudo-terminal or TCP port (or save an
@@ -64,6 +65,8 @@ _COMMANDS = {
     "show": ("lenticalib.cli.show", "show an image, a pattern set or a folder on the panel, pixel-exact"),
     "play": ("lenticalib.cli.play", "drive a Gaussian avatar live on the panel: drive, render, encode, present"),
     "render": ("lenticalib.cli.render", "render a Gaussian avatar offline into panel rasters (and its views)"),
+    "driver": ("lenticalib.cli.driver", "the student driver: distil it from a subject's frames and controls, "
+               "predict controls from frames"),
     "device": ("lenticalib.cli.device", "list panel controllers and Looking Glass units; read, flash and verify "
                "their calibration"),
     "emulate": ("lenticalib.cli.emulate", "run an emulated panel controller (pseudo-terminal or TCP), or save an "
