@@ -186,3 +186,28 @@ def test_driver_commands(cli, video, student, tmp_path):
                          "-o", tmp_path / "s.pt", "--crop", "1,1,500,50")
     assert code == 2 and err.startswith("lenticalib: error: --crop")
     assert json.loads((root / "train" / "video.json").read_text())["frames"] == 96
+
+
+def test_play_counts_the_students_prediction_in_the_drive_stage(student, video, tmp_path):
+    import cv2
+
+    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.live import play_avatar
+    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.session import AvatarOptions
+
+    root, _ = video
+    path, _ = student
+    writer = cv2.VideoWriter(str(tmp_path / "clip.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120))
+    for f in sorted((root / "train").glob("frame-*.jpg"))[:30]:
+        writer.write(cv2.imread(str(f)))
+    writer.release()
+    save_rig(tmp_path / "demo.npz", make_demo_avatar(seed=2, count=3000))
+    from tests.cli_support import REPO
+
+    run = play_avatar(tmp_path / "demo.npz", REPO / "fixtures" / "panel-4k-32.json", output="headless", frames=3,
+                      options=AvatarOptions(controls=f"student:{path}?video={tmp_path / 'clip.avi'}",
+                                            view_size=(96, 54)))
+    predicted_ms = run.session.controls.ms
+    assert predicted_ms and sum(run.times.times["drive"]) >= sum(predicted_ms)
+    assert "frames predicted" in run.controls_summary
