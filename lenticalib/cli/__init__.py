@@ -18,6 +18,7 @@ Subcommands (one module each)
     play       the live avatar loop drive -> render -> encode -> present, timed per stage
     render     the avatar pipeline offline, to PNG rasters or a lossless video
     avatar     diagnose avatars for the panel: the LentiAvatar side-view metrics along the view cone
+    driver     the student driver: distil it per subject, predict controls from frames
     device     list panel controllers and Looking Glass units; info, read, flash and verify their
                calibration (a Looking Glass unit: info and read only)
     emulate    run an emulated panel controller on a pseudo-terminal or TCP port (or save an
@@ -66,6 +67,8 @@ _COMMANDS = {
     "play": ("lenticalib.cli.play", "drive a Gaussian avatar live on the panel: drive, render, encode, present"),
     "render": ("lenticalib.cli.render", "render a Gaussian avatar offline into panel rasters (and its views)"),
     "avatar": ("lenticalib.cli.avatar", "diagnose avatars for the panel: side-view artifacts along the view cone"),
+    "driver": ("lenticalib.cli.driver", "the student driver: distil it from a subject's frames and controls, "
+               "predict controls from frames"),
     "device": ("lenticalib.cli.device", "list panel controllers and Looking Glass units; read, flash and verify "
                "their calibration"),
     "emulate": ("lenticalib.cli.emulate", "run an emulated panel controller (pseudo-terminal or TCP), or save an "

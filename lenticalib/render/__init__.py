@@ -32,6 +32,7 @@ The avatar
     controls            control sources: ``latest(now)``, control files, the source for a spec
     control_records     one JSON control record, as control files and live streams carry it
     control_streams     live and built-in sources: the demo motion, JSON lines on stdin or UDP
+    student             the student driver: a network trained per subject, camera frames -> controls
 
 Presenting and the pipeline
     present             pixel-exact full-screen presentation (glfw + moderngl): ``Presenter``

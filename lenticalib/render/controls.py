@@ -18,6 +18,9 @@ and picks the source for a spec (:func:`open_controls`); the live and built-in s
     "udp://HOST:PORT"     :class:`~.control_streams.StreamControls`: JSON lines in UDP datagrams (several
                           lines per datagram allowed), read by a background thread; port 0 picks a free
                           port (``.address``)
+    "student:PATH?camera=K|video=FILE"
+                          :class:`~.student.live.StudentControls`: a student driver predicting from a
+                          camera or a video, live
 
 File formats (times in seconds, non-decreasing; every value finite, controls within float32's
 range, |v| <= 3.4e38, checked when the file is read):
@@ -46,6 +49,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from ..core.arrayfile import GIB, load_npz
+from ..core.atomic import write_text_atomic
 from ..core.errors import InputError
 from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
 from .control_streams import DemoControls, open_text_stream, open_udp
@@ -277,4 +281,20 @@ def open_controls(spec: str, layout: ControlLayout = DEFAULT_LAYOUT, names: Sequ
         return open_text_stream(None, layout)
     if spec.startswith("udp://"):
         return open_udp(spec, layout)
+    if spec.startswith("student:"):
+        from .student.live import StudentControls  # torch and torchvision, only for a student
+
+        return StudentControls(spec, layout)
     return FileControls(load_controls(spec, layout, names))
+
+
+def write_controls_csv(path: str | os.PathLike, t: np.ndarray, controls: np.ndarray, layout: ControlLayout,
+                       names: Sequence[str] | None = None) -> Path:
+    """Write timed controls (t (T,) seconds, controls (T, D)) as a CSV that :func:`load_controls`
+    reads: a header ``t`` and one column per component (``names`` when given, else ``GROUP.I``),
+    one row per sample, written atomically."""
+    header = ["t"] + list(names if names is not None else layout.default_names())
+    lines = [",".join(header)]
+    for ti, row in zip(np.asarray(t, dtype=np.float64), np.asarray(controls, dtype=np.float32)):
+        lines.append(",".join([repr(float(ti))] + [repr(float(v)) for v in row]))
+    return write_text_atomic(path, "\n".join(lines) + "\n")

@@ -100,8 +100,15 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
             on_gpu = output == "panel" and pipeline.draws_on_gpu
             told = 0
             while (frames is None or times.frames < frames) and not interrupted.is_set():
-                raster, views, stages = pipeline.frame(session.controls_at(time.perf_counter() - start),
-                                                       raster_to_host=not on_gpu)
+                t_controls = time.perf_counter()
+                controls = session.controls_at(t_controls - start)  # a student driver predicts here
+                controls_ms = 1e3 * (time.perf_counter() - t_controls)
+                raster, views, stages = pipeline.frame(controls, raster_to_host=not on_gpu)
+                stages["drive"] += controls_ms
+                take = getattr(session.controls, "take_warnings", None)
+                for warning in (take() if take is not None else ()):
+                    if on_warning is not None:
+                        on_warning(warning)
                 for note in pipeline.notes[told:]:  # fallbacks, said once (made on the first frame)
                     if on_warning is not None:
                         on_warning(note)

@@ -4,7 +4,9 @@ One :class:`AvatarPipeline` holds what is fixed for a session -- the avatar, the
 the N virtual cameras (ordered for the profile's view direction), the renderer and the encoder
 -- and :meth:`AvatarPipeline.frame` makes one panel raster from one control vector:
 
-    drive    the avatar's driver turns the controls into posed Gaussians (static avatars: nothing)
+    drive    the avatar's driver turns the controls into posed Gaussians (static avatars: nothing);
+             ``play`` adds the time the controls source took to give them (a student driver's
+             prediction from the camera, :mod:`.student.live`)
     render   the renderer draws all N views, RGBA, composited over the background
     compose  views -> 8-bit -> the panel raster by the profile's routing (the encoder)
 

@@ -19,6 +19,8 @@ never device or cli.
                      known camera
     board_poses      where the simulated boards stand: spread over the image, some cut by the frame
     board_set        simulate_board_set(): a synthetic ``lenticalib camera`` set, truth cameramodel
+    driver_video     make_driver_video(): the demo avatar filmed under a known motion, with its true
+                     controls (the student driver's demo)
 
 Heavy modules (numba, OpenCV) load on first use of :func:`photograph`; importing the package
 loads numpy and ``optics``, ``camera`` and ``scene``.

@@ -1,0 +1,121 @@
+"""The crop rule of a student driver, and frames turned into the network's input.
+
+A rule is a dict saved with the student, so prediction crops exactly as training did:
+
+    {"kind": "box", "box": [x, y, w, h]}           a fixed box, frame pixels (x right, y down,
+                                                    the top-left corner and the size)
+    {"kind": "auto", "detector": "haar-frontalface", "scale": 1.9, "smoothing": 0.7}
+                                                    a square that follows the face: OpenCV's Haar
+                                                    frontal-face cascade, the largest face, its
+                                                    box grown ``scale`` times about its centre,
+                                                    smoothed over frames (exponential, weight
+                                                    ``smoothing`` on the previous box); a frame
+                                                    with no face keeps the previous box
+
+"auto" needs OpenCV's cascade files (``cv2.data.haarcascades``); a build without them (the
+headless wheels of some versions) refuses "auto" in one line, before any frame is read.
+
+:func:`to_input` cuts the box (edge pixels repeated where it leaves the frame), resizes it to
+``size`` x ``size`` and normalises it as torchvision's ImageNet models expect: float32
+(3, size, size), (rgb / 255 - mean) / std.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+
+from ...core.errors import InputError
+
+IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
+IMAGENET_STD = np.array([0.229, 0.224, 0.225], dtype=np.float32)
+AUTO_RULE = {"kind": "auto", "detector": "haar-frontalface", "scale": 1.9, "smoothing": 0.7}
+CASCADE_FILE = "haarcascade_frontalface_default.xml"
+
+
+def parse_crop(text: str | None, frame_size: tuple[int, int]) -> dict:
+    """The crop rule for ``text``: "auto" or "x,y,w,h" (frame pixels, inside a frame of
+    ``frame_size`` (W, H)); InputError naming ``crop`` otherwise."""
+    if text is None or text == "auto":
+        cascade_path()  # refused here, before any frame, when OpenCV has no cascade
+        return dict(AUTO_RULE)
+    m = re.fullmatch(r"\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*", str(text))
+    if not m:
+        raise InputError(f"crop {text!r} is not 'auto' or x,y,w,h", source="crop",
+                         hint="give the head's box in frame pixels, e.g. 640,200,640,640")
+    x, y, w, h = (int(v) for v in m.groups())
+    W, H = frame_size
+    if w < 16 or h < 16 or x + w > W or y + h > H:
+        raise InputError(f"crop box {x},{y},{w},{h} does not fit a {W}x{H} frame with at least 16 px a side",
+                         source="crop", hint=f"give x,y,w,h with x + w <= {W} and y + h <= {H}")
+    return {"kind": "box", "box": [x, y, w, h]}
+
+
+def cascade_path() -> str:
+    import cv2
+
+    folder = getattr(getattr(cv2, "data", None), "haarcascades", None)
+    path = os.path.join(folder, CASCADE_FILE) if folder else None
+    if not path or not os.path.isfile(path):
+        raise InputError("this OpenCV build ships no face detector (its Haar cascades are missing)", source="crop",
+                         hint="give the head's box as x,y,w,h in frame pixels")
+    return path
+
+
+class CropTracker:
+    """Applies a crop rule frame after frame: :meth:`box` (x, y, w, h) float for an RGB frame."""
+
+    def __init__(self, rule: dict):
+        self.rule = rule
+        self._box = None
+        self._detector = None
+        if rule["kind"] == "auto":
+            import cv2
+
+            self._detector = cv2.CascadeClassifier(cascade_path())
+
+    def box(self, rgb: np.ndarray) -> np.ndarray:
+        if self.rule["kind"] == "box":
+            return np.asarray(self.rule["box"], dtype=np.float64)
+        import cv2
+
+        H, W = rgb.shape[:2]
+        grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+        faces = self._detector.detectMultiScale(grey, scaleFactor=1.1, minNeighbors=5,
+                                                minSize=(max(24, min(W, H) // 12),) * 2)
+        if len(faces):
+            x, y, w, h = max(faces, key=lambda f: f[2] * f[3]).astype(np.float64)
+            side = self.rule["scale"] * max(w, h)
+            new = np.array([x + w / 2 - side / 2, y + h / 2 - side / 2, side, side])
+            s = self.rule["smoothing"]
+            self._box = new if self._box is None else s * self._box + (1 - s) * new
+        elif self._box is None:  # no face yet: the centred square
+            side = float(min(W, H))
+            self._box = np.array([(W - side) / 2, (H - side) / 2, side, side])
+        return self._box
+
+
+def to_input(rgb: np.ndarray, box, size: int) -> np.ndarray:
+    """float32 (3, size, size): the ``box`` (x, y, w, h) of ``rgb`` (H, W, 3) uint8, resized and
+    normalised (module docstring)."""
+    import cv2
+
+    x, y, w, h = (float(v) for v in box)
+    # the affine map from the box to the output square; pixels outside the frame repeat its edge
+    sx, sy = size / w, size / h
+    M = np.array([[sx, 0.0, -x * sx + 0.5 * sx - 0.5], [0.0, sy, -y * sy + 0.5 * sy - 0.5]])
+    interp = cv2.INTER_AREA if sx < 1 and sy < 1 else cv2.INTER_LINEAR
+    if interp == cv2.INTER_AREA:  # warpAffine has no area filter: cut, then resize
+        x0, y0 = int(round(x)), int(round(y))
+        x1, y1 = int(round(x + w)), int(round(y + h))
+        Hf, Wf = rgb.shape[:2]
+        pad = max(0, -x0, -y0, x1 - Wf, y1 - Hf)
+        src = cv2.copyMakeBorder(rgb, pad, pad, pad, pad, cv2.BORDER_REPLICATE) if pad else rgb
+        patch = src[y0 + pad:y1 + pad, x0 + pad:x1 + pad]
+        out = cv2.resize(patch, (size, size), interpolation=cv2.INTER_AREA)
+    else:
+        out = cv2.warpAffine(rgb, M, (size, size), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    x = (out.astype(np.float32) / 255.0 - IMAGENET_MEAN) / IMAGENET_STD
+    return np.ascontiguousarray(x.transpose(2, 0, 1))

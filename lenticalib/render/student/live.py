@@ -1,0 +1,108 @@
+"""The ``student:`` control source: a student driver predicting the avatar's controls live.
+
+    student:PATH?camera=K          frames of camera K (OpenCV index), the newest one each time
+    student:PATH?video=FILE        a video played in real time (looping), as if it were a camera
+    ...&device=cuda                the network on a GPU (default cpu)
+
+:meth:`StudentControls.latest` predicts from the newest frame the grabbing thread delivered, so
+its time is the student's (crop and network): the live loop counts it in its drive stage.  When
+no new frame came since the last call (a camera slower than the loop, or one that stopped
+delivering) the last controls are repeated, never waited for; each such stretch is reported once
+as a warning (:meth:`take_warnings`) and counted in :meth:`summary`.  Every problem with the
+spec, the student file, its layout, the camera or the video is one InputError naming
+``controls`` before the first frame.
+"""
+
+from __future__ import annotations
+
+import time
+from urllib.parse import parse_qs
+
+import numpy as np
+
+from ...core.errors import InputError
+from .frames import CameraFrames
+from .predict import StudentPredictor
+from .student_file import load_student
+
+PREFIX = "student:"
+HINT = "use student:student.pt?camera=0 or student:student.pt?video=FILE"
+
+
+def parse_student_spec(spec: str) -> tuple[str, dict]:
+    """(student path, {"camera": int} or {"video": path}, plus "device") from a ``student:`` spec."""
+    body = spec[len(PREFIX):]
+    path, _, query = body.partition("?")
+    params = {k: v[-1] for k, v in parse_qs(query, keep_blank_values=True).items()}
+    unknown = sorted(set(params) - {"camera", "video", "device"})
+    if not path or unknown or ("camera" in params) == ("video" in params):
+        raise InputError(f"bad student source {spec!r}" + (f" (unknown {', '.join(unknown)})" if unknown else ""),
+                         source="controls", hint=HINT)
+    out = {"device": params.get("device", "cpu")}
+    if "camera" in params:
+        try:
+            out["camera"] = int(params["camera"])
+        except ValueError:
+            raise InputError(f"camera {params['camera']!r} is not a camera index", source="controls",
+                             hint=HINT) from None
+    else:
+        out["video"] = params["video"]
+    return path, out
+
+
+class StudentControls:
+    """A live control source (``latest(now)``, ``close()``, ``summary()``, ``take_warnings()``)."""
+
+    def __init__(self, spec: str, layout):
+        path, params = parse_student_spec(spec)
+        try:
+            student = load_student(path)
+            student.check_layout(layout, path)
+            self.predictor = StudentPredictor(student, params["device"])
+        except InputError as exc:
+            raise InputError(f"{exc.source}: {exc.message}", source="controls", hint=exc.hint) from None
+        self.layout = layout
+        self.frames = CameraFrames(params.get("camera", params.get("video")))
+        self._last_number = -1
+        self._controls = student.mean.copy()
+        self.predicted = 0
+        self.repeated = 0
+        self._stalled = False
+        self._warnings: list[str] = []
+        self.ms = []
+
+    def latest(self, now: float = 0.0) -> tuple[float, np.ndarray]:
+        number, rgb = self.frames.latest()
+        if number == self._last_number:
+            self.repeated += 1
+            if not self._stalled:
+                self._stalled = True
+                self._warnings.append(f"the {'camera' if not self.frames._video else 'video'} delivered no new frame: "
+                                      "repeating the last controls")
+            return float(now), self._controls.copy()
+        self._stalled = False
+        self._last_number = number
+        self._controls = self.predictor.predict(rgb)
+        self.predicted += 1
+        self.ms.append(1e3 * self.predictor.seconds)
+        return float(now), self._controls.copy()
+
+    def take_warnings(self) -> list[str]:
+        out, self._warnings = self._warnings, []
+        return out
+
+    def close(self) -> None:
+        self.frames.close()
+
+    def summary(self) -> str:
+        ms = f", {np.median(self.ms):.1f} ms a prediction (median)" if self.ms else ""
+        return (f"student: {self.predicted} frames predicted{ms}, {self.repeated} loop frames repeated the last "
+                f"controls (no new camera frame), {self.frames.failures} camera reads failed")
+
+
+def wait_for_first_frame(source: StudentControls, timeout_s: float = 2.0) -> None:
+    """Block until the source has predicted once (tests and benchmarks)."""
+    end = time.monotonic() + timeout_s
+    while source.predicted == 0 and time.monotonic() < end:
+        source.latest()
+        time.sleep(0.01)
