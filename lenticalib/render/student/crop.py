@@ -15,8 +15,8 @@ A rule is a dict saved with the student, so prediction crops exactly as training
 "auto" needs OpenCV's cascade files (``cv2.data.haarcascades``); a build without them (the
 headless wheels of some versions) refuses "auto" in one line, before any frame is read.
 
-:func:`to_input` cuts the box (edge pixels repeated where it leaves the frame), resizes it to
-``size`` x ``size`` and normalises it as torchvision's ImageNet models expect: float32
+:func:`to_input` cuts the box (:func:`cut`: edge pixels repeated where it leaves the frame),
+resizes it to ``size`` x ``size`` and normalises it as torchvision's ImageNet models expect: float32
 (3, size, size), (rgb / 255 - mean) / std.
 """
 
@@ -97,25 +97,30 @@ class CropTracker:
         return self._box
 
 
-def to_input(rgb: np.ndarray, box, size: int) -> np.ndarray:
-    """float32 (3, size, size): the ``box`` (x, y, w, h) of ``rgb`` (H, W, 3) uint8, resized and
-    normalised (module docstring)."""
+def cut(rgb: np.ndarray, box, size: int) -> np.ndarray:
+    """uint8 (size, size, 3): the ``box`` (x, y, w, h) of ``rgb`` (H, W, 3) resampled to a square
+    (bilinear; a downscale by more than 2 first shrinks the frame by area, so the crop is not
+    aliased; pixels outside the frame repeat its edge).  Training and prediction both cut here."""
     import cv2
 
     x, y, w, h = (float(v) for v in box)
-    # the affine map from the box to the output square; pixels outside the frame repeat its edge
     sx, sy = size / w, size / h
     M = np.array([[sx, 0.0, -x * sx + 0.5 * sx - 0.5], [0.0, sy, -y * sy + 0.5 * sy - 0.5]])
-    interp = cv2.INTER_AREA if sx < 1 and sy < 1 else cv2.INTER_LINEAR
-    if interp == cv2.INTER_AREA:  # warpAffine has no area filter: cut, then resize
-        x0, y0 = int(round(x)), int(round(y))
-        x1, y1 = int(round(x + w)), int(round(y + h))
-        Hf, Wf = rgb.shape[:2]
-        pad = max(0, -x0, -y0, x1 - Wf, y1 - Hf)
-        src = cv2.copyMakeBorder(rgb, pad, pad, pad, pad, cv2.BORDER_REPLICATE) if pad else rgb
-        patch = src[y0 + pad:y1 + pad, x0 + pad:x1 + pad]
-        out = cv2.resize(patch, (size, size), interpolation=cv2.INTER_AREA)
-    else:
-        out = cv2.warpAffine(rgb, M, (size, size), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    x = (out.astype(np.float32) / 255.0 - IMAGENET_MEAN) / IMAGENET_STD
-    return np.ascontiguousarray(x.transpose(2, 0, 1))
+    src = rgb
+    if min(sx, sy) < 0.5:
+        f = 1.0 / (2 * min(sx, sy))
+        src = cv2.resize(rgb, None, fx=1 / f, fy=1 / f, interpolation=cv2.INTER_AREA)
+        M[:, :2] *= f
+    return cv2.warpAffine(src, M, (size, size), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def normalise(crops: np.ndarray) -> np.ndarray:
+    """float32 (..., 3, S, S) network input from uint8 crops (..., S, S, 3) (module docstring)."""
+    x = (crops.astype(np.float32) / 255.0 - IMAGENET_MEAN) / IMAGENET_STD
+    return np.ascontiguousarray(np.moveaxis(x, -1, -3))
+
+
+def to_input(rgb: np.ndarray, box, size: int) -> np.ndarray:
+    """float32 (3, size, size): the ``box`` (x, y, w, h) of ``rgb`` (H, W, 3) uint8, cut
+    (:func:`cut`) and normalised (module docstring)."""
+    return normalise(cut(rgb, box, size))

@@ -39,7 +39,7 @@ from ...core.outputs import check_output_file
 from ...core.profile import make_provenance
 from ..controls import load_controls
 from ..rig import DEFAULT_LAYOUT
-from .crop import CropTracker, IMAGENET_MEAN, IMAGENET_STD, parse_crop
+from .crop import CropTracker, IMAGENET_MEAN, IMAGENET_STD, cut, parse_crop
 from .frames import open_frames
 
 JITTER = 0.05
@@ -120,8 +120,6 @@ def group_errors(pred: np.ndarray, truth: np.ndarray, layout, active: np.ndarray
 
 def _read_crops(frames, rule: dict, size: int, step: Callable) -> np.ndarray:
     """(N, P, P, 3) uint8 crops, P = round(size (1 + 2 JITTER)), each the rule's box grown by JITTER."""
-    import cv2
-
     tracker = CropTracker(rule)
     P = int(round(size * (1 + 2 * JITTER)))
     out = np.empty((len(frames), P, P, 3), dtype=np.uint8)
@@ -130,15 +128,7 @@ def _read_crops(frames, rule: dict, size: int, step: Callable) -> np.ndarray:
             break
         x, y, w, h = tracker.box(rgb)
         g = JITTER * max(w, h)
-        x, y, w, h = x - g, y - g, w + 2 * g, h + 2 * g
-        sx, sy = P / w, P / h
-        M = np.array([[sx, 0.0, -x * sx + 0.5 * sx - 0.5], [0.0, sy, -y * sy + 0.5 * sy - 0.5]])
-        small = rgb
-        if sx < 0.5:  # a large downscale: pre-shrink by area so the crop is not aliased
-            f = 1.0 / (2 * sx)
-            small = cv2.resize(rgb, None, fx=1 / f, fy=1 / f, interpolation=cv2.INTER_AREA)
-            M[:, :2] *= f
-        out[k] = cv2.warpAffine(small, M, (P, P), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        out[k] = cut(rgb, (x - g, y - g, w + 2 * g, h + 2 * g), P)
         step()
     return out
 
