@@ -54,7 +54,7 @@ MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no f
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
 BINS = 64  # bins of tiles (by white's code) the level relations are averaged over
 MIN_BIN = 50  # tiles per bin at least
-PINNING = ("level-1in2",)  # the levels whose relation the curve is fitted to (the finest rows: _relations)
+PINNING = ("level-1in2",)  # the levels that judge a bend of the curve (the finest rows: _relations)
 POWER_RANGE = (0.6, 1.6)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
@@ -174,11 +174,11 @@ def _basis() -> np.ndarray:
     return srgb_decode_lut()[:, None] * np.maximum(0.0, 1.0 - np.abs(codes - knots) / KNOT)
 
 
-def _relations(hist, mixed) -> list:
+def _relations(hist, mixed, levels=LEVELS) -> list:
     """The linear relations of the curve's 256 values, as (sparse (rows, 256) relation, sparse (rows,
     256) white - black, counts (rows,)) triples, each row the mean over ``count`` tiles: the half
-    relation tile by tile on the ``mixed`` tiles, and the ``PINNING`` levels' on ``BINS`` bins of
-    tiles of similar white code (their means).
+    relation tile by tile on the ``mixed`` tiles, and the ``levels``' on ``BINS`` bins of tiles of
+    similar white code (their means).
 
     The half relation holds pixel by pixel.  A level's holds only over whole periods of its rows
     and only where the camera does not resolve them: a tile holds a lit row more or less than its
@@ -186,7 +186,9 @@ def _relations(hist, mixed) -> list:
     camera), which the hundreds of tiles of a bin, at every phase of the rows, average out; and a
     camera's demosaicing is not linear on resolved rows (OpenCV's edge-aware one left 1-in-8 rows
     6-7 % short of 1/8 of white in linear light, 1-in-4 rows 3 %, 1-in-2 rows 0.8 %, on a sharp
-    sheet at 400 mm), so only the finest rows pin the curve; the coarser levels check the photos."""
+    sheet at 400 mm): the power rests on the halves, the finest rows (``PINNING``) judge whether the
+    curve bends, and all levels give a bent curve its shape (a phone's S-curve moves the levels by
+    tens of per cent, far more than their texture)."""
     from scipy.sparse import csr_matrix
 
     lit = hist["white"] - hist["black"]
@@ -198,7 +200,7 @@ def _relations(hist, mixed) -> list:
     counts = np.array([b.size for b in bins], np.float64)
     mean = csr_matrix((1.0 / counts[index], (index, np.concatenate(bins))), shape=(len(bins), order.size))
     lit_bins = mean @ lit
-    for name in PINNING:
+    for name in levels:
         k = LEVEL_PERIODS[LEVELS.index(name)]
         relations.append((mean @ (hist[name] - hist["black"]) - lit_bins / k, lit_bins, counts))
     return relations
@@ -318,14 +320,15 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(picked.size), halves_power,
                          level_residuals=biases, levels=True, code_range=(black, white))
     relations = _relations(hist, mixed)
+    finest = _relations(hist, mixed, PINNING)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
     # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
     power = _level_power(relations[:1])
-    pinned = _level_power(relations)
+    pinned = _level_power(finest)
     table = _curve(relations)
     # the power unless a bend of its mid-tones fits clearly better (a camera's S-curve): the curve's
     # freedom otherwise follows the level photos' texture (sharpening, JPEG) more than the camera
-    model = "curve" if _bend_gain(relations, pinned) > CURVE_GAIN else "power"
+    model = "curve" if _bend_gain(finest, pinned) > CURVE_GAIN else "power"
     if model == "curve" and not np.all(np.diff(table[codes]) > 0):
         model = "power"
     if model == "power":
