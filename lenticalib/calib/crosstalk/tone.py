@@ -16,21 +16,26 @@ The relations hold for the light of a pixel, not for its code: each photo is lin
 pixel and averaged over small tiles (``tile`` x ``tile`` photo pixels, all three channels) before
 the photos are compared.  Each tile's code histogram is kept (a sparse matrix, tiles x 256 codes),
 so a tile's mean light under a curve is one matrix product, and the relations are linear in the
-curve's 256 values.
+curve's 256 values.  The half relation holds pixel by pixel; a level's only over whole periods of
+its rows and only as far as the camera's demosaicing leaves resolved rows alone (a close camera's
+came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
+averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
+(:func:`_relations`).
 
-Two models, by what the set holds:
+Two models (the exposure locked over the photos):
 
-- ``curve`` (sets with the level patterns): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``, with ``D``
-  the sRGB decoding of the 8-bit code ``c`` and ``B_j`` hat functions on knots every ``KNOT`` codes
-  (zero at code 256: the scale), fitted by linear least squares to both relations with a small
-  second-difference penalty; assumes the exposure locked over the photos;
-- ``power`` (sets drawn before the levels): ``L(c) = D(c) ** p``, each half photo with its own
-  exposure, ``p`` from the first relation alone.
+- ``power``: ``L(c) = D(c) ** p``, ``D`` the sRGB decoding of the 8-bit code ``c``, ``p`` from the
+  half relation alone; in sets drawn before the levels each half photo has its own exposure;
+- ``curve`` (sets with the level patterns, where a bend of the mid-tones fits the half relation
+  clearly better than the power: a phone's S-curve): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``,
+  ``B_j`` hat functions on knots every ``KNOT`` codes (zero at code 256: the scale), fitted by
+  linear least squares to the half and level relations with a small second-difference penalty.
 
 The 1-sigma is stated as a power ``1 +- sigma`` on the linearised light (what the measurement
 propagates): the spread of the curves fitted to ``GROUPS`` strips of the panel (each curve's
 log-slope against the whole fit's), over the square root of their number, with a floor of
-``POWER_FLOOR`` for what the model and the camera's processing leave.
+``POWER_FLOOR`` for what the model and the camera's processing leave, and, for the power, how far
+the power the finest level rows pin together with the halves lies from it (``PINNING``).
 """
 
 from __future__ import annotations
@@ -48,13 +53,13 @@ TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 w
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
 KNOT = 16  # codes between the knots of the curve model
 SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
-CURVE_GAIN = 0.1  # the curve replaces the power where a bend fits the relations this much better (relative RMS)
+CURVE_GAIN = 0.1  # the curve replaces the power where a bend fits the half relation this much better (relative RMS)
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
 BINS = 64  # bins of tiles (by white's code) the level relations are averaged over
 MIN_BIN = 50  # tiles per bin at least
-PINNING = ("level-1in2",)  # the levels that judge a bend of the curve (the finest rows: _relations)
+PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: _relations)
 POWER_RANGE = (0.6, 1.6)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
@@ -186,9 +191,9 @@ def _relations(hist, mixed, levels=LEVELS) -> list:
     camera), which the hundreds of tiles of a bin, at every phase of the rows, average out; and a
     camera's demosaicing is not linear on resolved rows (OpenCV's edge-aware one left 1-in-8 rows
     6-7 % short of 1/8 of white in linear light, 1-in-4 rows 3 %, 1-in-2 rows 0.8 %, on a sharp
-    sheet at 400 mm): the power rests on the halves, the finest rows (``PINNING``) judge whether the
-    curve bends, and all levels give a bent curve its shape (a phone's S-curve moves the levels by
-    tens of per cent, far more than their texture)."""
+    sheet at 400 mm; 1-in-2 rows 2.5 % at 500 mm): the power rests on the halves, the finest rows
+    (``PINNING``) only state how far off it could be, and all levels give a bent curve its shape (a
+    phone's S-curve moves the levels by tens of per cent, far more than their texture)."""
     from scipy.sparse import csr_matrix
 
     lit = hist["white"] - hist["black"]
@@ -273,8 +278,8 @@ def _log_slope(table, reference, codes) -> float:
 
 def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None:
     """The tone curve from uint8 RGB photos ``images`` (photo pixels, (h, w, 3)) of "black", "white",
-    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (then the power, or the curve where
-    it fits clearly better; without them the power from the halves alone);
+    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (the power from the halves, or the
+    curve where a bend fits them clearly better; without the levels the power, exposures free);
     ``tile``: side of the tiles in photo pixels.  None where the photos give too little to fit
     (fewer than ``MIN_TILES`` tiles)."""
     means = {k: tile_means(images[k], tile) for k in PHOTOS}
@@ -326,9 +331,9 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     power = _level_power(relations[:1])
     pinned = _level_power(finest)
     table = _curve(relations)
-    # the power unless a bend of its mid-tones fits clearly better (a camera's S-curve): the curve's
-    # freedom otherwise follows the level photos' texture (sharpening, JPEG) more than the camera
-    model = "curve" if _bend_gain(finest, pinned) > CURVE_GAIN else "power"
+    # the power unless a bend of its mid-tones fits the halves clearly better (a camera's S-curve):
+    # the curve's freedom otherwise follows the level photos' texture more than the camera
+    model = "curve" if _bend_gain(relations[:1], power) > CURVE_GAIN else "power"
     if model == "curve" and not np.all(np.diff(table[codes]) > 0):
         model = "power"
     if model == "power":
