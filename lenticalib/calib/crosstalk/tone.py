@@ -347,9 +347,10 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
             fitted = _curve(part) if model == "curve" else srgb_decode_lut() ** _level_power(part[:1])
             strips.append(_log_slope(fitted, table, codes))
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
-    # what the relations leave open: the halves' power against the one the finest level pins too
-    # (they differ by the level's texture bias and by what the power family cannot follow)
-    disagreement = abs(_log_slope(srgb_decode_lut() ** pinned, table, codes)) if model == "power" else 0.0
+    # what the relations leave open: the halves' power against the one the finest level pins too, a
+    # bent curve against the one the halves and the finest rows alone give (they differ by the
+    # coarser levels' texture bias and by what the power family cannot follow)
+    disagreement = abs(_log_slope(srgb_decode_lut() ** pinned if model == "power" else _curve(finest), table, codes))
     spread = math.sqrt(spread ** 2 + disagreement ** 2)
     return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
                      int(picked.size), power if model == "power" else math.nan, tuple(strips), level_residuals,
