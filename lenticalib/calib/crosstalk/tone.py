@@ -16,21 +16,26 @@ The relations hold for the light of a pixel, not for its code: each photo is lin
 pixel and averaged over small tiles (``tile`` x ``tile`` photo pixels, all three channels) before
 the photos are compared.  Each tile's code histogram is kept (a sparse matrix, tiles x 256 codes),
 so a tile's mean light under a curve is one matrix product, and the relations are linear in the
-curve's 256 values.
+curve's 256 values.  The half relation holds pixel by pixel; a level's only over whole periods of
+its rows and only as far as the camera's demosaicing leaves resolved rows alone (a close camera's
+came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
+averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
+(:func:`_relations`).
 
-Two models, by what the set holds:
+Two models (the exposure locked over the photos):
 
-- ``curve`` (sets with the level patterns): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``, with ``D``
-  the sRGB decoding of the 8-bit code ``c`` and ``B_j`` hat functions on knots every ``KNOT`` codes
-  (zero at code 256: the scale), fitted by linear least squares to both relations with a small
-  second-difference penalty; assumes the exposure locked over the photos;
-- ``power`` (sets drawn before the levels): ``L(c) = D(c) ** p``, each half photo with its own
-  exposure, ``p`` from the first relation alone.
+- ``power``: ``L(c) = D(c) ** p``, ``D`` the sRGB decoding of the 8-bit code ``c``, ``p`` from the
+  half relation alone; in sets drawn before the levels each half photo has its own exposure;
+- ``curve`` (sets with the level patterns, where a bend of the mid-tones fits the half relation
+  clearly better than the power: a phone's S-curve): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``,
+  ``B_j`` hat functions on knots every ``KNOT`` codes (zero at code 256: the scale), fitted by
+  linear least squares to the half and level relations with a small second-difference penalty.
 
 The 1-sigma is stated as a power ``1 +- sigma`` on the linearised light (what the measurement
 propagates): the spread of the curves fitted to ``GROUPS`` strips of the panel (each curve's
 log-slope against the whole fit's), over the square root of their number, with a floor of
-``POWER_FLOOR`` for what the model and the camera's processing leave.
+``POWER_FLOOR`` for what the model and the camera's processing leave, and, for the power, how far
+the power the finest level rows pin together with the halves lies from it (``PINNING``).
 """
 
 from __future__ import annotations
@@ -48,14 +53,17 @@ TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 w
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
 KNOT = 16  # codes between the knots of the curve model
 SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
-CURVE_GAIN = 0.1  # the curve replaces the power where a bend fits the relations this much better (relative RMS)
+CURVE_GAIN = 0.1  # the curve replaces the power where a bend fits the half relation this much better (relative RMS)
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
+BINS = 64  # bins of tiles (by white's code) the level relations are averaged over
+MIN_BIN = 50  # tiles per bin at least
+PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: _relations)
 POWER_RANGE = (0.6, 1.6)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
-MAX_LEVEL_BIAS = 0.25  # a level photo whose median light is further than this from its share of white's: another photo
+MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,7 +71,7 @@ class ToneCurve:
     """A fitted tone curve: ``table`` float32 (256,), the linear light of each 8-bit code (units:
     sRGB's at code 255); ``model`` "curve" or "power" (with ``power``); ``sigma`` its 1-sigma as a
     power on the linearised light; ``residual`` the relative RMS of the half relation;
-    ``level_residuals`` each level photo's median light over its share of white's, less 1; ``tiles`` how many tiles it
+    ``level_residuals`` each level photo's light (summed over the tiles) over its share of white's, less 1; ``tiles`` how many tiles it
     rests on; ``strips`` the strips' powers (model "power") or log-slopes (model "curve"); ``levels`` whether
     the level photos took part; ``code_range`` the median codes of black and white."""
 
@@ -171,23 +179,44 @@ def _basis() -> np.ndarray:
     return srgb_decode_lut()[:, None] * np.maximum(0.0, 1.0 - np.abs(codes - knots) / KNOT)
 
 
-def _relations(hist, mixed) -> list:
-    """The linear relations of the curve's 256 values, as (sparse (tiles, 256) relation, sparse (tiles,
-    256) white - black, weights (tiles,)) triples: the half relation on the ``mixed`` tiles and each
-    level's on all, relative to white's light (the weights: 1 / white's light under sRGB)."""
+def _relations(hist, mixed, levels=LEVELS) -> list:
+    """The linear relations of the curve's 256 values, as (sparse (rows, 256) relation, sparse (rows,
+    256) white - black, counts (rows,)) triples, each row the mean over ``count`` tiles: the half
+    relation tile by tile on the ``mixed`` tiles, and the ``levels``' on ``BINS`` bins of tiles of
+    similar white code (their means).
+
+    The half relation holds pixel by pixel.  A level's holds only over whole periods of its rows
+    and only where the camera does not resolve them: a tile holds a lit row more or less than its
+    share (a curve fitted tile by tile bends to shrink that texture instead of following the
+    camera), which the hundreds of tiles of a bin, at every phase of the rows, average out; and a
+    camera's demosaicing is not linear on resolved rows (OpenCV's edge-aware one left 1-in-8 rows
+    6-7 % short of 1/8 of white in linear light, 1-in-4 rows 3 %, 1-in-2 rows 0.8 %, on a sharp
+    sheet at 400 mm; 1-in-2 rows 2.5 % at 500 mm): the power rests on the halves, the finest rows
+    (``PINNING``) only state how far off it could be, and all levels give a bent curve its shape (a
+    phone's S-curve moves the levels by tens of per cent, far more than their texture)."""
+    from scipy.sparse import csr_matrix
+
     lit = hist["white"] - hist["black"]
-    weight = 1.0 / np.maximum(lit @ srgb_decode_lut(), 1e-6)
     relations = [((hist["half-0"] + hist["half-1"] - hist["white"] - hist["black"])[mixed], lit[mixed],
-                  weight[mixed])]
-    for name, k in zip(LEVELS, LEVEL_PERIODS):
-        relations.append(((hist[name] - hist["black"]) - lit / k, lit, weight))
+                  np.ones(int(np.count_nonzero(mixed))))]
+    order = np.argsort(hist["white"] @ np.arange(256), kind="stable")
+    bins = np.array_split(order, min(BINS, max(1, order.size // MIN_BIN)))
+    index = np.concatenate([np.full(b.size, i) for i, b in enumerate(bins)])
+    counts = np.array([b.size for b in bins], np.float64)
+    mean = csr_matrix((1.0 / counts[index], (index, np.concatenate(bins))), shape=(len(bins), order.size))
+    lit_bins = mean @ lit
+    for name in levels:
+        k = LEVEL_PERIODS[LEVELS.index(name)]
+        relations.append((mean @ (hist[name] - hist["black"]) - lit_bins / k, lit_bins, counts))
     return relations
 
 
 def _misfit(table, relations) -> float:
-    """RMS of the relations under ``table`` (float (256,)), each over white's light under it."""
-    return float(np.sqrt(np.mean(np.concatenate([(r @ table) / np.maximum(lit @ table, 1e-12)
-                                                 for r, lit, _ in relations]) ** 2)))
+    """RMS of the relations under ``table`` (float (256,)), each row over white's light under it,
+    weighted by the tiles it stands for."""
+    total = sum(float(np.sum(n)) for *_, n in relations)
+    return float(np.sqrt(sum(float(np.sum(n * ((r @ table) / np.maximum(lit @ table, 1e-12)) ** 2))
+                             for r, lit, n in relations) / total))
 
 
 def _level_power(relations) -> float:
@@ -220,20 +249,22 @@ def _bend_gain(relations, power: float) -> float:
 def _curve(relations) -> np.ndarray:
     """float64 (256,): the curve model fitted to the relations (linear least squares, smoothed)."""
     srgb, basis = srgb_decode_lut(), _basis()
-    a = np.vstack([(r @ basis) * w[:, None] for r, _, w in relations])
-    b = -np.concatenate([(r @ srgb) * w for r, _, w in relations])
-    n = basis.shape[1]
-    penalty = np.sqrt(SMOOTHING * a.shape[0]) * np.diff(np.eye(n), 2, axis=0)
-    ridge = np.sqrt(1e-6 * a.shape[0]) * np.eye(n)
+    weights = [np.sqrt(n) / np.maximum(lit @ srgb, 1e-6) for _, lit, n in relations]
+    a = np.vstack([(r @ basis) * w[:, None] for (r, _, _), w in zip(relations, weights)])
+    b = -np.concatenate([(r @ srgb) * w for (r, _, _), w in zip(relations, weights)])
+    n, rows = basis.shape[1], sum(float(np.sum(c)) for *_, c in relations)
+    penalty = np.sqrt(SMOOTHING * rows) * np.diff(np.eye(n), 2, axis=0)
+    ridge = np.sqrt(1e-6 * rows) * np.eye(n)
     theta, *_ = np.linalg.lstsq(np.vstack([a, penalty, ridge]), np.concatenate([b, np.zeros(2 * n - 2)]),
                                 rcond=None)
     return srgb + basis @ theta
 
 
 def _level_biases(hist, table) -> tuple[float, ...]:
-    """Each level photo's median light over its share of white's (above black), less 1, under ``table``."""
-    lit = np.maximum((hist["white"] - hist["black"]) @ table, 1e-9)
-    return tuple(float(np.median(k * ((hist[name] - hist["black"]) @ table) / lit) - 1.0)
+    """Each level photo's light over its share of white's (above black), less 1, under ``table``:
+    sums over all tiles (a tile's own ratio is off by a lit row where the camera resolves them)."""
+    lit = max(float(np.sum((hist["white"] - hist["black"]) @ table)), 1e-9)
+    return tuple(float(k * np.sum((hist[name] - hist["black"]) @ table) / lit - 1.0)
                  for name, k in zip(LEVELS, LEVEL_PERIODS))
 
 
@@ -247,8 +278,8 @@ def _log_slope(table, reference, codes) -> float:
 
 def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None:
     """The tone curve from uint8 RGB photos ``images`` (photo pixels, (h, w, 3)) of "black", "white",
-    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (then the power, or the curve where
-    it fits clearly better; without them the power from the halves alone);
+    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (the power from the halves, or the
+    curve where a bend fits them clearly better; without the levels the power, exposures free);
     ``tile``: side of the tiles in photo pixels.  None where the photos give too little to fit
     (fewer than ``MIN_TILES`` tiles)."""
     means = {k: tile_means(images[k], tile) for k in PHOTOS}
@@ -294,11 +325,15 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(picked.size), halves_power,
                          level_residuals=biases, levels=True, code_range=(black, white))
     relations = _relations(hist, mixed)
-    power = _level_power(relations)
+    finest = _relations(hist, mixed, PINNING)
+    # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
+    # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
+    power = _level_power(relations[:1])
+    pinned = _level_power(finest)
     table = _curve(relations)
-    # the power unless a bend of its mid-tones fits clearly better (a camera's S-curve): the curve's
-    # freedom otherwise follows the level photos' texture (sharpening, JPEG) more than the camera
-    model = "curve" if _bend_gain(relations, power) > CURVE_GAIN else "power"
+    # the power unless a bend of its mid-tones fits the halves clearly better (a camera's S-curve):
+    # the curve's freedom otherwise follows the level photos' texture more than the camera
+    model = "curve" if _bend_gain(relations[:1], power) > CURVE_GAIN else "power"
     if model == "curve" and not np.all(np.diff(table[codes]) > 0):
         model = "power"
     if model == "power":
@@ -309,9 +344,14 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
             part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel])
-            fitted = _curve(part) if model == "curve" else srgb_decode_lut() ** _level_power(part)
+            fitted = _curve(part) if model == "curve" else srgb_decode_lut() ** _level_power(part[:1])
             strips.append(_log_slope(fitted, table, codes))
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
+    # what the relations leave open: the halves' power against the one the finest level pins too, a
+    # bent curve against the one the halves and the finest rows alone give (they differ by the
+    # coarser levels' texture bias and by what the power family cannot follow)
+    disagreement = abs(_log_slope(srgb_decode_lut() ** pinned if model == "power" else _curve(finest), table, codes))
+    spread = math.sqrt(spread ** 2 + disagreement ** 2)
     return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
                      int(picked.size), power if model == "power" else math.nan, tuple(strips), level_residuals,
                      levels=True, code_range=(black, white))
