@@ -99,6 +99,8 @@ FORMATS: dict[str, DocumentFormat] = _formats(
     DocumentFormat("lenticalib.crosstalk-patterns", 1, "crosstalk pattern manifest",
                    "write the crosstalk patterns again with this lenticalib and photograph them"),
     DocumentFormat("lenticalib.crosstalk", 1, "crosstalk file", "measure it with 'lenticalib crosstalk measure'"),
+    DocumentFormat("lenticalib.student-driver", 1, "student driver",
+                   "make one with 'lenticalib driver distill'"),
     DocumentFormat("lenticalib.avatar-diagnostics", 1, "avatar diagnostics",
                    "diagnose the avatar again with 'lenticalib avatar diagnose'"),
 )

@@ -23,11 +23,11 @@ from __future__ import annotations
 import os
 
 from ...core.atomic import write_bytes_atomic
+from ...core.documents import FORMATS, check_envelope
 from ...core.errors import InputError
 from ..rig import ControlLayout
 
-FORMAT = "lenticalib.student-driver"
-VERSION = 1
+DOCUMENT = FORMATS["lenticalib.student-driver"]
 
 
 class Student:
@@ -62,7 +62,7 @@ def save_student(path: str | os.PathLike, record: dict) -> None:
     import torch
 
     buf = io.BytesIO()
-    torch.save({"format": FORMAT, "format_version": VERSION, **record}, buf)
+    torch.save({**DOCUMENT.envelope(), **record}, buf)
     write_bytes_atomic(path, buf.getvalue())
 
 
@@ -80,12 +80,7 @@ def load_student(path: str | os.PathLike) -> Student:
     except Exception as exc:  # torch raises RuntimeError, UnpicklingError, zipfile errors on a bad file
         raise InputError(f"not a student file torch can read ({type(exc).__name__})", source=source,
                          hint="make one with 'lenticalib driver distill'") from None
-    if not isinstance(record, dict) or record.get("format") != FORMAT:
-        raise InputError(f"not a lenticalib student driver (format {record.get('format') if isinstance(record, dict) else None!r})",
-                         source=source, hint="make one with 'lenticalib driver distill'")
-    if record.get("format_version") != VERSION:
-        raise InputError(f"student format version {record.get('format_version')!r}, this lenticalib reads {VERSION}",
-                         source=source)
+    check_envelope(record, DOCUMENT, source)
     missing = [k for k in ("layout", "control_names", "crop", "input_size", "mean", "std", "active", "state_dict")
                if k not in record]
     if missing:
