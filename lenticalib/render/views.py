@@ -94,7 +94,8 @@ def load_quilt(path: str | os.PathLike, views: int, grid: QuiltGrid | None = Non
     return split_quilt(quilt, grid, source=src), grid
 
 
-def _natural_key(path: Path):
+def natural_key(path: Path):
+    """Sort key of file names with numbers in numeric order (``frame-2`` before ``frame-10``)."""
     return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", path.name)]
 
 
@@ -110,7 +111,7 @@ def load_view_folder(folder: str | os.PathLike, views: int) -> np.ndarray:
         raise ImageError("is a file, not a folder of views", source=str(root),
                          hint="give the folder of the view images; a quilt image goes in as `quilt`")
     files = sorted((f for f in root.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_SUFFIXES
-                    and not f.name.startswith(".")), key=_natural_key)
+                    and not f.name.startswith(".")), key=natural_key)
     if len(files) != views:
         raise ImageError(f"found {len(files)} images, the profile has {views} views", source=str(root),
                          hint="put exactly one image per view in the folder")

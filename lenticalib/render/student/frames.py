@@ -10,7 +10,6 @@ open or decode, a camera that does not deliver a frame, each one InputError nami
 from __future__ import annotations
 
 import os
-import re
 import time
 from pathlib import Path
 from typing import Iterator
@@ -19,13 +18,10 @@ import numpy as np
 
 from ...core.errors import InputError
 from ...core.imageio import IMAGE_SUFFIXES, read_image
+from ..views import natural_key
 
 FOLDER_FPS = 30.0  # a folder of images is taken as frames at this rate
 CAMERA_OPEN_S = 5.0  # a camera must deliver its first frame within this time
-
-
-def _natural_key(path: Path):
-    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", path.name)]
 
 
 class FrameSource:
@@ -68,7 +64,7 @@ def open_frames(spec: str | os.PathLike) -> FrameSource:
     source = str(p)
     if p.is_dir():
         files = sorted((f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES and not f.name.startswith(".")),
-                       key=_natural_key)
+                       key=natural_key)
         if not files:
             raise InputError("the folder holds no images", source=source,
                              hint=f"give a video or a folder of frames ({', '.join(sorted(IMAGE_SUFFIXES))})")
@@ -110,9 +106,9 @@ class CameraFrames:
 
         self.spec = spec
         self._cap = cv2.VideoCapture(spec)
-        self._video = isinstance(spec, str)
-        self._loop = loop and self._video
-        self._fps = self._cap.get(cv2.CAP_PROP_FPS) if self._video else 0.0
+        self.is_video = isinstance(spec, str)
+        self._loop = loop and self.is_video
+        self._fps = self._cap.get(cv2.CAP_PROP_FPS) if self.is_video else 0.0
         self._lock = threading.Lock()
         self._frame = None
         self._number = -1
@@ -120,15 +116,15 @@ class CameraFrames:
         self._stop = threading.Event()
         start = time.monotonic()
         ok, bgr = self._cap.read() if self._cap.isOpened() else (False, None)
-        while not ok and self._cap.isOpened() and time.monotonic() - start < CAMERA_OPEN_S and not self._video:
+        while not ok and self._cap.isOpened() and time.monotonic() - start < CAMERA_OPEN_S and not self.is_video:
             time.sleep(0.05)
             ok, bgr = self._cap.read()
         if not ok:
             self._cap.release()
-            what = "video" if self._video else "camera"
+            what = "video" if self.is_video else "camera"
             raise InputError(f"OpenCV cannot open this {what} or read a frame from it", source=str(spec),
                              hint="check the camera index (0, 1 ...) and that no other program holds it"
-                             if not self._video else "convert the video, or give another file")
+                             if not self.is_video else "convert the video, or give another file")
         self._set(bgr)
         self._thread = threading.Thread(target=self._grab, name="student-frames", daemon=True)
         self._thread.start()
@@ -144,7 +140,7 @@ class CameraFrames:
     def _grab(self) -> None:
         import cv2
 
-        period = 1.0 / self._fps if self._video and self._fps and self._fps > 0 else 0.0
+        period = 1.0 / self._fps if self.is_video and self._fps and self._fps > 0 else 0.0
         while not self._stop.is_set():
             ok, bgr = self._cap.read()
             if not ok:

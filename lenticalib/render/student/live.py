@@ -15,7 +15,6 @@ spec, the student file, its layout, the camera or the video is one InputError na
 
 from __future__ import annotations
 
-import time
 from urllib.parse import parse_qs
 
 import numpy as np
@@ -77,7 +76,7 @@ class StudentControls:
             self.repeated += 1
             if not self._stalled:
                 self._stalled = True
-                self._warnings.append(f"the {'camera' if not self.frames._video else 'video'} delivered no new frame: "
+                self._warnings.append(f"the {'video' if self.frames.is_video else 'camera'} delivered no new frame: "
                                       "repeating the last controls")
             return float(now), self._controls.copy()
         self._stalled = False
@@ -98,11 +97,3 @@ class StudentControls:
         ms = f", {np.median(self.ms):.1f} ms a prediction (median)" if self.ms else ""
         return (f"student: {self.predicted} frames predicted{ms}, {self.repeated} loop frames repeated the last "
                 f"controls (no new camera frame), {self.frames.failures} camera reads failed")
-
-
-def wait_for_first_frame(source: StudentControls, timeout_s: float = 2.0) -> None:
-    """Block until the source has predicted once (tests and benchmarks)."""
-    end = time.monotonic() + timeout_s
-    while source.predicted == 0 and time.monotonic() < end:
-        source.latest()
-        time.sleep(0.01)
