@@ -60,6 +60,32 @@ def test_driver_video_has_its_true_controls_and_a_head_box(video):
     assert 0 <= x and x + w <= 160 and 0 <= y and y + h <= 120 and w == h
 
 
+def test_one_room_for_training_and_test_videos(tmp_path):
+    """Two motions in one room share the background; another room has another one."""
+    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.sim.driver_video import make_driver_video
+
+    avatar = make_demo_avatar(seed=2, count=2000)
+    for name, seed, room in (("a", 1, 0), ("b", 2, 0), ("c", 1, 5)):
+        make_driver_video(tmp_path / name, frames=2, seed=seed, size=(96, 72), avatar=avatar, room=room)
+    first = {name: next(iter(open_frames(tmp_path / name)))[2].astype(float) for name in "abc"}
+    corner = (slice(0, 12), slice(0, 12))           # background only: the head is in the middle
+    assert np.abs(first["a"][corner] - first["b"][corner]).mean() < 8    # noise and shake only
+    assert np.abs(first["a"][corner] - first["c"][corner]).mean() > 15
+
+
+def test_a_time_budget_cuts_the_epochs(video, tmp_path):
+    root, record = video
+    options = DistillOptions(epochs=50, batch=16, input_size=64, patience=50, threads=2, minutes=1e-4)
+    seen = []
+    summary = distill_student(root / "train", root / "train" / "controls.csv", tmp_path / "s.pt",
+                              crop=",".join(map(str, record["head_box"])), options=options, on_epoch=seen.append)
+    assert summary["epochs"] == 1 and seen[0]["planned_epochs"] == 1
+    with pytest.raises(InputError, match="minutes"):
+        distill_student(root / "train", root / "train" / "controls.csv", tmp_path / "t.pt",
+                        options=DistillOptions(minutes=-1.0), crop="0,0,64,64")
+
+
 def test_crop_rule_and_network_input():
     assert parse_crop("10,20,64,64", (160, 120)) == {"kind": "box", "box": [10, 20, 64, 64]}
     for bad in ("10,20,200,64", "1,2,3", "10,20,8,8"):

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """Write the student driver's demo: training and test videos of the demo avatar with their true controls.
 
-    python tools/make_driver_demo.py DIR [--frames 1500] [--test-frames 300] [--seed 0] [--size 480x360]
+    python tools/make_driver_demo.py DIR [--frames 3600] [--test-frames 600] [--seed 0] [--room 0] [--size 480x360]
 
 DIR/train/ and DIR/test/ (frames, controls.csv, video.json: see
-:mod:`lenticalib.sim.driver_video`), two different motions (seeds), so the test frames are frames
-a student trained on DIR/train never saw, and DIR/test.avi, the test frames as a video (MJPEG)
+:mod:`lenticalib.sim.driver_video`), two different motions (seeds) in the same room (background),
+so the test frames are frames a student trained on DIR/train never saw, as a user's call is, and DIR/test.avi, the test frames as a video (MJPEG)
 for ``play --controls 'student:student.pt?video=DIR/test.avi'``.  Then:
 
     lenticalib driver distill --frames DIR/train --controls DIR/train/controls.csv --crop X,Y,W,H -o student.pt
@@ -31,9 +31,10 @@ def main() -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("directory")
-    ap.add_argument("--frames", type=int, default=1500)
-    ap.add_argument("--test-frames", type=int, default=300)
+    ap.add_argument("--frames", type=int, default=3600)
+    ap.add_argument("--test-frames", type=int, default=600)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--room", type=int, default=0, help="the background's seed, one for both videos")
     ap.add_argument("--size", default="480x360")
     args = ap.parse_args()
     size = parse_size(args.size, "--size")
@@ -42,7 +43,7 @@ def main() -> int:
     avatar = make_demo_avatar()
     for name, frames, seed in (("train", args.frames, args.seed), ("test", args.test_frames, args.seed + 1)):
         start = time.perf_counter()
-        record = make_driver_video(root / name, frames=frames, seed=seed, size=size, avatar=avatar)
+        record = make_driver_video(root / name, frames=frames, seed=seed, size=size, avatar=avatar, room=args.room)
         print(f"wrote {root / name}: {frames} frames in {time.perf_counter() - start:.0f} s, head box "
               + ",".join(str(v) for v in record["head_box"]))
     import cv2

@@ -1,7 +1,7 @@
 """``lenticalib driver distill|predict``: the student driver, trained per subject.
 
     distill --frames VIDEO|DIR --controls FILE -o student.pt [--layout RIG] [--crop auto|x,y,w,h]
-            [--epochs E] [--device cpu|cuda] [--backbone-weights FILE] [--input-size S]
+            [--epochs E] [--minutes M] [--device cpu|cuda] [--backbone-weights FILE] [--input-size S]
                                    train a student on the subject's frames and teacher controls
     predict student.pt --frames VIDEO|DIR -o controls.csv [--device cpu|cuda]
                                    the controls of every frame, as a file --controls reads
@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 
 FLAGS = {"frames": "--frames", "controls": "--controls", "output": "-o", "rig": "--layout", "crop": "--crop",
-         "epochs": "--epochs", "device": "--device", "backbone_weights": "--backbone-weights",
+         "epochs": "--epochs", "minutes": "--minutes", "device": "--device", "backbone_weights": "--backbone-weights",
          "input_size": "--input-size", "batch": "--batch", "patience": "--patience", "student": "STUDENT"}
 
 
@@ -35,6 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     d.add_argument("--crop", default=None, metavar="auto|x,y,w,h", help="the head's box in the frames (pixels), or "
                    "auto: follow the face (needs OpenCV's face cascades); default auto")
     d.add_argument("--epochs", type=int, default=30, metavar="E", help="at most E epochs (early stopping; default 30)")
+    d.add_argument("--minutes", type=float, metavar="M", help="a time budget: as many epochs (at most E) as fit in "
+                   "M minutes, reading the frames included")
     d.add_argument("--batch", type=int, default=32, help="batch size (default 32)")
     d.add_argument("--patience", type=int, default=6, help="epochs without improvement before stopping (default 6)")
     d.add_argument("--input-size", type=int, default=224, metavar="S", help="network input S x S (default 224)")
@@ -56,7 +58,7 @@ def run_distill(args: argparse.Namespace) -> int:
     from ._progress import staged_bars
 
     options = DistillOptions(epochs=args.epochs, batch=args.batch, input_size=args.input_size, patience=args.patience,
-                             device=args.device)
+                             device=args.device, minutes=args.minutes)
 
     def report(record: dict) -> None:
         parts = []
@@ -65,6 +67,8 @@ def run_distill(args: argparse.Namespace) -> int:
             parts.append(f"{group} {value} ({100 * e['share_of_range']:.1f} %)")
         print(f"epoch {record['epoch']:3d}  validation loss {record['validation_loss']:.4f}  " + ", ".join(parts)
               + f"  [{record['seconds']:.0f} s]", flush=True)
+        if "planned_epochs" in record:
+            print(f"the time budget holds {record['planned_epochs']} epochs", flush=True)
 
     with staged_bars() as stage:
         summary = distill_student(args.frames, args.controls, args.output, rig=args.layout, crop=args.crop,

@@ -5,14 +5,15 @@ front view under a known control sequence, with its true controls.
 +-YAW_DEG, pitch, roll), talking (the jaw, in phrases), blinks, the demo's expressions (smile,
 frown, brows, mouth wide, pucker) and small head translations.  :func:`make_driver_video`
 renders each frame with the ``cpu`` renderer from one camera in front of the avatar, over a
-textured background (smooth coloured noise, the same for the whole video), shakes the camera by
+textured background (smooth coloured noise drawn from ``room``: the same room for a subject's
+training and test videos, as a user records and calls from one place), shakes the camera by
 a pixel or two (what a tracker's crop jitter looks like), adds sensor noise and saves every frame
 as a JPEG, with the true controls as ``controls.csv`` (one row per frame) and ``video.json``
 (the seed, the size, the head's box in the frames: the crop a student should use).
 
     DIR/frame-00000.jpg ...   the frames, FPS frames a second
     DIR/controls.csv          t and the true control vector of every frame (columns GROUP.I)
-    DIR/video.json            {"seed", "frames", "fps", "size", "head_box": [x, y, w, h], ...}
+    DIR/video.json            {"seed", "room", "frames", "fps", "size", "head_box": [x, y, w, h], ...}
 """
 
 from __future__ import annotations
@@ -91,9 +92,10 @@ def _background(rng, width: int, height: int) -> np.ndarray:
 
 
 def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: int = 0, size: tuple[int, int] = (480, 360),
-                      avatar=None, step: Callable[..., None] | None = None) -> dict:
-    """Write the video (module docstring) into ``directory`` (staged: complete or not at all);
-    ``avatar`` a Rig (default: the demo avatar); returns the ``video.json`` record."""
+                      avatar=None, step: Callable[..., None] | None = None, room: int = 0) -> dict:
+    """Write the video (module docstring) into ``directory`` (staged: complete or not at all):
+    the motion, shake and noise from ``seed``, the background from ``room``; ``avatar`` a Rig
+    (default: the demo avatar); returns the ``video.json`` record."""
     import cv2
 
     from .render import encode_jpeg
@@ -102,9 +104,9 @@ def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: in
     W, H = size
     rng = np.random.default_rng(seed + 1000)
     controls = driver_motion(frames, seed)
+    background = _background(np.random.default_rng([room, 7]), W, H)
     box_min, box_max = rig.canonical.to_numpy().bounding_box()
     cams = make_cameras("arc", (box_min, box_max), 1, view_size=(W, H), fov_deg=FOV_DEG, yaw_range_deg=1.0)
-    background = _background(rng, W, H)
     # the head's box in the frames: the front view's footprint of the head, squared and grown
     head = rig.canonical.to_numpy()
     p = cams.viewmats[0, :3, :3] @ head.means.T.astype(np.float64) + cams.viewmats[0, :3, 3:4]
@@ -116,7 +118,7 @@ def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: in
     side = min(side, W, H)
     box = [int(round(min(max(cx - side / 2, 0), W - side))), int(round(min(max(cy - side / 2, 0), H - side))),
            int(round(side)), int(round(side))]
-    record = {"seed": int(seed), "frames": int(frames), "fps": FPS, "size": [W, H], "head_box": box,
+    record = {"seed": int(seed), "room": int(room), "frames": int(frames), "fps": FPS, "size": [W, H], "head_box": box,
               "camera": {"fov_deg": FOV_DEG, "radius": float(cams.params["r"])},
               "made_by": "lenticalib.sim.driver_video.make_driver_video"}
     with staged_folder(directory, "driver video", CONTENTS) as stage:

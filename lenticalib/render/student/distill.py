@@ -8,8 +8,9 @@ weights.  Then:
    frame k at k / fps seconds (a folder: 30 fps), the controls interpolated there; frames past
    the controls' last time (by more than one frame) are refused in one line.
 2. **Crops.**  Every frame's crop (:mod:`.crop`) grown by :data:`JITTER` on each side, resized to
-   ``input_size * (1 + 2 JITTER)`` and kept as uint8; training cuts a random ``input_size``
-   square out of it (the tracker's jitter), validation the centred one.
+   ``input_size * (1 + 2 JITTER)`` and kept as uint8; training cuts a random square of
+   ``input_size`` (1 - JITTER) to ``input_size`` (1 + 2 JITTER) out of it (the tracker's jitter
+   in place and size), validation the centred ``input_size`` one.
 3. **Split.**  Blocks of :data:`BLOCK` consecutive frames (fewer in a short video);
    every :data:`VALIDATION_EVERY`-th block is held out for validation (neighbouring frames are nearly equal: a random split would
    validate on frames the network has seen).
@@ -17,8 +18,10 @@ weights.  Then:
    frames; a component that does not vary (std < :data:`MIN_STD`) is not learnt: it is its mean.
 5. **Loss.**  Smooth L1 on the normalised controls, each group of the layout weighted equally
    (its weight shared by its varying components), as the paper's group-weighted loss.
-6. **Training.**  AdamW, a one-cycle learning rate, batches of ``batch``, brightness and
-   contrast jitter; after each epoch the per-group error on the held-out frames (control units,
+6. **Training.**  AdamW, a learning rate warming up linearly over the first epoch (at most
+   15 % of the run) from 1/25 of its peak, then falling as a half cosine to 1/100 at the last
+   step; with a time budget the last step is set after the first epoch, from its duration; batches of ``batch``, white balance,
+   brightness and contrast jitter; after each epoch the per-group error on the held-out frames (control units,
    and as a share of each component's range, mean over the group's varying components) is
    reported; training stops after ``patience`` epochs without a better validation loss, keeping
    the best epoch's weights.
@@ -54,7 +57,8 @@ ANGLE_GROUPS = ("head", "neck", "jaw", "eyes")  # axis-angle radians: errors als
 class DistillOptions:
     """``epochs`` (at most), ``batch``, ``input_size`` (S), ``learning_rate`` (peak), ``patience``
     (epochs without improvement before stopping), ``device`` (torch), ``seed``, ``threads``
-    (torch's CPU threads; None: all cores)."""
+    (torch's CPU threads; None: all cores), ``minutes`` (a time budget for the whole run, reading
+    the frames included: after the first epoch, the epochs are cut to what fits; None: none)."""
 
     epochs: int = 30
     batch: int = 32
@@ -64,6 +68,7 @@ class DistillOptions:
     device: str = "cpu"
     seed: int = 0
     threads: int | None = None
+    minutes: float | None = None
 
 
 def match_controls(track, count: int, fps: float, source: str) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +139,12 @@ def _read_crops(frames, rule: dict, size: int, step: Callable) -> np.ndarray:
 
 
 def _batches(crops, targets, index, size, batch, rng, train: bool):
-    """Yield (x float32 (B, 3, S, S) normalised, y (B, D)) for the frames ``index``."""
+    """Yield (x float32 (B, 3, S, S) normalised, y (B, D)) for the frames ``index``.
+
+    Training draws, per batch, a square of side S (1 - JITTER) to S (1 + 2 JITTER) (the tracker's
+    box a little smaller or larger) resampled to S, and per frame its place in the stored crop,
+    white balance (+-4 % per channel), brightness (+-0.08) and contrast (0.85-1.15); validation
+    takes the centred S square as it is."""
     import torch
 
     P = crops.shape[1]
@@ -144,14 +154,21 @@ def _batches(crops, targets, index, size, batch, rng, train: bool):
     for k in range(0, len(order), batch):
         pick = order[k:k + batch]
         if train:
-            ox, oy = rng.integers(0, P - size + 1, 2)
+            side = int(rng.integers(int(round(size * (1 - JITTER))), P + 1))
+            offsets = rng.integers(0, P - side + 1, (len(pick), 2))
+            x = torch.from_numpy(np.stack([crops[i, oy:oy + side, ox:ox + side] for i, (ox, oy) in zip(pick, offsets)]))
+            x = x.permute(0, 3, 1, 2).float() / 255.0
+            if side != size:
+                x = torch.nn.functional.interpolate(x, size=(size, size), mode="bilinear", align_corners=False,
+                                                    antialias=side > size)
+            n = len(pick)
+            gain = torch.from_numpy(rng.uniform(0.96, 1.04, (n, 3, 1, 1)).astype(np.float32))
+            b = torch.from_numpy(rng.uniform(-0.08, 0.08, (n, 1, 1, 1)).astype(np.float32))
+            c = torch.from_numpy(rng.uniform(0.85, 1.15, (n, 1, 1, 1)).astype(np.float32))
+            x = ((x * gain - 0.5) * c + 0.5 + b).clamp(0, 1)
         else:
-            ox = oy = (P - size) // 2
-        x = torch.from_numpy(crops[pick, oy:oy + size, ox:ox + size]).permute(0, 3, 1, 2).float() / 255.0
-        if train:  # brightness and contrast, per image
-            b = torch.from_numpy(rng.uniform(-0.08, 0.08, (len(pick), 1, 1, 1)).astype(np.float32))
-            c = torch.from_numpy(rng.uniform(0.85, 1.15, (len(pick), 1, 1, 1)).astype(np.float32))
-            x = ((x - 0.5) * c + 0.5 + b).clamp(0, 1)
+            o = (P - size) // 2
+            x = torch.from_numpy(crops[pick, o:o + size, o:o + size]).permute(0, 3, 1, 2).float() / 255.0
         yield (x - mean) / std, torch.from_numpy(targets[pick])
 
 
@@ -175,6 +192,9 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
                             ("patience", o.patience, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < lo:
             raise InputError(f"{name} {value!r} is out of range", source=name, hint=f"use a whole number >= {lo}")
+    if o.minutes is not None and not (isinstance(o.minutes, (int, float)) and 0 < o.minutes <= 10080):
+        raise InputError(f"minutes {o.minutes!r} is out of range", source="minutes",
+                         hint="give a time budget in minutes, more than 0")
     output = check_output_file(output, "student driver", example="student.pt")
     if rig is not None:
         from ..rig_file import load_rig
@@ -218,11 +238,22 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
     w = torch.from_numpy(weights).to(device)
     steps_per_epoch = math.ceil(len(train_idx) / o.batch)
     opt = torch.optim.AdamW(net.parameters(), lr=o.learning_rate, weight_decay=1e-4)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=o.learning_rate, total_steps=o.epochs * steps_per_epoch,
-                                                pct_start=0.15)
+    plan = {"epochs": o.epochs}
+    warm = max(1, min(steps_per_epoch, int(0.15 * o.epochs * steps_per_epoch)))
+
+    def rate(step: int) -> float:  # factor on the peak rate (docstring, step 6)
+        if step < warm:
+            return 0.04 + 0.96 * step / warm
+        total = max(plan["epochs"] * steps_per_epoch - warm, 1)
+        return 0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(1.0, (step - warm) / total)))
+
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, rate)
     best, best_loss, best_epoch, history = None, math.inf, 0, []
-    bar = steps("training", o.epochs * steps_per_epoch)
-    for epoch in range(1, o.epochs + 1):
+    bar = steps("training (first epoch)" if o.minutes else "training", (1 if o.minutes else o.epochs) * steps_per_epoch)
+    epoch = 0
+    while epoch < plan["epochs"]:
+        epoch += 1
+        epoch_start = time.perf_counter()
         net.train()
         for x, y in _batches(crops, normed, train_idx, o.input_size, o.batch, rng, train=True):
             x, y = x.to(device), y.to(device)
@@ -245,6 +276,11 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
         errors = group_errors(pred, targets[val_idx], layout, active, ranges)
         record = {"epoch": epoch, "validation_loss": val_loss, "groups": errors,
                   "seconds": time.perf_counter() - start}
+        if o.minutes and epoch == 1:  # the budget: as many epochs as fit in what is left
+            left = 60.0 * o.minutes - (time.perf_counter() - start)
+            plan["epochs"] = max(1, min(o.epochs, 1 + int(left // (time.perf_counter() - epoch_start))))
+            bar = steps("training", (plan["epochs"] - 1) * steps_per_epoch)
+            record["planned_epochs"] = plan["epochs"]
         history.append(record)
         if on_epoch is not None:
             on_epoch(record)
