@@ -45,18 +45,18 @@ def video(tmp_path_factory):
 def student(video):
     root, record = video
     summary = distill_student(root / "train", root / "train" / "controls.csv", root / "student.pt",
-                              crop=",".join(map(str, record["head_box"])), options=FAST)
+                              crop=",".join(map(str, record["face_box"])), options=FAST)
     return root / "student.pt", summary
 
 
-def test_driver_video_has_its_true_controls_and_a_head_box(video):
+def test_driver_video_has_its_true_controls_and_a_face_box(video):
     root, record = video
     track = load_controls(root / "train" / "controls.csv")
     assert len(track) == 96 and len(open_frames(root / "train")) == 96
     head = track.controls[:, DEFAULT_LAYOUT.slice("head")]
     assert np.abs(np.degrees(head[:, 1])).max() > 5          # the head turns
     assert track.controls[:, DEFAULT_LAYOUT.slice("jaw").start].max() > 0.02   # it talks
-    x, y, w, h = record["head_box"]
+    x, y, w, h = record["face_box"]
     assert 0 <= x and x + w <= 160 and 0 <= y and y + h <= 120 and w == h
 
 
@@ -79,7 +79,7 @@ def test_a_time_budget_cuts_the_epochs(video, tmp_path):
     options = DistillOptions(epochs=50, batch=16, input_size=64, patience=50, threads=2, minutes=1e-4)
     seen = []
     summary = distill_student(root / "train", root / "train" / "controls.csv", tmp_path / "s.pt",
-                              crop=",".join(map(str, record["head_box"])), options=options, on_epoch=seen.append)
+                              crop=",".join(map(str, record["face_box"])), options=options, on_epoch=seen.append)
     assert summary["epochs"] == 1 and seen[0]["planned_epochs"] == 1
     with pytest.raises(InputError, match="minutes"):
         distill_student(root / "train", root / "train" / "controls.csv", tmp_path / "t.pt",
@@ -140,7 +140,7 @@ def test_distil_and_predict_on_the_demo_video(video, student, tmp_path):
 
 def test_bad_input_is_one_line_before_training(video, tmp_path):
     root, record = video
-    crop = ",".join(map(str, record["head_box"]))
+    crop = ",".join(map(str, record["face_box"]))
     (tmp_path / "empty").mkdir()
     (tmp_path / "broken.mp4").write_text("not a video")
     cases = [

@@ -75,7 +75,7 @@ def main() -> int:
             start = time.perf_counter()
             make_driver_video(root / name, frames=frames, seed=seed, avatar=avatar)
             print(f"made {root / name}: {frames} frames, {time.perf_counter() - start:.0f} s", flush=True)
-    box = json.loads((root / "train" / "video.json").read_text())["head_box"]
+    box = json.loads((root / "train" / "video.json").read_text())["face_box"]
     options = DistillOptions(epochs=args.epochs, input_size=args.input_size, threads=args.threads,
                              minutes=args.minutes or None)
 

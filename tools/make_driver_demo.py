@@ -11,7 +11,7 @@ for ``play --controls 'student:student.pt?video=DIR/test.avi'``.  Then:
     lenticalib driver distill --frames DIR/train --controls DIR/train/controls.csv --crop X,Y,W,H -o student.pt
     lenticalib driver predict student.pt --frames DIR/test -o predicted.csv
 
-with X,Y,W,H the ``head_box`` this script prints.
+with X,Y,W,H the ``face_box`` this script prints.
 """
 
 from __future__ import annotations
@@ -44,8 +44,8 @@ def main() -> int:
     for name, frames, seed in (("train", args.frames, args.seed), ("test", args.test_frames, args.seed + 1)):
         start = time.perf_counter()
         record = make_driver_video(root / name, frames=frames, seed=seed, size=size, avatar=avatar, room=args.room)
-        print(f"wrote {root / name}: {frames} frames in {time.perf_counter() - start:.0f} s, head box "
-              + ",".join(str(v) for v in record["head_box"]))
+        print(f"wrote {root / name}: {frames} frames in {time.perf_counter() - start:.0f} s, face box "
+              + ",".join(str(v) for v in record["face_box"]))
     import cv2
 
     writer = cv2.VideoWriter(str(root / "test.avi"), cv2.VideoWriter_fourcc(*"MJPG"), record["fps"], size)

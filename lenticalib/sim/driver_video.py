@@ -9,11 +9,12 @@ textured background (smooth coloured noise drawn from ``room``: the same room fo
 training and test videos, as a user records and calls from one place), shakes the camera by
 a pixel or two (what a tracker's crop jitter looks like), adds sensor noise and saves every frame
 as a JPEG, with the true controls as ``controls.csv`` (one row per frame) and ``video.json``
-(the seed, the size, the head's box in the frames: the crop a student should use).
+(the seed, the size, the face's box in the frames (:func:`face_box`): the crop a student should
+use).
 
     DIR/frame-00000.jpg ...   the frames, FPS frames a second
     DIR/controls.csv          t and the true control vector of every frame (columns GROUP.I)
-    DIR/video.json            {"seed", "room", "frames", "fps", "size", "head_box": [x, y, w, h], ...}
+    DIR/video.json            {"seed", "room", "frames", "fps", "size", "face_box": [x, y, w, h], ...}
 """
 
 from __future__ import annotations
@@ -38,9 +39,13 @@ FPS = 30.0
 YAW_DEG, PITCH_DEG, ROLL_DEG = 25.0, 12.0, 8.0
 EXPRESSIONS = (0, 1, 2, 4, 5)  # smile, frown, brows_up, mouth_wide, pucker
 JAW_MAX = 0.22
+EXPRESSION_PERIOD = 30  # frames between independent expression values (1 s: a talking face)
 SHAKE_PX = 2.0
 NOISE = 0.02
 FOV_DEG = 22.0  # the camera's vertical field of view: the head about half the frame's height
+FACE_Y = (-0.105, 0.09)   # the demo avatar's chin and hairline heights (m, canonical frame)
+FACE_Z = 0.03             # its front half
+FACE_MARGIN = 0.08
 CONTENTS = ("frame-[0-9]*.jpg", "controls.csv", "video.json")
 
 
@@ -67,7 +72,7 @@ def driver_motion(frames: int, seed: int) -> np.ndarray:
     syllable = 0.5 - 0.5 * np.cos(2 * math.pi * np.cumsum(rng.uniform(3, 5, frames)) / FPS)
     c[:, L.slice("jaw").start] = JAW_MAX * talk * syllable
     for e in EXPRESSIONS:
-        c[:, L.slice("expression").start + e] = np.clip(_smooth_noise(rng, frames, 70), 0, 1)
+        c[:, L.slice("expression").start + e] = np.clip(_smooth_noise(rng, frames, EXPRESSION_PERIOD), 0, 1)
     t = np.arange(frames) / FPS
     blink = np.zeros(frames)
     for at in np.cumsum(rng.uniform(2.0, 5.0, int(frames / FPS / 2) + 2)):
@@ -91,6 +96,32 @@ def _background(rng, width: int, height: int) -> np.ndarray:
     return 0.15 + 0.7 * out
 
 
+def face_box(rig, cams, width: int, height: int) -> list[int]:
+    """[x, y, w, h] int, frame pixels: the square that holds the face (FACE_Y, FACE_Z of the rig's
+    canonical frame, metres: chin to hairline, the front half) under every extreme head pose of
+    :func:`driver_motion` (yaw, pitch and roll at their limits, alone and together), grown by
+    FACE_MARGIN; the same for every motion, so a training and a test video share it."""
+    head = DEFAULT_LAYOUT.slice("head").start
+    means = rig.canonical.to_numpy().means
+    face = (means[:, 1] > FACE_Y[0]) & (means[:, 1] < FACE_Y[1]) & (means[:, 2] > FACE_Z)
+    lo, hi = np.array([np.inf, np.inf]), np.array([-np.inf, -np.inf])
+    for pitch in (-1, 0, 1):
+        for yaw in (-1, 0, 1):
+            for roll in (-1, 0, 1):
+                c = np.zeros(DEFAULT_LAYOUT.dim, np.float32)
+                c[head:head + 3] = np.radians([pitch * PITCH_DEG, yaw * YAW_DEG, roll * ROLL_DEG])
+                m = rig.deform(c).to_numpy().means[face].astype(np.float64)
+                p = cams.viewmats[0, :3, :3] @ m.T + cams.viewmats[0, :3, 3:4]
+                uv = np.stack([cams.K[0, 0, 0] * p[0] / p[2] + cams.K[0, 0, 2],
+                               cams.K[0, 1, 1] * p[1] / p[2] + cams.K[0, 1, 2]], 1)
+                lo, hi = np.minimum(lo, uv.min(0)), np.maximum(hi, uv.max(0))
+    centre = (lo + hi) / 2
+    side = min((1 + FACE_MARGIN) * float((hi - lo).max()), width, height)
+    x = min(max(centre[0] - side / 2, 0), width - side)
+    y = min(max(centre[1] - side / 2, 0), height - side)
+    return [int(round(x)), int(round(y)), int(round(side)), int(round(side))]
+
+
 def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: int = 0, size: tuple[int, int] = (480, 360),
                       avatar=None, step: Callable[..., None] | None = None, room: int = 0) -> dict:
     """Write the video (module docstring) into ``directory`` (staged: complete or not at all):
@@ -107,18 +138,8 @@ def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: in
     background = _background(np.random.default_rng([room, 7]), W, H)
     box_min, box_max = rig.canonical.to_numpy().bounding_box()
     cams = make_cameras("arc", (box_min, box_max), 1, view_size=(W, H), fov_deg=FOV_DEG, yaw_range_deg=1.0)
-    # the head's box in the frames: the front view's footprint of the head, squared and grown
-    head = rig.canonical.to_numpy()
-    p = cams.viewmats[0, :3, :3] @ head.means.T.astype(np.float64) + cams.viewmats[0, :3, 3:4]
-    u = cams.K[0, 0, 0] * p[0] / p[2] + cams.K[0, 0, 2]
-    v = cams.K[0, 1, 1] * p[1] / p[2] + cams.K[0, 1, 2]
-    keep = head.means[:, 1] > -0.12  # above the neck
-    cx, cy = float(np.median(u[keep])), float(np.median(v[keep]))
-    side = 1.15 * float(max(np.ptp(u[keep]), np.ptp(v[keep])))
-    side = min(side, W, H)
-    box = [int(round(min(max(cx - side / 2, 0), W - side))), int(round(min(max(cy - side / 2, 0), H - side))),
-           int(round(side)), int(round(side))]
-    record = {"seed": int(seed), "room": int(room), "frames": int(frames), "fps": FPS, "size": [W, H], "head_box": box,
+    box = face_box(rig, cams, W, H)
+    record = {"seed": int(seed), "room": int(room), "frames": int(frames), "fps": FPS, "size": [W, H], "face_box": box,
               "camera": {"fov_deg": FOV_DEG, "radius": float(cams.params["r"])},
               "made_by": "lenticalib.sim.driver_video.make_driver_video"}
     with staged_folder(directory, "driver video", CONTENTS) as stage:

@@ -20,11 +20,11 @@ weights.  Then:
    (its weight shared by its varying components), as the paper's group-weighted loss.
 6. **Training.**  AdamW, a learning rate warming up linearly over the first epoch (at most
    15 % of the run) from 1/25 of its peak, then falling as a half cosine to 1/100 at the last
-   step; with a time budget the last step is set after the first epoch, from its duration; batches of ``batch``, white balance,
-   brightness and contrast jitter; after each epoch the per-group error on the held-out frames (control units,
-   and as a share of each component's range, mean over the group's varying components) is
-   reported; training stops after ``patience`` epochs without a better validation loss, keeping
-   the best epoch's weights.
+   step (with a time budget, the last step is set again after every epoch from the slowest
+   epoch), batches of ``batch``, white balance, brightness and contrast jitter; after each epoch
+   the per-group error on the held-out frames (control units, and as a share of each component's
+   range, mean over the group's varying components) is reported; training stops after
+   ``patience`` epochs without a better validation loss, keeping the best epoch's weights.
 """
 
 from __future__ import annotations
@@ -58,7 +58,8 @@ class DistillOptions:
     """``epochs`` (at most), ``batch``, ``input_size`` (S), ``learning_rate`` (peak), ``patience``
     (epochs without improvement before stopping), ``device`` (torch), ``seed``, ``threads``
     (torch's CPU threads; None: all cores), ``minutes`` (a time budget for the whole run, reading
-    the frames included: after the first epoch, the epochs are cut to what fits; None: none)."""
+    the frames included: after every epoch, the epochs are cut to what fits at the pace of the
+    slowest epoch so far; None: none)."""
 
     epochs: int = 30
     batch: int = 32
@@ -250,7 +251,7 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
     sched = torch.optim.lr_scheduler.LambdaLR(opt, rate)
     best, best_loss, best_epoch, history = None, math.inf, 0, []
     bar = steps("training (first epoch)" if o.minutes else "training", (1 if o.minutes else o.epochs) * steps_per_epoch)
-    epoch = 0
+    epoch, slowest = 0, 0.0
     while epoch < plan["epochs"]:
         epoch += 1
         epoch_start = time.perf_counter()
@@ -276,11 +277,14 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
         errors = group_errors(pred, targets[val_idx], layout, active, ranges)
         record = {"epoch": epoch, "validation_loss": val_loss, "groups": errors,
                   "seconds": time.perf_counter() - start}
-        if o.minutes and epoch == 1:  # the budget: as many epochs as fit in what is left
+        slowest = max(slowest, time.perf_counter() - epoch_start)
+        if o.minutes:  # the budget: as many epochs as the slowest one so far says fit in what is left
             left = 60.0 * o.minutes - (time.perf_counter() - start)
-            plan["epochs"] = max(1, min(o.epochs, 1 + int(left // (time.perf_counter() - epoch_start))))
-            bar = steps("training", (plan["epochs"] - 1) * steps_per_epoch)
-            record["planned_epochs"] = plan["epochs"]
+            planned = max(epoch, min(plan["epochs"], epoch + int(left // slowest)))
+            if epoch == 1 or planned != plan["epochs"]:
+                plan["epochs"] = record["planned_epochs"] = planned
+            if epoch == 1:
+                bar = steps("training", (planned - 1) * steps_per_epoch)
         history.append(record)
         if on_epoch is not None:
             on_epoch(record)
