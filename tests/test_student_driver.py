@@ -86,6 +86,21 @@ def test_a_time_budget_cuts_the_epochs(video, tmp_path):
                         options=DistillOptions(minutes=-1.0), crop="0,0,64,64")
 
 
+def test_batch_norm_statistics_are_measured_again():
+    """After the refresh, a batch norm's running mean is the mean of what it saw (not a lagging
+    average) and its momentum is back."""
+    from lenticalib.render.student.distill import _refresh_batch_norm
+
+    net = torch.nn.Sequential(torch.nn.Conv2d(3, 4, 1, bias=False), torch.nn.BatchNorm2d(4, momentum=0.1))
+    net[1].running_mean.fill_(7.0)
+    gen = torch.Generator().manual_seed(0)
+    batches = [(torch.randn(8, 3, 5, 5, generator=gen) + 2.0, None) for _ in range(4)]
+    _refresh_batch_norm(net, batches, "cpu")
+    with torch.no_grad():
+        seen = torch.cat([net[0](x) for x, _ in batches]).mean(dim=(0, 2, 3))
+    assert torch.allclose(net[1].running_mean, seen, atol=1e-5) and net[1].momentum == 0.1
+
+
 def test_crop_rule_and_network_input():
     assert parse_crop("10,20,64,64", (160, 120)) == {"kind": "box", "box": [10, 20, 64, 64]}
     for bad in ("10,20,200,64", "1,2,3", "10,20,8,8"):

@@ -81,7 +81,7 @@ def main() -> int:
 
     def report(r):
         head = r["groups"].get("head", {})
-        print(f"  epoch {r['epoch']:3d}  loss {r['validation_loss']:.4f}  head {head.get('mae_deg', 0):.2f} deg  "
+        print(f"  epoch {r['epoch']:3d}  loss {r['training_loss']:.4f} / {r['validation_loss']:.4f}  head {head.get('mae_deg', 0):.2f} deg  "
               f"jaw {100 * r['groups'].get('jaw', {}).get('share_of_range', 0):.1f} %  "
               f"expression {100 * r['groups'].get('expression', {}).get('share_of_range', 0):.1f} %  "
               f"[{r['seconds']:.0f} s]" + (f"  (budget: {r['planned_epochs']} epochs)" if "planned_epochs" in r else ""),

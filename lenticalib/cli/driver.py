@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     d.add_argument("-o", "--output", required=True, metavar="FILE", help="the student to write (student.pt)")
     d.add_argument("--layout", metavar="RIG", help="the avatar's rig .npz, for its control layout (default: the "
                    "70-value default layout)")
-    d.add_argument("--crop", default=None, metavar="auto|x,y,w,h", help="the head's box in the frames (pixels), or "
+    d.add_argument("--crop", default=None, metavar="auto|x,y,w,h", help="the face's box in the frames (pixels), or "
                    "auto: follow the face (needs OpenCV's face cascades); default auto")
     d.add_argument("--epochs", type=int, default=30, metavar="E", help="at most E epochs (early stopping; default 30)")
     d.add_argument("--minutes", type=float, metavar="M", help="a time budget: as many epochs (at most E) as fit in "
@@ -65,7 +65,8 @@ def run_distill(args: argparse.Namespace) -> int:
         for group, e in record["groups"].items():
             value = f"{e['mae_deg']:.2f} deg" if "mae_deg" in e else f"{e['mae']:.4f}"
             parts.append(f"{group} {value} ({100 * e['share_of_range']:.1f} %)")
-        print(f"epoch {record['epoch']:3d}  validation loss {record['validation_loss']:.4f}  " + ", ".join(parts)
+        print(f"epoch {record['epoch']:3d}  loss {record['training_loss']:.4f} / {record['validation_loss']:.4f} "
+              "(training / validation)  " + ", ".join(parts)
               + f"  [{record['seconds']:.0f} s]", flush=True)
         if "planned_epochs" in record:
             print(f"the time budget holds {record['planned_epochs']} epochs", flush=True)

@@ -44,7 +44,7 @@ def parse_crop(text: str | None, frame_size: tuple[int, int]) -> dict:
     m = re.fullmatch(r"\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*", str(text))
     if not m:
         raise InputError(f"crop {text!r} is not 'auto' or x,y,w,h", source="crop",
-                         hint="give the head's box in frame pixels, e.g. 640,200,640,640")
+                         hint="give the face's box in frame pixels, e.g. 640,200,640,640")
     x, y, w, h = (int(v) for v in m.groups())
     W, H = frame_size
     if w < 16 or h < 16 or x + w > W or y + h > H:
@@ -60,7 +60,7 @@ def cascade_path() -> str:
     path = os.path.join(folder, CASCADE_FILE) if folder else None
     if not path or not os.path.isfile(path):
         raise InputError("this OpenCV build ships no face detector (its Haar cascades are missing)", source="crop",
-                         hint="give the head's box as x,y,w,h in frame pixels")
+                         hint="give the face's box as x,y,w,h in frame pixels")
     return path
 
 

@@ -20,11 +20,14 @@ weights.  Then:
    (its weight shared by its varying components), as the paper's group-weighted loss.
 6. **Training.**  AdamW, a learning rate warming up linearly over the first epoch (at most
    15 % of the run) from 1/25 of its peak, then falling as a half cosine to 1/100 at the last
-   step (with a time budget, the last step is set again after every epoch from the slowest
-   epoch), batches of ``batch``, white balance, brightness and contrast jitter; after each epoch
-   the per-group error on the held-out frames (control units, and as a share of each component's
-   range, mean over the group's varying components) is reported; training stops after
-   ``patience`` epochs without a better validation loss, keeping the best epoch's weights.
+   step (with a time budget, the last step is set again after every epoch, at the pace of the
+   slowest of the last :data:`PACE_EPOCHS` epochs), batches of ``batch``, white balance,
+   brightness and contrast jitter.  After each epoch the batch norms' statistics are measured
+   again on :data:`BN_FRAMES` un-augmented training crops (their running averages lag the
+   weights early in training, and a network evaluated with them predicts about the mean), then
+   the per-group error on the held-out frames (control units, and as a share of each
+   component's range, mean over the group's varying components) is reported; training stops
+   after ``patience`` epochs without a better validation loss, keeping the best epoch's weights.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ BLOCK = 32
 VALIDATION_EVERY = 7
 MIN_STD = 1e-6
 MIN_FRAMES = 64
+BN_FRAMES = 512  # training frames over which the batch norms' statistics are taken after every epoch
+PACE_EPOCHS = 3  # a time budget plans with the slowest of the last PACE_EPOCHS epochs
 ANGLE_GROUPS = ("head", "neck", "jaw", "eyes")  # axis-angle radians: errors also in degrees
 
 
@@ -58,8 +63,8 @@ class DistillOptions:
     """``epochs`` (at most), ``batch``, ``input_size`` (S), ``learning_rate`` (peak), ``patience``
     (epochs without improvement before stopping), ``device`` (torch), ``seed``, ``threads``
     (torch's CPU threads; None: all cores), ``minutes`` (a time budget for the whole run, reading
-    the frames included: after every epoch, the epochs are cut to what fits at the pace of the
-    slowest epoch so far; None: none)."""
+    the frames included: after every epoch, the epochs are set to what fits at the pace of the
+    slowest of the last PACE_EPOCHS epochs, at most ``epochs``; None: none)."""
 
     epochs: int = 30
     batch: int = 32
@@ -173,6 +178,24 @@ def _batches(crops, targets, index, size, batch, rng, train: bool):
         yield (x - mean) / std, torch.from_numpy(targets[pick])
 
 
+def _refresh_batch_norm(net, batches, device) -> None:
+    """Every BatchNorm's running mean and variance estimated again as the plain average over
+    ``batches`` (un-augmented training crops), as evaluation sees them; their momentum kept."""
+    import torch
+
+    norms = [m for m in net.modules() if isinstance(m, torch.nn.modules.batchnorm._BatchNorm)]
+    momenta = [m.momentum for m in norms]
+    for m in norms:
+        m.reset_running_stats()
+        m.momentum = None  # a cumulative average
+    net.train()
+    with torch.no_grad():
+        for x, _ in batches:
+            net(x.to(device))
+    for m, momentum in zip(norms, momenta):
+        m.momentum = momentum
+
+
 def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, output: str | os.PathLike, *,
                     rig: str | os.PathLike | None = None, crop: str | None = None,
                     backbone_weights: str | os.PathLike | None = None, options: DistillOptions | None = None,
@@ -251,11 +274,12 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
     sched = torch.optim.lr_scheduler.LambdaLR(opt, rate)
     best, best_loss, best_epoch, history = None, math.inf, 0, []
     bar = steps("training (first epoch)" if o.minutes else "training", (1 if o.minutes else o.epochs) * steps_per_epoch)
-    epoch, slowest = 0, 0.0
+    epoch, durations = 0, []
     while epoch < plan["epochs"]:
         epoch += 1
         epoch_start = time.perf_counter()
         net.train()
+        train_loss = 0.0
         for x, y in _batches(crops, normed, train_idx, o.input_size, o.batch, rng, train=True):
             x, y = x.to(device), y.to(device)
             loss = (torch.nn.functional.smooth_l1_loss(net(x), y, reduction="none", beta=0.5) * w).sum(1).mean()
@@ -263,7 +287,11 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
             loss.backward()
             opt.step()
             sched.step()
+            train_loss += float(loss.detach()) * len(x)
             bar()
+        _refresh_batch_norm(net, _batches(crops, normed, rng.choice(train_idx, min(len(train_idx), BN_FRAMES),
+                                                                    replace=False), o.input_size, o.batch, rng,
+                                          train=False), device)
         net.eval()
         preds, losses = [], []
         with torch.inference_mode():
@@ -275,12 +303,12 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
         val_loss = sum(losses) / len(val_idx)
         pred = mean + std * np.concatenate(preds) * active
         errors = group_errors(pred, targets[val_idx], layout, active, ranges)
-        record = {"epoch": epoch, "validation_loss": val_loss, "groups": errors,
-                  "seconds": time.perf_counter() - start}
-        slowest = max(slowest, time.perf_counter() - epoch_start)
-        if o.minutes:  # the budget: as many epochs as the slowest one so far says fit in what is left
+        record = {"epoch": epoch, "training_loss": train_loss / len(train_idx), "validation_loss": val_loss,
+                  "groups": errors, "seconds": time.perf_counter() - start}
+        durations.append(time.perf_counter() - epoch_start)
+        if o.minutes:  # the budget: as many epochs as fit in what is left at the recent epochs' pace
             left = 60.0 * o.minutes - (time.perf_counter() - start)
-            planned = max(epoch, min(plan["epochs"], epoch + int(left // slowest)))
+            planned = max(epoch, min(o.epochs, epoch + int(left // max(durations[-PACE_EPOCHS:]))))
             if epoch == 1 or planned != plan["epochs"]:
                 plan["epochs"] = record["planned_epochs"] = planned
             if epoch == 1:
