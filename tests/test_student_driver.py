@@ -60,6 +60,22 @@ def test_driver_video_has_its_true_controls_and_a_face_box(video):
     assert 0 <= x and x + w <= 160 and 0 <= y and y + h <= 120 and w == h
 
 
+def test_the_demo_face_holds_one_mouth_expression_at_a_time():
+    """Smile, frown, mouth wide and pucker: one held at a time, two only while one fades into the
+    next; each is held, alone, for a good share of the frames; brows rise with any of them."""
+    from lenticalib.sim.driver_video import BROWS_UP, MOUTH_EXPRESSIONS, driver_motion
+
+    c = driver_motion(3000, seed=4)
+    expr = c[:, DEFAULT_LAYOUT.slice("expression")]
+    mouth = expr[:, list(MOUTH_EXPRESSIONS)]
+    on = (mouth > 1e-6).sum(1)
+    assert on.max() == 2 and (on == 2).mean() < 0.5
+    for k in range(len(MOUTH_EXPRESSIONS)):
+        alone = (on == 1) & (mouth[:, k] > 0.3)
+        assert alone.mean() > 0.05
+    assert ((expr[:, BROWS_UP] > 0.3) & (on == 1)).mean() > 0.1
+
+
 def test_one_room_for_training_and_test_videos(tmp_path):
     """Two motions in one room share the background; another room has another one."""
     from lenticalib.render.demo_avatar import make_demo_avatar

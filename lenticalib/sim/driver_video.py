@@ -3,8 +3,8 @@ front view under a known control sequence, with its true controls.
 
 :func:`driver_motion` draws a smooth random control sequence (seeded): head turns (yaw within
 +-YAW_DEG, pitch, roll), talking (the jaw, in phrases), blinks, the demo's expressions (smile,
-frown, brows, mouth wide, pucker) and small head translations.  :func:`make_driver_video`
-renders each frame with the ``cpu`` renderer from one camera in front of the avatar, over a
+frown, mouth wide or pucker, one at a time; raised brows with any of them) and small head
+translations.  :func:`make_driver_video` renders each frame with the ``cpu`` renderer from one camera in front of the avatar, over a
 textured background (smooth coloured noise drawn from ``room``: the same room for a subject's
 training and test videos, as a user records and calls from one place), shakes the camera by
 a pixel or two (what a tracker's crop jitter looks like), adds sensor noise and saves every frame
@@ -37,9 +37,10 @@ from ..render.rig import DEFAULT_LAYOUT
 
 FPS = 30.0
 YAW_DEG, PITCH_DEG, ROLL_DEG = 25.0, 12.0, 8.0
-EXPRESSIONS = (0, 1, 2, 4, 5)  # smile, frown, brows_up, mouth_wide, pucker
+MOUTH_EXPRESSIONS = (0, 1, 4, 5)  # smile, frown, mouth_wide, pucker: one at a time
+BROWS_UP = 2
 JAW_MAX = 0.22
-EXPRESSION_PERIOD = 30  # frames between independent expression values (1 s: a talking face)
+EXPRESSION_PERIOD = 30  # frames between expression changes (1 s: a talking face)
 SHAKE_PX = 2.0
 NOISE = 0.02
 FOV_DEG = 22.0  # the camera's vertical field of view: the head about half the frame's height
@@ -59,6 +60,24 @@ def _smooth_noise(rng, n: int, period_frames: float) -> np.ndarray:
     return 0.5 * ((2 * p1) + (-p0 + p2) * f + (2 * p0 - 5 * p1 + 4 * p2 - p3) * f ** 2 + (-p0 + 3 * p1 - 3 * p2 + p3) * f ** 3)
 
 
+def _mouth_expressions(rng, n: int) -> np.ndarray:
+    """(n, 4) weights of MOUTH_EXPRESSIONS: every EXPRESSION_PERIOD frames the face holds one of
+    them (or none, one time in five) at a strength of 0.3-1, and eases into the next (a cosine
+    ramp over the period's first half); two overlap only while one fades into the other, as a
+    face does not smile and frown at once (their mouth corners would cancel)."""
+    knots = int(n / EXPRESSION_PERIOD) + 2
+    held = np.zeros((knots, len(MOUTH_EXPRESSIONS)))
+    pick = rng.integers(0, len(MOUTH_EXPRESSIONS) + 1, knots)
+    strength = rng.uniform(0.3, 1.0, knots)
+    for k in range(knots):
+        if pick[k] < len(MOUTH_EXPRESSIONS):
+            held[k, pick[k]] = strength[k]
+    x = np.arange(n) / EXPRESSION_PERIOD
+    i = np.floor(x).astype(int)
+    ramp = 0.5 - 0.5 * np.cos(np.pi * np.clip(2 * (x - i), 0, 1))
+    return held[i] + ramp[:, None] * (held[i + 1] - held[i])
+
+
 def driver_motion(frames: int, seed: int) -> np.ndarray:
     """(frames, 70) float32 controls of the default layout (module docstring)."""
     rng = np.random.default_rng(seed)
@@ -71,8 +90,8 @@ def driver_motion(frames: int, seed: int) -> np.ndarray:
     talk = np.clip(_smooth_noise(rng, frames, 45) + 0.3, 0, 1)                      # phrases
     syllable = 0.5 - 0.5 * np.cos(2 * math.pi * np.cumsum(rng.uniform(3, 5, frames)) / FPS)
     c[:, L.slice("jaw").start] = JAW_MAX * talk * syllable
-    for e in EXPRESSIONS:
-        c[:, L.slice("expression").start + e] = np.clip(_smooth_noise(rng, frames, EXPRESSION_PERIOD), 0, 1)
+    c[:, L.slice("expression")][:, list(MOUTH_EXPRESSIONS)] = _mouth_expressions(rng, frames)
+    c[:, L.slice("expression").start + BROWS_UP] = np.clip(_smooth_noise(rng, frames, EXPRESSION_PERIOD), 0, 1)
     t = np.arange(frames) / FPS
     blink = np.zeros(frames)
     for at in np.cumsum(rng.uniform(2.0, 5.0, int(frames / FPS / 2) + 2)):
