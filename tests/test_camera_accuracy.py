@@ -18,7 +18,9 @@ from lenticalib.sim.boards import LENSES, calibration_camera
 
 def _solve(name, residuals, n):
     inlier = np.ones(residuals.shape[:3], bool)
-    return Solve(name, {"intrinsics": np.zeros((1, n)), "do_optimize_intrinsics_core": True}, residuals, inlier, 0.0)
+    oi = {"intrinsics": np.zeros((1, n)), "do_optimize_intrinsics_core": True,
+          "observations_board": np.ones(residuals.shape[:3] + (3,))}
+    return Solve(name, oi, residuals, inlier, 0.0)
 
 
 def test_the_lens_model_ladder_keeps_the_simplest_model_that_explains_the_corners():

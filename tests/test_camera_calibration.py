@@ -142,8 +142,8 @@ def test_the_splined_model_must_pay_for_its_parameters():
     inlier = np.ones(shape[:3], bool)
 
     def solve(name, residuals, n):
-        return Solve(name, {"intrinsics": np.zeros((1, n)), "do_optimize_intrinsics_core": True},
-                     residuals, inlier, 0.0)
+        return Solve(name, {"intrinsics": np.zeros((1, n)), "do_optimize_intrinsics_core": True,
+                            "observations_board": np.ones(shape[:3] + (3,))}, residuals, inlier, 0.0)
 
     small = solve(OPENCV8, noise, 12)
     big_slightly_better = solve("SPLINED", noise * 0.97, 250)

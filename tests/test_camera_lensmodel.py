@@ -15,7 +15,9 @@ from lenticalib.calib.intrinsics.solve import OPENCV5, OPENCV8, Solve, calibrate
 
 def _solve(name, residuals, n):
     inlier = np.ones(residuals.shape[:3], bool)
-    return Solve(name, {"intrinsics": np.zeros((1, n)), "do_optimize_intrinsics_core": True}, residuals, inlier, 0.0)
+    oi = {"intrinsics": np.zeros((1, n)), "do_optimize_intrinsics_core": True,
+          "observations_board": np.ones(residuals.shape[:3] + (3,))}
+    return Solve(name, oi, residuals, inlier, 0.0)
 
 
 def test_a_richer_model_must_predict_the_held_out_photos_better_not_just_fit_its_own():

@@ -188,8 +188,8 @@ def _residuals_figure(fig, subject) -> None:
     keep = s.inlier
     q = ax2.quiver(obs[keep][:, 0], obs[keep][:, 1], gain * s.residuals[keep][:, 0], gain * s.residuals[keep][:, 1],
                    lengths[keep], cmap="viridis", angles="xy", scale_units="xy", scale=1.0, width=0.0018)
-    if (~keep).any():
-        ax2.plot(obs[~keep][:, 0], obs[~keep][:, 1], "x", color="tab:red", ms=6, label="outliers")
+    if rejected.any():  # not the corners a photo did not show (x, y = -1)
+        ax2.plot(obs[rejected][:, 0], obs[rejected][:, 1], "x", color="tab:red", ms=6, label="outliers")
     _outline(ax2, w, h)
     ax2.legend(loc="lower right", framealpha=0.85)
     ax2.set_title(f"Residuals (projected - observed) at each corner, arrows lengthened x{gain:g}")

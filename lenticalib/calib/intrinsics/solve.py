@@ -313,7 +313,8 @@ def _label(record: dict) -> str:
 
 
 def _record(s: Solve, bic: float | None = None) -> dict:
-    return {"lensmodel": s.lensmodel, "rms_px": round(s.rms, 5), "outliers": int((~s.inlier).sum()),
+    # outliers: corners seen and rejected, not the corners a photo did not show (a board cut by the frame)
+    return {"lensmodel": s.lensmodel, "rms_px": round(s.rms, 5), "outliers": int((s.observed & ~s.inlier).sum()),
             "free_intrinsics": s.n_intrinsics, "bic": None if bic is None else round(bic, 2),
             "seconds": round(s.seconds, 2)}
 
