@@ -16,7 +16,7 @@ with its standard error: a systematic corner error that the solve cannot average
 The corners are those of the first pass (``cornerSubPix`` in the photo); ``--rectified`` locates
 them once more in views rectified with the TRUE camera model
 (:func:`lenticalib.calib.intrinsics.rectified.refine_rectified`; ``camera calibrate`` uses the model
-of its first solve), which shows what that pass leaves.  ``--window`` sets ``corners.SUBPIX_WINDOW``
+of its first solve), printed as a second row, ``SET rect``: what that pass leaves.  ``--window`` sets ``corners.SUBPIX_WINDOW``
 (the first pass's half-window as a share of the smallest square) to compare windows on the same photos.
 """
 
@@ -52,7 +52,9 @@ def true_corners(folder: Path):
     return out, board, truth
 
 
-def measure(folder: Path, jobs: int, rectified: bool = False) -> dict:
+def measure(folder: Path, jobs: int, rectified: bool = False) -> list[dict]:
+    """The statistics (:func:`stats`) of the first pass's corners of the set in ``folder``, and with
+    ``rectified`` of the same corners located again in views rectified with the true model."""
     import numpy as np
 
     from lenticalib.calib.intrinsics.corners import detect_photos
@@ -60,23 +62,30 @@ def measure(folder: Path, jobs: int, rectified: bool = False) -> dict:
     truth, board, model = true_corners(folder)
     names = sorted(truth)
     found = detect_photos([folder / "captures" / n for n in names], board, jobs=jobs)
+    corners = {n: f.corners for n, f in zip(names, found) if f.corners is not None}
+    rows = [stats(f"{folder.name}", corners, truth, model)]
     if rectified:
         from lenticalib.calib.intrinsics.rectified import refine_photos
 
-        used = [f for f in found if f.corners is not None]
-        again = refine_photos([f.path for f in used], np.stack([f.corners for f in used]), board, model)
-        for f, c in zip(used, again):
-            f.corners = c
+        again = refine_photos([folder / "captures" / n for n in corners], np.stack(list(corners.values())), board,
+                              model)
+        rows.append(stats(f"{folder.name} rect", dict(zip(corners, again)), truth, model))
+    return rows
+
+
+def stats(label: str, corners: dict, truth: dict, model) -> dict:
+    """Corners used, RMS and worst error (px) of ``corners`` ({photo: (rows, cols, 2)}) against
+    ``truth``, and the mean radial error +- its standard error in the bins of ``BINS``."""
+    import numpy as np
+
     w, h = model.imagersize()
     cx, cy = model.intrinsics()[1][2:4]
     half = 0.5 * float(np.hypot(w, h))
     errors, radii, radial = [], [], []
-    for name, f in zip(names, found):
-        if f.corners is None:
-            continue
+    for name, c in corners.items():
         t = truth[name]
-        ok = np.isfinite(f.corners[..., 0]) & np.isfinite(t[..., 0])
-        e = f.corners[ok] - t[ok]
+        ok = np.isfinite(c[..., 0]) & np.isfinite(t[..., 0])
+        e = c[ok] - t[ok]
         d = t[ok] - [cx, cy]
         r = np.linalg.norm(d, axis=-1)
         errors.append(e)
@@ -89,7 +98,7 @@ def measure(folder: Path, jobs: int, rectified: bool = False) -> dict:
         n = int(pick.sum())
         bins.append((float(rad[pick].mean()) if n else float("nan"),
                      float(rad[pick].std() / np.sqrt(n)) if n > 1 else float("nan"), n))
-    return {"set": folder.name, "photos": sum(f.corners is not None for f in found), "corners": len(e),
+    return {"set": label, "photos": len(corners), "corners": len(e),
             "rms": float(np.sqrt(np.mean(e * e))), "worst": float(np.linalg.norm(e, axis=-1).max()), "bins": bins}
 
 
@@ -110,9 +119,10 @@ def main(argv=None) -> int:
           "+- its standard error by distance from the centre (share of the half diagonal)")
     print(f"{'set':<12}{'photos':>7}{'corners':>8}{'rms':>7}{'worst':>7}{head}")
     for folder in a.sets:
-        m = measure(Path(folder), a.jobs, a.rectified)
-        cells = "".join(f"{mean:>+10.4f}+-{se:.4f}" for mean, se, _ in m["bins"])
-        print(f"{m['set']:<12}{m['photos']:>7}{m['corners']:>8}{m['rms'] / 2 ** 0.5:>7.3f}{m['worst']:>7.3f}{cells}")
+        for m in measure(Path(folder), a.jobs, a.rectified):
+            cells = "".join(f"{mean:>+10.4f}+-{se:.4f}" for mean, se, _ in m["bins"])
+            print(f"{m['set']:<12}{m['photos']:>7}{m['corners']:>8}{m['rms'] / 2 ** 0.5:>7.3f}{m['worst']:>7.3f}{cells}",
+                  flush=True)
     return 0
 
 

@@ -11,8 +11,8 @@ it (both halves of the photos share it).  Measured on the simulator's wide-angle
 (0.024 px RMS).  Chessboard (set wide, seed 2, 26 photos): the corners of cut boards beyond 0.8
 of the half-diagonal were off by -0.15 px (up to -0.33 px plain, -0.27 px after a refinement in
 patches straightened with a cubic fitted to the neighbouring corners: on the cut side of a cut
-board that fit extrapolates, and the bend there is strongest), here by -0.002 px; the model's
-worst error over the image went from 1.42 to 0.23 px.
+board that fit extrapolates, and the bend there is strongest), here by +0.01 px (seed 1: -0.13
+px first pass, -0.02 px here; measured with a window of 0.6 of a square, the true model).
 
 Procedure (:func:`refine_rectified`), per corner: the direction the model gives it; a pinhole
 view of focal ``fx`` (the model's) looking along that direction, its x axis level with the
@@ -31,10 +31,12 @@ first location.  At 1500 x 1000 (the same lens, ChArUco, 10 photos) the corners 
 bias (+0.01 px beyond 3/4 of the half-diagonal) and the pass changes nothing measurable (0.035 px
 RMS before and after).
 
-The chessboard's window.  In the view the lines are straight, so the window can reach towards
-the next lines: 0.6 of a square gave 0.0151 px RMS per coordinate on the wide set of seed 2 and a
-model 0.23 px off at worst, 0.35 (the first pass's share) 0.0167 px and 0.38 px, 0.75 (the blur
-of the next lines inside the window) 0.0153 px, a +0.07 px bias at the image corners and 0.52 px.
+The chessboard's window.  In the view the lines are straight, so a wider window would see less
+noise, but it reaches the blur of the next lines: 0.6 of a square gave 0.0151 px RMS per
+coordinate on the wide set of seed 2 against 0.0167 px with 0.35 (at most 25 px), but on the
+phone set of seed 1 (blur, noise, a tone curve) 0.045 px against 0.032 px and an outward bias of
+up to +0.016 px.  So the first pass's share, 0.35 of a square, at most 50 px (the first pass
+stops at 25: the wide lens's cut boards have squares of 100-150 px).
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ from .corners import MIN_CHARUCO_WINDOW, SUBPIX_LIMITS, _local_axes, charuco_win
 from .solve import import_mrcal
 
 PATCH_MARGIN = 4  # pixels of the rectified patch beyond twice the window
-CHESSBOARD_WINDOW = 0.6  # a chessboard corner's cornerSubPix half-window in the view, share of a square
+CHESSBOARD_WINDOW = 0.35  # a chessboard corner's cornerSubPix half-window in the view, share of a square (as the first pass)
 CHESSBOARD_MAX_WINDOW = 50  # pixels
 
 
