@@ -38,7 +38,10 @@ within 3 sigma on 99 % of the image; 0.35 (the first pass's share) at most 50 px
 42 %, at most 25 px 0.38 px (the first solve's model, OPENCV5 forced).  On the phone set of seed 1
 (blur, noise, a tone curve; 8 photos rectified with the true model) 0.6 gave 0.045 px RMS per
 coordinate against 0.032 px with 0.35, but the model was as far off with either (0.44 and
-0.45 px): that set's loss against the earlier straightening is not the window's (open).
+0.45 px): that set's loss against the earlier straightening is not the window's.  The pass
+itself loses there (``tools/bench_corners.py --rectified``, true model: 0.023 px RMS per
+coordinate and no radial bias for the first pass, 0.031 px and up to +0.013 px outward here);
+why is open.
 """
 
 from __future__ import annotations
