@@ -1,18 +1,23 @@
-"""Corners refined where the board's lines are straight (:mod:`lenticalib.calib.intrinsics.straightened`).
+"""Chessboard corners located again in views rectified with a camera model (:mod:`lenticalib.calib.intrinsics.rectified`).
 
 A noiseless chessboard through a strongly distorting lens, rendered exactly (each pixel's ray
-through the lens onto the board), so any error left is the locator's own.
+through the lens onto the board), so any error left is the locator's own; the rectifying model
+is the true lens.
 """
 
 import numpy as np
 import pytest
 
-from lenticalib.calib.intrinsics import corners as corner_module
+from lenticalib.calib.intrinsics.board import Board
+from lenticalib.calib.intrinsics.corners import find_corners
+from lenticalib.calib.intrinsics.rectified import CHESSBOARD_MAX_WINDOW, CHESSBOARD_WINDOW, refine_rectified, windows
 
 SIZE = (1200, 800)
 K = np.array([[700.0, 0.0, 599.5], [0.0, 700.0, 399.5], [0.0, 0.0, 1.0]])
 DIST = np.array([-0.32, 0.11, 0.0, 0.0, -0.015])  # OpenCV k1 k2 p1 p2 k3: strong barrel
 COLS, ROWS, SQUARE = 11, 6, 0.16  # inner corners; square side in normalised (z = 1) units
+LENS = ("LENSMODEL_OPENCV5", np.array([700.0, 700.0, 599.5, 399.5, *DIST[:4], DIST[4]]))  # the same lens, mrcal's
+BOARD = Board(cols=COLS, rows=ROWS, square_mm=20.0, kind="print")
 
 
 def _render():
@@ -49,6 +54,8 @@ def _render():
 
 
 def _radial_bias(found, truth):
+    """(mean radial error (px, + outward), RMS error per coordinate) of the corners found beyond
+    0.35 of the half-diagonal."""
     centre = K[:2, 2]
     d = truth - centre
     r = np.linalg.norm(d, axis=-1)
@@ -62,15 +69,47 @@ def rendered():
     return _render()
 
 
-def test_corners_on_bent_lines_are_located_without_the_bend_pulling_them(rendered, monkeypatch):
+def test_corners_on_bent_lines_are_located_in_rectified_views_without_the_bend_pulling_them(rendered):
     grey, truth = rendered
-    monkeypatch.setattr(corner_module, "RECTIFY", False)
-    plain = corner_module.find_corners(grey, COLS, ROWS)
-    monkeypatch.setattr(corner_module, "RECTIFY", True)
-    rectified = corner_module.find_corners(grey, COLS, ROWS)
-    assert plain is not None and rectified is not None
+    plain = find_corners(grey, COLS, ROWS)
+    assert plain is not None and np.isfinite(plain).all()
+    again = refine_rectified(grey, plain, BOARD, *LENS)
     bias_plain, rms_plain = _radial_bias(plain, truth)
-    bias, rms = _radial_bias(rectified, truth)
-    assert abs(bias_plain) > 0.01  # the bend pulls plain cornerSubPix (what this guards against)
+    bias, rms = _radial_bias(again, truth)
+    assert abs(bias_plain) > 0.02  # the bend pulls plain cornerSubPix (what this guards against)
     print(f"radial bias {bias_plain:+.4f} -> {bias:+.4f} px, rms {rms_plain:.4f} -> {rms:.4f} px")
-    assert abs(bias) < 0.25 * abs(bias_plain) and rms < 0.5 * rms_plain, (bias_plain, bias, rms_plain, rms)
+    assert np.isfinite(again).all()
+    assert abs(bias) < 0.15 * abs(bias_plain) and rms < 0.3 * rms_plain, (bias_plain, bias, rms_plain, rms)
+
+
+def test_a_chessboard_cut_by_the_frame_is_located_again_on_its_cut_side_too(rendered):
+    """The photo cut 1000 px wide: the board's last two columns are outside, so the corners of the
+    cut side have neighbours on one side only (a map fitted to the neighbouring corners would
+    extrapolate there); the model-rectified view needs none."""
+    grey, truth = rendered
+    cut = np.ascontiguousarray(grey[:, :1000])
+    plain = find_corners(cut, COLS, ROWS)
+    assert plain is not None
+    seen = np.isfinite(plain[..., 0])
+    assert 40 <= seen.sum() < COLS * ROWS and not seen[:, -1].any()
+    again = refine_rectified(cut, plain, BOARD, *LENS)
+    assert (np.isfinite(again[..., 0]) == seen).all()  # every window of this board stays in the photo
+    edge = seen & ~np.roll(seen, -1, axis=1)  # the last seen column: the cut side
+    e_plain, e_again = plain[edge] - truth[edge], again[edge] - truth[edge]
+    bias_plain, _ = _radial_bias(plain, truth)
+    bias, _ = _radial_bias(again, truth)
+    assert abs(bias) < 0.15 * abs(bias_plain), (bias_plain, bias)
+    assert np.abs(e_again).max() < 0.02 < np.abs(e_plain).max(), (e_plain, e_again)
+
+
+def test_chessboard_windows_reach_a_share_of_the_square_along_its_shorter_side():
+    """A grid of 40 x 20 px squares (foreshortened): the window is CHESSBOARD_WINDOW of the shorter
+    side, so the board's next lines stay out of it; large squares are capped."""
+    from lenticalib.calib.intrinsics.corners import _local_axes
+
+    jj, ii = np.meshgrid(np.arange(COLS, dtype=np.float64), np.arange(ROWS, dtype=np.float64))
+    for sx, sy, want in ((40.0, 20.0, int(CHESSBOARD_WINDOW * 20)), (400.0, 300.0, CHESSBOARD_MAX_WINDOW)):
+        grid = np.stack([sx * jj, sy * ii], axis=-1)
+        grid[0, 0] = np.nan
+        win = windows(grid, BOARD, _local_axes(grid))
+        assert win[0, 0] == 0 and (win[np.isfinite(grid[..., 0])] == want).all(), (sx, sy, np.unique(win))

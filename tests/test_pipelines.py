@@ -177,9 +177,10 @@ def test_a_camera_calibration_through_the_library(board_photos, tmp_path):
                                rtol=0.01)
     from lenticalib.calib.intrinsics.solve import PROGRESS_STEPS
 
-    assert [(name, steps) for name, steps, _ in stages] == [("finding corners", 12), ("solving", PROGRESS_STEPS),
-                                                          ("cross-validating", 1)]
-    assert stages[0][2] == 12 and stages[2][2] == 1
+    assert [(name, steps) for name, steps, _ in stages] == [
+        ("finding corners", 12), ("solving", PROGRESS_STEPS), ("refining corners in rectified views", 12),
+        ("solving with the refined corners", PROGRESS_STEPS), ("cross-validating", 1)]
+    assert stages[0][2] == 12 and stages[2][2] == 12 and stages[4][2] == 1
 
 
 @pytest.mark.parametrize("kwargs, field", [

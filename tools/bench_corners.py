@@ -11,11 +11,13 @@ used, RMS error per coordinate, and the mean radial component of the error (px, 
 the distortion centre) in five bins of the distance from the centre (share of the half diagonal),
 with its standard error: a systematic corner error that the solve cannot average away.
 
-    python tools/bench_corners.py DIR/wide-1 DIR/strong-1 [--window 0.35] [--jobs 2]
+    python tools/bench_corners.py DIR/wide-1 DIR/strong-1 [--rectified] [--window 0.35] [--jobs 2]
 
-``--plain`` measures plain ``cornerSubPix`` (without :mod:`lenticalib.calib.intrinsics.straightened`);
-``--window`` sets ``corners.SUBPIX_WINDOW`` (the cornerSubPix half-window as a share of the
-smallest square) to compare windows on the same photos.
+The corners are those of the first pass (``cornerSubPix`` in the photo); ``--rectified`` locates
+them once more in views rectified with the TRUE camera model
+(:func:`lenticalib.calib.intrinsics.rectified.refine_rectified`; ``camera calibrate`` uses the model
+of its first solve), printed as a second row, ``SET rect``: what that pass leaves.  ``--window`` sets ``corners.SUBPIX_WINDOW``
+(the first pass's half-window as a share of the smallest square) to compare windows on the same photos.
 """
 
 from __future__ import annotations
@@ -50,7 +52,9 @@ def true_corners(folder: Path):
     return out, board, truth
 
 
-def measure(folder: Path, jobs: int) -> dict:
+def measure(folder: Path, jobs: int, rectified: bool = False) -> list[dict]:
+    """The statistics (:func:`stats`) of the first pass's corners of the set in ``folder``, and with
+    ``rectified`` of the same corners located again in views rectified with the true model."""
     import numpy as np
 
     from lenticalib.calib.intrinsics.corners import detect_photos
@@ -58,16 +62,30 @@ def measure(folder: Path, jobs: int) -> dict:
     truth, board, model = true_corners(folder)
     names = sorted(truth)
     found = detect_photos([folder / "captures" / n for n in names], board, jobs=jobs)
+    corners = {n: f.corners for n, f in zip(names, found) if f.corners is not None}
+    rows = [stats(f"{folder.name}", corners, truth, model)]
+    if rectified:
+        from lenticalib.calib.intrinsics.rectified import refine_photos
+
+        again = refine_photos([folder / "captures" / n for n in corners], np.stack(list(corners.values())), board,
+                              model)
+        rows.append(stats(f"{folder.name} rect", dict(zip(corners, again)), truth, model))
+    return rows
+
+
+def stats(label: str, corners: dict, truth: dict, model) -> dict:
+    """Corners used, RMS and worst error (px) of ``corners`` ({photo: (rows, cols, 2)}) against
+    ``truth``, and the mean radial error +- its standard error in the bins of ``BINS``."""
+    import numpy as np
+
     w, h = model.imagersize()
     cx, cy = model.intrinsics()[1][2:4]
     half = 0.5 * float(np.hypot(w, h))
     errors, radii, radial = [], [], []
-    for name, f in zip(names, found):
-        if f.corners is None:
-            continue
+    for name, c in corners.items():
         t = truth[name]
-        ok = np.isfinite(f.corners[..., 0]) & np.isfinite(t[..., 0])
-        e = f.corners[ok] - t[ok]
+        ok = np.isfinite(c[..., 0]) & np.isfinite(t[..., 0])
+        e = c[ok] - t[ok]
         d = t[ok] - [cx, cy]
         r = np.linalg.norm(d, axis=-1)
         errors.append(e)
@@ -80,7 +98,7 @@ def measure(folder: Path, jobs: int) -> dict:
         n = int(pick.sum())
         bins.append((float(rad[pick].mean()) if n else float("nan"),
                      float(rad[pick].std() / np.sqrt(n)) if n > 1 else float("nan"), n))
-    return {"set": folder.name, "photos": sum(f.corners is not None for f in found), "corners": len(e),
+    return {"set": label, "photos": len(corners), "corners": len(e),
             "rms": float(np.sqrt(np.mean(e * e))), "worst": float(np.linalg.norm(e, axis=-1).max()), "bins": bins}
 
 
@@ -88,22 +106,23 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("sets", nargs="+", help="folders of simulated print sets")
     ap.add_argument("--window", type=float, default=None, help="cornerSubPix half-window, share of a square")
-    ap.add_argument("--plain", action="store_true", help="cornerSubPix only, not in rectified patches")
+    ap.add_argument("--rectified", action="store_true",
+                    help="locate the corners once more in views rectified with the true model")
     ap.add_argument("--jobs", type=int, default=2, help="photos searched in parallel")
     a = ap.parse_args(argv)
     from lenticalib.calib.intrinsics import corners
 
     if a.window is not None:
         corners.SUBPIX_WINDOW = a.window
-    corners.RECTIFY = not a.plain
     head = "".join(f"{f'r {lo:.1f}-{min(hi, 1.0):.1f}':>17}" for lo, hi in zip(BINS[:-1], BINS[1:]))
     print("corner error against the truth (px): RMS per coordinate, worst; mean radial error (+ outward) "
           "+- its standard error by distance from the centre (share of the half diagonal)")
     print(f"{'set':<12}{'photos':>7}{'corners':>8}{'rms':>7}{'worst':>7}{head}")
     for folder in a.sets:
-        m = measure(Path(folder), a.jobs)
-        cells = "".join(f"{mean:>+10.4f}+-{se:.4f}" for mean, se, _ in m["bins"])
-        print(f"{m['set']:<12}{m['photos']:>7}{m['corners']:>8}{m['rms'] / 2 ** 0.5:>7.3f}{m['worst']:>7.3f}{cells}")
+        for m in measure(Path(folder), a.jobs, a.rectified):
+            cells = "".join(f"{mean:>+10.4f}+-{se:.4f}" for mean, se, _ in m["bins"])
+            print(f"{m['set']:<12}{m['photos']:>7}{m['corners']:>8}{m['rms'] / 2 ** 0.5:>7.3f}{m['worst']:>7.3f}{cells}",
+                  flush=True)
     return 0
 
 

@@ -11,8 +11,7 @@ and one camera model solved with mrcal together with every board pose.  Part of 
     corners   corner detection (OpenCV's findChessboardCornersSB; ChArUco: cv2.aruco's
               CharucoDetector, partial boards), in parallel over photos
     partial   a chessboard seen only in part: its visible block placed into the board's grid
-    straightened  chessboard corners refined again in patches where the board's lines are straight
-    rectified ChArUco corners located again in views rectified with a first camera model
+    rectified corners (chessboard and ChArUco) located again in views rectified with a first camera model
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
     crossval  cross-validation: is mrcal's uncertainty as large as the real error?
     quality   residuals, noise, coverage and projection uncertainty of a solve; truth comparison

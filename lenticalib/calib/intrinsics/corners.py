@@ -5,12 +5,12 @@ Detection runs on an 8-bit grey image (:func:`grey8`: camera JPEGs as they are, 
 PNGs from a raw converter scaled to their 99.5th percentile and given an sRGB-like curve) with
 ``findChessboardCornersSB(CALIB_CB_EXHAUSTIVE | CALIB_CB_NORMALIZE_IMAGE)``; each corner is then
 refined by ``cv2.cornerSubPix`` in a window of ``SUBPIX_WINDOW`` times the smallest square side
-seen in that photo, then once more in patches where the board's lines are straight
-(:mod:`.straightened`: through a distorting lens the bent lines pull a plain window's corner by
-0.005-0.014 px outward, up to 0.13 px near a wide-angle lens's image corners).  Measured on
-simulated 1280 x 960 JPEGs of tilted printed boards (24 photos, 1584 corners), before that second
-pass: corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and 0.68 s
-with SB's own ``CALIB_CB_ACCURACY`` refinement.
+seen in that photo.  Measured on simulated 1280 x 960 JPEGs of tilted printed boards (24 photos,
+1584 corners): corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and
+0.68 s with SB's own ``CALIB_CB_ACCURACY`` refinement.  Through a distorting lens the board's
+lines bend inside the window and pull the corner (0.005-0.014 px outward at 3000 x 2000, up to
+0.3 px inward on a cut board near a wide-angle lens's image corners): after a first solve the
+pipeline locates every corner once more in views rectified with that model (:mod:`.rectified`).
 
 A chessboard partly outside the photo (:func:`locate_chessboard`): when the whole board is not
 found, ``findChessboardCornersSBWithMeta`` with ``CALIB_CB_LARGER`` searches for the largest block
@@ -85,7 +85,6 @@ from ...core.imageio import read_image
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
 SUBPIX_LIMITS = (2, 25)  # pixels
-RECTIFY = True  # refine once more in patches where the board's lines are straight (:mod:`.straightened`)
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
 PART_SIZES = ((3, 3), (5, 3), (3, 5), (5, 4), (4, 5))  # smallest blocks the searches for a part of a board start from
@@ -209,11 +208,6 @@ def _subpix(grey: np.ndarray, corners: np.ndarray) -> np.ndarray:
                                    (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
         out[keep] = refined.reshape(-1, 2)
     out[~clear(out)] = np.nan
-    if RECTIFY:
-        from .straightened import refine
-
-        out = refine(grey, out, np.full(out.shape[:2], win))
-        out[~clear(out)] = np.nan
     return out
 
 

@@ -12,8 +12,8 @@ Errors name the argument at fault by its parameter name (``source="photos"``, ``
 A photo needs only part of the board (:mod:`.corners`: a chessboard's visible block of corners
 placed into the board's grid by :mod:`.partial`, a ChArUco board's identified corners); a photo
 with too few corners is left out with its reason in the summary, like a photo without the board.
-ChArUco corners, after the first solve, are located again in views rectified with its model
-(:mod:`.rectified`: no lens curvature in the refinement window) and solved again.
+The corners of either board, after the first solve, are located again in views rectified with
+its model (:mod:`.rectified`: no lens curvature in the refinement window) and solved again.
 """
 
 from __future__ import annotations
@@ -222,15 +222,15 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         used = [f for f in used if f.corners is not None]
         corners = np.stack([f.corners for f in used])
         cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving again", solving))
-    if board.charuco:  # the corners located again without the lens's curvature (:mod:`.rectified`), solved again
-        from .rectified import refine_photos
+    # the corners located again without the lens's curvature (:mod:`.rectified`), solved again
+    from .rectified import refine_photos
 
-        corners = refine_photos([f.path for f in used], corners, board, cal.cameramodel(),
-                                progress=steps("refining corners in rectified views", len(used)))
-        for f, c in zip(used, corners):
-            f.corners = c
-        cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel,
-                                     progress=steps("solving with the refined corners", solving))
+    corners = refine_photos([f.path for f in used], corners, board, cal.cameramodel(),
+                            progress=steps("refining corners in rectified views", len(used)))
+    for f, c in zip(used, corners):
+        f.corners = c
+    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel,
+                                 progress=steps("solving with the refined corners", solving))
     model = cal.cameramodel()
     step = steps("cross-validating", 1)
     check = cross_validation(corners, board, size, cal.lensmodel)
