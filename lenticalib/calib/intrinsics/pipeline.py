@@ -13,7 +13,8 @@ A photo needs only part of the board (:mod:`.corners`: a chessboard's visible bl
 placed into the board's grid by :mod:`.partial`, a ChArUco board's identified corners); a photo
 with too few corners is left out with its reason in the summary, like a photo without the board.
 The corners of either board, after the first solve, are located again in views rectified with
-its model (:mod:`.rectified`: no lens curvature in the refinement window) and solved again.
+its model (:mod:`.rectified`: no lens curvature in the refinement window) and solved again; the
+second corners are kept when the model fits them better (a lower inlier RMS), else the first.
 """
 
 from __future__ import annotations
@@ -225,12 +226,18 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     # the corners located again without the lens's curvature (:mod:`.rectified`), solved again
     from .rectified import refine_photos
 
-    corners = refine_photos([f.path for f in used], corners, board, cal.cameramodel(),
+    refined = refine_photos([f.path for f in used], corners, board, cal.cameramodel(),
                             progress=steps("refining corners in rectified views", len(used)))
-    for f, c in zip(used, corners):
-        f.corners = c
-    cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel,
-                                 progress=steps("solving with the refined corners", solving))
+    second = solve_module.calibrate(refined, board, size, lensmodel=lensmodel,
+                                    progress=steps("solving with the refined corners", solving))
+    # kept when the model fits them better: a lens's bend biases the first corners (the residuals
+    # grow), a noisy, sharpened photo's resampled view can make the second ones worse
+    rectified = {"rms_first": round(cal.solve.rms, 5), "rms_rectified": round(second.solve.rms, 5),
+                 "kept": bool(second.solve.rms <= cal.solve.rms)}
+    if rectified["kept"]:
+        corners, cal = refined, second
+        for f, c in zip(used, corners):
+            f.corners = c
     model = cal.cameramodel()
     step = steps("cross-validating", 1)
     check = cross_validation(corners, board, size, cal.lensmodel)
@@ -238,7 +245,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     qual = quality(model, cal.solve, [f.path for f in used], cross_validation=check)
     summary = calibration_summary(cal, qual, board, found, photos, output=output,
                                   report=None if report_dir is None else str(report_dir),
-                                  manifest=manifest, seconds=time.perf_counter() - start)
+                                  manifest=manifest, seconds=time.perf_counter() - start, rectified=rectified)
     solve_module.write_cameramodel(model, output, note=summary["note"])
     if report_dir is not None:
         with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES) as stage_dir:

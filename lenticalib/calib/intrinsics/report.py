@@ -66,14 +66,15 @@ def field_of_view(model) -> list[float]:
 
 
 def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, output, report=None,
-                        manifest=None, seconds: float = 0.0) -> dict:
+                        manifest=None, seconds: float = 0.0, rectified: dict | None = None) -> dict:
     """The summary of a calibration (``summary.json`` and ``--json``), JSON-ready.
 
     Keys: format, format_version, output, report, lensmodel, lensmodel_choice, candidates, imagersize,
     intrinsics (named), field_of_view_deg, board (+ manifest path), photos {given, used,
     rejected [{photo, reason}], frames (photo of each frame, in order)}, residuals, coverage,
     working_distance_mm, uncertainty, provenance (inputs with SHA-256), seconds, note (the
-    text written at the top of the .cameramodel).
+    text written at the top of the .cameramodel), rectified_pass (the inlier RMS, px, with the first
+    corners and with those located again in rectified views, and whether the second were kept).
     """
     model = cal.cameramodel()
     lens, values = model.intrinsics()
@@ -93,7 +94,8 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
     scale = (qual.get("cross_validation") or {}).get("scale", 1.0)
     summary = {**DOCUMENT.envelope(), "output": str(output),
                "report": None if report is None else str(report), "lensmodel": lens,
-               "lensmodel_choice": cal.choice, "candidates": cal.candidates, "imagersize": list(model.imagersize()),
+               "lensmodel_choice": cal.choice, "rectified_pass": rectified, "candidates": cal.candidates,
+               "imagersize": list(model.imagersize()),
                "intrinsics": intrinsics_named(lens, values), "field_of_view_deg": field_of_view(model),
                "board": board_doc,
                "photos": {"given": len(photos), "used": len(used), "rejected": rejected,
