@@ -14,8 +14,9 @@ placed into the board's grid by :mod:`.partial`, a ChArUco board's identified co
 with too few corners is left out with its reason in the summary, like a photo without the board.
 The corners of either board, after the first solve, are located again in views rectified with
 its model (:mod:`.rectified`: no lens curvature in the refinement window) and solved again; the
-second corners are kept when the model fits them better (a lower inlier RMS), else the first.
-A board shown on the panel is not located again (measured: its model moved off the truth).
+ChArUco corners are always the second ones; chessboard corners the second ones only when the
+model fits them better (a lower inlier RMS).  A board shown on the panel is not located again
+(measured: its model moved off the truth).
 """
 
 from __future__ import annotations
@@ -237,10 +238,12 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                                 progress=steps("refining corners in rectified views", len(used)))
         second = solve_module.calibrate(refined, board, size, lensmodel=lensmodel,
                                         progress=steps("solving with the refined corners", solving))
-        # kept when the model fits them better: a lens's bend biases the first corners (the
-        # residuals grow), a noisy, sharpened photo's resampled view can make the second worse
+        # ChArUco corners: always kept (their first windows straddle markers).  Chessboard corners:
+        # kept when the model fits them better (a lens's bend biases the first ones and the
+        # residuals grow; a noisy, sharpened phone photo's resampled view can make the second ones
+        # worse: measured on the bench's phone sets, 0.12 -> 0.44-0.53 px)
         rectified = {"rms_first": round(cal.solve.rms, 5), "rms_rectified": round(second.solve.rms, 5),
-                     "kept": bool(second.solve.rms <= cal.solve.rms)}
+                     "kept": bool(board.pattern == "charuco" or second.solve.rms <= cal.solve.rms)}
         if rectified["kept"]:
             corners, cal = refined, second
             for f, c in zip(used, corners):
