@@ -115,3 +115,27 @@ def test_corners_the_detector_made_up_are_left_out(tmp_path):
     assert kept.shape == block.shape
     assert np.isnan(kept[1, 3]).all() and np.isnan(kept[3, 6]).all()
     assert np.isfinite(kept[..., 0]).sum() == block.shape[0] * block.shape[1] - 2
+
+
+def test_a_block_reaching_the_photos_corner_is_placed_by_the_board_edge_in_view(tmp_path):
+    """Beyond the board's outer row the paper shows where the photo does; a sample past the photo's
+    edge must not hide that edge (bench phone 3, photo 11: the block was centred, one square off)."""
+    from lenticalib.calib.intrinsics.corners import grey8
+    from lenticalib.calib.intrinsics.partial import EDGE_MARGIN_PX, EDGE_PAPER_AT, _outward, place, side_is_edge
+    from lenticalib.core.imageio import read_image
+
+    board = print_board()
+    (path,), (truth,) = _photos(tmp_path, "mild", 5, 1, cut=0.0)
+    grey = grey8(read_image(path))
+    block = truth[0:3, 0:8]  # the board's top rows, its top edge in view
+    assert side_is_edge(grey, block)
+    paper = _outward(block, EDGE_PAPER_AT)
+    paper = 0.5 * (paper[:-1] + paper[1:])
+    top = int(paper[:, 1].min()) + 4  # the photo cut just below one of the paper samples
+    assert (paper[:, 1] - top > EDGE_MARGIN_PX + 1).sum() >= 3 and np.nanmin(block[..., 1]) > top + 10
+    cropped = np.ascontiguousarray(grey[top:])
+    moved = block - np.array([0.0, top])
+    assert side_is_edge(cropped, moved)
+    placed, why = place(cropped, moved, board.rows, board.cols)
+    assert why is None
+    assert np.array_equal(placed[0:3, 0:8], moved)

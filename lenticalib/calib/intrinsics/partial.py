@@ -49,15 +49,21 @@ def _outward(block: np.ndarray, t: float) -> np.ndarray:
 def side_is_edge(grey: np.ndarray, block: np.ndarray) -> bool:
     """Whether row 0 of ``block`` (r, c, 2) is the board's outer row of inner corners: the squares
     beyond it are followed, ``EDGE_PAPER_AT`` squares out, by paper as bright as the block's white
-    squares, every sample inside the photo.  False when the board goes on or the photo ends first."""
+    squares, at every sample inside the photo, two neighbouring samples at least (were the board to
+    go on, one of two neighbouring squares there would be dark).  A sample past the photo's edge
+    is left out, not taken as a board going on: requiring all of them inside left the edge of a
+    block running into the photo's corner unseen, and the block centred one square off.  False
+    when the board goes on or the photo ends first."""
     if block.shape[0] < 2 or block.shape[1] < 3:
         return False
     paper = _outward(block, EDGE_PAPER_AT)
     paper = 0.5 * (paper[:-1] + paper[1:])  # between two columns: the middle of the square beyond
     h, w = grey.shape
     m = EDGE_MARGIN_PX
-    if not (np.all(paper >= m) and np.all(paper[:, 0] <= w - 1 - m) and np.all(paper[:, 1] <= h - 1 - m)):
+    inside = np.all(paper >= m, axis=1) & (paper[:, 0] <= w - 1 - m) & (paper[:, 1] <= h - 1 - m)
+    if not (inside[:-1] & inside[1:]).any():  # two neighbouring squares' samples: one dark if the board goes on
         return False
+    paper = paper[inside]
     centres = 0.25 * (block[:-1, :-1] + block[1:, :-1] + block[:-1, 1:] + block[1:, 1:]).reshape(-1, 2)
     inner = _sample(grey, centres)
     inner = inner[np.isfinite(inner)]
