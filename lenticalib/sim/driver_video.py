@@ -4,13 +4,13 @@ front view under a known control sequence, with its true controls.
 :func:`driver_motion` draws a smooth random control sequence (seeded): head turns (yaw within
 +-YAW_DEG, pitch, roll), talking (the jaw, in phrases), blinks, the demo's expressions (smile,
 frown, mouth wide or pucker, one at a time; raised brows with any of them) and small head
-translations.  :func:`make_driver_video` renders each frame with the ``cpu`` renderer from one camera in front of the avatar, over a
-textured background (smooth coloured noise drawn from ``room``: the same room for a subject's
-training and test videos, as a user records and calls from one place), shakes the camera by
-a pixel or two (what a tracker's crop jitter looks like), adds sensor noise and saves every frame
-as a JPEG, with the true controls as ``controls.csv`` (one row per frame) and ``video.json``
-(the seed, the size, the face's box in the frames (:func:`face_box`): the crop a student should
-use).
+translations.  :func:`make_driver_video` renders each frame with the ``cpu`` renderer from one
+camera in front of the avatar, over a textured background (smooth coloured noise drawn from
+``room``: the same room for a subject's training and test videos, as a user records and calls
+from one place), shakes the camera by a pixel or two (what a tracker's crop jitter looks like),
+adds sensor noise and saves every frame as a JPEG, with the true controls as ``controls.csv``
+(one row per frame) and ``video.json`` (the seed, the size, the face's box in the frames
+(:func:`face_box`): the crop a student should use).
 
     DIR/frame-00000.jpg ...   the frames, FPS frames a second
     DIR/controls.csv          t and the true control vector of every frame (columns GROUP.I)

@@ -54,6 +54,7 @@ VALIDATION_EVERY = 7
 MIN_STD = 1e-6
 MIN_FRAMES = 64
 BN_FRAMES = 512  # training frames over which the batch norms' statistics are taken after every epoch
+MAX_MINUTES = 10080  # a week: a longer budget is a typing error
 PACE_EPOCHS = 3  # a time budget plans with the slowest of the last PACE_EPOCHS epochs
 ANGLE_GROUPS = ("head", "neck", "jaw", "eyes")  # axis-angle radians: errors also in degrees
 
@@ -216,9 +217,10 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
                             ("patience", o.patience, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < lo:
             raise InputError(f"{name} {value!r} is out of range", source=name, hint=f"use a whole number >= {lo}")
-    if o.minutes is not None and not (isinstance(o.minutes, (int, float)) and 0 < o.minutes <= 10080):
+    if o.minutes is not None and (isinstance(o.minutes, bool) or not isinstance(o.minutes, (int, float))
+                                  or not 0 < o.minutes <= MAX_MINUTES):
         raise InputError(f"minutes {o.minutes!r} is out of range", source="minutes",
-                         hint="give a time budget in minutes, more than 0")
+                         hint=f"give a time budget in minutes, more than 0 and at most {MAX_MINUTES}")
     output = check_output_file(output, "student driver", example="student.pt")
     if rig is not None:
         from ..rig_file import load_rig
