@@ -20,8 +20,8 @@ from lenticalib.core.errors import InputError  # noqa: E402
 from lenticalib.render.controls import ControlTrack, load_controls, open_controls  # noqa: E402
 from lenticalib.render.rig import DEFAULT_LAYOUT, ControlLayout  # noqa: E402
 from lenticalib.render.student.crop import parse_crop, to_input  # noqa: E402
-from lenticalib.render.student.distill import (DistillOptions, distill_student, group_weights,  # noqa: E402
-                                               match_controls, split_blocks)
+from lenticalib.render.student.distill import (SIZE_JITTER, DistillOptions, distill_student, group_weights,  # noqa: E402
+                                               match_controls, split_blocks, training_side)
 from lenticalib.render.student.frames import open_frames  # noqa: E402
 from lenticalib.render.student.live import StudentControls, parse_student_spec  # noqa: E402
 from lenticalib.render.student.predict import predict_controls  # noqa: E402
@@ -115,6 +115,16 @@ def test_batch_norm_statistics_are_measured_again():
     with torch.no_grad():
         seen = torch.cat([net[0](x) for x, _ in batches]).mean(dim=(0, 2, 3))
     assert torch.allclose(net[1].running_mean, seen, atol=1e-5) and net[1].momentum == 0.1
+
+
+def test_training_crops_vary_in_size_by_two_per_cent_at_most():
+    # the demo's mouth wide and pucker change the mouth's width by a few per cent: a size jitter
+    # of 0.95-1.10 (the earlier rule) hid them from the network
+    rng = np.random.default_rng(3)
+    sides = np.array([training_side(rng, 224) for _ in range(2000)])
+    assert sides.min() == round(224 * (1 - SIZE_JITTER)) and sides.max() == round(224 * (1 + SIZE_JITTER))
+    assert SIZE_JITTER <= 0.02
+    assert 220 <= sides.min() and sides.max() <= 228
 
 
 def test_crop_rule_and_network_input():

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Write the student driver's demo: training and test videos of the demo avatar with their true controls.
 
-    python tools/make_driver_demo.py DIR [--frames 3600] [--test-frames 600] [--seed 0] [--room 0] [--size 480x360]
+    python tools/make_driver_demo.py DIR [--frames 7200] [--test-frames 600] [--seed 0] [--room 0] [--size 480x360]
 
 DIR/train/ and DIR/test/ (frames, controls.csv, video.json: see
 :mod:`lenticalib.sim.driver_video`), two different motions (seeds) in the same room (background),
@@ -31,7 +31,7 @@ def main() -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("directory")
-    ap.add_argument("--frames", type=int, default=3600)
+    ap.add_argument("--frames", type=int, default=7200)
     ap.add_argument("--test-frames", type=int, default=600)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--room", type=int, default=0, help="the background's seed, one for both videos")
