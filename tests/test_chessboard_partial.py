@@ -139,3 +139,27 @@ def test_a_block_reaching_the_photos_corner_is_placed_by_the_board_edge_in_view(
     placed, why = place(cropped, moved, board.rows, board.cols)
     assert why is None
     assert np.array_equal(placed[0:3, 0:8], moved)
+
+
+def test_a_large_board_cut_by_two_edges_is_found_by_the_searches_on_a_smaller_copy(tmp_path):
+    """Bench mild seed 2, photo 06 (3000 x 2000, squares about 200 px, the board running off the
+    right and the bottom): OpenCV's part searches on the full photo grow 8 corners at most (fewer
+    than MIN_CHESSBOARD_CORNERS, refused), on a quarter-size copy 21.  The corners are the board's
+    own, refined on the full photo, and its top-left corner is placed by the edges in view."""
+    from lenticalib.calib.intrinsics.corners import grey8, locate_chessboard
+    from lenticalib.core.imageio import read_image
+
+    camera = calibration_camera(2, (3000, 2000), lens="mild")
+    board = print_board()
+    pose = board_poses(camera, board, 22, 2, cut=0.25)[5]
+    path = tmp_path / "board-06.jpg"
+    path.write_bytes(photograph_print_board(camera, board, pose, np.random.default_rng([2, 5, 0x5107])))
+    q = project_camera(camera, pose.to_camera(board.object_points().reshape(-1, 3)))
+    q[~inside_mask(camera, board, pose, margin=0.0)] = np.nan
+    truth = q.reshape(board.rows, board.cols, 2)
+    found, why = locate_chessboard(grey8(read_image(path)), board.cols, board.rows, board.symmetric)
+    assert why is None, why
+    seen = np.isfinite(found[..., 0])
+    assert seen.sum() >= 20 and not np.isfinite(truth[..., 0]).all()
+    error = np.linalg.norm(found[seen] - truth[seen], axis=-1)  # labelled as the board: no shift, no turn
+    assert error.max() < 0.3, error.max()
