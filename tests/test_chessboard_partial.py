@@ -141,25 +141,53 @@ def test_a_block_reaching_the_photos_corner_is_placed_by_the_board_edge_in_view(
     assert np.array_equal(placed[0:3, 0:8], moved)
 
 
+def _bench_photo(tmp_path, lens, seed, index):
+    """Photo ``index`` of bench_camera's ``lens`` set, seed ``seed`` (3000 x 2000, boards cut by
+    up to a quarter), as it simulates it; (path, true corners (rows, cols, 2), NaN outside the photo)."""
+    camera = calibration_camera(seed, (3000, 2000), lens=lens)
+    board = print_board()
+    pose = board_poses(camera, board, 22, seed, cut=0.25)[index]
+    path = tmp_path / f"board-{index + 1:02d}.jpg"
+    path.write_bytes(photograph_print_board(camera, board, pose, np.random.default_rng([seed, index, 0x5107])))
+    q = project_camera(camera, pose.to_camera(board.object_points().reshape(-1, 3)))
+    q[~inside_mask(camera, board, pose, margin=0.0)] = np.nan
+    return path, q.reshape(board.rows, board.cols, 2)
+
+
 def test_a_large_board_cut_by_two_edges_is_found_by_the_searches_on_a_smaller_copy(tmp_path):
-    """Bench mild seed 2, photo 06 (3000 x 2000, squares about 200 px, the board running off the
-    right and the bottom): OpenCV's part searches on the full photo grow 8 corners at most (fewer
-    than MIN_CHESSBOARD_CORNERS, refused), on a quarter-size copy 21.  The corners are the board's
-    own, refined on the full photo, and its top-left corner is placed by the edges in view."""
+    """Bench mild seed 2, photo 06 (squares about 200 px, the board running off the right and the
+    bottom): OpenCV's part searches on the full photo grow 8 corners at most (fewer than
+    MIN_CHESSBOARD_CORNERS, refused), on a quarter-size copy 21.  The corners are the board's own,
+    refined on the full photo, and its top-left corner is placed by the edges in view."""
     from lenticalib.calib.intrinsics.corners import grey8, locate_chessboard
     from lenticalib.core.imageio import read_image
 
-    camera = calibration_camera(2, (3000, 2000), lens="mild")
     board = print_board()
-    pose = board_poses(camera, board, 22, 2, cut=0.25)[5]
-    path = tmp_path / "board-06.jpg"
-    path.write_bytes(photograph_print_board(camera, board, pose, np.random.default_rng([2, 5, 0x5107])))
-    q = project_camera(camera, pose.to_camera(board.object_points().reshape(-1, 3)))
-    q[~inside_mask(camera, board, pose, margin=0.0)] = np.nan
-    truth = q.reshape(board.rows, board.cols, 2)
+    path, truth = _bench_photo(tmp_path, "mild", 2, 5)
     found, why = locate_chessboard(grey8(read_image(path)), board.cols, board.rows, board.symmetric)
     assert why is None, why
     seen = np.isfinite(found[..., 0])
     assert seen.sum() >= 20 and not np.isfinite(truth[..., 0]).all()
     error = np.linalg.norm(found[seen] - truth[seen], axis=-1)  # labelled as the board: no shift, no turn
     assert error.max() < 0.3, error.max()
+
+
+def test_a_block_that_skips_corners_is_not_taken_for_single_squares(tmp_path):
+    """Bench strong seed 2, photo 10: the part searches return blocks whose rows step 1, 1, 2, 2
+    squares (a smooth bend to :func:`consistent`, alternating cells to the parity test): such a
+    block was placed and misread.  Every large block found there skips corners, so the photo is
+    refused (what is left is too small to place)."""
+    from lenticalib.calib.intrinsics.corners import grey8
+    from lenticalib.calib.intrinsics.partial import _wide_sides
+    from lenticalib.core.imageio import read_image
+
+    board = print_board()
+    path, truth = _bench_photo(tmp_path, "strong", 2, 9)
+    grey = grey8(read_image(path))
+    found = detect_photo(str(path), board.cols, board.rows, board.symmetric)
+    if found.corners is not None:  # a block used: the board's own corners, not a misreading
+        seen = np.isfinite(found.corners[..., 0])
+        assert np.linalg.norm(found.corners[seen] - truth[seen], axis=-1).max() < 0.3
+    whole = truth[1:4, 1:6]  # single squares: no wide side; every other column: all wide
+    assert _wide_sides(grey, whole) == 0
+    assert _wide_sides(grey, truth[1:4, 1:6:2]) >= 4  # of its 6 row sides (one is enough to refuse a block)

@@ -146,7 +146,7 @@ def checkered(grey: np.ndarray, block: np.ndarray) -> bool:
     fall into a dark and a bright class by the parity of (i + j), the classes apart by at least
     ``CHECKER_CONTRAST`` of the ink contrast seen a quarter of a cell in from the cell corners.  (With
     ``CALIB_CB_LARGER`` the detector can return every other corner along an axis: then the cell
-    centres land on corners, mid-grey.)"""
+    centres land on corners, mid-grey; or skip corners, refused by :func:`_wide_sides`.)"""
     a, b, c, d = block[:-1, :-1], block[:-1, 1:], block[1:, :-1], block[1:, 1:]
     centres = _sample(grey, (0.25 * (a + b + c + d)).reshape(-1, 2)).reshape(a.shape[:2])
     quarters = np.concatenate([_sample(grey, (0.625 * p + 0.125 * (a + b + c + d - p)).reshape(-1, 2))
@@ -159,7 +159,29 @@ def checkered(grey: np.ndarray, block: np.ndarray) -> bool:
         return False
     contrast = np.percentile(quarters, 95) - np.percentile(quarters, 5)
     gap = max(odd.min() - even.max(), even.min() - odd.max())
-    return bool(contrast > 0 and gap >= CHECKER_CONTRAST * contrast)
+    return bool(contrast > 0 and gap >= CHECKER_CONTRAST * contrast and _wide_sides(grey, block) == 0)
+
+
+def _wide_sides(grey: np.ndarray, block: np.ndarray) -> int:
+    """How many sides of ``block``'s cells (r, c, 2) span two or three squares of the board instead
+    of one: a junction at the side's midpoint, or at both its thirds (looked at with a patch of
+    JUNCTION_RADIUS of half, or a third of, the side).  With ``CALIB_CB_LARGER`` the detector can
+    skip corners along a row, evenly (cells three squares wide still alternate in colour, so
+    :func:`checkered`'s parity test cannot tell) or not (steps of 1, 1, 2, 2 squares, which
+    :func:`consistent` takes for a smooth bend); measured on bench strong seed 2, photo 10.  On a
+    single square's side those points lie on the line between a dark and a bright square, which a
+    half turn about them swaps."""
+    count = 0
+    for a, b in ((block[:, :-1], block[:, 1:]), (block[:-1], block[1:])):
+        a, b = a.reshape(-1, 2), b.reshape(-1, 2)
+        keep = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+        a, b = a[keep], b[keep]
+        for k, side in zip(range(len(a)), np.linalg.norm(b - a, axis=1)):
+            halves = junctions(grey, (0.5 * (a[k] + b[k]))[None, None], side / 2)[0, 0]
+            thirds = junctions(grey, np.stack([a[k] + (b[k] - a[k]) / 3, a[k] + 2 * (b[k] - a[k]) / 3])[:, None],
+                               side / 3).all()
+            count += bool(halves or thirds)
+    return count
 
 
 def junctions(grey: np.ndarray, block: np.ndarray, step: float) -> np.ndarray:
