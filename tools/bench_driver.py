@@ -16,7 +16,7 @@ the acceptance's 2 cores) within ``--minutes``, predicts every test frame and pr
   the CPU with ``--threads`` threads, and on CUDA when torch sees a GPU.
 
     python tools/bench_driver.py [--keep DIR] [--frames 7200] [--test-frames 600] [--tests 3] [--epochs 40]
-                                 [--minutes 15] [--input-size 224] [--threads 2] [--student FILE]
+                                 [--minutes 15] [--input-size 224] [--threads 2] [--seed 0] [--student FILE]
 
 ``--student FILE`` measures a student already trained on DIR/train instead of training one.
 
@@ -67,6 +67,7 @@ def main() -> int:
     ap.add_argument("--minutes", type=float, default=15.0, help="the training's time budget (0: none)")
     ap.add_argument("--input-size", type=int, default=224)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=0, help="the training's seed (initial weights, batches, augmentation)")
     ap.add_argument("--student", help="measure this student (trained on DIR/train) instead of training one")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
@@ -86,7 +87,7 @@ def main() -> int:
             print(f"made {root / name}: {frames} frames, {time.perf_counter() - start:.0f} s", flush=True)
     box = json.loads((root / "train" / "video.json").read_text())["face_box"]
     options = DistillOptions(epochs=args.epochs, input_size=args.input_size, threads=args.threads,
-                             minutes=args.minutes or None)
+                             minutes=args.minutes or None, seed=args.seed)
 
     def report(r):
         head = r["groups"].get("head", {})
