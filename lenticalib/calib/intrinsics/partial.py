@@ -171,33 +171,32 @@ def _wide_sides(grey: np.ndarray, block: np.ndarray) -> int:
     :func:`consistent` takes for a smooth bend); measured on bench strong seed 2, photo 10.  On a
     single square's side those points lie on the line between a dark and a bright square, which a
     half turn about them swaps."""
-    count = 0
-    for a, b in ((block[:, :-1], block[:, 1:]), (block[:-1], block[1:])):
-        a, b = a.reshape(-1, 2), b.reshape(-1, 2)
-        keep = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
-        a, b = a[keep], b[keep]
-        for k, side in zip(range(len(a)), np.linalg.norm(b - a, axis=1)):
-            halves = junctions(grey, (0.5 * (a[k] + b[k]))[None, None], side / 2)[0, 0]
-            thirds = junctions(grey, np.stack([a[k] + (b[k] - a[k]) / 3, a[k] + 2 * (b[k] - a[k]) / 3])[:, None],
-                               side / 3).all()
-            count += bool(halves or thirds)
-    return count
+    a = np.concatenate([block[:, :-1].reshape(-1, 2), block[:-1].reshape(-1, 2)])
+    b = np.concatenate([block[:, 1:].reshape(-1, 2), block[1:].reshape(-1, 2)])
+    keep = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a, b = a[keep], b[keep]
+    if len(a) == 0:
+        return 0
+    side = np.linalg.norm(b - a, axis=1)
+    halves = junctions(grey, (0.5 * (a + b))[:, None], (side / 2)[:, None])[:, 0]
+    thirds = junctions(grey, np.stack([a + (b - a) / 3, a + 2 * (b - a) / 3], axis=1),
+                       np.repeat((side / 3)[:, None], 2, axis=1)).all(axis=1)
+    return int(np.sum(halves | thirds))
 
 
-def junctions(grey: np.ndarray, block: np.ndarray, step: float) -> np.ndarray:
+def junctions(grey: np.ndarray, block: np.ndarray, step) -> np.ndarray:
     """bool (r, c): which corners of ``block`` (r, c, 2; NaN: none) look like where two squares of
-    each colour meet: the image within ``JUNCTION_RADIUS`` of a ``step`` (px) around the corner
-    correlates by at least ``JUNCTION_SYMMETRY`` with itself turned by a half turn about the corner
-    (an ink corner seen through any lens, tilt and blur is locally point-symmetric; a point inside
-    a square or on one edge is not)."""
+    each colour meet: the image within ``JUNCTION_RADIUS`` of a ``step`` (px; one for all, or one
+    per corner, (r, c)) around the corner correlates by at least ``JUNCTION_SYMMETRY`` with itself
+    turned by a half turn about the corner (an ink corner seen through any lens, tilt and blur is
+    locally point-symmetric; a point inside a square or on one edge is not)."""
     import cv2
 
     ok = np.zeros(block.shape[:2], bool)
-    if not np.isfinite(step):
-        return ok
-    r = max(3, int(round(JUNCTION_RADIUS * step)))
+    steps = np.broadcast_to(np.asarray(step, np.float64), block.shape[:2])
     image = grey.astype(np.float32)
-    for i, j in zip(*np.nonzero(np.isfinite(block[..., 0]))):
+    for i, j in zip(*np.nonzero(np.isfinite(block[..., 0]) & np.isfinite(steps))):
+        r = max(3, int(round(JUNCTION_RADIUS * steps[i, j])))
         patch = cv2.getRectSubPix(image, (2 * r + 1, 2 * r + 1), tuple(float(x) for x in block[i, j]))
         a = patch - patch.mean()
         b = a[::-1, ::-1]
