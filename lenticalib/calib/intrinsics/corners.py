@@ -18,10 +18,11 @@ of corners, starting from several smallest blocks (``PART_SIZES``; each start fi
 blocks, the largest consistent one is kept), on the photo and on copies scaled by
 ``PART_SCALES`` (measured: on a 3000 x 2000 photo with 200 px squares cut by two edges, the
 full-size searches grew a block of 8 corners, the quarter-size ones 21); corners found on a
-smaller copy are scaled back and refined on the photo itself.  That search can return corners it made up (inside
-a square, or a real corner under another label, near the photo's edge): those are dropped
-(:func:`.partial.consistent`), a block whose cells are not single squares in checker order is
-refused (:func:`.partial.checkered`), and the block is placed into the board's grid
+smaller copy are scaled back and refined on the photo itself.  That search can return corners
+it made up (inside a square, or a real corner under another label, near the photo's edge):
+those are dropped (:func:`.partial.consistent`), a block whose cells are not single squares in
+checker order (or whose rows skip corners) is refused (:func:`.partial.checkered`), and the
+block is placed into the board's grid
 (:func:`.partial.place`: the pose absorbs where, a quarter turn is told by the board's counts and
 edges).  A photo needs ``MIN_CHESSBOARD_CORNERS`` such corners on ``MIN_GRID`` rows and columns.
 The corners not in the photo are NaN, as for a ChArUco board.

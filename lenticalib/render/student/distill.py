@@ -159,9 +159,9 @@ def _batches(crops, targets, index, size, batch, rng, train: bool):
     """Yield (x float32 (B, 3, S, S) normalised, y (B, D)) for the frames ``index``.
 
     Training draws, per batch, a square of side S (1 - SIZE_JITTER) to S (1 + SIZE_JITTER) (the
-    tracker's box a little smaller or larger) resampled to S (:func:`training_side`), and per frame its place in the stored crop,
-    white balance (+-4 % per channel), brightness (+-0.08) and contrast (0.85-1.15); validation
-    takes the centred S square as it is."""
+    tracker's box a little smaller or larger; :func:`training_side`) resampled to S, and per frame
+    its place in the stored crop, white balance (+-4 % per channel), brightness (+-0.08) and
+    contrast (0.85-1.15); validation takes the centred S square as it is."""
     import torch
 
     P = crops.shape[1]
