@@ -1,7 +1,9 @@
 """OpenGL contexts with no window, shared by the offscreen presenter and the GL encoder and renderer.
 
 :func:`offscreen_context` opens a moderngl context of at least a given OpenGL version on a named
-backend; :func:`headless_context` prefers EGL (a GPU driver's, or Mesa's llvmpipe, which needs no
+backend, asking for the newest of ``PREFERRED_VERSIONS`` first: a driver may give exactly the
+version asked for (NVIDIA's EGL gives a 3.3 context when 3.3 is asked for, so the gl renderer lost
+its compute shaders and ran 200 times slower on an H100), where Mesa gives its newest anyway; :func:`headless_context` prefers EGL (a GPU driver's, or Mesa's llvmpipe, which needs no
 X server) and leaves no EGL context current afterwards (:func:`unbind_egl`), so that a window
 opened later in the same process (GLX through glfw) can still be made current.
 """
@@ -22,6 +24,14 @@ void main() {
     gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
 }
 """
+# OpenGL versions asked for first, newest first (4.3: compute shaders, which the gl renderer's
+# projection and sort need); the caller's minimum is asked for last.
+PREFERRED_VERSIONS = (460, 450, 430)
+
+
+def versions_to_try(require: int) -> list[int]:
+    """OpenGL version codes to ask a driver for, in order: the preferred ones above ``require``, then ``require``."""
+    return [v for v in PREFERRED_VERSIONS if v > require] + [require]
 
 
 def load_llvm_users_first() -> None:
@@ -45,25 +55,26 @@ def load_llvm_users_first() -> None:
 def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
     """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X
     server -- a GPU driver's, or Mesa's surfaceless llvmpipe -- else the platform's default),
-    OpenGL ``require`` (330 = 3.3) or newer.  DisplayError (one line, naming the backend and what
+    OpenGL ``require`` (330 = 3.3) or newer (:func:`versions_to_try`).  DisplayError (one line, naming the backend and what
     to install; ``hint`` appended) when there is none."""
     import moderngl
 
     if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):
         backend = "egl"
     load_llvm_users_first()
-    kwargs = {"standalone": True, "require": require}
+    kwargs = {"standalone": True}
     if backend:
         kwargs["backend"] = backend
-    try:
-        ctx = moderngl.create_context(**kwargs)
-    except Exception as exc:
-        text = str(exc).strip()
-        raise DisplayError(f"no offscreen OpenGL {require // 100}.{require // 10 % 10} context ({backend or 'default'} "
-                           f"backend: {text.splitlines()[-1] if text else repr(exc)})",
-                           hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver"
-                                + (f"; {hint}" if hint else "")) from None
-    return ctx
+    for version in versions_to_try(require):
+        try:
+            return moderngl.create_context(require=version, **kwargs)
+        except Exception as exc:  # moderngl raises plain Exceptions for context failures
+            failure = exc
+    text = str(failure).strip()
+    raise DisplayError(f"no offscreen OpenGL {require // 100}.{require // 10 % 10} context ({backend or 'default'} "
+                       f"backend: {text.splitlines()[-1] if text else repr(failure)})",
+                       hint="install Mesa (libegl1, libgl1-mesa-dri) or a GPU driver"
+                            + (f"; {hint}" if hint else "")) from None
 
 
 def headless_context(require: int = 330, hint: str | None = None):
