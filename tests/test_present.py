@@ -62,10 +62,13 @@ def test_a_raster_of_another_size_or_depth_is_refused_not_scaled(on_xvfb):
 
 
 def test_offscreen_presenter_is_byte_exact_too(on_xvfb):
-    raster = _raster(6, (200, 120))
-    with OffscreenPresenter((200, 120)) as presenter:
-        presenter.show(raster)
-        assert np.array_equal(presenter.read_back(), raster)
+    # 200 wide: the rows' bytes in an RGBA texture 150 wide; 202 wide: an RGB texture (not a multiple of 4)
+    for size in ((200, 120), (202, 120)):
+        with OffscreenPresenter(size) as presenter:
+            for seed in (6, 7):
+                raster = _raster(seed, size)
+                presenter.show(raster)
+                assert np.array_equal(presenter.read_back(), raster), size
 
 
 MONITORS = [Monitor(0, "DELL U2720Q", 0, 0, 2560, 1440, 60),
@@ -179,3 +182,25 @@ def test_list_displays(xvfb, cli_process):
     result = cli_process("show", "--list-displays", env=xvfb.variables(), timeout=60)
     assert result.returncode == 0, result.stderr
     assert "0: screen 640x360" in result.stdout
+
+
+def test_a_raster_on_a_device_the_driver_cannot_share_goes_through_host_memory(on_xvfb, monkeypatch):
+    # a driver that cannot share its buffers with CUDA (Mesa here): the raster still arrives byte for byte,
+    # and the fallback is said once
+    import torch
+
+    from lenticalib.render import cuda_gl
+
+    def refuse(self, buffer):
+        raise DisplayError("CUDA-OpenGL interop: cuGraphicsGLRegisterBuffer failed (CUDA error 219)")
+
+    monkeypatch.setattr(cuda_gl.RegisteredBuffer, "__init__", refuse)
+    with OffscreenPresenter((200, 120)) as presenter:
+        for seed in (8, 9):
+            raster = _raster(seed, (200, 120))
+            presenter.show_device(torch.from_numpy(raster))
+            assert np.array_equal(presenter.read_back(), raster)
+        assert presenter.notes == ["the raster goes to OpenGL through host memory (CUDA-OpenGL interop: "
+                                   "cuGraphicsGLRegisterBuffer failed (CUDA error 219))"]
+        with pytest.raises(ImageError, match="is 100x60 pixels"):
+            presenter.show_device(torch.from_numpy(_raster(10, (100, 60))))

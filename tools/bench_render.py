@@ -67,19 +67,16 @@ def bench_device(device: str, rig_path: Path, frames: int, warmup: int) -> str:
             for k in range(warmup + frames):
                 _, vector = controls.latest(k / 30.0)
                 start = time.perf_counter()
-                raster, _, stages = pipeline.frame(vector, raster_to_host=not pipeline.draws_on_gpu)
-                t0 = time.perf_counter()
-                if pipeline.draws_on_gpu:  # the raster drawn into the presenter's framebuffer, no host copy
-                    pipeline.present_drawn(presenter, stages)
-                else:
-                    presenter.show(raster)
-                    stages["present"] = 1e3 * (time.perf_counter() - t0)
+                # a raster made on the GPU stays there: drawn into the presenter's framebuffer (gl) or
+                # copied into its pixel buffer on the GPU (cuda)
+                raster, _, stages = pipeline.frame(vector, raster_to_host=not (pipeline.draws_on_gpu or pipeline.on_gpu))
+                pipeline.present(presenter, raster, stages)
                 end = time.perf_counter()
                 if k >= warmup:
                     rows.append(stages)
                     walls.append(1e3 * (end - start))
             pipeline.close()
-        notes = "; ".join(pipeline.notes)
+        notes = "; ".join(pipeline.notes + presenter.notes)
     except LenticalibError as exc:
         return f"{device:<6} failed: {exc}"
     med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}

@@ -97,7 +97,9 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
         try:
             if presenter.ctx is not None:  # the gl renderer renders in the presenter's context
                 pipeline.use_context(presenter.ctx)
-            on_gpu = output == "panel" and pipeline.draws_on_gpu
+            # on the panel, a raster made on the GPU stays there (gl: drawn in the presenter's context; gsplat: copied
+            # into its pixel buffer on the GPU)
+            on_gpu = output == "panel" and (pipeline.draws_on_gpu or pipeline.on_gpu)
             told = 0
             while (frames is None or times.frames < frames) and not interrupted.is_set():
                 t_controls = time.perf_counter()
@@ -109,20 +111,18 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
                 for warning in (take() if take is not None else ()):
                     if on_warning is not None:
                         on_warning(warning)
-                for note in pipeline.notes[told:]:  # fallbacks, said once (made on the first frame)
+                t0 = time.perf_counter()
+                if output == "preview":
+                    view = views[centre]
+                    presenter.show(view if isinstance(view, np.ndarray) else views_on_host(view[None])[0])
+                    stages["present"] = 1e3 * (time.perf_counter() - t0)
+                elif output != "headless":  # headless presents nothing: no present stage
+                    pipeline.present(presenter, raster, stages)
+                notes = pipeline.notes + presenter.notes
+                for note in notes[told:]:  # fallbacks, said once (made on the first frame)
                     if on_warning is not None:
                         on_warning(note)
-                told = len(pipeline.notes)
-                t0 = time.perf_counter()
-                if on_gpu:  # the raster drawn straight into the window: its draw is compose, the rest present
-                    pipeline.present_drawn(presenter, stages)
-                elif output != "headless":  # headless presents nothing: no present stage
-                    if output == "preview":
-                        view = views[centre]
-                        presenter.show(view if isinstance(view, np.ndarray) else views_on_host(view[None])[0])
-                    else:
-                        presenter.show(raster)
-                    stages["present"] = 1e3 * (time.perf_counter() - t0)
+                told = len(notes)
                 times.add(**stages)
                 if any(k in ("escape", "q") for k in presenter.keys()):
                     break

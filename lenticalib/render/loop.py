@@ -201,6 +201,7 @@ class AvatarPipeline:
         self.edge_desaturation = float(edge_desaturation)
         self.compensator = compensator  # crosstalk pre-compensation (render.compensation), part of compose
         self._torch_encoder = None
+        self._host_rasters, self._host_next = [], 0  # page-locked rasters for the GPU's (see _to_host)
         self._retargeter = None  # built on the first set_eye (a tracked viewer)
         view_aspect, panel_aspect = cameras.width / cameras.height, profile.width / profile.height
         if abs(view_aspect / panel_aspect - 1.0) > ASPECT_TOLERANCE:  # checked now, not after the first render
@@ -253,8 +254,9 @@ class AvatarPipeline:
         """(raster uint8 (height, width, 3) on the host, views, {"drive", "render", "compose"}
         milliseconds).  Views: uint8 (N, H_v, W_v, 3) numpy, a torch tensor (gsplat) or a
         :class:`~.gl_pipeline.FrameViews` (gl: read back when indexed; :func:`views_on_host`).
-        ``raster_to_host=False`` (gl renderer and encoder only): the raster stays on the GPU,
-        None is returned for it and :meth:`draw_raster` draws it (its time is added to compose)."""
+        ``raster_to_host=False``: the raster stays on the GPU: with the gl renderer and encoder
+        None is returned for it and :meth:`draw_raster` draws it (its time is added to compose);
+        with gsplat it is the torch encoder's uint8 tensor on the CUDA device (:meth:`present`)."""
         t0 = time.perf_counter()
         gaussians = self.avatar.pose(controls, self.device, as_torch=self.on_gpu)
         self._sync()
@@ -278,7 +280,10 @@ class AvatarPipeline:
             if self.compensator is not None:  # in linear light, on the device
                 rgb = srgb_encode(self.compensator.apply_torch(srgb_decode(rgb)))
             views = (rgb * 255.0 + 0.5).to(dtype=torch.uint8).contiguous()
-            raster = self._gpu_encoder().encode(views).cpu().numpy()
+            raster = self._gpu_encoder().encode(views)
+            if raster_to_host:
+                raster = self._to_host(raster)
+            self._sync()  # the encoder's kernels are compose, not the presenter's copy
         else:
             views = prepare_views(rgba, bg, self.edge_desaturation, self.compensator, background_rendered=not image_bg)
             raster = self.encode_fn(views, self.profile)
@@ -301,6 +306,21 @@ class AvatarPipeline:
         else:
             raster = None
         return raster, views, stages
+
+    def present(self, presenter, raster, stages: dict) -> None:
+        """Put the raster of the last :meth:`frame` on ``presenter``, timed into ``stages``
+        ("present"): a host array through ``show``, a CUDA tensor through ``show_device`` (copied
+        on the GPU), None (gl renderer and encoder, ``raster_to_host=False``) by drawing it
+        (:meth:`present_drawn`)."""
+        if raster is None:
+            self.present_drawn(presenter, stages)
+            return
+        start = time.perf_counter()
+        if isinstance(raster, np.ndarray):
+            presenter.show(raster)
+        else:
+            presenter.show_device(raster)
+        stages["present"] = 1e3 * (time.perf_counter() - start)
 
     def present_drawn(self, presenter, stages: dict) -> None:
         """Put the last frame's raster (made with ``raster_to_host=False``) on ``presenter`` by
@@ -351,6 +371,23 @@ class AvatarPipeline:
             self._torch_encoder = TorchEncoder(self.profile, (self.cameras.height, self.cameras.width),
                                                device=self.device)
         return self._torch_encoder
+
+    def _to_host(self, raster):
+        """uint8 numpy (height, width, 3) of the torch raster made on the GPU, copied through
+        page-locked host memory (an H100 took 2.7 ms to copy a 4K raster to pageable memory).  Two
+        such buffers are used in turn: the array returned is overwritten two frames later (every
+        caller is done with it after one; copy it to keep it longer)."""
+        import torch
+
+        if raster.device.type != "cuda":
+            return raster.numpy()
+        if not self._host_rasters or self._host_rasters[0].shape != raster.shape:
+            self._host_rasters = [torch.empty(raster.shape, dtype=raster.dtype, pin_memory=True) for _ in range(2)]
+        host = self._host_rasters[self._host_next]
+        self._host_next = 1 - self._host_next
+        host.copy_(raster, non_blocking=True)
+        torch.cuda.current_stream(raster.device).synchronize()
+        return host.numpy()
 
     def _sync(self) -> None:
         if self.on_gpu:

@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 from collections import deque
 
 import numpy as np
 
 from ..core.errors import DisplayError, ImageError
 from ..core.sizes import check_raster_size
-from .gl_context import VIEWPORT_TRIANGLE, load_llvm_users_first
+from .gl_context import VIEWPORT_TRIANGLE, load_llvm_users_first, versions_to_try
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0
@@ -39,11 +40,22 @@ _FRAGMENT = """
 #version 330 core
 uniform sampler2D raster;
 uniform int height;
+uniform bool packed_rows;  // the raster's bytes in an RGBA texture 3/4 as wide (see Presenter._texture)
 out vec4 colour;
 void main() {
     // gl_FragCoord is at the pixel centre, origin bottom-left; raster row 0 is the top row
     ivec2 p = ivec2(gl_FragCoord.xy);
-    colour = vec4(texelFetch(raster, ivec2(p.x, height - 1 - p.y), 0).rgb, 1.0);
+    int y = height - 1 - p.y;
+    if (packed_rows) {
+        vec3 c;
+        for (int k = 0; k < 3; ++k) {
+            int i = 3 * p.x + k;  // the subpixel's place in the row's values
+            c[k] = texelFetch(raster, ivec2(i >> 2, y), 0)[i & 3];
+        }
+        colour = vec4(c, 1.0);
+    } else {
+        colour = vec4(texelFetch(raster, ivec2(p.x, y), 0).rgb, 1.0);
+    }
 }
 """
 
@@ -95,7 +107,9 @@ class Presenter:
         self._program = None
         self._vao = None
         self._shown: np.ndarray | None = None
-        self._redraw = None  # the draw function of the last show_drawn
+        self._redraw = None  # the draw function of the last show_drawn or show_device
+        self._device_uploads = None  # cuda_gl.DeviceUploads once show_device ran; False: not possible here
+        self.notes: list[str] = []  # one line per fallback taken, for the caller to print
 
     # -- lifecycle ---------------------------------------------------------------------------
     def __enter__(self) -> "Presenter":
@@ -109,6 +123,9 @@ class Presenter:
         raise NotImplementedError
 
     def close(self) -> None:
+        if self._device_uploads:
+            self._device_uploads.release()
+        self._device_uploads = None
         for item in list(self._textures.values()) + self._buffers:
             item.release()
         self._textures.clear()
@@ -125,19 +142,32 @@ class Presenter:
         self._program = ctx.program(vertex_shader=VIEWPORT_TRIANGLE, fragment_shader=_FRAGMENT)
         self._program["raster"].value = 0
         self._program["height"].value = self.size[1]
+        self._program["packed_rows"].value = self._packed
         self._vao = ctx.vertex_array(self._program, [])
         nbytes = self.size[0] * self.size[1] * 3 * 2  # room for 16-bit rasters
         self._buffers = [ctx.buffer(reserve=nbytes, dynamic=True) for _ in range(2)]
 
     def _texture(self, dtype: np.dtype):
+        """The texture rasters of ``dtype`` are uploaded into.  Where the width is a multiple of 4 it
+        is an RGBA texture 3/4 as wide holding the rows' values as they are (``packed_rows``: the shader
+        picks each subpixel's value), since drivers convert 3-channel uploads on the CPU: a 4K
+        raster took 10 ms as RGB and 2.6 ms as RGBA on Mesa (``tools/bench_present.py``)."""
         key = np.dtype(dtype).str
         if key not in self._textures:
             gl_type = "f1" if dtype == np.uint8 else "nu2"
-            tex = self.ctx.texture(self.size, 3, dtype=gl_type)
+            width, height = self.size
+            if self._packed:
+                tex = self.ctx.texture((width * 3 // 4, height), 4, dtype=gl_type)
+            else:
+                tex = self.ctx.texture(self.size, 3, dtype=gl_type)
             tex.filter = (self._nearest(), self._nearest())
             tex.repeat_x = tex.repeat_y = False
             self._textures[key] = tex
         return self._textures[key]
+
+    @property
+    def _packed(self) -> bool:
+        return self.size[0] % 4 == 0
 
     @staticmethod
     def _nearest():
@@ -155,8 +185,39 @@ class Presenter:
         self._next_buffer = 1 - self._next_buffer
         buffer.orphan(data.nbytes)
         buffer.write(data)
-        texture = self._texture(data.dtype)
-        texture.write(buffer, alignment=1)
+        timing = self._present_buffer(buffer, data.dtype, start)
+        self._shown = data
+        return timing
+
+    def show_device(self, raster, source: str | None = None) -> FrameTiming:
+        """Put a raster that is a torch tensor on a CUDA GPU (uint8 (height, width, 3): the torch
+        encoder's) on the panel, copied on the GPU into the pixel buffer (:mod:`.cuda_gl`) where
+        the driver allows it, else through host memory (said once in ``notes``); returns and
+        records its timing.  ``shown`` is None afterwards (``read_back`` gives what was drawn)."""
+        if self._device_uploads is None and self.ctx is not None:
+            from .cuda_gl import DeviceUploads
+
+            try:
+                self._device_uploads = DeviceUploads(self.ctx, self.size[0] * self.size[1] * 3)
+            except DisplayError as exc:
+                self._device_uploads = False
+                self.notes.append(f"the raster goes to OpenGL through host memory ({exc})")
+        import torch
+
+        if not self._device_uploads or tuple(raster.shape) != (self.size[1], self.size[0], 3) \
+                or raster.dtype != torch.uint8:  # show() checks it and says what is wrong
+            return self.show(raster.cpu().numpy(), source)
+        start = time.perf_counter()
+        buffer = self._device_uploads.upload(raster.contiguous())
+        timing = self._present_buffer(buffer, np.dtype(np.uint8), start)
+        texture = self._texture(np.uint8)
+        self._shown, self._redraw = None, lambda _framebuffer: self._draw(texture)  # the texture holds it
+        return timing
+
+    def _present_buffer(self, buffer, dtype: np.dtype, start: float) -> FrameTiming:
+        """Upload the pixel buffer into the texture, draw and swap; the timing from ``start``."""
+        texture = self._texture(dtype)
+        texture.write(buffer, alignment=4 if self._packed else 1)
         self.ctx.finish()
         uploaded = time.perf_counter()
         self._draw(texture)
@@ -165,7 +226,7 @@ class Presenter:
         done = time.perf_counter()
         timing = FrameTiming(1e3 * (uploaded - start), 1e3 * (done - uploaded))
         self.timings.append(timing)
-        self._shown, self._redraw = data, None
+        self._redraw = None
         return timing
 
     def show_drawn(self, draw) -> FrameTiming:
@@ -242,16 +303,24 @@ class WindowPresenter(Presenter):
                             (glfw.FOCUS_ON_SHOW, True), (glfw.SRGB_CAPABLE, False), (glfw.SAMPLES, 0),
                             (glfw.DOUBLEBUFFER, True), (glfw.RED_BITS, mode.bits.red),
                             (glfw.GREEN_BITS, mode.bits.green), (glfw.BLUE_BITS, mode.bits.blue),
-                            (glfw.REFRESH_RATE, mode.refresh_rate), (glfw.CONTEXT_VERSION_MAJOR, 3),
-                            (glfw.CONTEXT_VERSION_MINOR, 3), (glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE),
+                            (glfw.REFRESH_RATE, mode.refresh_rate), (glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE),
                             (glfw.OPENGL_FORWARD_COMPAT, True), (glfw.SCALE_TO_MONITOR, False)):
             glfw.window_hint(hint, value)
         if hasattr(glfw, "COCOA_RETINA_FRAMEBUFFER"):
             glfw.window_hint(glfw.COCOA_RETINA_FRAMEBUFFER, False)
-        if self.windowed is not None:
-            window = glfw.create_window(int(self.windowed[0]), int(self.windowed[1]), "lenticalib preview", None, None)
-        else:
-            window = glfw.create_window(mode.size.width, mode.size.height, "lenticalib", handle, None)
+        window = None
+        for version in versions_to_try(330):  # the newest the driver gives (compute shaders for the gl renderer)
+            glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, version // 100)
+            glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, version // 10 % 10)
+            with warnings.catch_warnings():  # a version the driver lacks: glfw warns, the next is tried
+                warnings.simplefilter("ignore", getattr(glfw, "GLFWError", Warning))
+                if self.windowed is not None:
+                    window = glfw.create_window(int(self.windowed[0]), int(self.windowed[1]), "lenticalib preview",
+                                                None, None)
+                else:
+                    window = glfw.create_window(mode.size.width, mode.size.height, "lenticalib", handle, None)
+            if window:
+                break
         if not window:
             where = "a preview window" if self.monitor is None else f"monitor {self.monitor.describe()}"
             raise DisplayError(f"could not open an OpenGL 3.3 window on {where}",
