@@ -154,7 +154,7 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
     warnings: list[str] = []
     curve = measure_tone(capture, warnings) if photos == "srgb" else None
-    luma, clipped, factor = load_all(capture, pattern_set, photos, progress, None if curve is None else curve.lut())
+    luma, clipped, factor, noise = load_all(capture, pattern_set, photos, progress, None if curve is None else curve.lut())
     white_path = capture.photo("white")
     lit0 = luma["white"] - luma["black"]
     mask = panel_mask(lit0, white_path)
@@ -169,7 +169,7 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     if progress:
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
-                    curve, photos, factor, start, progress, column_average)
+                    curve, photos, factor, start, progress, column_average, noise)
 
 
 def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
@@ -231,7 +231,7 @@ def _ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVE
 
 
 def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve, photos,
-             factor, start, progress, column_average) -> Measurement:
+             factor, start, progress, column_average, noise=None) -> Measurement:
     import cv2
 
     n = pattern_set.views
@@ -334,7 +334,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                          "tone_curve": None if curve is None else curve.to_dict(),
                          "tone_power_sigma": round(tone_sigma, 4),
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
-                         "shifts": shifts}
+                         "shifts": shifts,
+                         # the camera's noise sigma per channel (share of full scale) where it clips dark pixels
+                         # at 0, their bias undone (photos.load_all); None: no clipping seen on the black photo
+                         "dark_clipping_sigma": None if noise is None else [round(float(v), 6) for v in noise]}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,

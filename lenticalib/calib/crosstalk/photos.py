@@ -15,18 +15,29 @@ import numpy as np
 from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
 from ...core.imageio import read_image
-from . import tone
+from . import dark, tone
 
 WORKING_WIDTH = 1000  # working pixels across (about)
 MAX_CLIPPED = 0.02
 MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
 
 
-def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | None = None
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | None = None,
+                   noise: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo; ``lut`` (float32 (256,)):
     the light of each 8-bit code of an "srgb" photo (the camera's measured tone curve,
-    :mod:`.tone`), plain sRGB decoding when None."""
+    :mod:`.tone`), plain sRGB decoding when None; ``noise``: the channels' sigma where the
+    camera clips dark pixels at 0 (:func:`.dark.clipping_noise`): their bias is undone first."""
+    linear, clipped = linear_channels(raw, mode, path, lut)
+    if noise is not None:
+        linear = dark.unclip(linear, noise)
+    return linear.sum(axis=2, dtype=np.float32), clipped
+
+
+def linear_channels(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(float32 (h, w, 3) linear light per channel, bool (h, w) clipped) of one photo (see
+    :func:`linear_rgb_sum`)."""
     if raw.ndim != 3 or raw.shape[2] < 3:
         raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
     raw = raw[:, :, :3]
@@ -35,11 +46,11 @@ def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | Non
             lut = np.arange(256, dtype=np.float32) / np.float32(255.0)
         elif lut is None:
             lut = tone.decode_lut()
-        return lut[raw].sum(axis=2, dtype=np.float32), raw.max(axis=2) >= 250
+        return lut[raw], raw.max(axis=2) >= 250
     top = 65535.0 if raw.dtype == np.uint16 else 1.0
     value = raw.astype(np.float32) / np.float32(top)
     linear = value if mode == "linear" else srgb_decode(value).astype(np.float32)
-    return linear.sum(axis=2, dtype=np.float32), value.max(axis=2) >= 250 / 255
+    return linear, value.max(axis=2) >= 250 / 255
 
 
 def working(image: np.ndarray, factor: int) -> np.ndarray:
@@ -51,16 +62,20 @@ def working(image: np.ndarray, factor: int) -> np.ndarray:
 
 
 def load_all(capture, pattern_set, mode, progress, lut=None):
-    """Working-resolution linear luma of every photo, the white photo's clipped map, and factor
-    (``lut``: the tone curve of 8-bit "srgb" photos, :func:`linear_rgb_sum`)."""
+    """Working-resolution linear luma of every photo, the white photo's clipped map, factor and the
+    channels' noise sigma where the camera clips dark pixels at 0 (None: it does not; measured on
+    the black photo, read first, and undone in every photo: :mod:`.dark`) (``lut``: the tone curve
+    of 8-bit "srgb" photos, :func:`linear_rgb_sum`)."""
     from ..captures import check_photo_size
 
     luma: dict[str, np.ndarray] = {}
     clipped = None
     size = None
     factor = 1
-    for pattern in pattern_set.patterns:
-        path = capture.photo(pattern.name)
+    noise = None
+    names = ["black"] + [p.name for p in pattern_set.patterns if p.name != "black"]
+    for name in names:
+        path = capture.photo(name)
         raw = read_image(path, camera_orientation=True)
         h, w = raw.shape[:2]
         check_photo_size(path, w, h)
@@ -70,13 +85,16 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
         elif (w, h) != size:
             raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
                                hint="take every photo of the set with the same camera settings, without cropping")
-        linear, clip = linear_rgb_sum(raw, mode, path, lut)
-        luma[pattern.name] = working(linear, factor)
-        if pattern.name == "white":
+        if name == "black":
+            channels, _ = linear_channels(raw, mode, path, lut)
+            noise = dark.clipping_noise(channels, raw[:, :, :3] == 0)
+        linear, clip = linear_rgb_sum(raw, mode, path, lut, noise)
+        luma[name] = working(linear, factor)
+        if name == "white":
             clipped = working(clip.astype(np.float32), factor)
         if progress:
             progress(f"read {path.name}")
-    return luma, clipped, factor
+    return luma, clipped, factor, noise
 
 
 def panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
