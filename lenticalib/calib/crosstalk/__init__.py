@@ -6,6 +6,7 @@ uses them:
     patterns     the sweep patterns and their manifest (``lenticalib crosstalk patterns``)
     photos       reading the photos: linear light, the panel's lit area, registration
     tone         the camera's tone curve, from the black, white, half and level photos
+    dark         dark pixels clipped at zero: their bias, measured on the black photo and undone
     photometry   the camera's veiling glare, from the photos
     checks       duplicate photos and band photos that do not fit the others
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps
