@@ -201,6 +201,7 @@ def run_set(name: str, seed: int, size, root: Path, radius: float | None, draws:
             "lensmodel": model.intrinsics()[0].replace("LENSMODEL_", ""),
             "scale": scale, "lenticalib": lc, "opencv": truth_diff(cv, truth, radius),
             "honesty": honesty, "seconds": {"simulate": t1 - t0, "calibrate": t2 - t1},
+            "rectified_pass": run.summary.get("rectified_pass"),
             "draws": noise_draws(run, board, truth, rt, draws, radius) if draws else None}
 
 

@@ -14,8 +14,9 @@ placed into the board's grid by :mod:`.partial`, a ChArUco board's identified co
 with too few corners is left out with its reason in the summary, like a photo without the board.
 The corners of either board, after the first solve, are located again in views rectified with
 its model (:mod:`.rectified`: no lens curvature in the refinement window) and solved again; the
-ChArUco corners are always the second ones; chessboard corners the second ones only when the
-model fits them better (a lower inlier RMS).  A board shown on the panel is not located again
+ChArUco corners are always the second ones; chessboard corners the second ones when the model
+fits them better (a lower inlier RMS) or when the first ones are pulled outward against them
+(:func:`.rectified.bend_pull`: a barrel lens's bend, which the solve absorbs).  A board shown on the panel is not located again
 (measured: its model moved off the truth).
 """
 
@@ -226,7 +227,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         corners = np.stack([f.corners for f in used])
         cal = solve_module.calibrate(corners, board, size, lensmodel=lensmodel, progress=steps("solving again", solving))
     # the corners located again without the lens's curvature (:mod:`.rectified`), solved again
-    from .rectified import refine_photos
+    from .rectified import BEND_MIN_PX, BEND_T, bend_pull, refine_photos
 
     if board.kind == "panel":
         # a board shown through the lens sheet is left as first located: measured on the simulated
@@ -239,11 +240,16 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         second = solve_module.calibrate(refined, board, size, lensmodel=lensmodel,
                                         progress=steps("solving with the refined corners", solving))
         # ChArUco corners: always kept (their first windows straddle markers).  Chessboard corners:
-        # kept when the model fits them better (a lens's bend biases the first ones and the
-        # residuals grow; a noisy, sharpened phone photo's resampled view can make the second ones
-        # worse: measured on the bench's phone sets, 0.12 -> 0.44-0.53 px)
+        # kept when the model fits them better, or when the first ones are pulled outward along
+        # the radius against them (a barrel lens's bend, which the solve absorbs into the lens with
+        # lower residuals: bench strong 3, 0.213 px with the first corners); not otherwise (a noisy,
+        # sharpened phone photo's resampled view can make the second ones worse: measured on the
+        # bench's phone sets, 0.12 -> 0.44-0.53 px)
+        pull = bend_pull(corners, refined, cal.cameramodel())
+        bent = pull["t"] > BEND_T and pull["pull_px"] > BEND_MIN_PX
         rectified = {"rms_first": round(cal.solve.rms, 5), "rms_rectified": round(second.solve.rms, 5),
-                     "kept": bool(board.pattern == "charuco" or second.solve.rms <= cal.solve.rms)}
+                     "first_pull": pull,
+                     "kept": bool(board.pattern == "charuco" or second.solve.rms <= cal.solve.rms or bent)}
         if rectified["kept"]:
             corners, cal = refined, second
             for f, c in zip(used, corners):

@@ -74,7 +74,8 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
     rejected [{photo, reason}], frames (photo of each frame, in order)}, residuals, coverage,
     working_distance_mm, uncertainty, provenance (inputs with SHA-256), seconds, note (the
     text written at the top of the .cameramodel), rectified_pass (the inlier RMS, px, with the first
-    corners and with those located again in rectified views, and whether the second were kept).
+    corners and with those located again in rectified views, the first corners' outward pull
+    against the second (``rectified.bend_pull``), and whether the second were kept).
     """
     model = cal.cameramodel()
     lens, values = model.intrinsics()
