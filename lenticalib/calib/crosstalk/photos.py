@@ -22,22 +22,11 @@ MAX_CLIPPED = 0.02
 MAX_SHIFT = 3.0  # working pixels: a larger, clearly measured shift is a moved camera
 
 
-def linear_rgb_sum(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | None = None,
-                   noise: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(float32 (h, w) linear R + G + B, bool (h, w) clipped) of one photo; ``lut`` (float32 (256,)):
-    the light of each 8-bit code of an "srgb" photo (the camera's measured tone curve,
-    :mod:`.tone`), plain sRGB decoding when None; ``noise``: the channels' sigma where the
-    camera clips dark pixels at 0 (:func:`.dark.clipping_noise`): their bias is undone first."""
-    linear, clipped = linear_channels(raw, mode, path, lut)
-    if noise is not None:
-        linear = dark.unclip(linear, noise)
-    return linear.sum(axis=2, dtype=np.float32), clipped
-
-
 def linear_channels(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | None = None
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """(float32 (h, w, 3) linear light per channel, bool (h, w) clipped) of one photo (see
-    :func:`linear_rgb_sum`)."""
+    """(float32 (h, w, 3) linear light per channel, bool (h, w) clipped) of one photo; ``lut``
+    (float32 (256,)): the light of each 8-bit code of an "srgb" photo (the camera's measured tone
+    curve, :mod:`.tone`), plain sRGB decoding when None."""
     if raw.ndim != 3 or raw.shape[2] < 3:
         raise CaptureError("is not an RGB photo", source=str(path), hint="save the photos in colour")
     raw = raw[:, :, :3]
@@ -65,7 +54,7 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
     """Working-resolution linear luma of every photo, the white photo's clipped map, factor and the
     channels' noise sigma where the camera clips dark pixels at 0 (None: it does not; measured on
     the black photo, read first, and undone in every photo: :mod:`.dark`) (``lut``: the tone curve
-    of 8-bit "srgb" photos, :func:`linear_rgb_sum`)."""
+    of 8-bit "srgb" photos, :func:`linear_channels`)."""
     from ..captures import check_photo_size
 
     luma: dict[str, np.ndarray] = {}
@@ -85,11 +74,12 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
         elif (w, h) != size:
             raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
                                hint="take every photo of the set with the same camera settings, without cropping")
+        channels, clip = linear_channels(raw, mode, path, lut)
         if name == "black":
-            channels, _ = linear_channels(raw, mode, path, lut)
             noise = dark.clipping_noise(channels, raw[:, :, :3] == 0)
-        linear, clip = linear_rgb_sum(raw, mode, path, lut, noise)
-        luma[name] = working(linear, factor)
+        if noise is not None:
+            channels = dark.unclip(channels, noise)
+        luma[name] = working(channels.sum(axis=2, dtype=np.float32), factor)
         if name == "white":
             clipped = working(clip.astype(np.float32), factor)
         if progress:

@@ -16,8 +16,8 @@ The corners of either board, after the first solve, are located again in views r
 its model (:mod:`.rectified`: no lens curvature in the refinement window) and solved again; the
 ChArUco corners are always the second ones; chessboard corners the second ones when the model
 fits them better (a lower inlier RMS) or when the first ones are pulled outward against them
-(:func:`.rectified.bend_pull`: a barrel lens's bend, which the solve absorbs).  A board shown on the panel is not located again
-(measured: its model moved off the truth).
+(:func:`.rectified.bend_pull`: a barrel lens's bend, which the solve absorbs).  A board shown on
+the panel is not located again (measured: its model moved off the truth).
 """
 
 from __future__ import annotations

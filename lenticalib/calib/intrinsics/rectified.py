@@ -57,6 +57,8 @@ from .solve import import_mrcal
 PATCH_MARGIN = 4  # pixels of the rectified patch beyond twice the window
 CHESSBOARD_WINDOW = 0.6  # a chessboard corner's cornerSubPix half-window in the view, share of a square
 CHESSBOARD_MAX_WINDOW = 50  # pixels
+BEND_T = 5.0  # the first corners' outward pull must stand this many standard errors clear ...
+BEND_MIN_PX = 0.01  # ... and reach this many px at the half diagonal, for the rectified corners to be kept
 
 
 def windows(grid: np.ndarray, board, axes: np.ndarray) -> np.ndarray:
@@ -157,9 +159,6 @@ def refine_photos(paths: list[str], corners: np.ndarray, board, model, progress=
             progress()
     return out
 
-
-BEND_T = 5.0  # the first corners' outward pull must stand this many standard errors clear ...
-BEND_MIN_PX = 0.01  # ... and reach this many px at the half diagonal, for the rectified corners to be kept
 
 
 def bend_pull(first: np.ndarray, refined: np.ndarray, model) -> dict:
