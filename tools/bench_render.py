@@ -67,9 +67,7 @@ def bench_device(device: str, rig_path: Path, frames: int, warmup: int) -> str:
             for k in range(warmup + frames):
                 _, vector = controls.latest(k / 30.0)
                 start = time.perf_counter()
-                # a raster made on the GPU stays there: drawn into the presenter's framebuffer (gl) or
-                # copied into its pixel buffer on the GPU (cuda)
-                raster, _, stages = pipeline.frame(vector, raster_to_host=not (pipeline.draws_on_gpu or pipeline.on_gpu))
+                raster, _, stages = pipeline.frame(vector, raster_to_host=not pipeline.keeps_raster_on_gpu)
                 pipeline.present(presenter, raster, stages)
                 end = time.perf_counter()
                 if k >= warmup:

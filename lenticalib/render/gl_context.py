@@ -3,9 +3,10 @@
 :func:`offscreen_context` opens a moderngl context of at least a given OpenGL version on a named
 backend, asking for the newest of ``PREFERRED_VERSIONS`` first: a driver may give exactly the
 version asked for (NVIDIA's EGL gives a 3.3 context when 3.3 is asked for, so the gl renderer lost
-its compute shaders and ran 200 times slower on an H100), where Mesa gives its newest anyway; :func:`headless_context` prefers EGL (a GPU driver's, or Mesa's llvmpipe, which needs no
-X server) and leaves no EGL context current afterwards (:func:`unbind_egl`), so that a window
-opened later in the same process (GLX through glfw) can still be made current.
+its compute shaders on an H100), where Mesa gives its newest anyway.  :func:`headless_context`
+prefers EGL (a GPU driver's, or Mesa's llvmpipe, which needs no X server) and leaves no EGL
+context current afterwards (:func:`unbind_egl`), so that a window opened later in the same
+process (GLX through glfw) can still be made current.
 """
 
 from __future__ import annotations
@@ -55,8 +56,8 @@ def load_llvm_users_first() -> None:
 def offscreen_context(backend: str | None = None, require: int = 330, hint: str | None = None):
     """A moderngl context with no window: ``backend`` (``"egl"``, or None: EGL where there is no X
     server -- a GPU driver's, or Mesa's surfaceless llvmpipe -- else the platform's default),
-    OpenGL ``require`` (330 = 3.3) or newer (:func:`versions_to_try`).  DisplayError (one line, naming the backend and what
-    to install; ``hint`` appended) when there is none."""
+    OpenGL ``require`` (330 = 3.3) or newer (:func:`versions_to_try`).  DisplayError (one line,
+    naming the backend and what to install; ``hint`` appended) when there is none."""
     import moderngl
 
     if backend is None and os.name == "posix" and not is_macos() and not os.environ.get("DISPLAY"):

@@ -97,9 +97,7 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
         try:
             if presenter.ctx is not None:  # the gl renderer renders in the presenter's context
                 pipeline.use_context(presenter.ctx)
-            # on the panel, a raster made on the GPU stays there (gl: drawn in the presenter's context; gsplat: copied
-            # into its pixel buffer on the GPU)
-            on_gpu = output == "panel" and (pipeline.draws_on_gpu or pipeline.on_gpu)
+            on_gpu = output == "panel" and pipeline.keeps_raster_on_gpu
             told = 0
             while (frames is None or times.frames < frames) and not interrupted.is_set():
                 t_controls = time.perf_counter()

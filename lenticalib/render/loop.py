@@ -229,6 +229,13 @@ class AvatarPipeline:
                 self._background = torch.as_tensor(background, device=device)
 
     @property
+    def keeps_raster_on_gpu(self) -> bool:
+        """True when the raster is made on a GPU and can reach a presenter without the host: drawn
+        in OpenGL (:attr:`draws_on_gpu`) or a CUDA tensor for ``Presenter.show_device`` (gsplat);
+        :meth:`frame` with ``raster_to_host=False`` then :meth:`present`."""
+        return self.draws_on_gpu or self.on_gpu
+
+    @property
     def draws_on_gpu(self) -> bool:
         """True when the raster is made in OpenGL (gl renderer and gl encoder): :meth:`frame` with
         ``raster_to_host=False`` and :meth:`draw_raster` put it on a presenter with no round trip."""
