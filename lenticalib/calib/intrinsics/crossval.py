@@ -26,6 +26,13 @@ intrinsics and the board's warp stay those of the half that was solved), and the
 round.  A richer model is kept only when it predicts the photos it was not solved on
 significantly better, photo by photo: it cannot win by fitting the noise of its own photos, nor
 by bending where the corners of one half do not reach but those of the other do.
+
+The corner locator's own error is common to both halves, so the split cannot see it.  Where a
+chessboard's corners were located twice (first in the photo, then in views rectified with the
+first model, :mod:`.rectified`), the models solved from the two corner sets differ by that
+error's effect; :func:`locator_difference` measures it against the kept model's uncertainty
+and :func:`with_locator_term` adds it to the scale (``k^2 = k_cv^2 + mean(d^T C^-1 d) / 2``: the
+covariance grown by the difference's own outer product, spread over the observed region).
 """
 
 from __future__ import annotations
@@ -113,6 +120,48 @@ def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], le
     return {"scale": max(1.0, float(np.sqrt(mean / 2.0))), "mean_squared_mahalanobis": mean,
             "median_difference_px": float(np.median(np.linalg.norm(diff, axis=1))),
             "points": int(seen.sum()), "frames": [len(corners[0::2]), len(corners[1::2])], "at": "infinity"}
+
+
+def locator_difference(kept, other, corners: np.ndarray) -> dict:
+    """How far the model solved from the other corner set lies from the kept one, in the kept
+    one's sigmas (module docstring).
+
+    ARGUMENTS
+    kept, other  mrcal cameramodels with their optimization inputs: the model kept and the model
+                 solved from the same photos' corners located the other way
+    corners      float64 ``(Nframes, rows, cols, 2)`` pixels, the kept corners (their convex hull is
+                 the region compared)
+
+    RETURNED VALUE
+    dict: ``mean_squared_mahalanobis`` (the mean of ``d^T C^-1 d`` at infinity over the grid points
+    inside the hull, ``C`` the kept model's covariance), ``median_difference_px``,
+    ``worst_difference_px``, ``points``; or ``{"skipped": why}`` with too few points.
+    """
+    from .solve import import_mrcal
+
+    mrcal = import_mrcal()
+    _, diff, q0, _ = mrcal.projection_diff([kept, other], gridn_width=GRID, distance=None)
+    q0, diff = q0.reshape(-1, 2), diff.reshape(-1, 2)
+    seen = _observed_region(corners, q0)
+    if seen.sum() < 10:
+        return {"skipped": "too few grid points where corners were observed"}
+    q0, diff = q0[seen], diff[seen]
+    v0 = mrcal.unproject(q0, *kept.intrinsics(), normalize=True)
+    cov = mrcal.projection_uncertainty(v0, kept, what="covariance", atinfinity=True)
+    d2 = np.einsum("ni,nij,nj->n", diff, np.linalg.inv(cov), diff)
+    length = np.linalg.norm(diff, axis=1)
+    return {"mean_squared_mahalanobis": float(np.mean(d2)), "median_difference_px": float(np.median(length)),
+            "worst_difference_px": float(length.max()), "points": int(seen.sum()), "at": "infinity"}
+
+
+def with_locator_term(check: dict, locator: dict) -> dict:
+    """``check`` (:func:`cross_validation`'s dict) with ``locator`` kept under ``corner_locator``
+    and the scale grown by it: ``sqrt(scale^2 + mean_squared_mahalanobis / 2)``."""
+    out = dict(check, corner_locator=locator)
+    if "mean_squared_mahalanobis" in locator:
+        out["scale_cross_validation"] = check["scale"]
+        out["scale"] = float(np.sqrt(check["scale"] ** 2 + locator["mean_squared_mahalanobis"] / 2.0))
+    return out
 
 
 def _observed_region(corners: np.ndarray, q: np.ndarray) -> np.ndarray:

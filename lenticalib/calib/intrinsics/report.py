@@ -110,7 +110,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
                        f"RMS {res['rms_px']:.4f} px, {res['outliers']} outliers of {res['corners']} corners; "
                        f"uncertainty {unc['at_working_distance']['centre']:.3f} px at the centre, "
                        f"{unc['at_working_distance']['worst']:.3f} px worst at {qual['working_distance_mm']:.0f} mm"
-                       + (f" (mrcal's, x{scale:.3f} from cross-validation)" if scale > 1.0 else "")
+                       + (f" (mrcal's, x{scale:.3f} from cross-validation and the corner locator)" if scale > 1.0 else "")
                        + f"\n{note_line(scale)}")
     return json.loads(json.dumps(summary, default=lambda v: v.item() if isinstance(v, np.generic) else str(v)))
 
@@ -136,12 +136,17 @@ def summary_lines(summary: dict) -> list[str]:
              f"{far['centre']:.3f} px / {far['worst']:.3f} px worst"]
     lines[3:3] = [f"  not used: {Path(r['photo']).name}: {r['reason']}" for r in summary["photos"]["rejected"]]
     cv = summary.get("cross_validation") or {}
+    loc = cv.get("corner_locator") or {}
     if cv.get("skipped"):
         lines.append(f"cross-validation skipped: {cv['skipped']}")
     elif cv:
         lines.append(f"cross-validation: the two halves of the photos differ by {cv['median_difference_px']:.3f} px "
                      f"(median); mean squared Mahalanobis distance {cv['mean_squared_mahalanobis']:.2f} against 2 "
-                     f"expected, so uncertainties are x{cv['scale']:.2f}")
+                     f"expected" + (f"; the model from the corners located the other way differs by "
+                                    f"{loc['median_difference_px']:.3f} px (median), {loc['worst_difference_px']:.3f} px "
+                                    f"worst, {loc['mean_squared_mahalanobis']:.2f} in squared sigmas"
+                                    if "mean_squared_mahalanobis" in loc else "")
+                     + f"; so uncertainties are x{cv['scale']:.2f}")
     if summary["report"] is not None:
         lines.append(f"report: {summary['report']} (residuals.png, coverage.png, uncertainty.png, summary.json)")
     return lines
@@ -245,7 +250,7 @@ def _uncertainty_figure(fig, subject) -> None:
         _colorbar(fig, ax, im, "worst-direction stdev (px, 1 sigma); colours stop at the 98th percentile",
                   extend="max" if stdev.max() > top else "neither")
     scale = qual.get("cross_validation", {}).get("scale", 1.0)
-    scaled = f", x{scale:.2f} from cross-validation" if scale > 1.0 else ""
+    scaled = f", x{scale:.2f} from cross-validation and the corner locator" if scale > 1.0 else ""
     fig.suptitle(f"{cal.lensmodel}: how far a projection may be off (1 sigma, from the observed pixel noise "
                  f"{qual['residuals']['noise_px']:.4f} px{scaled})", fontsize=14)
 
