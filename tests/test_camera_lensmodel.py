@@ -12,6 +12,8 @@ from lenticalib.calib.intrinsics.board import Board
 from lenticalib.calib.intrinsics.corners import MIN_CHARUCO_WINDOW, _refine_charuco, charuco_windows
 from lenticalib.calib.intrinsics.solve import OPENCV5, OPENCV8, Solve, calibrate, choose
 
+from .synthetic_boards import board_observations
+
 
 def _solve(name, residuals, n):
     inlier = np.ones(residuals.shape[:3], bool)
@@ -35,19 +37,11 @@ def test_a_richer_model_must_predict_the_held_out_photos_better_not_just_fit_its
     assert winner is eight and second["holdout_t"] > 2 and second["holdout_rms_px"] < first["holdout_rms_px"]
 
 
-def _synthetic_corners(intrinsics, seed, frames=14, noise=0.05, size=(1200, 800)):
+def _synthetic_corners(intrinsics, seed, noise=0.05):
     """Corners of a 10 x 7 board of 20 mm squares seen by an OPENCV8 camera of ``intrinsics``, with
-    Gaussian noise of ``noise`` px (mrcal's synthetic data)."""
-    import mrcal
-
-    model = mrcal.cameramodel(intrinsics=(OPENCV8, np.array(intrinsics, float)), imagersize=size)
-    np.random.seed(seed)  # mrcal.synthesize_board_observations draws from numpy's global generator
-    q, _ = mrcal.synthesize_board_observations(
-        [model], object_width_n=10, object_height_n=7, object_spacing=20.0, calobject_warp=np.zeros(2),
-        rt_ref_boardcenter=np.array([0, 0, 0, 0, 0, 220.0]),
-        rt_ref_boardcenter__noiseradius=np.array([0.6, 0.6, 0.3, 200, 130, 40.0]), Nframes=frames,
-        which="all-cameras-must-see-full-board")
-    return q[:, 0] + np.random.default_rng(seed).normal(0, noise, q[:, 0].shape), Board(10, 7, 20.0, kind="print")
+    Gaussian noise of ``noise`` px, and the board."""
+    q, board, _ = board_observations(OPENCV8, intrinsics, seed)
+    return q + np.random.default_rng(seed).normal(0, noise, q.shape), board
 
 
 @pytest.mark.parametrize("distortion, expected", [

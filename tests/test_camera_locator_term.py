@@ -12,24 +12,15 @@ import pytest
 from lenticalib.calib.intrinsics.crossval import locator_difference, with_locator_term
 from lenticalib.calib.intrinsics.solve import OPENCV5, calibrate
 
+from .synthetic_boards import board_observations
+
 SIZE = (1200, 800)
 INTRINSICS = [500.0, 500.0, 600.0, 400.0, -0.2, 0.05, 0.001, -0.001, 0.0]
 
 
-def _true_corners(seed: int, frames: int = 14):
-    """(Nframes, 7, 10, 2) exact projections of a 10 x 7 board of 20 mm squares, the true model."""
-    import mrcal
-
-    from lenticalib.calib.intrinsics.board import Board
-
-    truth = mrcal.cameramodel(intrinsics=(OPENCV5, np.array(INTRINSICS)), imagersize=SIZE)
-    np.random.seed(seed)  # mrcal.synthesize_board_observations draws from numpy's global generator
-    q, _ = mrcal.synthesize_board_observations(
-        [truth], object_width_n=10, object_height_n=7, object_spacing=20.0, calobject_warp=np.zeros(2),
-        rt_ref_boardcenter=np.array([0, 0, 0, 0, 0, 220.0]),
-        rt_ref_boardcenter__noiseradius=np.array([0.6, 0.6, 0.3, 200, 130, 40.0]), Nframes=frames,
-        which="all-cameras-must-see-full-board")
-    return q[:, 0], Board(10, 7, 20.0, kind="print"), truth
+def _true_corners(seed: int):
+    """(Nframes, 7, 10, 2) exact projections of a 10 x 7 board of 20 mm squares, the board, the true model."""
+    return board_observations(OPENCV5, INTRINSICS, seed)
 
 
 def _outward_pull(corners: np.ndarray, at_edge_px: float) -> np.ndarray:
