@@ -63,3 +63,14 @@ def test_a_pull_the_other_corner_set_lacks_grows_the_uncertainty_until_it_holds_
     same = locator_difference(straight, calibrate(exact + noise, board, SIZE, lensmodel=OPENCV5).cameramodel(), exact)
     assert same["mean_squared_mahalanobis"] < 1e-6
     assert with_locator_term({"scale": 1.3}, same)["scale"] == pytest.approx(1.3)
+
+
+def test_the_advice_names_the_image_corners_the_photos_leave_uncertain_worst_first():
+    from lenticalib.calib.intrinsics.quality import weak_corners
+
+    at = {"centre": 0.01, "top_left": 0.05, "top_right": 0.16, "bottom_left": 0.09, "bottom_right": 0.12}
+    far = dict(at, bottom_left=0.11, top_right=0.02)  # the worse of the two distances counts
+    advice = weak_corners({"at_working_distance": at, "at_infinity": far})
+    assert [line.split(" corner")[0] for line in advice] == ["the top-right", "the bottom-right", "the bottom-left"]
+    assert "0.16 px" in advice[0] and "add photos" in advice[0]
+    assert weak_corners({"at_working_distance": at, "at_infinity": far}, limit=0.2) == []

@@ -25,6 +25,9 @@ import numpy as np
 from .solve import COVERAGE_GRID, Solve, coverage, import_mrcal
 
 UNCERTAINTY_GRID = (40, 30)  # points across, down
+WEAK_CORNER_PX = 0.1  # 1-sigma at an image corner (either distance) above which the report asks for photos there
+IMAGE_CORNERS = {"top_left": "top-left", "top_right": "top-right", "bottom_left": "bottom-left",
+                 "bottom_right": "bottom-right"}
 
 
 def residual_stats(solve: Solve, photos: list[str] | None = None) -> dict:
@@ -95,6 +98,19 @@ def _at_points(stdev: np.ndarray) -> dict:
     out["median"] = round(float(np.median(stdev)), 4)
     out["worst"] = round(float(stdev.max()), 4)
     return out
+
+
+def weak_corners(uncertainty: dict, limit: float = WEAK_CORNER_PX) -> list[str]:
+    """One line of advice per image corner whose 1-sigma uncertainty (``quality``'s ``uncertainty``:
+    the worse of the working distance and infinity) exceeds ``limit`` px, worst first: the model
+    there is an extrapolation the photos barely constrain."""
+    weak = []
+    for key, name in IMAGE_CORNERS.items():
+        sigma = max(uncertainty["at_working_distance"][key], uncertainty["at_infinity"][key])
+        if sigma > limit:
+            weak.append((sigma, f"the {name} corner of the image is known to {sigma:.2f} px (1 sigma): add photos "
+                                f"with the board reaching into it, tilted, to pin the lens there"))
+    return [line for _, line in sorted(weak, reverse=True)]
 
 
 def quality(model, solve: Solve, photos: list[str] | None = None, cross_validation: dict | None = None) -> dict:

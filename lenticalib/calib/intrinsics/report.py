@@ -27,6 +27,7 @@ from ...core.documents import FORMATS, write_document
 from ...core.profile import make_provenance
 from ..report import write_figures
 from .crossval import note_line
+from .quality import weak_corners
 
 FIGURE_SIZES = {"residuals.png": (1800, 1200), "coverage.png": (1800, 1200), "uncertainty.png": (1800, 860)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
@@ -104,7 +105,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
                "residuals": res, "coverage": qual["coverage"], "working_distance_mm": qual["working_distance_mm"],
                "uncertainty": unc, "cross_validation": qual.get("cross_validation"),
                "provenance": make_provenance("camera calibrate (mrcal)", inputs),
-               "seconds": round(float(seconds), 2)}
+               "advice": weak_corners(unc), "seconds": round(float(seconds), 2)}
     summary["note"] = (f"lenticalib camera calibrate: {summary['provenance']['command'] or 'library call'}\n"
                        f"{len(used)} of {len(photos)} photos of a {board.describe()}; {lens} ({cal.choice})\n"
                        f"RMS {res['rms_px']:.4f} px, {res['outliers']} outliers of {res['corners']} corners; "
@@ -147,6 +148,7 @@ def summary_lines(summary: dict) -> list[str]:
                                     f"worst, {loc['mean_squared_mahalanobis']:.2f} in squared sigmas"
                                     if "mean_squared_mahalanobis" in loc else "")
                      + f"; so uncertainties are x{cv['scale']:.2f}")
+    lines += [f"advice: {line}" for line in summary.get("advice", [])]
     if summary["report"] is not None:
         lines.append(f"report: {summary['report']} (residuals.png, coverage.png, uncertainty.png, summary.json)")
     return lines
