@@ -64,3 +64,60 @@ def test_level_residuals_are_sums_over_the_tiles_not_medians():
     the panel is its share of white's within 1 %, although most tiles hold one lit row too few."""
     curve = tone.fit_tone_curve(_photos({}), tone.tile_size(600))
     assert max(abs(r) for r in curve.level_residuals) < 0.01
+
+
+def test_the_curve_weight_rises_smoothly_with_either_sign_of_a_bent_camera_curve():
+    """No switch: a camera near the boundary gets a blend, and a small change of the evidence a small
+    change of the weight; either sign alone (a bend the halves show, levels off their shares
+    under the power) is enough."""
+    from lenticalib.calib.crosstalk.tone_choice import GAIN_RANGE, LEVEL_BIAS_RANGE, curve_weight
+
+    assert curve_weight(0.0, 0.0) == 0.0
+    assert curve_weight(GAIN_RANGE[1], 0.0) == 1.0 and curve_weight(0.0, LEVEL_BIAS_RANGE[1]) == 1.0
+    middle = sum(GAIN_RANGE) / 2
+    assert curve_weight(middle, 0.0) == pytest.approx(0.5)
+    gains = np.linspace(0.0, 0.2, 401)
+    weights = np.array([curve_weight(g, 0.0) for g in gains])
+    assert np.all(np.diff(weights) >= 0) and np.max(np.diff(weights)) < 0.05
+    assert curve_weight(math.nan, 0.0) == 0.0
+
+
+def test_a_blend_of_two_models_reports_the_mixture_s_spread():
+    """The blended sigma is the standard deviation of the two models' results as a mixture: drawn
+    from it (fixed seed), the spread agrees within 2 %."""
+    from lenticalib.calib.crosstalk.tone_choice import blended, blended_sigma
+
+    main, other, s_main, s_other, weight = 0.50, 0.53, 0.004, 0.006, 0.3
+    rng = np.random.default_rng(11)
+    pick = rng.random(400_000) < weight
+    draws = np.where(pick, rng.normal(other, s_other, pick.size), rng.normal(main, s_main, pick.size))
+    assert blended(main, other, weight) == pytest.approx(draws.mean(), abs=1e-4)
+    assert blended_sigma(main, s_main, other, s_other, weight) == pytest.approx(draws.std(), rel=0.02)
+
+
+def test_two_tone_models_blend_into_one_measurement_whose_figures_carry_their_spread():
+    """``measure._blend``: the row, cone and uniformity map blended at the weight, the sigmas the
+    mixture's, the figures' sigmas grown by the two models' difference, the record JSON-ready."""
+    import json
+
+    from lenticalib.calib.crosstalk.measure import Measurement, _blend
+    from lenticalib.calib.crosstalk.result import figures_with_sigma
+
+    def measurement(row, scale):
+        row = np.asarray(row, float)
+        return Measurement(views=4, row=row, row_sigma=np.full(4, 0.002), cone_grid=np.linspace(-2, 2, 5),
+                           cone=row.sum() * np.ones(5) * scale, cone_sigma=np.full(5, 0.001),
+                           regions=np.full((2, 3), row[0]), regions_sigma=np.full((2, 3), 0.003),
+                           samples={"blocks": np.tile(row, (3, 1))}, photometry={}, diagnostics={},
+                           warnings=[], inputs=[], profile=None, pattern_set=None, seconds=1.0)
+
+    power, curve = measurement([0.50, 0.20, 0.10, 0.20], 1.0), measurement([0.56, 0.18, 0.08, 0.18], 1.1)
+    both = _blend(power, curve, 0.25)
+    assert both.row == pytest.approx([0.515, 0.195, 0.095, 0.195]) and both.row.sum() == pytest.approx(1.0)
+    assert both.regions[0, 0] == pytest.approx(0.515)
+    assert both.row_sigma[0] == pytest.approx(math.sqrt(0.002 ** 2 + 0.25 * 0.75 * 0.06 ** 2))
+    plain = figures_with_sigma(power.row, power.samples, None)
+    blended = figures_with_sigma(both.row, both.samples, None)
+    assert blended["own_view_share"]["sigma"] == pytest.approx(math.sqrt(0.25 * 0.75) * 0.06, rel=1e-6)
+    assert plain["own_view_share"]["sigma"] == 0.0
+    json.dumps(both.diagnostics["tone_blend"])

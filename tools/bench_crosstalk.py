@@ -120,10 +120,13 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
 
 
 def _tone_model(curve: dict | None) -> str:
-    """The tone curve's model in a word: none (linear photos), power, curve, or sRGB (not measured)."""
+    """The tone curve's model in a word: none (linear photos), power, curve, or sRGB (not measured);
+    a blend of the two as ``curve+power 0.3`` (the second model's weight)."""
     if curve is None:
         return "none"
-    return "curve" if "piecewise" in curve["model"] else "power"
+    name = "curve" if "piecewise" in curve["model"] else "power"
+    other = curve.get("blended_with")
+    return f"{name}+{'curve' if name == 'power' else 'power'} {other['weight']:.2f}" if other else name
 
 
 def _complete(folder: Path, pattern_set) -> bool:
@@ -216,13 +219,13 @@ def main() -> int:
                   f"  {json.dumps(r.get('fixed') or {})}")
     for line in refusals:
         print(line)
-    print("\ncase  tone (gamma, S-curve)  photos  tone model  worst |M - M_true|  worst |z|  inside 3 sigma")
+    print("\ncase  tone (gamma, S-curve)  photos  tone model        worst |M - M_true|  worst |z|  inside 3 sigma")
     for r in rows:
         for kind in kinds:
             k = r[kind]
             if k["refused"]:
                 continue
-            print(f"{r['case']:4d}  {r['tone_gamma']:.3f}, {r['tone_contrast']:.2f}          {kind:6s}  {k['tone']:10s}  "
+            print(f"{r['case']:4d}  {r['tone_gamma']:.3f}, {r['tone_contrast']:.2f}          {kind:6s}  {k['tone']:16s}  "
                   f"{k['max_err']:.4f}              {k['max_z']:5.2f}      {'yes' if k['max_z'] <= 3 else 'NO'}")
     ok = True
     for kind in kinds:

@@ -146,14 +146,25 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     Raises InputError / CaptureError (one line, naming the file) for every problem with the
     inputs, before the long work where possible.
     """
-    from ..patterns import FRAME_FRACTION
-
     start = time.perf_counter()
     if photos not in PHOTO_MODES:
         raise InputError(f"unknown photo encoding {photos!r}", source="photos", hint="use srgb or linear")
     pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
     warnings: list[str] = []
     curve = measure_tone(capture, warnings) if photos == "srgb" else None
+    measured = _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start)
+    if curve is not None and curve.alternative is not None and curve.alternative_weight > 0:
+        # between the tone models (tone_choice): the other one measured too, and the two blended
+        other = _measure_linearised(capture, pattern_set, profile, photos, curve.alternative, [], progress, start)
+        measured = _blend(measured, other, curve.alternative_weight)
+    return measured
+
+
+def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start) -> Measurement:
+    """Steps 1-4 of the module docstring with the photos linearised through ``curve`` (None: plain
+    sRGB decoding, or linear photos)."""
+    from ..patterns import FRAME_FRACTION
+
     luma, clipped, factor, noise = load_all(capture, pattern_set, photos, progress, None if curve is None else curve.lut())
     white_path = capture.photo("white")
     lit0 = luma["white"] - luma["black"]
@@ -170,6 +181,23 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
                     curve, photos, factor, start, progress, column_average, noise)
+
+
+def _blend(main: Measurement, other: Measurement, weight: float) -> Measurement:
+    """``main`` with ``other`` (the same photos through the other tone model) blended in at
+    ``weight``: the row, the cone and the uniformity map, their sigmas as a mixture's."""
+    from .tone_choice import blended, blended_sigma
+
+    mixed = {name: blended(getattr(main, name), getattr(other, name), weight)
+             for name in ("row", "cone", "regions")}
+    sigmas = {f"{name}_sigma": blended_sigma(getattr(main, name), getattr(main, f"{name}_sigma"),
+                                             getattr(other, name), getattr(other, f"{name}_sigma"), weight)
+              for name in ("row", "cone", "regions")}
+    diagnostics = dict(main.diagnostics, tone_blend={"weight": weight, "other_row": other.row.round(6).tolist(),
+                                                     "row_difference": float(np.max(np.abs(other.row - main.row)))})
+    # the figures derived from the row carry the two models' spread too (result.figures_with_sigma)
+    samples = dict(main.samples, **{"tone-main": main.row, "tone-other": other.row, "tone-weight": np.array([weight])})
+    return dataclasses.replace(main, **mixed, **sigmas, samples=samples, diagnostics=diagnostics, seconds=other.seconds)
 
 
 def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:

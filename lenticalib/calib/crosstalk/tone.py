@@ -26,10 +26,14 @@ Two models (the exposure locked over the photos):
 
 - ``power``: ``L(c) = D(c) ** p``, ``D`` the sRGB decoding of the 8-bit code ``c``, ``p`` from the
   half relation alone; in sets drawn before the levels each half photo has its own exposure;
-- ``curve`` (sets with the level patterns, where a bend of the mid-tones fits the half relation
-  clearly better than the power: a phone's S-curve): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``,
-  ``B_j`` hat functions on knots every ``KNOT`` codes (zero at code 256: the scale), fitted by
-  linear least squares to the half and level relations with a small second-difference penalty.
+- ``curve`` (sets with the level patterns, where the photos show a camera curve that bends: a
+  phone's S-curve): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``, ``B_j`` hat functions on knots
+  every ``KNOT`` codes (zero at code 256: the scale), fitted by linear least squares to the half
+  and level relations with a small second-difference penalty.
+
+Which one, or a blend of both, is :mod:`.tone_choice`'s call: the result carries the other model
+and its weight (``alternative``), which :func:`lenticalib.calib.crosstalk.measure.measure_crosstalk`
+measures too and blends in.
 
 The 1-sigma is stated as a power ``1 +- sigma`` on the linearised light (what the measurement
 propagates): the spread of the curves fitted to ``GROUPS`` strips of the panel (each curve's
@@ -47,13 +51,13 @@ import numpy as np
 
 from ...core.colour import srgb_decode_lut
 from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
+from .tone_choice import curve_weight
 
 PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
 TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 wide
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
 KNOT = 16  # codes between the knots of the curve model
 SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
-CURVE_GAIN = 0.1  # the curve replaces the power where a bend fits the half relation this much better (relative RMS)
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
@@ -73,7 +77,9 @@ class ToneCurve:
     power on the linearised light; ``residual`` the relative RMS of the half relation;
     ``level_residuals`` each level photo's light (summed over the tiles) over its share of white's, less 1; ``tiles`` how many tiles it
     rests on; ``strips`` the strips' powers (model "power") or log-slopes (model "curve"); ``levels`` whether
-    the level photos took part; ``code_range`` the median codes of black and white."""
+    the level photos took part; ``code_range`` the median codes of black and white; ``alternative``
+    the other model, to be blended in with ``alternative_weight`` (0..0.5; 0: not used), and the
+    evidence for the curve, ``bend_gain`` and ``level_bias`` (:mod:`.tone_choice`)."""
 
     model: str
     table: np.ndarray
@@ -85,6 +91,10 @@ class ToneCurve:
     level_residuals: tuple[float, ...] = ()
     levels: bool = False
     code_range: tuple[int, int] = (0, 255)
+    alternative: "ToneCurve | None" = None
+    alternative_weight: float = 0.0
+    bend_gain: float = math.nan
+    level_bias: float = math.nan
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
@@ -102,6 +112,10 @@ class ToneCurve:
             data["light_of_code"] = [round(float(v), 6) for v in self.table]
         if self.levels:
             data["level_residuals"] = [round(v, 4) for v in self.level_residuals]
+        if math.isfinite(self.bend_gain):
+            data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
+        if self.alternative is not None and self.alternative_weight > 0:
+            data["blended_with"] = {**self.alternative.to_dict(), "weight": round(self.alternative_weight, 4)}
         return data
 
 
@@ -278,8 +292,8 @@ def _log_slope(table, reference, codes) -> float:
 
 def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None:
     """The tone curve from uint8 RGB photos ``images`` (photo pixels, (h, w, 3)) of "black", "white",
-    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (the power from the halves, or the
-    curve where a bend fits them clearly better; without the levels the power, exposures free);
+    "half-0", "half-1" and, when the set has them, the ``LEVELS`` (the power from the halves and the
+    curve, weighted by :func:`.tone_choice.curve_weight`; without the levels the power, exposures free);
     ``tile``: side of the tiles in photo pixels.  None where the photos give too little to fit
     (fewer than ``MIN_TILES`` tiles)."""
     means = {k: tile_means(images[k], tile) for k in PHOTOS}
@@ -329,17 +343,29 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
     # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
     power = _level_power(relations[:1])
-    pinned = _level_power(finest)
-    table = _curve(relations)
-    # the power unless a bend of its mid-tones fits the halves clearly better (a camera's S-curve):
-    # the curve's freedom otherwise follows the level photos' texture more than the camera
-    model = "curve" if _bend_gain(relations[:1], power) > CURVE_GAIN else "power"
-    if model == "curve" and not np.all(np.diff(table[codes]) > 0):
-        model = "power"
-    if model == "power":
-        table = srgb_decode_lut() ** power
+    curve = _curve(relations)
+    # the curve's weight (tone_choice): by how much a bend of the mid-tones fits the halves better
+    # than the power and how far the levels lie from their shares under the halves' power (a
+    # camera's S-curve); the curve's freedom otherwise follows the level photos' texture more than
+    # the camera.  Between the two, both models are measured and blended
+    gain = _bend_gain(relations[:1], power)
+    level_bias = max(abs(b) for b in biases)
+    weight = curve_weight(gain, level_bias) if np.all(np.diff(curve[codes]) > 0) else 0.0
+    fitted = {}
+    for model, table, used in (("power", srgb_decode_lut() ** power, weight < 1.0), ("curve", curve, weight > 0.0)):
+        if used:
+            fitted[model] = _finished(model, table, power, hist, mixed, group, codes, finest)
+    main, other = ("curve", "power") if weight > 0.5 else ("power", "curve")
+    return dataclasses.replace(fitted[main], alternative=fitted.get(other), code_range=(black, white),
+                               alternative_weight=min(weight, 1.0 - weight), bend_gain=gain, level_bias=level_bias)
+
+
+def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest) -> ToneCurve:
+    """The :class:`ToneCurve` of ``model`` ("power" of ``power``, or "curve") with ``table`` (256,),
+    its residuals and its 1-sigma: the strips' spread and what the relations leave open."""
     residual = _half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
     level_residuals = _level_biases(hist, table)
+    strips = []
     for g in range(GROUPS):
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
@@ -350,8 +376,8 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     # what the relations leave open: the halves' power against the one the finest level pins too, a
     # bent curve against the one the halves and the finest rows alone give (they differ by the
     # coarser levels' texture bias and by what the power family cannot follow)
-    disagreement = abs(_log_slope(srgb_decode_lut() ** pinned if model == "power" else _curve(finest), table, codes))
-    spread = math.sqrt(spread ** 2 + disagreement ** 2)
+    reference = srgb_decode_lut() ** _level_power(finest) if model == "power" else _curve(finest)
+    spread = math.sqrt(spread ** 2 + _log_slope(reference, table, codes) ** 2)
     return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
-                     int(picked.size), power if model == "power" else math.nan, tuple(strips), level_residuals,
-                     levels=True, code_range=(black, white))
+                     int(hist["white"].shape[0]), power if model == "power" else math.nan, tuple(strips),
+                     level_residuals, levels=True)
