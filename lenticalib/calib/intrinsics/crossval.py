@@ -102,14 +102,10 @@ def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], le
         return {"scale": 1.0, "skipped": f"{n} photos: cross-validation needs >= {2 * MIN_FRAMES_PER_HALF}"}
     mrcal = import_mrcal()
     halves = [calibrate(corners[i::2], board, imagersize, lensmodel=lensmodel).cameramodel() for i in (0, 1)]
-    w, h = imagersize
-    _, diff, q0, rt10 = mrcal.projection_diff(halves, gridn_width=GRID, distance=None)
-    q0 = q0.reshape(-1, 2)
-    diff = diff.reshape(-1, 2)
-    seen = _observed_region(corners, q0)
-    if seen.sum() < 10:
+    compared = _compared_where_observed(mrcal, halves, corners)
+    if compared is None:
         return {"scale": 1.0, "skipped": "too few grid points where corners were observed"}
-    q0, diff = q0[seen], diff[seen]
+    q0, diff, rt10 = compared
     v0 = mrcal.unproject(q0, *halves[0].intrinsics(), normalize=True)
     v1 = mrcal.rotate_point_R(rt10[:3, :], v0)
     cov0 = mrcal.projection_uncertainty(v0, halves[0], what="covariance", atinfinity=True)
@@ -119,7 +115,7 @@ def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], le
     mean = float(np.mean(d2))
     return {"scale": max(1.0, float(np.sqrt(mean / 2.0))), "mean_squared_mahalanobis": mean,
             "median_difference_px": float(np.median(np.linalg.norm(diff, axis=1))),
-            "points": int(seen.sum()), "frames": [len(corners[0::2]), len(corners[1::2])], "at": "infinity"}
+            "points": len(q0), "frames": [len(corners[0::2]), len(corners[1::2])], "at": "infinity"}
 
 
 def locator_difference(kept, other, corners: np.ndarray) -> dict:
@@ -140,18 +136,16 @@ def locator_difference(kept, other, corners: np.ndarray) -> dict:
     from .solve import import_mrcal
 
     mrcal = import_mrcal()
-    _, diff, q0, _ = mrcal.projection_diff([kept, other], gridn_width=GRID, distance=None)
-    q0, diff = q0.reshape(-1, 2), diff.reshape(-1, 2)
-    seen = _observed_region(corners, q0)
-    if seen.sum() < 10:
+    compared = _compared_where_observed(mrcal, [kept, other], corners)
+    if compared is None:
         return {"skipped": "too few grid points where corners were observed"}
-    q0, diff = q0[seen], diff[seen]
+    q0, diff, _ = compared
     v0 = mrcal.unproject(q0, *kept.intrinsics(), normalize=True)
     cov = mrcal.projection_uncertainty(v0, kept, what="covariance", atinfinity=True)
     d2 = np.einsum("ni,nij,nj->n", diff, np.linalg.inv(cov), diff)
     length = np.linalg.norm(diff, axis=1)
     return {"mean_squared_mahalanobis": float(np.mean(d2)), "median_difference_px": float(np.median(length)),
-            "worst_difference_px": float(length.max()), "points": int(seen.sum()), "at": "infinity"}
+            "worst_difference_px": float(length.max()), "points": len(q0), "at": "infinity"}
 
 
 def with_locator_term(check: dict, locator: dict) -> dict:
@@ -162,6 +156,18 @@ def with_locator_term(check: dict, locator: dict) -> dict:
         out["scale_cross_validation"] = check["scale"]
         out["scale"] = float(np.sqrt(check["scale"] ** 2 + locator["mean_squared_mahalanobis"] / 2.0))
     return out
+
+
+def _compared_where_observed(mrcal, models, corners: np.ndarray):
+    """``mrcal.projection_diff`` of two models at infinity (after the best-fit rotation) on a
+    ``GRID``-wide grid, kept inside the convex hull of the observed ``corners``: (grid pixels of the
+    first model (n, 2), differences (n, 2) px, ``rt10``), or None with fewer than 10 points."""
+    _, diff, q0, rt10 = mrcal.projection_diff(models, gridn_width=GRID, distance=None)
+    q0, diff = q0.reshape(-1, 2), diff.reshape(-1, 2)
+    seen = _observed_region(corners, q0)
+    if seen.sum() < 10:
+        return None
+    return q0[seen], diff[seen], rt10
 
 
 def _observed_region(corners: np.ndarray, q: np.ndarray) -> np.ndarray:
