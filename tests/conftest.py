@@ -6,6 +6,15 @@ Tests of minutes carry ``@pytest.mark.slow``: ``pytest -m "not slow"`` is the in
 import os
 from pathlib import Path
 
+# Under pytest-xdist every core already runs a worker: one BLAS thread in each (and in the
+# processes it starts), set before numpy is imported.  BLAS threads that spin while they wait
+# oversubscribe the cores: two fits side by side took 26 s each with them, 23 s without.  numba's
+# and OpenCV's pools keep their threads (the simulator's kernels use a core another worker leaves
+# idle).  A single process (-n 0) keeps them all.
+if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
+    for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")
+
 import pytest
 from hypothesis import HealthCheck, settings
 
