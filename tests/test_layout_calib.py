@@ -118,7 +118,7 @@ def test_crosstalk_of_a_cell_panel_is_measured_as_its_truth(name, capture_set):
     from lenticalib.sim.scene import random_scene
 
     views = 32
-    scene = random_scene(31, width=1280, height=720, resolution=(1500, 1000), subsamples=2, distance=620.0,
+    scene = random_scene(31, width=1280, height=720, resolution=(1500, 1000), subsamples=1, distance=620.0,
                          layout=NAMED_LAYOUTS[name])
     truth = scene.truth_profile(views)
     assert truth.subpixel_layout == NAMED_LAYOUTS[name]
