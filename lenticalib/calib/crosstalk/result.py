@@ -103,10 +103,12 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
             for k in base:
                 variance[k] += ((a[k] - b[k]) / 2.0) ** 2
     if "tone-other" in samples:  # two tone models blended (measure._blend): the mixture's spread
+        from .tone_choice import blended_sigma
+
         w = float(samples["tone-weight"][0])
         a, b = derived_figures(samples["tone-main"], eye_separation), derived_figures(samples["tone-other"], eye_separation)
         for k in base:
-            variance[k] += w * (1.0 - w) * (a[k] - b[k]) ** 2
+            variance[k] += float(blended_sigma(a[k], 0.0, b[k], 0.0, w)) ** 2
     for k in base:
         out[k]["sigma"] = math.sqrt(variance[k])
     return out
