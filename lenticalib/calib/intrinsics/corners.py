@@ -5,12 +5,16 @@ Detection runs on an 8-bit grey image (:func:`grey8`: camera JPEGs as they are, 
 PNGs from a raw converter scaled to their 99.5th percentile and given an sRGB-like curve) with
 ``findChessboardCornersSB(CALIB_CB_EXHAUSTIVE | CALIB_CB_NORMALIZE_IMAGE)``; each corner is then
 refined by ``cv2.cornerSubPix`` in a window of ``SUBPIX_WINDOW`` times the smallest square side
-seen in that photo.  Measured on simulated 1280 x 960 JPEGs of tilted printed boards (24 photos,
-1584 corners): corner error 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and
-0.68 s with SB's own ``CALIB_CB_ACCURACY`` refinement.  Through a distorting lens the board's
-lines bend inside the window and pull the corner (0.005-0.014 px outward at 3000 x 2000, up to
-0.3 px inward on a cut board near a wide-angle lens's image corners): after a first solve the
-pipeline locates every corner once more in views rectified with that model (:mod:`.rectified`).
+seen in that photo (measured on simulated 1280 x 960 JPEGs of tilted printed boards, 24 photos,
+1584 corners: 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and 0.68 s with
+SB's own ``CALIB_CB_ACCURACY`` refinement), and located finally by fitting a blurred corner with
+curved lines and uneven light to every pixel of that window (:func:`fit_corners`,
+:mod:`.corner_model`).  ``cornerSubPix`` alone takes the board's lines for straight: through a
+distorting lens they bend inside the window and pull the corner (0.005-0.017 px outward at
+3000 x 2000, up to 0.3 px inward on a cut board near a wide-angle lens's image corners), and it
+weighs the edge pixels only (0.011-0.020 px RMS on the bench's sets, 0.005-0.010 px with the
+fit).  After a first solve the pipeline locates every corner once more in views rectified with
+that model (:mod:`.rectified`).
 
 A chessboard partly outside the photo (:func:`locate_chessboard`): when the whole board is not
 found, ``findChessboardCornersSBWithMeta`` with ``CALIB_CB_LARGER`` searches for the largest block
@@ -48,7 +52,7 @@ far boards of two photos of 28 of the bench's wide-angle set, squares 28-30 px a
 the larger dimension, as OpenCV counts it), and every inner corner next to at least one found
 marker (``minMarkers`` 1: a board cut by the frame keeps the corners of its cut rows whose other
 marker is outside) is located by OpenCV and refined once
-more (:func:`_refine_charuco`) in the largest window that misses the markers
+more (:func:`_refine_charuco`: ``cornerSubPix``, then the model fit) in the largest window that misses the markers
 (:func:`charuco_windows`: mapped through the corner's local image axes, so that a rolled or
 foreshortened board's markers stay out; a square window of 0.2 of the shortest square side
 reached into the markers of rolled boards and put corners up to 1 px off, 0.050 px RMS on the
@@ -214,6 +218,21 @@ def _subpix(grey: np.ndarray, corners: np.ndarray) -> np.ndarray:
                                    (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
         out[keep] = refined.reshape(-1, 2)
     out[~clear(out)] = np.nan
+    return fit_corners(grey, out, win, curved=True)
+
+
+def fit_corners(grey: np.ndarray, corners: np.ndarray, win: int | np.ndarray, curved: bool) -> np.ndarray:
+    """Every corner of a ``(rows, cols, 2)`` grid (NaN: not seen) located once more by
+    :func:`.corner_model.fit_corner` in a half-window of ``win`` px (one for all, or an int
+    ``(rows, cols)`` array), the lines' directions from its neighbours (:func:`_local_axes`); NaN
+    where the fit fails."""
+    from .corner_model import fit_windows
+
+    axes = corner_axes(corners)
+    wins = np.broadcast_to(np.asarray(win), corners.shape[:2])
+    out = np.full(corners.shape, np.nan)
+    ok = np.isfinite(corners[..., 0]) & np.isfinite(axes[..., 0, 0]) & np.isfinite(axes[..., 0, 1])
+    out[ok] = fit_windows(grey, corners[ok], axes[ok][:, :, 0], axes[ok][:, :, 1], wins[ok], curved)
     return out
 
 
@@ -354,6 +373,21 @@ def _local_axes(corners: np.ndarray) -> np.ndarray:
     return axes
 
 
+def corner_axes(corners: np.ndarray) -> np.ndarray:
+    """:func:`_local_axes`, with the grid's own affine axes (:func:`axes`) for a corner that has no
+    seen neighbour (a lone identified corner of a cut ChArUco board); NaN only where fewer than
+    three corners are seen."""
+    local = _local_axes(corners)
+    lone = np.isfinite(corners[..., 0]) & ~(np.isfinite(local[..., 0, 0]) & np.isfinite(local[..., 0, 1]))
+    if lone.any() and np.isfinite(corners[..., 0]).sum() >= 3:
+        along, down = axes(corners)
+        filled = local[lone]
+        filled[:, :, 0] = np.where(np.isfinite(filled[:, :, 0]), filled[:, :, 0], along)
+        filled[:, :, 1] = np.where(np.isfinite(filled[:, :, 1]), filled[:, :, 1], down)
+        local[lone] = filled
+    return local
+
+
 def charuco_windows(corners: np.ndarray, board, axes: np.ndarray | None = None) -> np.ndarray:
     """The ``cv2.cornerSubPix`` half-window (px, int) of each identified ChArUco corner: the
     largest image-aligned square window that stays inside the clean chessboard around the corner
@@ -405,7 +439,7 @@ def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
     h, w = grey.shape
     border = np.minimum.reduce([out[..., 0], out[..., 1], w - 1 - out[..., 0], h - 1 - out[..., 1]])
     out[seen & ~(border >= win + 1)] = np.nan
-    return out
+    return fit_corners(grey, out, win, curved=True)
 
 
 def charuco_shortfall(corners: np.ndarray) -> str | None:
