@@ -93,6 +93,7 @@ from ...core.imageio import read_image
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
 SUBPIX_LIMITS = (2, 25)  # pixels
+FIT_MODEL = True  # False: cornerSubPix's corners as the last step, what plain OpenCV gives (a benchmark's baseline)
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used
 PART_SIZES = ((3, 3), (5, 3), (3, 5), (5, 4), (4, 5))  # smallest blocks the searches for a part of a board start from
@@ -218,21 +219,25 @@ def _subpix(grey: np.ndarray, corners: np.ndarray) -> np.ndarray:
                                    (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5))
         out[keep] = refined.reshape(-1, 2)
     out[~clear(out)] = np.nan
-    return fit_corners(grey, out, win, curved=True)
+    return fit_corners(grey, out, win, curved=True) if FIT_MODEL else out
 
 
 def fit_corners(grey: np.ndarray, corners: np.ndarray, win: int | np.ndarray, curved: bool) -> np.ndarray:
     """Every corner of a ``(rows, cols, 2)`` grid (NaN: not seen) located once more by
     :func:`.corner_model.fit_corner` in a half-window of ``win`` px (one for all, or an int
-    ``(rows, cols)`` array), the lines' directions from its neighbours (:func:`_local_axes`); NaN
-    where the fit fails."""
+    ``(rows, cols)`` array), the lines' directions from its neighbours (:func:`corner_axes`).  Where
+    the fit fails (no corner-like contrast, a crisp digital image with no blur to fit, a fit that
+    wanders more than ``corner_model.MAX_SHIFT``) the corner keeps its location in ``corners``."""
     from .corner_model import fit_windows
 
     axes = corner_axes(corners)
     wins = np.broadcast_to(np.asarray(win), corners.shape[:2])
-    out = np.full(corners.shape, np.nan)
+    out = corners.copy()
     ok = np.isfinite(corners[..., 0]) & np.isfinite(axes[..., 0, 0]) & np.isfinite(axes[..., 0, 1])
-    out[ok] = fit_windows(grey, corners[ok], axes[ok][:, :, 0], axes[ok][:, :, 1], wins[ok], curved)
+    fitted = fit_windows(grey, corners[ok], axes[ok][:, :, 0], axes[ok][:, :, 1], wins[ok], curved)
+    done = np.isfinite(fitted[:, 0])
+    rows = np.argwhere(ok)[done]
+    out[rows[:, 0], rows[:, 1]] = fitted[done]
     return out
 
 
@@ -439,7 +444,7 @@ def _refine_charuco(grey: np.ndarray, corners: np.ndarray, board) -> np.ndarray:
     h, w = grey.shape
     border = np.minimum.reduce([out[..., 0], out[..., 1], w - 1 - out[..., 0], h - 1 - out[..., 1]])
     out[seen & ~(border >= win + 1)] = np.nan
-    return fit_corners(grey, out, win, curved=True)
+    return fit_corners(grey, out, win, curved=True) if FIT_MODEL else out
 
 
 def charuco_shortfall(corners: np.ndarray) -> str | None:

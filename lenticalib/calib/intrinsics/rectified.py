@@ -155,9 +155,9 @@ def refine_rectified(grey: np.ndarray, corners: np.ndarray, board, lensmodel: st
     fitted = fit_windows([v[5] for v in views], np.array([v[6] for v in views]),
                          np.array([v[7][:, 0] for v in views]), np.array([v[7][:, 1] for v in views]),
                          np.array([v[3] for v in views]), curved=False)
-    for ((i, j), rot, half, win, q, _, _, _), found in zip(views, fitted):
+    for ((i, j), rot, half, win, q, _, start, _), found in zip(views, fitted):
         if not np.isfinite(found).all():
-            continue
+            found = start  # no fit (a crisp image, no corner-like contrast): cornerSubPix's location
         p = mrcal.project(rot @ np.array([(found[0] - half) / f, (found[1] - half) / f, 1.0]), lensmodel, intrinsics)
         border = min(p[0], p[1], w - 1 - p[0], h - 1 - p[1])
         # a window that leaves the photo sees repeated edge pixels, which pull the corner: drop it
