@@ -10,6 +10,8 @@ and one camera model solved with mrcal together with every board pose.  Part of 
     draw      the panel raster and the printable sheet (PDF, 300 dpi PNG)
     corners   corner detection (OpenCV's findChessboardCornersSB; ChArUco: cv2.aruco's
               CharucoDetector, partial boards), in parallel over photos
+    corner_model  the last step of every corner's location: a blurred corner (bent lines, uneven
+              light) fitted to every pixel of its window
     partial   a chessboard seen only in part: its visible block placed into the board's grid
     rectified corners (chessboard and ChArUco) located again in views rectified with a first camera model
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
