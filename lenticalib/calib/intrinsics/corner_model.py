@@ -22,22 +22,25 @@ they cost precision, not bias.  The bend of the lines under distortion is what `
 up: to first order a line's curvature over a window, which moves a straight-line fit's corner
 toward the concave side.
 
-Measured against the simulator's true corners at 3000 x 2000 (``tools/bench_corners.py``, the
-corners of ``tools/bench_camera.py --keep`` sets; RMS per coordinate, mean radial error at 0.6-0.8
-of the half diagonal, + outward):
+Measured against the simulator's true corners at 3000 x 2000 (``tools/bench_corners.py
+--rectified``, the photos of ``tools/bench_camera.py --keep`` sets, the views rectified with the
+true model; RMS per coordinate, and the mean radial error at 0.6-0.8 of the half diagonal, px,
++ outward, standard errors 0.0002-0.0011 px):
 
-=========  ========================  =========================  ==========================
-set        ``cornerSubPix``          this fit, straight lines   this fit, curved lines
-=========  ========================  =========================  ==========================
-phone 2    0.0198 px, +0.0038        0.0070 px, -0.0064         0.0101 px, -0.0008
-strong 3   0.0114 px, +0.0167        --                         0.0068 px, -0.0004
-wide 2     0.0141 px, +0.0078        --                         0.0073 px, -0.0007
-=========  ========================  =========================  ==========================
+=========  ========================  ===========================  ============================
+set        ``cornerSubPix`` alone    first pass (curved lines)    rectified view (straight)
+=========  ========================  ===========================  ============================
+mild 2     0.0100 px, +0.0009        0.007 px, +0.0011            0.003 px, +0.0011
+strong 3   0.0114 px, +0.0167        0.007 px, -0.0006            0.003 px, -0.0008
+wide 2     0.0141 px, +0.0078        0.007 px, -0.0008            0.004 px, -0.0012
+phone 2    0.0198 px, +0.0038        0.010 px, -0.0009            0.005 px, +0.0004
+=========  ========================  ===========================  ============================
 
 (wide 2 at 0.8-1.0 of the half diagonal, the cut boards at the image corners: -0.178 +- 0.045 px
-with ``cornerSubPix``, +0.012 +- 0.011 px here).  The straight model is less noisy but biased by
-the bend; in a view rectified with a solved lens model (:mod:`.rectified`) the lines are
-straight and it is the better one there.
+with ``cornerSubPix``, +0.012 +- 0.009 px in the first pass, +0.004 +- 0.005 px rectified).  A
+straight-line fit in the photo itself is less noisy than the curved one but biased by the bend
+(phone 2, light held even: 0.0070 px, -0.0064 px); in a view rectified with a solved lens model
+(:mod:`.rectified`) the lines are straight, and it is the better one there.
 """
 
 from __future__ import annotations

@@ -43,8 +43,8 @@ coordinate against 0.032 px with 0.35, but the model was as far off with either 
 ``cornerSubPix`` as the last step the pass itself lost there (``tools/bench_corners.py
 --rectified``, true model: 0.023 px RMS per coordinate for the first pass, 0.031 px and up to
 +0.013 px outward here); with the model fit as the last step it is the better one on every set
-(phone 2: 0.010 px first pass, 0.006 px here; wide 2 0.007 and 0.005 px; strong 3 0.007 and
-0.005 px).
+(phone 2: 0.010 px first pass, 0.005 px here; wide 2 0.007 and 0.004 px; strong 3 0.007 and
+0.003 px; mild 2 0.007 and 0.003 px).
 
 Uneven light.  The model's light varies linearly across the window.  Held even, the straight fit
 in these large windows was pulled toward the brighter side: wide 2's rectified corners (true
