@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lenticalib.calib.intrinsics.board import Board
-from lenticalib.calib.intrinsics.corners import MIN_CHARUCO_WINDOW, _refine_charuco, charuco_windows
+from lenticalib.calib.intrinsics.charuco_corners import MIN_CHARUCO_WINDOW, _refine_charuco, charuco_windows
 from lenticalib.calib.intrinsics.solve import OPENCV5, OPENCV8, Solve, calibrate, choose
 
 from .synthetic_boards import board_observations
@@ -93,7 +93,8 @@ def test_charuco_corners_located_in_rectified_views_lose_the_pull_of_the_lens_cu
     import mrcal
 
     from lenticalib.calib.intrinsics.board import print_board
-    from lenticalib.calib.intrinsics.corners import find_charuco_corners, grey8
+    from lenticalib.calib.intrinsics.charuco_corners import find_charuco_corners
+    from lenticalib.calib.intrinsics.corners import grey8
     from lenticalib.calib.intrinsics.rectified import refine_rectified
     from lenticalib.sim.board_poses import _place
     from lenticalib.sim.board_set import truth_cameramodel
@@ -105,14 +106,14 @@ def test_charuco_corners_located_in_rectified_views_lose_the_pull_of_the_lens_cu
     pose = _place(camera, board, np.array([380.0, 1650.0]), 0.35, 0.3, 1.2, -0.2)
     jpeg = photograph_print_board(camera, board, pose, np.random.default_rng(0))
     grey = grey8(cv2.cvtColor(cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB))
-    from lenticalib.calib.intrinsics import corners as corner_module
+    from lenticalib.calib.intrinsics import corner_model
 
     found = find_charuco_corners(grey, board)
-    corner_module.FIT_MODEL = False
+    corner_model.FIT_MODEL = False
     try:
         plain = find_charuco_corners(grey, board)  # cornerSubPix's corners alone
     finally:
-        corner_module.FIT_MODEL = True
+        corner_model.FIT_MODEL = True
     again = refine_rectified(grey, found, board, lensmodel, intrinsics)
     truth = mrcal.project(mrcal.transform_point_rt(pose.rt(), board.object_points()), lensmodel, intrinsics)
     out = truth - intrinsics[2:4]
@@ -137,7 +138,7 @@ def test_charuco_markers_smaller_than_opencvs_default_minimum_are_read():
     OpenCV's default minimum is 3 %) is found, every corner at its place."""
     import cv2
 
-    from lenticalib.calib.intrinsics.corners import find_charuco_corners
+    from lenticalib.calib.intrinsics.charuco_corners import find_charuco_corners
 
     board = Board(11, 6, 20.0, kind="print", pattern="charuco", dictionary="DICT_4X4_50", marker_mm=12.0)
     dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)

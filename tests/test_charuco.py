@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from lenticalib.calib.intrinsics import board as boards
-from lenticalib.calib.intrinsics.corners import MIN_CHARUCO_CORNERS, charuco_shortfall, find_charuco_corners
+from lenticalib.calib.intrinsics.charuco_corners import MIN_CHARUCO_CORNERS, charuco_shortfall, find_charuco_corners
 from lenticalib.calib.intrinsics.draw import panel_raster
 from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.calib.intrinsics.quality import compare_to_truth

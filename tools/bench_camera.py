@@ -133,17 +133,17 @@ def opencv_model(observations, board, size):
 def opencv_own(frames: list[str], folder: Path, board, size):
     """Plain OpenCV as a user has it: the photos lenticalib used (``frames``, names in
     ``folder/captures``), their boards found the same way (cut boards included) but every corner
-    left where ``cv2.cornerSubPix`` puts it (``corners.FIT_MODEL`` off: no model fit, first pass
+    left where ``cv2.cornerSubPix`` puts it (``corner_model.FIT_MODEL`` off: no model fit, first pass
     only), calibrated by :func:`opencv_model`."""
     import numpy as np
 
-    from lenticalib.calib.intrinsics import corners as corner_module
+    from lenticalib.calib.intrinsics import corner_model, corners as corner_module
 
-    corner_module.FIT_MODEL = False
+    corner_model.FIT_MODEL = False
     try:
         found = corner_module.detect_photos([folder / "captures" / Path(f).name for f in frames], board, jobs=1)
     finally:
-        corner_module.FIT_MODEL = True
+        corner_model.FIT_MODEL = True
     grids = [f.corners for f in found if f.corners is not None]
     obs = np.stack([np.concatenate([np.nan_to_num(g, nan=-1.0), np.where(np.isfinite(g[..., :1]), 1.0, -1.0)], axis=-1)
                     for g in grids])

@@ -8,10 +8,11 @@ and one camera model solved with mrcal together with every board pose.  Part of 
     board     the board (chessboard or ChArUco): geometry, design (panel or printed), ``board.json``
     charuco   ChArUco names and sizes: the ArUco dictionaries, the marker size
     draw      the panel raster and the printable sheet (PDF, 300 dpi PNG)
-    corners   corner detection (OpenCV's findChessboardCornersSB; ChArUco: cv2.aruco's
-              CharucoDetector, partial boards), in parallel over photos
+    corners   corner detection (OpenCV's findChessboardCornersSB, partial boards), in parallel
+              over photos
+    charuco_corners  ChArUco corners: cv2.aruco's CharucoDetector, windows that miss the markers
     corner_model  the last step of every corner's location: a blurred corner (bent lines, uneven
-              light) fitted to every pixel of its window
+              light) fitted to every pixel of its window; the grid's local axes
     partial   a chessboard seen only in part: its visible block placed into the board's grid
     rectified corners (chessboard and ChArUco) located again in views rectified with a first camera model
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
+FIT_MODEL = True  # False: the corners keep cornerSubPix's location, what plain OpenCV gives (a benchmark's baseline)
 MAX_SHIFT = 1.0  # px: a fit that moves the corner further than this from its start is not that corner
 MIN_CONTRAST = 8.0  # grey levels (of 255): |2 A| below this is no corner
 
@@ -207,3 +208,66 @@ def fit_corner(grey: np.ndarray, start: np.ndarray, along: np.ndarray, down: np.
     found = fit_windows(grey, np.asarray(start, np.float64)[None], np.asarray(along, np.float64)[None],
                         np.asarray(down, np.float64)[None], np.array([win]), curved)[0]
     return found if np.isfinite(found).all() else None
+
+
+def axes(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(step along a row, step down a column) of ``block`` (r, c, 2; NaN: none), px: the linear part
+    of an affine map fitted from labels to pixels."""
+    rows, cols = np.indices(block.shape[:2])
+    ok = np.isfinite(block[..., 0])
+    terms = np.stack([np.ones(ok.sum()), rows[ok], cols[ok]], axis=1).astype(np.float64)
+    coef, *_ = np.linalg.lstsq(terms, block[ok], rcond=None)
+    return coef[2], coef[1]
+
+
+def _local_axes(corners: np.ndarray) -> np.ndarray:
+    """Per corner of a ``(rows, cols, 2)`` grid (NaN = missing), the image vectors (px) of one square
+    along the board's columns and rows: float64 ``(rows, cols, 2, 2)``, ``[..., :, 0]`` along +x,
+    ``[..., :, 1]`` along +y; central differences where both neighbours are known, one-sided where
+    one is, NaN where none is."""
+    axes = np.full(corners.shape[:2] + (2, 2), np.nan)
+    for k, axis in enumerate((1, 0)):
+        fwd = np.full(corners.shape, np.nan)
+        bwd = np.full(corners.shape, np.nan)
+        d = np.diff(corners, axis=axis)
+        if axis == 1:
+            fwd[:, :-1], bwd[:, 1:] = d, d
+        else:
+            fwd[:-1], bwd[1:] = d, d
+        both = np.isfinite(fwd[..., 0]) & np.isfinite(bwd[..., 0])
+        v = np.where(np.isfinite(fwd), fwd, bwd)
+        v[both] = 0.5 * (fwd[both] + bwd[both])
+        axes[..., :, k] = v
+    return axes
+
+
+def corner_axes(corners: np.ndarray) -> np.ndarray:
+    """:func:`_local_axes`, with the grid's own affine axes (:func:`axes`) for a corner that has no
+    seen neighbour (a lone identified corner of a cut ChArUco board); NaN only where fewer than
+    three corners are seen."""
+    local = _local_axes(corners)
+    lone = np.isfinite(corners[..., 0]) & ~(np.isfinite(local[..., 0, 0]) & np.isfinite(local[..., 0, 1]))
+    if lone.any() and np.isfinite(corners[..., 0]).sum() >= 3:
+        along, down = axes(corners)
+        filled = local[lone]
+        filled[:, :, 0] = np.where(np.isfinite(filled[:, :, 0]), filled[:, :, 0], along)
+        filled[:, :, 1] = np.where(np.isfinite(filled[:, :, 1]), filled[:, :, 1], down)
+        local[lone] = filled
+    return local
+
+
+def fit_corners(grey: np.ndarray, corners: np.ndarray, win: int | np.ndarray, curved: bool) -> np.ndarray:
+    """Every corner of a ``(rows, cols, 2)`` grid (NaN: not seen) located once more by
+    :func:`.corner_model.fit_corner` in a half-window of ``win`` px (one for all, or an int
+    ``(rows, cols)`` array), the lines' directions from its neighbours (:func:`corner_axes`).  Where
+    the fit fails (no corner-like contrast, a crisp digital image with no blur to fit, a fit that
+    wanders more than ``corner_model.MAX_SHIFT``) the corner keeps its location in ``corners``."""
+    axes = corner_axes(corners)
+    wins = np.broadcast_to(np.asarray(win), corners.shape[:2])
+    out = corners.copy()
+    ok = np.isfinite(corners[..., 0]) & np.isfinite(axes[..., 0, 0]) & np.isfinite(axes[..., 0, 1])
+    fitted = fit_windows(grey, corners[ok], axes[ok][:, :, 0], axes[ok][:, :, 1], wins[ok], curved)
+    done = np.isfinite(fitted[:, 0])
+    rows = np.argwhere(ok)[done]
+    out[rows[:, 0], rows[:, 1]] = fitted[done]
+    return out

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .corners import _sample, axes
+from .corner_model import axes
+from .corners import _sample
 
 EDGE_PAPER_AT = 1.3  # squares beyond a block's outer corner row where paper shows if it is the board's edge
 EDGE_MARGIN_PX = 3.0  # such a sample must be this far inside the photo to count

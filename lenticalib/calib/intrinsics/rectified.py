@@ -19,7 +19,7 @@ view of focal ``fx`` (the model's) looking along that direction, its x axis leve
 image's rows; the photo resampled into the view around the corner (bilinear, edge pixels
 repeated outside the photo); the window measured on the neighbouring corners as that view sees
 them (:func:`windows`: a ChArUco board's largest window that misses the markers,
-:func:`.corners.charuco_windows`; a chessboard's ``CHESSBOARD_WINDOW`` of a square, the board's
+:func:`.charuco_corners.charuco_windows`; a chessboard's ``CHESSBOARD_WINDOW`` of a square, the board's
 other lines a square away, at most ``CHESSBOARD_MAX_WINDOW`` px); ``cv2.cornerSubPix`` there, then
 the blurred-corner model with straight lines and uneven light fitted to every pixel of the window
 (:func:`.corner_model.fit_corner`, ``curved=False``); the result projected back through the model.  A straight board edge is straight in a pinhole view,
@@ -60,8 +60,9 @@ import math
 import numpy as np
 
 from ...core.imageio import read_image
-from .corners import MIN_CHARUCO_WINDOW, SUBPIX_LIMITS, charuco_windows, corner_axes, grey8
-from .corner_model import fit_windows
+from .charuco_corners import MIN_CHARUCO_WINDOW, charuco_windows
+from .corner_model import corner_axes, fit_windows
+from .corners import SUBPIX_LIMITS, grey8
 from .solve import import_mrcal
 
 PATCH_MARGIN = 4  # pixels of the rectified patch beyond twice the window
@@ -74,8 +75,8 @@ BEND_MIN_PX = 0.01  # ... and reach this many px at the half diagonal, for the r
 def windows(grid: np.ndarray, board, axes: np.ndarray) -> np.ndarray:
     """The ``cv2.cornerSubPix`` half-window (px, int ``(rows, cols)``, 0 where not seen) of each
     corner of ``grid`` (float64 ``(rows, cols, 2)`` px in a view, NaN: not seen; ``axes`` its local
-    axes, :func:`.corners._local_axes`): a ChArUco board's clean window
-    (:func:`.corners.charuco_windows`); a chessboard's ``CHESSBOARD_WINDOW`` of a square, mapped
+    axes, :func:`.corner_model._local_axes`): a ChArUco board's clean window
+    (:func:`.charuco_corners.charuco_windows`); a chessboard's ``CHESSBOARD_WINDOW`` of a square, mapped
     through the local axes (so a foreshortened board's next lines stay out), between
     ``SUBPIX_LIMITS[0]`` and ``CHESSBOARD_MAX_WINDOW`` px, the median where the axes are unknown."""
     if board.charuco:
