@@ -138,16 +138,15 @@ def opencv_own(frames: list[str], folder: Path, board, size):
     import numpy as np
 
     from lenticalib.calib.intrinsics import corner_model, corners as corner_module
+    from lenticalib.calib.intrinsics.solve import board_observations
 
     corner_model.FIT_MODEL = False
     try:
         found = corner_module.detect_photos([folder / "captures" / Path(f).name for f in frames], board, jobs=1)
     finally:
         corner_model.FIT_MODEL = True
-    grids = [f.corners for f in found if f.corners is not None]
-    obs = np.stack([np.concatenate([np.nan_to_num(g, nan=-1.0), np.where(np.isfinite(g[..., :1]), 1.0, -1.0)], axis=-1)
-                    for g in grids])
-    return opencv_model(obs, board, size)
+    grids = np.stack([f.corners for f in found if f.corners is not None])
+    return opencv_model(board_observations(grids), board, size)
 
 
 def noise_draws(run, board, truth, rt, draws: int, radius: float | None) -> dict:

@@ -86,11 +86,12 @@ def _levenberg_marquardt(values, mask, dx0, dy0, p, curved, iterations=60):
     """Least squares of the masked residuals ``(model - values) * mask`` for every corner at once
     (``(n, P)`` each, parameters ``(n, k)``): Levenberg-Marquardt with Marquardt's diagonal
     scaling and a damping per corner.  Returns (parameters, converged ``(n,)`` bool)."""
-    def residual(q):
-        value, jac = _model(q, dx0, dy0, curved)
-        return (value - values) * mask, jac * mask[:, None]
+    def residual(q, rows):
+        """Masked residuals ``(m, P)`` and Jacobian ``(m, k, P)`` of the corners ``rows``."""
+        value, jac = _model(q, dx0[rows], dy0[rows], curved)
+        return (value - values[rows]) * mask[rows], jac * mask[rows][:, None]
 
-    r, jac = residual(p)
+    r, jac = residual(p, slice(None))
     cost = np.einsum("np,np->n", r, r)
     damping = np.full(len(p), 1e-3)
     done = np.zeros(len(p), bool)
@@ -109,8 +110,7 @@ def _levenberg_marquardt(values, mask, dx0, dy0, p, curved, iterations=60):
         except np.linalg.LinAlgError:
             break
         trial = p[live] + step
-        r_new, jac_new = _model(trial, dx0[live], dy0[live], curved)
-        r_new = (r_new - values[live]) * mask[live]
+        r_new, jac_new = residual(trial, live)
         cost_new = np.einsum("np,np->n", r_new, r_new)
         better = np.isfinite(cost_new) & (cost_new <= cost[live])
         idx = np.flatnonzero(live)
@@ -118,7 +118,7 @@ def _levenberg_marquardt(values, mask, dx0, dy0, p, curved, iterations=60):
         ok = idx[better]
         p[ok] = trial[better]
         r[ok] = r_new[better]
-        jac[ok] = jac_new[better] * mask[ok][:, None]
+        jac[ok] = jac_new[better]
         damping[ok] /= 3.0
         cost[ok] = cost_new[better]
         damping[idx[~better]] *= 4.0
@@ -267,7 +267,5 @@ def fit_corners(grey: np.ndarray, corners: np.ndarray, win: int | np.ndarray, cu
     out = corners.copy()
     ok = np.isfinite(corners[..., 0]) & np.isfinite(axes[..., 0, 0]) & np.isfinite(axes[..., 0, 1])
     fitted = fit_windows(grey, corners[ok], axes[ok][:, :, 0], axes[ok][:, :, 1], wins[ok], curved)
-    done = np.isfinite(fitted[:, 0])
-    rows = np.argwhere(ok)[done]
-    out[rows[:, 0], rows[:, 1]] = fitted[done]
+    out[ok] = np.where(np.isfinite(fitted), fitted, corners[ok])
     return out

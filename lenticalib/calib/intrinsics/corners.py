@@ -8,8 +8,9 @@ refined by ``cv2.cornerSubPix`` in a window of ``SUBPIX_WINDOW`` times the small
 seen in that photo (measured on simulated 1280 x 960 JPEGs of tilted printed boards, 24 photos,
 1584 corners: 0.018 px RMS per coordinate and 0.18 s per photo, against 0.06 px and 0.68 s with
 SB's own ``CALIB_CB_ACCURACY`` refinement), and located finally by fitting a blurred corner with
-curved lines and uneven light to every pixel of that window (:func:`.corner_model.fit_corners`).  ``cornerSubPix`` alone takes the board's lines for straight: through a
-distorting lens they bend inside the window and pull the corner (0.005-0.017 px outward at
+curved lines and uneven light to every pixel of that window (:func:`.corner_model.fit_corners`).
+``cornerSubPix`` alone takes the board's lines for straight: through a distorting lens they
+bend inside the window and pull the corner (0.005-0.017 px outward at
 3000 x 2000, up to 0.3 px inward on a cut board near a wide-angle lens's image corners), and it
 weighs the edge pixels only (0.011-0.020 px RMS on the bench's sets, 0.005-0.010 px with the
 fit).  After a first solve the pipeline locates every corner once more in views rectified with
@@ -296,7 +297,8 @@ def detect_photo(path: str, cols: int, rows: int, symmetric: bool = False, board
 def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
                   progress: Callable[[], None] | None = None) -> list[PhotoCorners]:
     """Find ``board`` in every photo of ``paths`` (in that order) with ``jobs`` worker threads.
-    A ChArUco board's corners come with NaN for the corners not identified (:func:`.charuco_corners.find_charuco_corners`).
+    A ChArUco board's corners come with NaN for the corners not identified
+    (:func:`.charuco_corners.find_charuco_corners`).
 
     ``progress`` is called once per finished photo.  An unreadable photo raises the
     :class:`~lenticalib.core.errors.ImageError` of :func:`lenticalib.core.imageio.read_image`.  Threads, not

@@ -19,11 +19,12 @@ view of focal ``fx`` (the model's) looking along that direction, its x axis leve
 image's rows; the photo resampled into the view around the corner (bilinear, edge pixels
 repeated outside the photo); the window measured on the neighbouring corners as that view sees
 them (:func:`windows`: a ChArUco board's largest window that misses the markers,
-:func:`.charuco_corners.charuco_windows`; a chessboard's ``CHESSBOARD_WINDOW`` of a square, the board's
-other lines a square away, at most ``CHESSBOARD_MAX_WINDOW`` px); ``cv2.cornerSubPix`` there, then
-the blurred-corner model with straight lines and uneven light fitted to every pixel of the window
-(:func:`.corner_model.fit_corner`, ``curved=False``); the result projected back through the model.  A straight board edge is straight in a pinhole view,
-so the window sees the lines the refinement assumes, whatever the lens and wherever the corner
+:func:`.charuco_corners.charuco_windows`; a chessboard's ``CHESSBOARD_WINDOW`` of a square, the
+board's other lines a square away, at most ``CHESSBOARD_MAX_WINDOW`` px); ``cv2.cornerSubPix``
+there, then the blurred-corner model with straight lines and uneven light fitted to every pixel
+of the window (:func:`.corner_model.fit_windows`, ``curved=False``, every view of a photo at
+once); the result projected back through the model.  A straight board edge is straight in a
+pinhole view, so the window sees the lines the refinement assumes, whatever the lens and wherever the corner
 lies on what the photo shows of the board.  The corners dropped by the first pass (window leaving
 the photo or too small) stay dropped; a corner whose new window would leave the photo, or whose
 refinement wanders off by a window, is dropped too; one whose new window is under
@@ -75,9 +76,9 @@ BEND_MIN_PX = 0.01  # ... and reach this many px at the half diagonal, for the r
 def windows(grid: np.ndarray, board, axes: np.ndarray) -> np.ndarray:
     """The ``cv2.cornerSubPix`` half-window (px, int ``(rows, cols)``, 0 where not seen) of each
     corner of ``grid`` (float64 ``(rows, cols, 2)`` px in a view, NaN: not seen; ``axes`` its local
-    axes, :func:`.corner_model._local_axes`): a ChArUco board's clean window
-    (:func:`.charuco_corners.charuco_windows`); a chessboard's ``CHESSBOARD_WINDOW`` of a square, mapped
-    through the local axes (so a foreshortened board's next lines stay out), between
+    axes, :func:`.corner_model.corner_axes`): a ChArUco board's clean window
+    (:func:`.charuco_corners.charuco_windows`); a chessboard's ``CHESSBOARD_WINDOW`` of a square,
+    mapped through the local axes (so a foreshortened board's next lines stay out), between
     ``SUBPIX_LIMITS[0]`` and ``CHESSBOARD_MAX_WINDOW`` px, the median where the axes are unknown."""
     if board.charuco:
         return charuco_windows(grid, board, axes=axes)
@@ -128,7 +129,8 @@ def refine_rectified(grey: np.ndarray, corners: np.ndarray, board, lensmodel: st
     rays[seen] = mrcal.unproject(np.ascontiguousarray(corners[seen]), lensmodel, intrinsics, normalize=True)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-5)
     h, w = grey.shape
-    views = []  # per corner: (i, j), rotation, patch half-size, window, photo coordinates, patch, start, axes
+    views = []  # per corner: (i, j), rotation, patch half-size, window, the patch's photo pixels
+    patches, starts, along, down = [], [], [], []  # the fit's inputs, per corner as ``views``
     for i, j in np.argwhere(seen):
         rot = _view(rays[i, j])
         local = rays @ rot  # every corner's ray in this view's frame
@@ -149,14 +151,17 @@ def refine_rectified(grey: np.ndarray, corners: np.ndarray, board, lensmodel: st
                                  criteria).reshape(2).astype(np.float64)
         if not np.all(np.abs(found - half) < win):
             continue  # wandered off: not the corner the first pass found
-        views.append(((i, j), rot, half, win, q, patch, found, axes[i, j]))
+        views.append(((i, j), rot, half, win, q))
+        patches.append(patch)
+        starts.append(found)
+        along.append(axes[i, j, :, 0])
+        down.append(axes[i, j, :, 1])
     if not views:
         return out
     # the last step, every view of this photo at once: the model fit with straight lines
-    fitted = fit_windows([v[5] for v in views], np.array([v[6] for v in views]),
-                         np.array([v[7][:, 0] for v in views]), np.array([v[7][:, 1] for v in views]),
+    fitted = fit_windows(patches, np.array(starts), np.array(along), np.array(down),
                          np.array([v[3] for v in views]), curved=False)
-    for ((i, j), rot, half, win, q, _, start, _), found in zip(views, fitted):
+    for ((i, j), rot, half, win, q), start, found in zip(views, starts, fitted):
         if not np.isfinite(found).all():
             found = start  # no fit (a crisp image, no corner-like contrast): cornerSubPix's location
         p = mrcal.project(rot @ np.array([(found[0] - half) / f, (found[1] - half) / f, 1.0]), lensmodel, intrinsics)

@@ -191,6 +191,15 @@ def frame_indices(n: int) -> np.ndarray:
     return np.stack([np.arange(n), np.zeros(n, int), -np.ones(n, int)], axis=1).astype(np.int32)
 
 
+def board_observations(corners: np.ndarray) -> np.ndarray:
+    """mrcal's ``observations_board`` of ``corners`` (float64 ``(Nframes, rows, cols, 2)`` px, NaN:
+    not seen): ``(Nframes, rows, cols, 3)`` x, y, weight 1; a corner not seen is (-1, -1, -1),
+    which mrcal ignores."""
+    observations = np.concatenate([np.asarray(corners, np.float64), np.ones(corners.shape[:3] + (1,))], axis=-1)
+    observations[~np.isfinite(corners).all(axis=-1)] = -1.0
+    return observations
+
+
 def coverage(observations: np.ndarray, imagersize: tuple[int, int], grid=COVERAGE_GRID) -> float:
     """Share of the cells of a ``grid`` (nx, ny) over the image holding at least one observed corner
     (corners that are NaN or negative, i.e. not identified, are left out)."""
@@ -337,8 +346,7 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
     mrcal = import_mrcal()
     start = time.perf_counter()
     n = len(corners)
-    observations = np.concatenate([np.asarray(corners, np.float64), np.ones(corners.shape[:3] + (1,))], axis=-1)
-    observations[~np.isfinite(corners).all(axis=-1)] = -1.0  # mrcal ignores x < 0, y < 0, weight < 0
+    observations = board_observations(corners)
     indices = frame_indices(n)
     imagersizes = np.array([imagersize], dtype=np.int32)
     spacing = float(board.square_mm)
