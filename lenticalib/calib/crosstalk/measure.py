@@ -365,7 +365,9 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                          "shifts": shifts,
                          # the camera's noise sigma per channel (share of full scale) where it clips dark pixels
                          # at 0, their bias undone (photos.load_all); None: no clipping seen on the black photo
-                         "dark_clipping_sigma": None if noise is None else [round(float(v), 6) for v in noise]}
+                         "dark_clipping_sigma": None if noise is None else [round(float(v), 6) for v in noise.sigma],
+                         # the 2 x 2 phases (row % 2, column % 2) of each channel holding the sensor's own values
+                         "dark_clipping_sites": None if noise is None else [[list(p) for p in s] for s in noise.sites]}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
