@@ -490,6 +490,30 @@ def test_glare_is_measured_outside_the_panel_and_removed():
     assert np.abs(cleaned - direct)[100:200, 120:280].max() < 0.003
 
 
+@pytest.mark.parametrize("drift", [-0.04, 0.03])
+def test_glare_is_measured_when_the_exposure_drifts_between_white_and_black(drift):
+    """The room around the panel (0.1 of white) taken at another exposure in the white photo than
+    in the black one leaves ``drift x 0.1`` in ``white - black`` outside the panel, of either sign:
+    an even offset fitted beside the halo, not read as glare."""
+    import cv2
+
+    from lenticalib.calib.crosstalk.photometry import fit_glare
+
+    h, w = 300, 400
+    direct = np.zeros((h, w), np.float32)
+    direct[80:220, 100:300] = 1.0
+    sigma = 0.08 * w
+    halo = cv2.GaussianBlur(direct, (0, 0), sigma, borderType=cv2.BORDER_CONSTANT)
+    room = np.where(direct > 0, 0.0, 0.1).astype(np.float32)
+    white = (1 + drift) * (0.96 * direct + 0.04 * halo + room)
+    black = room
+    outside = np.ones((h, w), bool)
+    outside[70:230, 90:310] = False
+    glare = fit_glare((white - black).astype(np.float32), outside)
+    assert glare.fraction == pytest.approx(0.04 * (1 + drift), rel=0.1), glare
+    assert glare.sigma == pytest.approx(sigma, rel=0.3) and glare.offset == pytest.approx(0.1 * drift, rel=0.1), glare
+
+
 def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     from lenticalib.calib.crosstalk import cone
 
