@@ -7,7 +7,7 @@ import pytest
 
 from lenticalib.calib.crosstalk import dark
 
-ALL_SITES = ((0, 0), (0, 1), (1, 0), (1, 1))
+ALL_SITES = dark.ALL_PHASES
 
 
 def _photo(seed, light, sigma, shape=(480, 640)):

@@ -19,7 +19,7 @@ colour filter (one in four pixels for red and blue, two in four for green) and i
 elsewhere, which are seldom exactly 0 and, from an edge-aware demosaicing, biased (the direction
 of the smaller difference is chosen, and among clipped noise that is the darker one: on the
 bench's hard case 3 the black photo's green came out 620 at the red and blue sites and 793 at its
-own, in 16-bit codes).  A clipped normal fitted to all pixels then took sigma 1.5-2 times too
+own, in 16-bit codes).  A clipped normal fitted to all pixels then took sigma 1.4-1.9 times too
 small, and the far views' light came out 0.028 of white where the truth was 0.039.  So the
 sensor's layout is found on the black photo (the Bayer layout whose red and blue phases stand out
 in their channels' share of pixels at 0, :func:`filter_sites`), sigma is measured on each
@@ -48,6 +48,15 @@ REACH = 5.0  # pixels whose area's mean is above this many sigma are left as the
 LOWEST = -1.5  # sigmas: the least light an area is given (light is not negative; an area's mean is noisy)
 SITE_CONTRAST = 1.5  # a Bayer layout is taken when its red and blue phases have this many times any other's zeros
 MIN_ZERO_SHARE = 0.01  # ... and at least this share of their pixels at 0
+ALL_PHASES = ((0, 0), (0, 1), (1, 0), (1, 1))  # the 2 x 2 phases (row % 2, column % 2)
+
+
+def phase_mask(phases: tuple[tuple[int, int], ...], shape: tuple[int, int]) -> np.ndarray:
+    """bool ``shape``: the pixels at the 2 x 2 ``phases`` ``(row % 2, column % 2)``."""
+    mask = np.zeros(shape, bool)
+    for i, j in phases:
+        mask[i::2, j::2] = True
+    return mask
 
 
 @dataclass(frozen=True)
@@ -61,12 +70,7 @@ class ClippingNoise:
 
     def site_mask(self, k: int, shape: tuple[int, int]) -> np.ndarray | None:
         """bool (h, w): channel ``k``'s sites; None where they are all pixels."""
-        if len(self.sites[k]) == 4:
-            return None
-        mask = np.zeros(shape, bool)
-        for i, j in self.sites[k]:
-            mask[i::2, j::2] = True
-        return mask
+        return None if len(self.sites[k]) == 4 else phase_mask(self.sites[k], shape)
 
 
 def _clipped_mean(t: np.ndarray) -> np.ndarray:
@@ -84,23 +88,22 @@ def filter_sites(zero: np.ndarray) -> tuple[tuple[tuple[int, int], ...], ...]:
     other phase's, in both); green's own sites follow from it (its contrast is small: an
     interpolated green is the mean of two clipped values, at 0 nearly as often).  All four phases
     per channel where no layout stands out (a JPEG, a sensor of another layout, too few zeros)."""
-    everywhere = tuple((i, j) for i in (0, 1) for j in (0, 1))
     if zero.shape[2] != 3:
-        return (everywhere,) * zero.shape[2]
-    shares = np.array([[zero[i::2, j::2, k].mean() for i, j in everywhere] for k in range(3)])
+        return (ALL_PHASES,) * zero.shape[2]
+    shares = np.array([[zero[i::2, j::2, k].mean() for i, j in ALL_PHASES] for k in range(3)])
     best, best_score = None, 0.0
-    for r, (i, j) in enumerate(everywhere):
-        b = everywhere.index((1 - i, 1 - j))
+    for r, (i, j) in enumerate(ALL_PHASES):
+        b = ALL_PHASES.index((1 - i, 1 - j))
         if min(shares[0, r], shares[2, b]) < MIN_ZERO_SHARE:
             continue
         score = min(shares[0, r] / max(np.delete(shares[0], r).max(), 1e-12),
                     shares[2, b] / max(np.delete(shares[2], b).max(), 1e-12))
         if score > best_score:
-            best, best_score = (everywhere[r], everywhere[b]), score
+            best, best_score = (ALL_PHASES[r], ALL_PHASES[b]), score
     if best is None or best_score < SITE_CONTRAST:
-        return (everywhere,) * 3
+        return (ALL_PHASES,) * 3
     red, blue = best
-    return ((red,), tuple(p for p in everywhere if p not in best), (blue,))
+    return ((red,), tuple(p for p in ALL_PHASES if p not in best), (blue,))
 
 
 def clipping_noise(black: np.ndarray, zero: np.ndarray, sites: bool = True) -> ClippingNoise | None:
@@ -115,15 +118,14 @@ def clipping_noise(black: np.ndarray, zero: np.ndarray, sites: bool = True) -> C
     hh, ww = h // BLOCK, w // BLOCK
     if hh * ww == 0:
         return None
-    everywhere = tuple((i, j) for i in (0, 1) for j in (0, 1))
-    layout = filter_sites(zero) if sites else (everywhere,) * c
+    layout = filter_sites(zero) if sites else (ALL_PHASES,) * c
+
+    def blocks(a: np.ndarray) -> np.ndarray:  # sums over BLOCK x BLOCK blocks
+        return a[:hh * BLOCK, :ww * BLOCK].reshape(hh, BLOCK, ww, BLOCK).sum(axis=(1, 3))
+
     sigmas = []
     for k in range(c):
-        phases = layout[k]
-        mask = np.zeros((h, w), bool)
-        for i, j in phases:
-            mask[i::2, j::2] = True
-        blocks = lambda a: a[:hh * BLOCK, :ww * BLOCK].reshape(hh, BLOCK, ww, BLOCK).sum(axis=(1, 3))
+        mask = phase_mask(layout[k], (h, w))
         count = blocks(mask.astype(np.float64))
         m = (blocks(np.where(mask, black[..., k], 0.0)) / count).ravel()
         p = (blocks(mask & zero[..., k]) / count).ravel()
