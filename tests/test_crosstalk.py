@@ -539,6 +539,34 @@ def test_cone_fit_recovers_a_known_profile_and_sweep_from_synthetic_ratios():
     assert np.abs(row - truth).max() < 0.006
 
 
+def test_a_region_that_does_not_show_every_band_keeps_their_gains():
+    """A region a few views wide (a centre region seen from afar, noiseless photos): the bands that
+    lie in the cone's dark tail show exactly 0 there.  Their gains cannot be measured; they keep the
+    starting ones, and the fit stays finite (it once divided 0 by a gain of 0 and ended in a
+    traceback)."""
+    from lenticalib.calib.crosstalk import cone
+
+    n, k = 32, 10
+    rows, cols = np.mgrid[0:120, 0:160]
+    rows, cols = rows.ravel(), cols.ravel()
+    delta = 0.02 * cols + 0.005 * rows - 2.0  # views: the region spans about 3.8 views
+
+    def profile(t):
+        t = np.mod(t + n / 2, n) - n / 2
+        return np.where(np.abs(t) < 4, 0.45 * np.exp(-0.5 * (t / 0.7) ** 2), 0.0)  # dark beyond 4 views
+
+    shifts = np.arange(k) * n / k
+    gains = 1 + 0.03 * np.sin(np.arange(k))
+    ratios = gains[None, :] * profile(delta[:, None] + shifts[None, :])
+    dark = ~ratios.any(axis=0)
+    assert dark.sum() >= 3  # the test's premise: bands the region does not show at all
+    start = cone.fit_cone(ratios + 1e-4, rows, cols, shifts, n, (120, 160), degree=1)
+    fit = cone.fit_cone(ratios, rows, cols, shifts, n, (120, 160), degree=1, start=start)
+    assert np.all(np.isfinite(fit.gains)) and np.all(np.isfinite(fit.profile)) and np.isfinite(fit.rms)
+    kept = fit.gains[dark] / start.gains[dark]
+    assert np.allclose(kept, kept[0], rtol=1e-6) and np.all(fit.gains > 0)  # one common scale: kept as they were
+
+
 def test_cone_fit_shortcuts_equal_their_direct_forms():
     """The fit's fast forms give what the direct ones give: the gradient search's coherences (split
     into coarse and fine factors) and the Gauss-Newton step (one row per pixel, normal equations)."""
