@@ -105,3 +105,18 @@ def test_other_filter_layouts_are_found(pattern):
     expected = {"BayerBGGR": (((1, 1),), ((0, 1), (1, 0)), ((0, 0),)),
                 "BayerGRBG": (((0, 1),), ((0, 0), (1, 1)), ((1, 0),))}[pattern]
     assert found.sites == expected, found.sites
+
+
+@pytest.mark.parametrize("blur", [0.0, 1.0])
+def test_a_black_that_is_0_without_noise_is_not_taken_for_clipped_noise(blur):
+    """A noiseless black photo: a panel at exactly 0 inside a dim room (0.002), its edge sharp or
+    blurred by a pixel.  The blocks along the edge are partly 0, but not from noise: taken for
+    clipped noise, their 'sigma' was the step's height, and the faint floor of every band photo
+    (the panel's scatter) was wiped out.  No correction is made."""
+    h, w = 480, 640
+    light = np.full((h, w), 0.002, np.float32)
+    light[100:380, 120:520] = 0.0
+    if blur:
+        light = cv2.GaussianBlur(light, (0, 0), blur)
+    black = np.round(np.repeat(light[..., None], 3, axis=2) * 65535.0) / np.float32(65535.0)
+    assert dark.clipping_noise(black, black == 0) is None
