@@ -137,7 +137,9 @@ def clipping_noise(black: np.ndarray, zero: np.ndarray, sites: bool = True) -> C
     for k in range(c):
         mask = phase_mask(layout[k], (h, w))
         count = blocks(mask.astype(np.float64))
-        m = (blocks(np.where(mask, black[..., k], 0.0)) / count).ravel()
+        v = np.where(mask, black[..., k], 0.0).astype(np.float64)  # the sites' light (0 where clipped)
+        total = blocks(v).ravel()
+        m = total / count.ravel()
         p = (blocks(mask & zero[..., k]) / count).ravel()
         use = (p > 0.02) & (p < 0.98) & (m > 0)
         t = -norm.ppf(np.clip(p, 0.02, 0.98))  # s / sigma from the share at 0
@@ -146,10 +148,8 @@ def clipping_noise(black: np.ndarray, zero: np.ndarray, sites: bool = True) -> C
         # sqrt(1 + a l - l^2), a = -t, l = phi(a) / (1 - Phi(a)); a block that is partly 0 for
         # another reason (the edge of a black area, noiseless photos) spreads them otherwise, and
         # its sigma would be the step's height
-        lit = mask & ~zero[..., k]
-        n1 = np.maximum(blocks(lit), 1).ravel()
-        v = np.where(lit, black[..., k], 0.0).astype(np.float64)
-        spread = np.sqrt(np.maximum(blocks(v * v).ravel() / n1 - (blocks(v).ravel() / n1) ** 2, 0.0))
+        n1 = np.maximum(blocks(mask & ~zero[..., k]), 1).ravel()
+        spread = np.sqrt(np.maximum(blocks(v * v).ravel() / n1 - (total / n1) ** 2, 0.0))
         a = -t
         lam = norm.pdf(a) / np.maximum(norm.sf(a), 1e-12)
         expected = sigma * np.sqrt(np.maximum(1.0 + a * lam - lam ** 2, 1e-12))
