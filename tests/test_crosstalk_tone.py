@@ -121,3 +121,37 @@ def test_two_tone_models_blend_into_one_measurement_whose_figures_carry_their_sp
     assert blended["own_view_share"]["sigma"] == pytest.approx(math.sqrt(0.25 * 0.75) * 0.06, rel=1e-6)
     assert plain["own_view_share"]["sigma"] == 0.0
     json.dumps(both.diagnostics["tone_blend"])
+
+
+def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_it_reads(tmp_path):
+    """``tone-curve.png`` (camera JPEGs): the fitted curve of ``crosstalk.json`` against plain sRGB,
+    with the 1-sigma it propagates, the black and white photos' codes, and a blended model named
+    with its weight; all texts and the numbers recorded in the PNG."""
+    from lenticalib.calib.crosstalk.report import FIGURE_SIZES, _tone_curve
+    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import write_figures
+
+    fitted = tone.fit_tone_curve(_photos(DEMOSAIC_SHORTFALL), tone.tile_size(600))
+    curve = fitted.to_dict()
+    other = tone.ToneCurve("curve", tone.decode_lut(1.1), 0.03, 0.01, 1000, levels=True)
+    blended = dict(curve, blended_with={**other.to_dict(), "weight": 0.3})
+    for name, data in (("plain", curve), ("blended", blended)):
+        (tmp_path / name).mkdir()
+        write_figures(tmp_path / name, [("tone-curve.png", lambda fig, _, d=data: _tone_curve(fig, d))],
+                      FIGURE_SIZES, None)
+    record = read_figure_record(tmp_path / "plain" / "tone-curve.png")
+    assert record["numbers"] == {"model": "power", "power_sigma": curve["power_sigma"],
+                                 "code_range": curve["code_range"], "blended_weight": 0.0}
+    assert "half and level photos" in record["title"]
+    light, ratio = record["axes"][:2]
+    assert light["xlabel"].startswith("8-bit code") and "linear light" in light["ylabel"]
+    assert "sRGB" in ratio["ylabel"] and ratio["title"]
+    assert any(f"1 ± {curve['power_sigma']:.3f}" in t for t in light["legend"])
+    assert any(f"** {curve['power']:.3f}" in t for t in light["legend"])
+    assert not any("blended" in t for t in light["legend"])
+    black, white = curve["code_range"]
+    assert any(f"median code {black}" in t for t in light["texts"]) and any(f"median code {white}" in t
+                                                                           for t in light["texts"])
+    record = read_figure_record(tmp_path / "blended" / "tone-curve.png")
+    assert record["numbers"]["blended_weight"] == 0.3
+    assert any("weight 0.30" in t and "bent curve" in t for t in record["axes"][0]["legend"])

@@ -14,6 +14,9 @@ Written into one folder (``lenticalib crosstalk measure --report DIR``, staged a
     compensation.png  what pre-compensation by the measured matrix would do (synthetic test views; the
                       prediction if the matrix is right): the light each other view leaks into a
                       view, without and with, and one test pixel across the zones
+    tone-curve.png    camera JPEGs only: the camera's tone curve measured from the photos (light of
+                      each 8-bit code, and its ratio to plain sRGB decoding) with its 1-sigma, the
+                      codes the black and white photos hold, and the model blended in, if any
 
 The numbers a figure states are those of ``crosstalk.json`` (the document), recorded in the PNG
 (:func:`lenticalib.calib.report.read_figure_record`).
@@ -28,7 +31,7 @@ import numpy as np
 from .result import HEADLINE, describe_figure
 
 FIGURE_SIZES = {"view-cone.png": (1600, 1300), "matrix.png": (1200, 1050), "uniformity.png": (1400, 900),
-                "photos.png": (1800, 900), "compensation.png": (1800, 800)}
+                "photos.png": (1800, 900), "compensation.png": (1800, 800), "tone-curve.png": (1700, 850)}
 REPORT_FILES = tuple(FIGURE_SIZES)
 
 
@@ -45,6 +48,8 @@ def write_crosstalk_report(measurement, directory: str | Path, document: dict,
                 ("uniformity.png", lambda fig, m: _uniformity(fig, m, document)), ("photos.png", _photos)]
     if compensation is not None:
         drawings.append(("compensation.png", lambda fig, m: _compensation(fig, compensation)))
+    if measurement.photometry.get("tone_curve"):
+        drawings.append(("tone-curve.png", lambda fig, m: _tone_curve(fig, m.photometry["tone_curve"])))
     write_figures(directory, drawings, FIGURE_SIZES, measurement)
     return directory
 
@@ -209,3 +214,82 @@ def _compensation(fig, study: dict) -> dict:
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     return {"residual_crosstalk_without": sys_without, "residual_crosstalk_with": sys_with,
             "mean_rms_without": rms_without, "mean_rms_with": rms_with}
+
+
+def _tone_light(curve: dict) -> np.ndarray:
+    """float64 (256,): the linear light of each 8-bit code under a ``crosstalk.json`` tone curve entry."""
+    from ...core.colour import srgb_decode_lut
+
+    if "light_of_code" in curve:
+        return np.asarray(curve["light_of_code"], dtype=np.float64)
+    return srgb_decode_lut().astype(np.float64) ** float(curve["power"])
+
+
+def _tone_curve(fig, curve: dict) -> dict:
+    """The camera's tone curve (``photometry.tone_curve`` of ``crosstalk.json``), normalised to 1 at
+    the white photo's median code: light against code (log), and its ratio to plain sRGB."""
+    from ...core.colour import srgb_decode_lut
+
+    black, white = (int(v) for v in curve["code_range"])
+    sigma = float(curve["power_sigma"])
+    codes = np.arange(256)
+    srgb = srgb_decode_lut().astype(np.float64)
+    srgb_n = np.maximum(srgb / srgb[white], 1e-12)
+
+    def normalised(light):
+        return np.maximum(light, 1e-12) / max(float(light[white]), 1e-12)
+
+    main = normalised(_tone_light(curve))
+    label = (f"measured: sRGB decoding ** {curve['power']:.3f}" if "power" in curve
+             else "measured: sRGB decoding x a bent factor")
+    other = curve.get("blended_with")
+    gs = fig.add_gridspec(2, 2, height_ratios=(1.0, 0.2), left=0.07, right=0.97, top=0.88, bottom=0.03,
+                          wspace=0.22, hspace=0.3)
+    shown = codes >= 1
+    for k, ratio in enumerate((False, True)):
+        ax = fig.add_subplot(gs[0, k])
+        ref = srgb_n if ratio else 1.0
+        lo, hi = main ** (1 + sigma) / ref, main ** (1 - sigma) / ref
+        ax.fill_between(codes[shown], np.minimum(lo, hi)[shown], np.maximum(lo, hi)[shown], color="tab:blue",
+                        alpha=0.25, label=f"1-sigma: a power 1 ± {sigma:.3f} on the light")
+        ax.plot(codes[shown], (main / ref)[shown], color="tab:blue", lw=2, label=label)
+        if other:
+            alt = normalised(_tone_light(other))
+            ax.plot(codes[shown], (alt / ref)[shown], color="tab:orange", lw=1.5, ls="--",
+                    label=f"blended in at weight {other['weight']:.2f}: "
+                          + (f"sRGB ** {other['power']:.3f}" if "power" in other else "the bent curve"))
+        ax.plot(codes[shown], (srgb_n / ref)[shown], color="0.4", lw=1.2, ls=":", label="plain sRGB decoding")
+        for span in ((0, black), (white, 255)):
+            ax.axvspan(*span, color="0.85", alpha=0.5, lw=0,
+                       label="codes the measurement does not read" if span[0] == 0 else None)
+        for code, what in ((black, "black photo"), (white, "white photo")):
+            ax.axvline(code, color="k", lw=0.8, ls="-.")
+            ax.text(code + 2, 0.97, f"{what}\n(median code {code})", fontsize=10, va="top",
+                    transform=ax.get_xaxis_transform())
+        ax.set_xlim(0, 255)
+        ax.set_xlabel("8-bit code in the JPEG (all three channels)")
+        if ratio:
+            inside = slice(max(black, 1), white + 1)
+            values = np.concatenate([(main / srgb_n)[inside], lo[inside], hi[inside]])
+            ax.set_ylim(max(0.0, float(values.min()) - 0.05), float(values.max()) + 0.05)
+            ax.axhline(1.0, color="0.4", lw=0.8)
+            ax.set_ylabel("measured light / sRGB's (both 1 at the white photo's code)")
+            ax.set_title("How far the camera is from sRGB (what plain decoding would get wrong)")
+        else:
+            ax.set_yscale("log")
+            ax.set_ylim(1e-4, 2.0)
+            ax.set_ylabel("linear light (1 = the white photo's median code)")
+            ax.set_title("Light of each code")
+            ax.legend(loc="lower right")
+    photos = "black, white, half and level photos" if "level" in curve.get("relations", "") else "black, white and half photos"
+    fig.suptitle(f"Camera tone curve measured from the {photos}", fontsize=14)
+    caption = fig.add_subplot(gs[1, :])
+    caption.axis("off")
+    caption.text(0.0, 1.0, "The measurement reads the codes between the black and the white photo's (unshaded).  An "
+                 "ordinary camera stays within a few per cent of sRGB there,\na phone's S-curve bends it by tens of "
+                 "per cent.  The 1-sigma enters every uncertainty of crosstalk.json.  A wide band, or a bent curve "
+                 "blended in,\nmeans the JPEGs limit the accuracy: shoot RAW and convert it to 16-bit linear "
+                 "(--photos linear) where the camera can (docs/crosstalk.md, \"Phone-like cameras\").",
+                 va="top", ha="left", fontsize=12, transform=caption.transAxes)
+    return {"model": "power" if "power" in curve else "curve", "power_sigma": sigma, "code_range": [black, white],
+            "blended_weight": float(other["weight"]) if other else 0.0}
