@@ -109,6 +109,11 @@ def test_calibrate_writes_a_real_cameramodel_and_a_report(printed):
                        ("uncertainty.png", (1800, 860))):
         with Image.open(report / name) as img:
             assert img.size == size
+    from lenticalib.calib.report import read_figure_record
+
+    coverage = read_figure_record(report / "coverage.png")["axes"][0]
+    assert f"{100 * summary['coverage']:.0f}% of the 8x6 grid" in coverage["title"]
+    assert ("cell with no corner" in coverage["legend"]) == (summary["coverage"] < 1.0)  # the empty cells shown
     on_disk = json.loads((report / "summary.json").read_text())
     assert on_disk["intrinsics"] == summary["intrinsics"]
     inputs = on_disk["provenance"]["inputs"]

@@ -146,6 +146,7 @@ def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_i
     light, ratio = record["axes"][:2]
     assert light["xlabel"].startswith("8-bit code") and "linear light" in light["ylabel"]
     assert "sRGB" in ratio["ylabel"] and ratio["title"]
+    assert all(label.endswith(")") and "(" in label for ax in (light, ratio) for label in (ax["xlabel"], ax["ylabel"]))
     assert any(f"1 ± {curve['power_sigma']:.3f}" in t for t in light["legend"])
     assert any(f"** {curve['power']:.3f}" in t for t in light["legend"])
     assert not any("blended" in t for t in light["legend"])

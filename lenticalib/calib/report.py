@@ -128,8 +128,20 @@ def _panel_figure(fig, result) -> None:
                     linewidths=1.0)
     cy = ax.contour(xs, ys, np.where(valid, maps["y"], np.nan), levels=rows, colors=["deepskyblue"],
                     linewidths=1.0)
-    ax.clabel(cx, fmt="x=%d", fontsize=10)
-    ax.clabel(cy, fmt="y=%d", fontsize=10)
+    import matplotlib.patheffects as effects
+
+    # labels upright at each line's end (columns above the panel, rows left of it), on a dark outline
+    outline = [effects.withStroke(linewidth=3, foreground="black")]
+    for contours, levels, axis in ((cx, cols, 1), (cy, rows, 0)):
+        for level, segments in zip(levels, contours.allsegs):
+            if not segments:
+                continue
+            line = max(segments, key=len)
+            end = line[int(np.argmin(line[:, axis]))]
+            ax.text(end[0] - (8 if axis == 0 else 0), end[1] - (8 if axis == 1 else 0),
+                    f"{'x' if axis == 1 else 'y'}={level:.0f}", color="orange" if axis == 1 else "deepskyblue",
+                    fontsize=11, fontweight="bold", ha="center" if axis == 1 else "right",
+                    va="bottom" if axis == 1 else "center", path_effects=outline)
     ax.set_title(f"Panel found in the photos ({100 * mask.mean():.0f}% of the frame), with the measured "
                  f"panel columns x and rows y at eighths of {profile.width}x{profile.height} panel pixels")
     ax.set_xlabel("camera x (photo pixels)")
@@ -185,7 +197,7 @@ def _view_map_figure(fig, result) -> dict:
         ax.scatter(px[sel], py[sel], c=measured[sel], cmap="hsv", vmin=0, vmax=n, s=sizes[g], edgecolors="black",
                    linewidths=0.7)
     ax.set_title(f"fitted w of each subpixel ({3 * cw}x{ch}); dots:\nmeasured w* of the {int(inside.sum())} "
-                 f"samples here ({groups.size} fine groups)")
+                 f"samples here ({groups.size} fine group{'s' if groups.size != 1 else ''})")
     _colorbar(fig, ax, im, f"view (cyclic, 0..{n})")
     # the same samples' residuals, on the subpixel grid
     ax2 = fig.add_subplot(grid[0, 1])

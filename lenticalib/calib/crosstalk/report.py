@@ -60,22 +60,32 @@ def _cone(fig, m, document: dict) -> dict:
     offsets = np.arange(n) - n * (np.arange(n) >= n / 2)
     order = np.argsort(offsets)
     figures = document["figures"]
-    gs = fig.add_gridspec(3, 1, height_ratios=(1.0, 1.0, 0.42), left=0.08, right=0.97, top=0.93, bottom=0.02,
-                          hspace=0.38)
+    reach = min(n / 2, 8)
+    positive = m.row[m.row > 0]
+    floor = max(1e-6, min(1e-4, 0.5 * float(positive.min()))) if positive.size else 1e-4
+    gs = fig.add_gridspec(3, 1, height_ratios=(1.0, 1.0, 0.34), left=0.08, right=0.97, top=0.93, bottom=0.02,
+                          hspace=0.32)
     for k, log in enumerate((False, True)):
         ax = fig.add_subplot(gs[k])
-        ax.fill_between(grid, np.maximum(cone - sigma, 1e-5), cone + sigma, color="tab:blue", alpha=0.25,
-                        label="1-sigma")
-        ax.plot(grid, np.maximum(cone, 1e-5), color="tab:blue", lw=1.5, label="measured view cone")
-        ax.errorbar(offsets[order], np.maximum(m.row[order], 1e-5), yerr=m.row_sigma[order], fmt="o", ms=5,
+        low = floor if log else -np.inf
+        ax.fill_between(grid, np.maximum(cone - sigma, low), np.maximum(cone + sigma, low), color="tab:blue",
+                        alpha=0.25, label="1-sigma")
+        ax.plot(grid, np.maximum(cone, low), color="tab:blue", lw=1.5, label="measured view cone")
+        shown = m.row[order] > floor if log else np.ones(n, bool)
+        ax.errorbar(offsets[order][shown], m.row[order][shown], yerr=m.row_sigma[order][shown], fmt="o", ms=5,
                     color="tab:red", capsize=3, label="matrix entries M[i][i+m]")
-        ax.set_xlim(-min(n / 2, 8), min(n / 2, 8))
-        ax.set_xlabel("eye offset from the view's zone centre (views)")
+        if log and not shown.all():
+            ax.plot(offsets[order][~shown], np.full(int((~shown).sum()), floor * 1.15), "v", ms=8, color="tab:red",
+                    label=f"entry at or below {floor:.0e} (0 or negative: within its sigma)")
+            ax.legend(loc="upper right")
+        ax.set_xlim(-reach - 0.4, reach + 0.4)
+        ax.set_xlabel("eye offset from the view's zone centre (views"
+                      + (f"; up to ±{reach:g} shown, all {n} in crosstalk.json)" if reach < n / 2 else ")"))
         ax.set_ylabel("share of the light at the eye (0..1)")
         ax.grid(alpha=0.3)
         if log:
             ax.set_yscale("log")
-            ax.set_ylim(1e-4, 1.0)
+            ax.set_ylim(floor, 1.0)
             ax.set_title("the same, logarithmic: the non-adjacent floor")
         else:
             ax.set_title(f"View cone of one view ({n} views; centre region of the panel)")
@@ -187,27 +197,33 @@ def _compensation(fig, study: dict) -> dict:
     ax.bar(offsets[other] - 0.2, without[other], width=0.4, color="tab:gray", label="without compensation")
     ax.bar(offsets[other] + 0.2, with_[other], width=0.4, color="tab:green", label="with pre-compensation")
     ax.axhline(0, color="black", lw=0.8)
-    ax.set_xlim(-min(n / 2, 8) - 0.5, min(n / 2, 8) + 0.5)
+    reach = min(n / 2, 8)
+    ax.set_xlim(-reach - 0.5, reach + 0.5)
     ax.set_title(f"Light each other view leaks into a view (signed; own view = 100 %):\nsystem crosstalk, the sum "
-                 f"of the magnitudes, {100 * sys_without:.1f}% → {100 * sys_with:.1f}%", fontsize=12)
-    ax.set_xlabel("offset of the leaking view (views)")
+                 f"of the magnitudes over all {n - 1} other views, {100 * sys_without:.1f}% → {100 * sys_with:.1f}%",
+                 fontsize=12)
+    ax.set_xlabel("offset of the leaking view (views" + (f"; up to ±{reach:g} shown)" if reach < n / 2 else ")"))
     ax.set_ylabel("light over the view's own light (%)")
     ax.legend(loc="upper right")
     ax.grid(alpha=0.3, axis="y")
     ax = fig.add_subplot(1, 2, 2)
     zones = np.arange(n)
     ax.plot(zones, study["example_intended"], color="black", lw=2, label="intended")
-    ax.plot(zones, study["example_target"], color="black", lw=1, ls="--",
-            label=f"intended, black lifted by {study['black_lift']:g}")
     ax.plot(zones, study["example_seen_without"], color="tab:gray", lw=2, marker="o", ms=4,
             label="seen without compensation")
     ax.plot(zones, study["example_seen_with"], color="tab:green", lw=2, marker="o", ms=4,
             label="seen with pre-compensation")
+    ax.plot(zones, study["example_target"], color="tab:purple", lw=1.5, ls="--", zorder=5,
+            label=f"intended, black lifted by {study['black_lift']:g} (what compensation aims at)")
     ax.set_title(f"One test pixel as the eye at each zone centre sees it; over all test pixels\nRMS seen - intended "
                  f"{rms_without:.4f} → {rms_with:.4f} (linear light, 0..1)", fontsize=12)
     ax.set_xlabel("zone (view index)")
     ax.set_ylabel("light (linear, 0..1)")
-    ax.legend(loc="best", fontsize=10)
+    values = np.concatenate([np.asarray(study[k], float) for k in ("example_intended", "example_target",
+                                                                   "example_seen_without", "example_seen_with")])
+    low, high = float(values.min()), float(values.max())
+    ax.set_ylim(low - 0.05 * (high - low), high + 0.55 * (high - low))  # head room for the legend
+    ax.legend(loc="upper center", ncol=2, fontsize=10)
     ax.grid(alpha=0.3)
     fig.suptitle("Pre-compensation with the measured matrix, as predicted if the matrix is right (synthetic test "
                  f"views, black lift {study['black_lift']:g})", fontsize=14)

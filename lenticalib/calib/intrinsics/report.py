@@ -27,6 +27,7 @@ from ...core.documents import FORMATS, write_document
 from ...core.profile import make_provenance
 from ..report import write_figures
 from .crossval import note_line
+from .solve import COVERAGE_GRID
 from .quality import weak_corners
 
 FIGURE_SIZES = {"residuals.png": (1800, 1200), "coverage.png": (1800, 1200), "uncertainty.png": (1800, 860)}
@@ -209,48 +210,79 @@ def _residuals_figure(fig, subject) -> None:
 
 
 def _coverage_figure(fig, subject) -> None:
+    import matplotlib.patches as patches
+
     cal, qual = subject["cal"], subject["qual"]
     s = cal.solve
     obs = s.optimization_inputs["observations_board"][..., :2]
     w, h = s.optimization_inputs["imagersizes"][0]
     n = obs.shape[0]
     ax = fig.add_axes((0.07, 0.08, 0.82, 0.82))
+    # the cells of the coverage grid (the same cells as the quality figure counts): empty ones shaded
+    nx, ny = COVERAGE_GRID
+    seen = obs[s.observed]
+    cx = np.clip((seen[:, 0] + 0.5) / w * nx, 0, nx - 1).astype(int)
+    cy = np.clip((seen[:, 1] + 0.5) / h * ny, 0, ny - 1).astype(int)
+    occupied = set(zip(cx.tolist(), cy.tolist()))
+    empty = [(i, j) for i in range(nx) for j in range(ny) if (i, j) not in occupied]
+    for k, (i, j) in enumerate(empty):
+        ax.add_patch(patches.Rectangle((i * w / nx, j * h / ny), w / nx, h / ny, facecolor="tab:red", alpha=0.15,
+                                       hatch="//", edgecolor="tab:red", lw=0,
+                                       label="cell with no corner" if k == 0 else None))
+    for i in range(1, nx):
+        ax.axvline(i * w / nx, color="0.75", lw=0.8, zorder=0)
+    for j in range(1, ny):
+        ax.axhline(j * h / ny, color="0.75", lw=0.8, zorder=0)
     frame = np.broadcast_to(np.arange(n)[:, None, None], obs.shape[:3])
-    sc = ax.scatter(obs[..., 0][s.inlier], obs[..., 1][s.inlier], c=frame[s.inlier] + 1, s=6, cmap="turbo",
-                    vmin=0.5, vmax=n + 0.5, label="corners kept")
+    # one colour per photo: a qualitative map while its colours can be told apart
+    cmap = "tab20" if n <= 20 else "turbo"
+    sc = ax.scatter(obs[..., 0][s.inlier], obs[..., 1][s.inlier], c=frame[s.inlier] + 1, s=8, cmap=cmap,
+                    vmin=0.5, vmax=(20 if n <= 20 else n) + 0.5, label="corners kept")
     rejected = s.observed & ~s.inlier
     if rejected.any():
         ax.plot(obs[..., 0][rejected], obs[..., 1][rejected], "x", color="black", ms=6, label="outliers")
     _outline(ax, w, h)
-    ax.legend(loc="lower right", framealpha=0.85)
-    ax.set_title(f"Observed corners of {n} photos over the {w}x{h} image: {100 * qual['coverage']:.0f}% of an 8x6 "
-                 "grid of cells covered (the lens is known only where corners are)")
-    _colorbar(fig, ax, sc, "photo (frame number)")
+    ax.legend(loc="lower right", framealpha=0.85, markerscale=2)
+    ax.set_title(f"Observed corners of {n} photos over the {w}x{h} image: {100 * qual['coverage']:.0f}% of the "
+                 f"{nx}x{ny} grid of cells covered\n(the lens is known only where corners are: fill the shaded cells)")
+    bar = _colorbar(fig, ax, sc, "photo (frame number)")
+    if n <= 20:
+        bar.set_ticks(range(1, n + 1))
+        bar.ax.set_ylim(0.5, n + 0.5)
 
 
 def _uncertainty_figure(fig, subject) -> None:
+    import matplotlib.patheffects as effects
+    from matplotlib.colors import LogNorm
+
     cal, qual = subject["cal"], subject["qual"]
     maps = qual["_maps"]
     grid = maps["grid"]
     obs = cal.solve.optimization_inputs["observations_board"][..., :2]
     w, h = cal.solve.optimization_inputs["imagersizes"][0]
     pairs = ((maps["near"], f"at the working distance, {maps['distance']:.0f} mm"), (maps["far"], "at infinity"))
-    top = float(max(np.percentile(maps["near"], 98), np.percentile(maps["far"], 98)))
+    top = float(max(np.max(maps["near"]), np.max(maps["far"])))
+    bottom = max(float(min(np.min(maps["near"]), np.min(maps["far"]))), 1e-4, top / 1000)
+    handles = []
     for k, (stdev, where) in enumerate(pairs):
-        ax = fig.add_axes((0.05 + 0.49 * k, 0.08, 0.39, 0.78))
-        im = ax.imshow(stdev, extent=(grid[0, 0, 0], grid[0, -1, 0], grid[-1, 0, 1], grid[0, 0, 1]), origin="upper",
-                       cmap="magma", vmin=0, vmax=top, interpolation="bilinear")
-        levels = [v for v in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5) if stdev.min() < v < stdev.max()]
+        ax = fig.add_axes((0.05 + 0.49 * k, 0.13, 0.39, 0.72))
+        im = ax.imshow(np.maximum(stdev, bottom), extent=(grid[0, 0, 0], grid[0, -1, 0], grid[-1, 0, 1], grid[0, 0, 1]),
+                       origin="upper", cmap="magma", norm=LogNorm(vmin=bottom, vmax=max(top, bottom * 1.01)),
+                       interpolation="bilinear")
+        candidates = (0.005, 0.01, 0.02, 0.03, 0.05, 0.08, 0.1, 0.15, 0.2, 0.3, 0.5, 1, 2, 5)
+        levels = [v for v in candidates if stdev.min() < v < stdev.max()]
+        levels = levels[::max(1, int(np.ceil(len(levels) / 6)))]  # at most six contours
         if levels:
             cs = ax.contour(grid[0, :, 0], grid[:, 0, 1], stdev, levels=levels, colors="white", linewidths=1.0)
-            ax.clabel(cs, fmt="%g px", fontsize=10)
-        ax.plot(obs[..., 0][cal.solve.observed], obs[..., 1][cal.solve.observed], ".", color="cyan", ms=1.5, alpha=0.6,
-                label="observed corners")
+            for label in ax.clabel(cs, fmt="%g px", fontsize=10):
+                label.set_path_effects([effects.withStroke(linewidth=2.5, foreground="black")])
+        (dots,) = ax.plot(obs[..., 0][cal.solve.observed], obs[..., 1][cal.solve.observed], ".", color="cyan",
+                          ms=1.5, alpha=0.6, label="observed corners")
+        handles = [dots]
         _outline(ax, w, h, color="grey")
-        ax.legend(loc="lower right", framealpha=0.85)
         ax.set_title(f"Projection uncertainty {where}")
-        _colorbar(fig, ax, im, "worst-direction stdev (px, 1 sigma); colours stop at the 98th percentile",
-                  extend="max" if stdev.max() > top else "neither")
+        _colorbar(fig, ax, im, "worst-direction stdev (px, 1 sigma, log scale)")
+    fig.legend(handles=handles, loc="lower center", markerscale=8, framealpha=0.85)
     scale = qual.get("cross_validation", {}).get("scale", 1.0)
     scaled = f", x{scale:.2f} from cross-validation and the corner locator" if scale > 1.0 else ""
     fig.suptitle(f"{cal.lensmodel}: how far a projection may be off (1 sigma, from the observed pixel noise "
