@@ -9,6 +9,7 @@ uncertainty puts that Mahalanobis distance below 3 at ~99 % of the points.
 """
 
 import json
+import shutil
 import os
 
 import numpy as np
@@ -302,3 +303,25 @@ def test_lenticalib_simulate_photographs_the_board_of_a_camera_patterns_folder(t
                         (["simulate", folder, "--photos", 1], "--photos")):
         code, out, err = cli(*argv)
         assert code == 2 and words in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_the_model_never_replaces_a_photo_or_the_board_and_an_empty_photo_is_named(printed, tmp_path):
+    """``-o`` naming one of the inputs (a photo, board.json) is refused before the corner search,
+    the file untouched; an empty photo among the others is one clear error naming it, not a
+    traceback from the image library's header parser."""
+    folder = printed[0]
+    for target in (sorted((folder / "captures").glob("*.jpg"))[0], folder / "board.json"):
+        before = target.read_bytes()
+        code, _, err = run_main("camera", "calibrate", folder / "captures", "-o", target)
+        assert code == 2, err
+        line = one_error_line(err)
+        assert line.startswith(f"lenticalib: error: {target}: is one of this command's inputs"), line
+        assert target.read_bytes() == before
+    shutil.copytree(folder / "captures", tmp_path / "captures")
+    shutil.copy(folder / "board.json", tmp_path / "board.json")
+    photos = tmp_path / "captures"
+    (photos / "zz-empty.jpg").write_bytes(b"")
+    code, _, err = run_main("camera", "calibrate", photos, "-o", tmp_path / "c.cameramodel")
+    assert code == 2 and "Traceback" not in err, err
+    assert one_error_line(err).startswith(f"lenticalib: error: {photos / 'zz-empty.jpg'}: "), err

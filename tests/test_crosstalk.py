@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import types
 
@@ -18,7 +19,7 @@ from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
 from lenticalib.core.routing import view_coordinate
 from lenticalib.sim.scene import random_scene
 
-from .cli_support import refused, run_main
+from .cli_support import one_error_line, refused, run_main
 
 VIEWS = 32
 
@@ -695,3 +696,37 @@ def test_soft_sheet_from_afar_is_measured_and_a_wrong_photo_in_it_refused_early(
         measure_crosstalk(wrong, fitted, photos="linear")
     assert str(err.value).startswith(str(wrong / "captures" / "band-07.png"))
     assert work and "glare" not in work and max(work) <= CHECK_SAMPLES, work
+
+
+def test_the_crosstalk_file_never_replaces_a_photo_the_manifest_or_the_profile(measured_set, tmp_path, profile):
+    """``-o`` naming one of the measurement's own inputs is refused before any photo is read, the
+    file untouched (it once replaced the white photo with crosstalk JSON, exit 0)."""
+    from lenticalib.core.profile import save_profile
+
+    profile_path = tmp_path / "profile.json"
+    save_profile(profile, profile_path)
+    for target in (measured_set / "captures" / "white.png", measured_set / "patterns.json", profile_path):
+        before = target.read_bytes()
+        code, _, err = run_main("crosstalk", "measure", measured_set, "--profile", profile_path, "-o", target,
+                                "--photos", "linear")
+        assert code == 2, err
+        line = one_error_line(err)
+        assert line.startswith(f"lenticalib: error: {target}: is one of this command's inputs"), line
+        assert target.read_bytes() == before
+
+
+def test_a_fifo_is_refused_as_a_crosstalk_file_not_read_forever(tmp_path):
+    """A JSON input that is a FIFO (or a device) is one error at once: reading it would wait for a
+    writer that never comes."""
+    import threading
+
+    fifo = tmp_path / "crosstalk.json"
+    os.mkfifo(fifo)
+    result = {}
+    thread = threading.Thread(target=lambda: result.update(out=run_main("crosstalk", "check", fifo,
+                                                                        "--max-system", "100%")), daemon=True)
+    thread.start()
+    thread.join(20)
+    assert not thread.is_alive(), "crosstalk check waited on the FIFO"
+    code, _, err = result["out"]
+    assert code == 2 and "is not a regular file" in one_error_line(err), err

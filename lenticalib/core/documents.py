@@ -177,7 +177,17 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str,
     a 400-digit integer: :mod:`lenticalib.core.fields`); ``what`` names the kind of file in
     messages (e.g. ``"profile"``), ``hint_missing`` says what to do when it does not exist.
     """
+    import stat
+
     src = str(path)
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        mode = None  # missing or unreadable: said below
+    if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        # reading a FIFO or a device would wait for a writer or never end
+        raise error(f"is not a regular file (a FIFO, device or socket), not a {what} file", source=src,
+                    hint=hint_missing)
     try:
         raw = Path(path).read_bytes()
     except FileNotFoundError:

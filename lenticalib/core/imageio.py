@@ -91,9 +91,11 @@ def header_size(path: str | os.PathLike, *, camera_orientation: bool = False) ->
     ``camera_orientation``: the size after the turn its EXIF orientation asks for (JPEG photos).
     ImageError when the header states more than :data:`MAX_IMAGE_PIXELS`.
     """
+    import struct
+
     try:
         img = open_image_header(path)
-    except OSError:
+    except (OSError, ValueError, SyntaxError, struct.error):  # Pillow's header parsers on empty or cut files
         return None
     if img is None:
         return None

@@ -86,6 +86,18 @@ def check_output_file(path: str | os.PathLike, what: str = "output file", exampl
     return target
 
 
+def check_not_an_input(path: str | os.PathLike, inputs: Iterable[str | os.PathLike | None], what: str,
+                       example: str = "out") -> None:
+    """Refuse, before any work, an output file path that is one of the command's own ``inputs``
+    (after symbolic links; None entries are skipped): writing it would destroy what the command
+    reads (a photo, the pattern manifest, the profile).  ``example``: a file name the hint suggests."""
+    real = os.path.realpath(path)
+    for item in inputs:
+        if item is not None and os.path.realpath(item) == real:
+            raise InputError(f"is one of this command's inputs ({item}): the {what} would replace it",
+                             source=str(path), hint=f"give the {what} a path of its own, e.g. {example}")
+
+
 def check_output_folder(path: str | os.PathLike, what: str = "output folder",
                         contents: Iterable[str] | None = None) -> Path:
     """Refuse, before any work, an output folder that cannot be written; return it as a Path.

@@ -21,7 +21,8 @@ from typing import Callable
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.outputs import check_output_file, check_output_folder, staged_folder
+from ...core.outputs import check_not_an_input, check_output_file, check_output_folder, staged_folder
+from ...core.pattern_sets import MANIFEST_NAME
 from ...core.profile import PanelProfile, load_profile, make_provenance
 
 
@@ -125,7 +126,10 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     profile_file = None
     if profile is not None and not isinstance(profile, PanelProfile):
         profile_file, profile = profile, load_profile(profile, "`profile`")
-    pattern_set, _ = open_crosstalk_set(directory, profile, "profile")
+    pattern_set, capture = open_crosstalk_set(directory, profile, "profile")
+    check_not_an_input(output, [Path(directory) / MANIFEST_NAME, profile_file,
+                                *(capture.photo(name) for name in capture.patterns.names)],
+                       "crosstalk file", example="crosstalk.json")
     eye_views, eye_note = (eye or EyeSeparation()).resolve(pattern_set.views)
     if progress_total is not None:
         progress_total(len(pattern_set.patterns) + 3)

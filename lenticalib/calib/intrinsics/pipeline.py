@@ -31,7 +31,7 @@ from typing import Callable
 
 from ...core.errors import ImageError, InputError
 from ...core.imageio import header_size, write_image
-from ...core.outputs import check_output_file, check_output_folder, staged_folder
+from ...core.outputs import check_not_an_input, check_output_file, check_output_folder, staged_folder
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 MIN_VIEWS = 10  # photos with the board found, at least
@@ -187,6 +187,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     photos = collect_photos(photos)
     board, manifest = photos_board(photos, board_corners, square_mm, board_squares=board_squares,
                                    marker_mm=marker_mm, dictionary=dictionary)
+    check_not_an_input(output, [*photos, manifest], "camera model", example="camera.cameramodel")
     if len(photos) < MIN_VIEWS:
         raise InputError(f"only {len(photos)} photos given; at least {MIN_VIEWS} views of the board are needed",
                          source="photos", hint=TOO_FEW_HINT)
