@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.colour import srgb_decode_lut
 from .result import HEADLINE, describe_figure
 
 FIGURE_SIZES = {"view-cone.png": (1600, 1300), "matrix.png": (1200, 1050), "uniformity.png": (1400, 900),
@@ -234,8 +235,6 @@ def _compensation(fig, study: dict) -> dict:
 
 def _tone_light(curve: dict) -> np.ndarray:
     """float64 (256,): the linear light of each 8-bit code under a ``crosstalk.json`` tone curve entry."""
-    from ...core.colour import srgb_decode_lut
-
     if "light_of_code" in curve:
         return np.asarray(curve["light_of_code"], dtype=np.float64)
     return srgb_decode_lut().astype(np.float64) ** float(curve["power"])
@@ -244,8 +243,6 @@ def _tone_light(curve: dict) -> np.ndarray:
 def _tone_curve(fig, curve: dict) -> dict:
     """The camera's tone curve (``photometry.tone_curve`` of ``crosstalk.json``), normalised to 1 at
     the white photo's median code: light against code (log), and its ratio to plain sRGB."""
-    from ...core.colour import srgb_decode_lut
-
     black, white = (int(v) for v in curve["code_range"])
     sigma = float(curve["power_sigma"])
     codes = np.arange(256)
