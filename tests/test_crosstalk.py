@@ -730,3 +730,49 @@ def test_a_fifo_is_refused_as_a_crosstalk_file_not_read_forever(tmp_path):
     assert not thread.is_alive(), "crosstalk check waited on the FIFO"
     code, _, err = result["out"]
     assert code == 2 and "is not a regular file" in one_error_line(err), err
+
+
+@pytest.mark.slow
+def test_photos_not_encoded_as_said_are_named_before_the_long_work(measured_set, tmp_path, monkeypatch):
+    """16-bit linear photos measured as sRGB, an 8-bit photo with --photos linear, a set mixing 8-
+    and 16-bit photos and a photo of another size: each one error naming the photo and what to do,
+    before the band photos are fitted (the 1-in-2 level photo holds half of white's light only in
+    linear light).  Before, the first gave a late 'does not show pattern band-04', the others a
+    wrong matrix with exit 0 or a message about megapixels."""
+    import cv2
+
+    import lenticalib.calib.crosstalk.measure as measure_module
+
+    def no_long_work(*args, **kwargs):
+        raise AssertionError("the long work started")
+
+    monkeypatch.setattr(measure_module, "_analyse", no_long_work)
+    code, _, err = run_main("crosstalk", "measure", measured_set, "-o", tmp_path / "x.json")  # srgb, the default
+    assert code == 2, err
+    line = one_error_line(err)
+    assert line.startswith(f"lenticalib: error: {measured_set / 'captures' / 'level-1in2.png'}: holds 0.")
+    assert "linear already" in line and "--photos linear" in line, line
+
+    def eight_bit(name):
+        path = copy / "captures" / f"{name}.png"
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(path), (image >> 8).astype(np.uint8))
+        return path
+
+    copy = _copy_set(measured_set, tmp_path)
+    band = eight_bit("band-03")
+    code, _, err = run_main("crosstalk", "measure", copy, "-o", tmp_path / "x.json", "--photos", "linear")
+    assert code == 2 and one_error_line(err).startswith(f"lenticalib: error: {band}: is 8-bit, the photo of black "
+                                                         "16-bit"), err
+    black = eight_bit("black")
+    code, _, err = run_main("crosstalk", "measure", copy, "-o", tmp_path / "x.json", "--photos", "linear")
+    assert code == 2 and one_error_line(err).startswith(f"lenticalib: error: {black}: is an 8-bit photo, but "
+                                                         "--photos linear"), err
+    shutil.rmtree(copy)
+    copy = _copy_set(measured_set, tmp_path)
+    small = copy / "captures" / "band-07.png"
+    image = cv2.imread(str(small), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(small), cv2.resize(image, (image.shape[1] * 3 // 4, image.shape[0] * 3 // 4)))
+    code, _, err = run_main("crosstalk", "measure", copy, "-o", tmp_path / "x.json", "--photos", "linear")
+    assert code == 2 and one_error_line(err).startswith(f"lenticalib: error: {small}: is "), err
+    assert "the photo of black" in one_error_line(err), err

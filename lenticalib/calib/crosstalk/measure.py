@@ -37,7 +37,7 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct
-from .photos import MAX_CLIPPED, load_all, measure_tone, panel_mask, register_photos
+from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
@@ -169,6 +169,7 @@ def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, 
     white_path = capture.photo("white")
     lit0 = luma["white"] - luma["black"]
     mask = panel_mask(lit0, white_path)
+    check_encoding(luma, mask, photos, capture)
     clip_fraction = float(clipped[mask].mean())
     if clip_fraction > MAX_CLIPPED:
         raise CaptureError(f"is overexposed: {100 * clip_fraction:.0f}% of the panel is clipped", source=str(white_path),

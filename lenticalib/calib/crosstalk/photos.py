@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
-from ...core.imageio import read_image
+from ...core.imageio import header_size, read_image
 from . import dark, tone
 
 WORKING_WIDTH = 1000  # working pixels across (about)
@@ -63,17 +63,36 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
     factor = 1
     noise = None
     names = ["black"] + [p.name for p in pattern_set.patterns if p.name != "black"]
+    sizes = {name: header_size(capture.photo(name), camera_orientation=True) for name in names}
+    first = sizes[names[0]]
+    for name, header in sizes.items():  # a photo of another size is named before any photo is decoded
+        if first is not None and header is not None and header != first:
+            raise CaptureError(f"is {header[0]}x{header[1]} pixels, the photo of {names[0]} {first[0]}x{first[1]}",
+                               source=str(capture.photo(name)),
+                               hint="take every photo of the set with the same camera settings, without cropping")
+    kind = None
     for name in names:
         path = capture.photo(name)
         raw = read_image(path, camera_orientation=True)
         h, w = raw.shape[:2]
-        check_photo_size(path, w, h)
         if size is None:
+            check_photo_size(path, w, h)
             size = (w, h)
             factor = max(1, int(round(w / WORKING_WIDTH)))
         elif (w, h) != size:
             raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
                                hint="take every photo of the set with the same camera settings, without cropping")
+        if kind is None:
+            kind = _encoding_kind(raw)
+            if mode == "linear" and raw.dtype == np.uint8:
+                raise CaptureError("is an 8-bit photo, but --photos linear is for 16-bit linear light from a raw "
+                                   "converter", source=str(path),
+                                   hint="measure camera JPEGs with --photos srgb (the default), or convert the RAW "
+                                        "files to 16-bit linear TIFF/PNG (dcraw -4 -T, rawpy, darktable)")
+        elif _encoding_kind(raw) != kind:
+            raise CaptureError(f"is {_encoding_kind(raw)}, the photo of {names[0]} {kind}", source=str(path),
+                               hint="take every photo of the set the same way: all camera JPEGs, or all 16-bit from "
+                                    "the same raw converter settings")
         channels, clip = linear_channels(raw, mode, path, lut)
         if name == "black":
             noise = dark.clipping_noise(channels, raw[:, :, :3] == 0)
@@ -85,6 +104,39 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
         if progress:
             progress(f"read {path.name}")
     return luma, clipped, factor, noise
+
+
+def _encoding_kind(raw: np.ndarray) -> str:
+    """A photo's sample type in words ("8-bit", "16-bit", "float32")."""
+    return {np.dtype(np.uint8): "8-bit", np.dtype(np.uint16): "16-bit"}.get(raw.dtype, str(raw.dtype))
+
+
+HALF_LEVEL = "level-1in2"  # lights one panel row in two: half of white's light above black, in linear light
+LINEAR_SHARE = (0.35, 0.62)  # its share of white's light as measured: below, photos decoded twice; above, not at all
+
+
+def check_encoding(luma: dict[str, np.ndarray], mask: np.ndarray, mode: str, capture) -> None:
+    """CaptureError, before the long work, when the photos are not encoded as ``mode`` says: the
+    1-in-2 level photo holds half of white's light above black in linear light (demosaicing of
+    resolved rows leaves it a few per cent short); linear photos decoded as sRGB put it near 0.2,
+    sRGB-encoded photos taken as linear near 0.73.  Sets without the level photos are not checked."""
+    if HALF_LEVEL not in luma:
+        return
+    lit = float(np.sum((luma["white"] - luma["black"])[mask]))
+    if not lit > 0:
+        return
+    share = float(np.sum((luma[HALF_LEVEL] - luma["black"])[mask])) / lit
+    if share < LINEAR_SHARE[0] and mode == "srgb":
+        raise CaptureError(f"holds {share:.2f} of white's light after sRGB decoding where it must hold 0.5: the photos "
+                           "are linear already", source=str(capture.photo(HALF_LEVEL)),
+                           hint="measure 16-bit photos from a raw converter with --photos linear")
+    if share > LINEAR_SHARE[1]:
+        raise CaptureError(f"holds {share:.2f} of white's light {'as linear light' if mode == 'linear' else 'decoded'}"
+                           " where it must hold 0.5: the photos are not encoded as "
+                           f"--photos {mode} says", source=str(capture.photo(HALF_LEVEL)),
+                           hint="camera JPEGs and sRGB-encoded photos: --photos srgb (the default); 16-bit linear "
+                                "from a raw converter: --photos linear" if mode == "linear" else
+                                "photograph the set again with the exposure locked, every pattern full screen")
 
 
 def panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
