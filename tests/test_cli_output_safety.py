@@ -21,7 +21,7 @@ import pytest
 from lenticalib.calib.patterns import design_patterns
 from lenticalib.core.pattern_sets import write_patterns
 
-from .cli_support import refused
+from .cli_support import one_error_line, refused
 
 REPO = Path(__file__).resolve().parent.parent
 FIXTURE = REPO / "fixtures" / "capture-demo"
@@ -208,3 +208,28 @@ def test_simulate_keeps_the_files_of_the_pattern_folder(tmp_path, cli):
     assert code == 0, err
     assert (folder / "thesis.tex").read_text() == "my work"
     assert (folder / "captures" / "my-note.txt").read_text() == "keep"
+
+
+def test_pattern_files_never_replace_a_user_s_file_or_other_patterns_manifest(tmp_path, cli, inputs):
+    """A file of a pattern's name beside no lenticalib manifest is the user's, and a calibration
+    folder's manifest under crosstalk patterns would leave its patterns without it: both refused, the
+    folder as it was.  Patterns written again over patterns of their own kind are fine."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "white.png").write_bytes(b"my photo")
+    code, _, err = cli("crosstalk", "patterns", "--profile", inputs / "small.json", "-o", mine)
+    assert code == 2, err
+    assert one_error_line(err).startswith(f"lenticalib: error: {mine}: holds 'white.png'"), err
+    assert [p.name for p in mine.iterdir()] == ["white.png"] and (mine / "white.png").read_bytes() == b"my photo"
+    calibration = tmp_path / "cal"
+    code, _, err = cli("patterns", "--width", 64, "--height", 64, "--views", 2, "-o", calibration)
+    assert code == 0, err
+    before = _tree(calibration)
+    code, _, err = cli("crosstalk", "patterns", "--profile", inputs / "small.json", "-o", calibration)
+    assert code == 2, err
+    assert one_error_line(err).startswith(f"lenticalib: error: {calibration / 'patterns.json'}: holds other patterns")
+    assert _tree(calibration) == before
+    again = tmp_path / "xt"
+    for _ in range(2):
+        code, _, err = cli("crosstalk", "patterns", "--profile", inputs / "small.json", "-o", again)
+        assert code == 0, err

@@ -73,6 +73,7 @@ def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     manifest_path = directory / MANIFEST_NAME
+    _check_replaced(directory, pattern_set)
     if manifest_path.exists() and any((directory / "captures").glob("*")):
         try:
             old = json.loads(manifest_path.read_text())
@@ -87,6 +88,34 @@ def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable
         write_image(directory / pattern.file, pattern_set.render(pattern))
     write_text_atomic(manifest_path, json.dumps(pattern_set.to_dict(), indent=2) + "\n")
     return manifest_path
+
+
+def _check_replaced(directory: Path, pattern_set) -> None:
+    """InputError unless every file ``pattern_set`` would replace in ``directory`` was written there by
+    lenticalib as patterns of the same kind: a manifest of another kind (calibration patterns under
+    crosstalk patterns) would leave its patterns without their manifest, and a file of a pattern's
+    name beside no manifest of ours is the user's."""
+    manifest_path = directory / MANIFEST_NAME
+    kind = pattern_set.to_dict().get("format")
+    old = None
+    if manifest_path.exists():
+        try:
+            old = json.loads(manifest_path.read_text())
+        except (OSError, ValueError):
+            old = None
+    old_kind = old.get("format") if isinstance(old, dict) else None
+    if isinstance(old_kind, str) and old_kind.startswith("lenticalib.") and old_kind != kind:
+        raise InputError(f"holds other patterns ({old_kind}), which these would leave without their manifest",
+                         source=str(manifest_path), hint="write these patterns into a folder of their own")
+    if old_kind == kind:
+        return  # earlier patterns of this kind: replaced as a whole
+    names = [MANIFEST_NAME] + [p.file for p in pattern_set.patterns]
+    taken = [name for name in names if os.path.lexists(directory / name)]
+    if taken:
+        raise InputError(f"holds '{taken[0]}'" + (f" and {len(taken) - 1} more of the names these patterns take"
+                                                   if len(taken) > 1 else ", a name these patterns take")
+                         + ", not written there by lenticalib", source=str(directory),
+                         hint="write the patterns into an empty folder (or one of earlier patterns of this kind)")
 
 
 def manifest_matches(data: dict[str, Any], expected) -> bool:
