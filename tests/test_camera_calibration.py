@@ -325,3 +325,13 @@ def test_the_model_never_replaces_a_photo_or_the_board_and_an_empty_photo_is_nam
     code, _, err = run_main("camera", "calibrate", photos, "-o", tmp_path / "c.cameramodel")
     assert code == 2 and "Traceback" not in err, err
     assert one_error_line(err).startswith(f"lenticalib: error: {photos / 'zz-empty.jpg'}: "), err
+
+
+def test_the_board_folder_stands_for_its_captures(printed):
+    """Given the folder 'camera patterns' (or the simulator) wrote, the photos are those in its
+    captures/, not the board drawing beside board.json (which once made 'only 1 photos given')."""
+    from lenticalib.calib.intrinsics.pipeline import collect_photos
+
+    folder = printed[0]
+    assert collect_photos([folder]) == collect_photos([folder / "captures"])
+    assert all(p.parent == folder / "captures" for p in collect_photos([folder]))

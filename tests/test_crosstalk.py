@@ -776,3 +776,13 @@ def test_photos_not_encoded_as_said_are_named_before_the_long_work(measured_set,
     code, _, err = run_main("crosstalk", "measure", copy, "-o", tmp_path / "x.json", "--photos", "linear")
     assert code == 2 and one_error_line(err).startswith(f"lenticalib: error: {small}: is "), err
     assert "the photo of black" in one_error_line(err), err
+
+
+def test_a_bare_eye_pair_limit_above_one_must_say_whether_it_is_percent(tmp_path, cli):
+    """``--max-eye-pair 5`` once read as 500 % and passed every panel; now it must be 5% or 0.05."""
+    path, _ = _soft_sheet_file(tmp_path)
+    code, _, err = cli("crosstalk", "check", path, "--max-eye-pair", "5")
+    assert code == 2 and "ambiguous: write 5% or 0.05" in err, err
+    for limit in ("5%", "0.05"):
+        code, stdout, err = cli("crosstalk", "check", path, "--max-eye-pair", limit)
+        assert code in (0, 1) and stdout.startswith(("PASS", "FAIL")), err

@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    "100%% on a sheet whose views overlap)")
     c.add_argument("--max-system", type=_fraction, metavar="S", help="limit of the system crosstalk (IEC 62629): "
                    "light from all other views over the view's own light")
-    c.add_argument("--max-eye-pair", type=_fraction, metavar="E", help="limit of the eye-pair crosstalk: light of the "
+    c.add_argument("--max-eye-pair", type=_eye_pair_fraction, metavar="E", help="limit of the eye-pair crosstalk: light of the "
                    "other eye's view over the eye's own view's light")
     c.set_defaults(run=run_check)
 
@@ -69,6 +69,15 @@ def _fraction(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a fraction (0.08) or a percentage (8%)") from None
     if not (math.isfinite(number) and 0.0 <= number <= 10.0):
         raise argparse.ArgumentTypeError(f"{text!r} is out of range (0..10, or 0%..1000%)")
+    return number
+
+
+def _eye_pair_fraction(text: str) -> float:
+    """:func:`_fraction` for the eye-pair crosstalk, a few per cent at most on any panel: a bare number
+    above 1 (``5``) is more likely 5 % than 500 %, so it must say which."""
+    number = _fraction(text)
+    if number > 1.0 and not text.strip().endswith("%"):
+        raise argparse.ArgumentTypeError(f"{text!r} is ambiguous: write {text.strip()}% or {number / 100:g}")
     return number
 
 
@@ -140,7 +149,7 @@ def run_check(args: argparse.Namespace) -> int:
     from ..core.errors import InputError
 
     if args.max_adjacent is None and args.max_eye_pair is None and args.max_system is None:
-        raise InputError("no limit given", source="--max-adjacent",
+        raise InputError("no limit given", source="crosstalk check",
                          hint="give --max-adjacent A, --max-system S and/or --max-eye-pair E")
     data = read_crosstalk(args.file)
     failures = check_crosstalk(data, args.max_adjacent, args.max_eye_pair, args.max_system)

@@ -32,6 +32,7 @@ from typing import Callable
 from ...core.errors import ImageError, InputError
 from ...core.imageio import header_size, write_image
 from ...core.outputs import check_not_an_input, check_output_file, check_output_folder, staged_folder
+from .board import MANIFEST_NAME as BOARD_MANIFEST
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 MIN_VIEWS = 10  # photos with the board found, at least
@@ -64,10 +65,14 @@ class CameraCalibration:
 
 def collect_photos(items) -> list[Path]:
     """The photo files named by ``items`` (files, or folders: their .jpg/.jpeg/.png files, sorted, no
-    dotfiles), in order, without repeats; InputError for anything missing or not a photo."""
+    dotfiles; the board folder 'camera patterns' wrote, holding board.json and captures/, stands for
+    its captures/, not for the board drawing beside them), in order, without repeats; InputError for
+    anything missing or not a photo."""
     photos, seen = [], set()
     for item in items:
         path = Path(item)
+        if path.is_dir() and (path / BOARD_MANIFEST).is_file() and (path / "captures").is_dir():
+            path = path / "captures"
         if path.is_dir():
             found = sorted(p for p in path.iterdir()
                            if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in PHOTO_SUFFIXES)
