@@ -167,6 +167,11 @@ def write_document(path: str | os.PathLike, fmt: DocumentFormat, body: Mapping[s
     return write_text_atomic(path, document_text(fmt, body, indent), **atomic)
 
 
+def _file_noun(what: str) -> str:
+    """``what`` as a kind of file: "profile" -> "profile file", "crosstalk file" as it is."""
+    return what if what.endswith(" file") else f"{what} file"
+
+
 def read_json_file(path: str | os.PathLike, what: str, hint_missing: str,
                    error: type[InputError] = InputError) -> Any:
     """Parse a JSON file (data only: nothing in it is executed); unusable numbers are refused.
@@ -186,14 +191,14 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str,
         mode = None  # missing or unreadable: said below
     if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
         # reading a FIFO or a device would wait for a writer or never end
-        raise error(f"is not a regular file (a FIFO, device or socket), not a {what} file", source=src,
+        raise error(f"is not a regular file (a FIFO, device or socket), not a {_file_noun(what)}", source=src,
                     hint=hint_missing)
     try:
         raw = Path(path).read_bytes()
     except FileNotFoundError:
         raise error("no such file", source=src, hint=hint_missing) from None
     except IsADirectoryError:
-        raise error(f"is a folder, not a {what} file", source=src, hint=hint_missing) from None
+        raise error(f"is a folder, not a {_file_noun(what)}", source=src, hint=hint_missing) from None
     except OSError as exc:
         raise error(f"cannot read: {exc.strerror or exc}", source=src) from None
     return json_from_bytes(raw, src, what, hint_missing, error)

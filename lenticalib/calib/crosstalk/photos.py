@@ -85,9 +85,9 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
         if kind is None:
             kind = _encoding_kind(raw)
             if mode == "linear" and raw.dtype == np.uint8:
-                raise CaptureError("is an 8-bit photo, but --photos linear is for 16-bit linear light from a raw "
+                raise CaptureError("is an 8-bit photo, but `photos` linear is for 16-bit linear light from a raw "
                                    "converter", source=str(path),
-                                   hint="measure camera JPEGs with --photos srgb (the default), or convert the RAW "
+                                   hint="measure camera JPEGs with `photos` srgb (the default), or convert the RAW "
                                         "files to 16-bit linear TIFF/PNG (dcraw -4 -T, rawpy, darktable)")
         elif _encoding_kind(raw) != kind:
             raise CaptureError(f"is {_encoding_kind(raw)}, the photo of {names[0]} {kind}", source=str(path),
@@ -129,13 +129,13 @@ def check_encoding(luma: dict[str, np.ndarray], mask: np.ndarray, mode: str, cap
     if share < LINEAR_SHARE[0] and mode == "srgb":
         raise CaptureError(f"holds {share:.2f} of white's light after sRGB decoding where it must hold 0.5: the photos "
                            "are linear already", source=str(capture.photo(HALF_LEVEL)),
-                           hint="measure 16-bit photos from a raw converter with --photos linear")
+                           hint="measure 16-bit photos from a raw converter with `photos` linear")
     if share > LINEAR_SHARE[1]:
         raise CaptureError(f"holds {share:.2f} of white's light {'as linear light' if mode == 'linear' else 'decoded'}"
                            " where it must hold 0.5: the photos are not encoded as "
-                           f"--photos {mode} says", source=str(capture.photo(HALF_LEVEL)),
-                           hint="camera JPEGs and sRGB-encoded photos: --photos srgb (the default); 16-bit linear "
-                                "from a raw converter: --photos linear" if mode == "linear" else
+                           f"`photos` {mode} says", source=str(capture.photo(HALF_LEVEL)),
+                           hint="camera JPEGs and sRGB-encoded photos: `photos` srgb (the default); 16-bit linear "
+                                "from a raw converter: `photos` linear" if mode == "linear" else
                                 "photograph the set again with the exposure locked, every pattern full screen")
 
 
