@@ -175,16 +175,20 @@ def _photos(fig, m) -> dict:
     ax.set_ylabel("y (working pixels)")
     bar = fig.colorbar(image, ax=ax, fraction=0.046, pad=0.04)
     bar.set_label(f"band-00's view minus the camera's view (views, cyclic 0..{n})")
-    caption = fig.add_subplot(gs[1, :])
-    caption.axis("off")
-    caption.text(0.0, 1.0, "Right: each band photo lights a one-view band that moves steadily across the panel from "
-                 "left to right; the measurement finds where it is at every camera pixel.\n"
-                 "Good: the colour changes smoothly and evenly from left to right and hardly at all from top to "
-                 "bottom (upright stripes, leaning at most as the panel does in the photo).\n"
-                 "Bad: stripes that tilt against the panel's edges, bend, or bunch up: the profile (slant, period) "
-                 "is not this panel's, or the camera moved between photos; the matrix then comes out too broad.",
-                 va="top", ha="left", fontsize=12, transform=caption.transAxes)
+    _caption(fig, gs[1, :], "Right: each band photo lights a one-view band that moves steadily across the panel from "
+             "left to right; the measurement finds where it is at every camera pixel.\n"
+             "Good: the colour changes smoothly and evenly from left to right and hardly at all from top to "
+             "bottom (upright stripes, leaning at most as the panel does in the photo).\n"
+             "Bad: stripes that tilt against the panel's edges, bend, or bunch up: the profile (slant, period) "
+             "is not this panel's, or the camera moved between photos; the matrix then comes out too broad.")
     return {}
+
+
+def _caption(fig, cell, text: str) -> None:
+    """A caption (what a figure shows, what good and bad look like) in grid cell ``cell``, no axes."""
+    caption = fig.add_subplot(cell)
+    caption.axis("off")
+    caption.text(0.0, 1.0, text, va="top", ha="left", fontsize=12, transform=caption.transAxes)
 
 
 def _compensation(fig, study: dict) -> dict:
@@ -296,13 +300,10 @@ def _tone_curve(fig, curve: dict) -> dict:
             ax.legend(loc="lower right")
     photos = "black, white, half and level photos" if "level" in curve.get("relations", "") else "black, white and half photos"
     fig.suptitle(f"Camera tone curve measured from the {photos}", fontsize=14)
-    caption = fig.add_subplot(gs[1, :])
-    caption.axis("off")
-    caption.text(0.0, 1.0, "The measurement reads the codes between the black and the white photo's (unshaded).  An "
-                 "ordinary camera stays within a few per cent of sRGB there,\na phone's S-curve bends it by tens of "
-                 "per cent.  The 1-sigma enters every uncertainty of crosstalk.json.  A wide band, or a bent curve "
-                 "blended in,\nmeans the JPEGs limit the accuracy: shoot RAW and convert it to 16-bit linear "
-                 "(--photos linear) where the camera can (docs/crosstalk.md, \"Phone-like cameras\").",
-                 va="top", ha="left", fontsize=12, transform=caption.transAxes)
+    _caption(fig, gs[1, :], "The measurement reads the codes between the black and the white photo's (unshaded).  An "
+             "ordinary camera stays within a few per cent of sRGB there,\na phone's S-curve bends it by tens of "
+             "per cent.  The 1-sigma enters every uncertainty of crosstalk.json.  A wide band, or a bent curve "
+             "blended in,\nmeans the JPEGs limit the accuracy: shoot RAW and convert it to 16-bit linear "
+             "(--photos linear) where the camera can (docs/crosstalk.md, \"Phone-like cameras\").")
     return {"model": "power" if "power" in curve else "curve", "power_sigma": sigma, "code_range": [black, white],
             "blended_weight": float(other["weight"]) if other else 0.0}
