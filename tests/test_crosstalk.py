@@ -735,7 +735,7 @@ def test_a_fifo_is_refused_as_a_crosstalk_file_not_read_forever(tmp_path):
 @pytest.mark.slow
 def test_photos_not_encoded_as_said_are_named_before_the_long_work(measured_set, tmp_path, monkeypatch):
     """16-bit linear photos measured as sRGB, an 8-bit photo with --photos linear, a set mixing 8-
-    and 16-bit photos and a photo of another size: each one error naming the photo and what to do,
+    and 16-bit photos, a photo of another size and a greyscale one: each one error naming the photo and what to do,
     before the band photos are fitted (the 1-in-2 level photo holds half of white's light only in
     linear light).  Before, the first gave a late 'does not show pattern band-04', the others a
     wrong matrix with exit 0 or a message about megapixels."""
@@ -776,6 +776,13 @@ def test_photos_not_encoded_as_said_are_named_before_the_long_work(measured_set,
     code, _, err = run_main("crosstalk", "measure", copy, "-o", tmp_path / "x.json", "--photos", "linear")
     assert code == 2 and one_error_line(err).startswith(f"lenticalib: error: {small}: is "), err
     assert "the photo of black" in one_error_line(err), err
+    shutil.rmtree(copy)
+    copy = _copy_set(measured_set, tmp_path)
+    grey = copy / "captures" / "half-1.png"
+    cv2.imwrite(str(grey), cv2.cvtColor(cv2.imread(str(grey), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2GRAY))
+    code, _, err = run_main("crosstalk", "measure", copy, "-o", tmp_path / "x.json", "--photos", "linear")
+    assert code == 2 and one_error_line(err).startswith(f"lenticalib: error: {grey}: is a greyscale photo, the "
+                                                         "photo of black colour"), err
 
 
 def test_a_bare_eye_pair_limit_above_one_must_say_whether_it_is_percent(tmp_path, cli):

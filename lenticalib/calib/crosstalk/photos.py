@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
-from ...core.imageio import header_size, read_image
+from ...core.imageio import header_size, open_image_header, read_image
 from . import dark, tone
 
 WORKING_WIDTH = 1000  # working pixels across (about)
@@ -64,12 +64,18 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
     noise = None
     names = ["black"] + [p.name for p in pattern_set.patterns if p.name != "black"]
     sizes = {name: header_size(capture.photo(name), camera_orientation=True) for name in names}
+    greys = {name: _is_grey(capture.photo(name)) for name in names}
     first = sizes[names[0]]
-    for name, header in sizes.items():  # a photo of another size is named before any photo is decoded
+    for name, header in sizes.items():  # a photo of another size or colour is named before any is decoded
         if first is not None and header is not None and header != first:
             raise CaptureError(f"is {header[0]}x{header[1]} pixels, the photo of {names[0]} {first[0]}x{first[1]}",
                                source=str(capture.photo(name)),
                                hint="take every photo of the set with the same camera settings, without cropping")
+        if None not in (greys[name], greys[names[0]]) and greys[name] != greys[names[0]]:
+            words = {True: "greyscale", False: "colour"}
+            raise CaptureError(f"is a {words[greys[name]]} photo, the photo of {names[0]} {words[greys[names[0]]]}",
+                               source=str(capture.photo(name)),
+                               hint="take every photo of the set in colour (R + G + B is what is measured)")
     kind = None
     for name in names:
         path = capture.photo(name)
@@ -104,6 +110,24 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
         if progress:
             progress(f"read {path.name}")
     return luma, clipped, factor, noise
+
+
+GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "I;16N", "F"})  # Pillow's one-channel modes
+
+
+def _is_grey(path: Path) -> bool | None:
+    """Whether a photo's header says it has one channel; None where Pillow cannot tell (read_image
+    then names the file)."""
+    import struct
+
+    try:
+        image = open_image_header(path)
+    except (OSError, ValueError, SyntaxError, struct.error):
+        return None
+    if image is None:
+        return None
+    with image:
+        return image.mode in GREY_MODES
 
 
 def _encoding_kind(raw: np.ndarray) -> str:
