@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import stat
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -182,8 +183,6 @@ def read_json_file(path: str | os.PathLike, what: str, hint_missing: str,
     a 400-digit integer: :mod:`lenticalib.core.fields`); ``what`` names the kind of file in
     messages (e.g. ``"profile"``), ``hint_missing`` says what to do when it does not exist.
     """
-    import stat
-
     src = str(path)
     try:
         mode = os.stat(path).st_mode

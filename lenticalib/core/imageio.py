@@ -17,8 +17,10 @@ error.  Output paths are checked before the work with :func:`check_image_output`
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -54,10 +56,8 @@ def open_image_header(path: str | os.PathLike):
 
     Pillow's own decompression-bomb check is not applied: its limit (179 megapixels) is below
     :data:`MAX_IMAGE_PIXELS`, which :func:`check_image_pixels` enforces instead.  OSError when
-    the file cannot be read.
+    the file cannot be read.  An empty or cut file that a plugin's check trips over is None too.
     """
-    import struct
-
     from PIL import Image
 
     with open(path, "rb") as fh:
@@ -65,7 +65,10 @@ def open_image_header(path: str | os.PathLike):
     Image.init()
     for fmt in Image.ID:  # Image.open's loop, without the bomb check
         factory, accept = Image.OPEN[fmt]
-        result = not accept or accept(prefix)
+        try:
+            result = not accept or accept(prefix)
+        except (IndexError, ValueError, struct.error):  # a check that reads past a short prefix (BMP's)
+            continue
         if not result or isinstance(result, str):
             continue
         try:
@@ -84,18 +87,27 @@ def check_image_pixels(width: int, height: int, source: str) -> None:
                          hint=f"scale the image down; lenticalib reads images of up to {MAX_SIDE} x {MAX_SIDE} pixels")
 
 
-def header_size(path: str | os.PathLike, *, camera_orientation: bool = False) -> tuple[int, int] | None:
-    """``(width, height)`` of an image as its header states it, no pixel decoded; None when no
-    Pillow plugin recognises the file or it cannot be read (:func:`read_image` then reports it).
+GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "I;16N", "F"})  # Pillow's one-channel modes
+
+
+@dataclasses.dataclass(frozen=True)
+class ImageHeader:
+    """What an image's header states: ``size`` (width, height), and whether it is ``grey`` (one channel)."""
+
+    size: tuple[int, int]
+    grey: bool
+
+
+def read_header(path: str | os.PathLike, *, camera_orientation: bool = False) -> ImageHeader | None:
+    """The :class:`ImageHeader` of an image, no pixel decoded; None when no Pillow plugin recognises
+    the file or it cannot be read, empty or cut short (:func:`read_image` then reports it).
 
     ``camera_orientation``: the size after the turn its EXIF orientation asks for (JPEG photos).
     ImageError when the header states more than :data:`MAX_IMAGE_PIXELS`.
     """
-    import struct
-
     try:
         img = open_image_header(path)
-    except (OSError, ValueError, SyntaxError, struct.error):  # Pillow's header parsers on empty or cut files
+    except OSError:
         return None
     if img is None:
         return None
@@ -103,7 +115,14 @@ def header_size(path: str | os.PathLike, *, camera_orientation: bool = False) ->
         width, height = img.size
         check_image_pixels(width, height, str(path))
         turned = camera_orientation and img.format == "JPEG" and img.getexif().get(0x0112, 1) in (5, 6, 7, 8)
-    return (height, width) if turned else (width, height)
+        return ImageHeader((height, width) if turned else (width, height), img.mode in GREY_MODES)
+
+
+def header_size(path: str | os.PathLike, *, camera_orientation: bool = False) -> tuple[int, int] | None:
+    """``(width, height)`` of an image as its header states it (:func:`read_header`); None where it
+    cannot be read."""
+    header = read_header(path, camera_orientation=camera_orientation)
+    return None if header is None else header.size
 
 
 def _check_header(p: Path, camera_orientation: bool, expected_size: tuple[int, int] | None, what: str,

@@ -68,19 +68,16 @@ def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable
     ``patterns``, wrapped (a progress bar), or None.
 
     Refuses to overwrite a manifest of a *different* pattern set when ``DIR/captures`` holds
-    photos (they would no longer match).  Returns the manifest path.
+    photos (they would no longer match), and any file it did not write (:func:`_check_replaced`).
+    Returns the manifest path.
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     manifest_path = directory / MANIFEST_NAME
-    _check_replaced(directory, pattern_set)
+    old = _old_manifest(manifest_path)
+    _check_replaced(directory, pattern_set, old)
     if manifest_path.exists() and any((directory / "captures").glob("*")):
-        try:
-            old = json.loads(manifest_path.read_text())
-            old_id = old.get("set_id")
-        except (OSError, ValueError, AttributeError):
-            old_id = None
-        if old_id != pattern_set.set_id:
+        if old.get("set_id") != pattern_set.set_id:
             raise InputError("holds photos of another pattern set", source=str(directory / "captures"),
                              hint="write the patterns into an empty folder")
     items = pattern_set.patterns if progress is None else progress
@@ -90,23 +87,25 @@ def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable
     return manifest_path
 
 
-def _check_replaced(directory: Path, pattern_set) -> None:
+def _old_manifest(path: Path) -> dict:
+    """The JSON object in the manifest ``path`` as it is; {} where there is none or it is not one."""
+    try:
+        old = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return old if isinstance(old, dict) else {}
+
+
+def _check_replaced(directory: Path, pattern_set, old: dict) -> None:
     """InputError unless every file ``pattern_set`` would replace in ``directory`` was written there by
-    lenticalib as patterns of the same kind: a manifest of another kind (calibration patterns under
-    crosstalk patterns) would leave its patterns without their manifest, and a file of a pattern's
-    name beside no manifest of ours is the user's."""
-    manifest_path = directory / MANIFEST_NAME
+    lenticalib as patterns of the same kind (``old``: the folder's manifest as it is, {} for none): a
+    manifest of another kind (calibration patterns under crosstalk patterns) would leave its patterns
+    without their manifest, and a file of a pattern's name beside no manifest of ours is the user's."""
     kind = pattern_set.to_dict().get("format")
-    old = None
-    if manifest_path.exists():
-        try:
-            old = json.loads(manifest_path.read_text())
-        except (OSError, ValueError):
-            old = None
-    old_kind = old.get("format") if isinstance(old, dict) else None
+    old_kind = old.get("format")
     if isinstance(old_kind, str) and old_kind.startswith("lenticalib.") and old_kind != kind:
         raise InputError(f"holds other patterns ({old_kind}), which these would leave without their manifest",
-                         source=str(manifest_path), hint="write these patterns into a folder of their own")
+                         source=str(directory / MANIFEST_NAME), hint="write these patterns into a folder of their own")
     if old_kind == kind:
         return  # earlier patterns of this kind: replaced as a whole
     names = [MANIFEST_NAME] + [p.file for p in pattern_set.patterns]

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
-from ...core.imageio import header_size, open_image_header, read_image
+from ...core.imageio import read_header, read_image
 from . import dark, tone
 
 WORKING_WIDTH = 1000  # working pixels across (about)
@@ -63,19 +63,7 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
     factor = 1
     noise = None
     names = ["black"] + [p.name for p in pattern_set.patterns if p.name != "black"]
-    sizes = {name: header_size(capture.photo(name), camera_orientation=True) for name in names}
-    greys = {name: _is_grey(capture.photo(name)) for name in names}
-    first = sizes[names[0]]
-    for name, header in sizes.items():  # a photo of another size or colour is named before any is decoded
-        if first is not None and header is not None and header != first:
-            raise CaptureError(f"is {header[0]}x{header[1]} pixels, the photo of {names[0]} {first[0]}x{first[1]}",
-                               source=str(capture.photo(name)),
-                               hint="take every photo of the set with the same camera settings, without cropping")
-        if None not in (greys[name], greys[names[0]]) and greys[name] != greys[names[0]]:
-            words = {True: "greyscale", False: "colour"}
-            raise CaptureError(f"is a {words[greys[name]]} photo, the photo of {names[0]} {words[greys[names[0]]]}",
-                               source=str(capture.photo(name)),
-                               hint="take every photo of the set in colour (R + G + B is what is measured)")
+    _check_headers(capture, names)
     kind = None
     for name in names:
         path = capture.photo(name)
@@ -88,15 +76,16 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
         elif (w, h) != size:
             raise CaptureError(f"is {w}x{h} pixels, the other photos {size[0]}x{size[1]}", source=str(path),
                                hint="take every photo of the set with the same camera settings, without cropping")
+        this = _encoding_kind(raw)
         if kind is None:
-            kind = _encoding_kind(raw)
+            kind = this
             if mode == "linear" and raw.dtype == np.uint8:
                 raise CaptureError("is an 8-bit photo, but `photos` linear is for 16-bit linear light from a raw "
                                    "converter", source=str(path),
                                    hint="measure camera JPEGs with `photos` srgb (the default), or convert the RAW "
                                         "files to 16-bit linear TIFF/PNG (dcraw -4 -T, rawpy, darktable)")
-        elif _encoding_kind(raw) != kind:
-            raise CaptureError(f"is {_encoding_kind(raw)}, the photo of {names[0]} {kind}", source=str(path),
+        elif this != kind:
+            raise CaptureError(f"is {this}, the photo of {names[0]} {kind}", source=str(path),
                                hint="take every photo of the set the same way: all camera JPEGs, or all 16-bit from "
                                     "the same raw converter settings")
         channels, clip = linear_channels(raw, mode, path, lut)
@@ -112,22 +101,23 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
     return luma, clipped, factor, noise
 
 
-GREY_MODES = frozenset({"1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "I;16N", "F"})  # Pillow's one-channel modes
-
-
-def _is_grey(path: Path) -> bool | None:
-    """Whether a photo's header says it has one channel; None where Pillow cannot tell (read_image
-    then names the file)."""
-    import struct
-
-    try:
-        image = open_image_header(path)
-    except (OSError, ValueError, SyntaxError, struct.error):
-        return None
-    if image is None:
-        return None
-    with image:
-        return image.mode in GREY_MODES
+def _check_headers(capture, names: list[str]) -> None:
+    """CaptureError naming a photo whose header states another size, or another colour (greyscale
+    against colour), than the photo of ``names[0]``: before any photo is decoded."""
+    headers = {name: read_header(capture.photo(name), camera_orientation=True) for name in names}
+    first = headers[names[0]]
+    words = {True: "greyscale", False: "colour"}
+    for name, header in headers.items():  # a photo of another size or colour is named before any is decoded
+        if first is None or header is None:
+            continue  # unreadable: read_image names it
+        if header.size != first.size:
+            raise CaptureError(f"is {header.size[0]}x{header.size[1]} pixels, the photo of {names[0]} "
+                               f"{first.size[0]}x{first.size[1]}", source=str(capture.photo(name)),
+                               hint="take every photo of the set with the same camera settings, without cropping")
+        if header.grey != first.grey:
+            raise CaptureError(f"is a {words[header.grey]} photo, the photo of {names[0]} {words[first.grey]}",
+                               source=str(capture.photo(name)),
+                               hint="take every photo of the set in colour (R + G + B is what is measured)")
 
 
 def _encoding_kind(raw: np.ndarray) -> str:

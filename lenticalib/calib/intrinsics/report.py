@@ -27,7 +27,7 @@ from ...core.documents import FORMATS, write_document
 from ...core.profile import make_provenance
 from ..report import write_figures
 from .crossval import note_line
-from .solve import COVERAGE_GRID
+from .solve import COVERAGE_GRID, covered_cells
 from .quality import weak_corners
 
 FIGURE_SIZES = {"residuals.png": (1800, 1200), "coverage.png": (1800, 1200), "uncertainty.png": (1800, 860)}
@@ -218,12 +218,9 @@ def _coverage_figure(fig, subject) -> None:
     w, h = s.optimization_inputs["imagersizes"][0]
     n = obs.shape[0]
     ax = fig.add_axes((0.07, 0.08, 0.82, 0.82))
-    # the cells of the coverage grid (the same cells as the quality figure counts): empty ones shaded
+    # the cells of the coverage grid (the cells the quality's coverage counts): empty ones shaded
     nx, ny = COVERAGE_GRID
-    seen = obs[s.observed]
-    cx = np.clip((seen[:, 0] + 0.5) / w * nx, 0, nx - 1).astype(int)
-    cy = np.clip((seen[:, 1] + 0.5) / h * ny, 0, ny - 1).astype(int)
-    occupied = set(zip(cx.tolist(), cy.tolist()))
+    occupied = covered_cells(obs[s.observed], (w, h))
     empty = [(i, j) for i in range(nx) for j in range(ny) if (i, j) not in occupied]
     for k, (i, j) in enumerate(empty):
         ax.add_patch(patches.Rectangle((i * w / nx, j * h / ny), w / nx, h / ny, facecolor="tab:red", alpha=0.15,

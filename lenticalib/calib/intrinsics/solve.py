@@ -200,15 +200,20 @@ def board_observations(corners: np.ndarray) -> np.ndarray:
     return observations
 
 
-def coverage(observations: np.ndarray, imagersize: tuple[int, int], grid=COVERAGE_GRID) -> float:
-    """Share of the cells of a ``grid`` (nx, ny) over the image holding at least one observed corner
-    (corners that are NaN or negative, i.e. not identified, are left out)."""
+def covered_cells(observations: np.ndarray, imagersize: tuple[int, int], grid=COVERAGE_GRID) -> set[tuple[int, int]]:
+    """The cells ``(column, row)`` of a ``grid`` (nx, ny) over the image holding at least one observed
+    corner (corners that are NaN or negative, i.e. not identified, are left out)."""
     w, h = imagersize
     q = observations.reshape(-1, observations.shape[-1])[:, :2]
     q = q[np.all(np.isfinite(q), axis=1) & np.all(q >= 0, axis=1)]
     cx = np.clip((q[:, 0] + 0.5) / w * grid[0], 0, grid[0] - 1).astype(int)
     cy = np.clip((q[:, 1] + 0.5) / h * grid[1], 0, grid[1] - 1).astype(int)
-    return len(set(zip(cx.tolist(), cy.tolist()))) / (grid[0] * grid[1])
+    return set(zip(cx.tolist(), cy.tolist()))
+
+
+def coverage(observations: np.ndarray, imagersize: tuple[int, int], grid=COVERAGE_GRID) -> float:
+    """Share of the cells of a ``grid`` (nx, ny) over the image holding an observed corner (:func:`covered_cells`)."""
+    return len(covered_cells(observations, imagersize, grid)) / (grid[0] * grid[1])
 
 
 def _focal_estimate(corners: np.ndarray, board, imagersize) -> float:
