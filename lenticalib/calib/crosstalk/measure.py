@@ -153,10 +153,12 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     warnings: list[str] = []
     curve = measure_tone(capture, warnings) if photos == "srgb" else None
     measured = _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start)
-    if curve is not None and curve.alternative is not None and curve.alternative_weight > 0:
-        # between the tone models (tone_choice): the other one measured too, and the two blended
+    undecided = 0.0 if curve is None else curve.undecided()
+    if curve is not None and curve.alternative is not None and (curve.alternative_weight > 0 or undecided > 0):
+        # between the tone models (tone_choice): the other one measured too, the two blended, and
+        # half their difference in the uncertainty where the photos leave the choice open
         other = _measure_linearised(capture, pattern_set, profile, photos, curve.alternative, [], progress, start)
-        measured = _blend(measured, other, curve.alternative_weight)
+        measured = _blend(measured, other, curve.alternative_weight, undecided)
     return measured
 
 
@@ -184,20 +186,23 @@ def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, 
                     curve, photos, factor, start, progress, column_average, noise)
 
 
-def _blend(main: Measurement, other: Measurement, weight: float) -> Measurement:
+def _blend(main: Measurement, other: Measurement, weight: float, undecided: float = 0.0) -> Measurement:
     """``main`` with ``other`` (the same photos through the other tone model) blended in at
-    ``weight``: the row, the cone and the uniformity map, their sigmas as a mixture's."""
+    ``weight``: the row, the cone and the uniformity map, their sigmas as a mixture's, with
+    ``undecided`` times half their difference (tone_choice.blended_sigma)."""
     from .tone_choice import blended, blended_sigma
 
     mixed = {name: blended(getattr(main, name), getattr(other, name), weight)
              for name in ("row", "cone", "regions")}
     sigmas = {f"{name}_sigma": blended_sigma(getattr(main, name), getattr(main, f"{name}_sigma"),
-                                             getattr(other, name), getattr(other, f"{name}_sigma"), weight)
+                                             getattr(other, name), getattr(other, f"{name}_sigma"), weight, undecided)
               for name in ("row", "cone", "regions")}
-    diagnostics = dict(main.diagnostics, tone_blend={"weight": weight, "other_row": other.row.round(6).tolist(),
+    diagnostics = dict(main.diagnostics, tone_blend={"weight": weight, "undecided": undecided,
+                                                     "other_row": other.row.round(6).tolist(),
                                                      "row_difference": float(np.max(np.abs(other.row - main.row)))})
     # the figures derived from the row carry the two models' spread too (result.figures_with_sigma)
-    samples = dict(main.samples, **{"tone-main": main.row, "tone-other": other.row, "tone-weight": np.array([weight])})
+    samples = dict(main.samples, **{"tone-main": main.row, "tone-other": other.row, "tone-weight": np.array([weight]),
+                                    "tone-undecided": np.array([undecided])})
     return dataclasses.replace(main, **mixed, **sigmas, samples=samples, diagnostics=diagnostics, seconds=other.seconds)
 
 

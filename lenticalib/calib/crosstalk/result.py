@@ -102,13 +102,14 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
             a, b = derived_figures(samples[low], eye_separation), derived_figures(samples[high], eye_separation)
             for k in base:
                 variance[k] += ((a[k] - b[k]) / 2.0) ** 2
-    if "tone-other" in samples:  # two tone models blended (measure._blend): the mixture's spread
+    if "tone-other" in samples:  # two tone models blended (measure._blend): the mixture's spread, and the undecided share
         from .tone_choice import blended_sigma
 
         w = float(samples["tone-weight"][0])
+        u = float(samples.get("tone-undecided", np.zeros(1))[0])
         a, b = derived_figures(samples["tone-main"], eye_separation), derived_figures(samples["tone-other"], eye_separation)
         for k in base:
-            variance[k] += float(blended_sigma(a[k], 0.0, b[k], 0.0, w)) ** 2
+            variance[k] += float(blended_sigma(a[k], 0.0, b[k], 0.0, w, u)) ** 2
     for k in base:
         out[k]["sigma"] = math.sqrt(variance[k])
     return out

@@ -22,7 +22,12 @@ came out 1-7 % short of their share in linear light, the coarser rows the more):
 averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
 (:func:`_relations`).
 
-Two models (the exposure locked over the photos):
+The relations hold at one exposure.  A phone's drifts from photo to photo, so each photo's exposure
+is read on the registration frame every pattern carries (:mod:`.exposure`), under the curve fitted
+so far, and the curve fitted again with every photo brought to white's exposure (where the frame
+shows a drift worth undoing: ``Exposures.applied``).
+
+Two models:
 
 - ``power``: ``L(c) = D(c) ** p``, ``D`` the sRGB decoding of the 8-bit code ``c``, ``p`` from the
   half relation alone; in sets drawn before the levels each half photo has its own exposure;
@@ -50,6 +55,7 @@ import math
 import numpy as np
 
 from ...core.colour import srgb_decode_lut
+from .exposure import Exposures, measure_exposures
 from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tone_choice import curve_weight
 
@@ -68,6 +74,7 @@ POWER_RANGE = (0.6, 1.6)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
 MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
+EXPOSURE_ROUNDS = 2  # fits with the frame's exposures (each reads the frame through the curve before it)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,7 +86,8 @@ class ToneCurve:
     rests on; ``strips`` the strips' powers (model "power") or log-slopes (model "curve"); ``levels`` whether
     the level photos took part; ``code_range`` the median codes of black and white; ``alternative``
     the other model, to be blended in with ``alternative_weight`` (0..0.5; 0: not used), and the
-    evidence for the curve, ``bend_gain`` and ``level_bias`` (:mod:`.tone_choice`)."""
+    evidence for the curve, ``bend_gain`` and ``level_bias`` (:mod:`.tone_choice`); ``exposures`` the
+    photos' exposures the relations were brought to white's with (:mod:`.exposure`; None: taken as locked)."""
 
     model: str
     table: np.ndarray
@@ -95,10 +103,26 @@ class ToneCurve:
     alternative_weight: float = 0.0
     bend_gain: float = math.nan
     level_bias: float = math.nan
+    exposures: Exposures | None = None
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
         return self.table
+
+    def undecided(self) -> float:
+        """0..1: how far the photos leave the choice between this model and the ``alternative`` open.
+        Half their difference (as a power on the light over the codes read) is a possible error of
+        either; where that exceeds this model's own sigma, weighted by how sure the other model is
+        of itself (``min(1, sigma / other's sigma)``), the measurement takes the rows through both
+        and half their difference into the uncertainty at that weight (0: not needed)."""
+        other = self.alternative
+        if other is None or not (math.isfinite(self.sigma) and math.isfinite(other.sigma)):
+            return 0.0
+        black, white = self.code_range
+        codes = np.arange(min(black + 2, white - 1), white + 1)
+        apart = 0.5 * abs(_log_slope(np.asarray(other.table, np.float64), np.asarray(self.table, np.float64), codes))
+        share = min(1.0, self.sigma / max(other.sigma, 1e-12))
+        return share if apart * share > self.sigma else 0.0
 
     def to_dict(self) -> dict:
         data = {"model": "sRGB decoding ** power" if self.model == "power" else
@@ -114,6 +138,8 @@ class ToneCurve:
             data["level_residuals"] = [round(v, 4) for v in self.level_residuals]
         if math.isfinite(self.bend_gain):
             data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
+        if self.exposures is not None:
+            data["exposures"] = self.exposures.to_dict()
         if self.alternative is not None and self.alternative_weight > 0:
             data["blended_with"] = {**self.alternative.to_dict(), "weight": round(self.alternative_weight, 4)}
         return data
@@ -332,12 +358,40 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         sigma = math.sqrt(spread ** 2 + POWER_FLOOR ** 2) / power
         return ToneCurve("power", decode_lut(power), sigma, residual, int(picked.size), power, tuple(strips),
                          code_range=(black, white))
+    fitted = _fit_with_levels(hist, mixed, group, codes)
+    if math.isnan(fitted.sigma):
+        return dataclasses.replace(fitted, code_range=(black, white))  # a level photo of another pattern
+    # the exposures from the registration frame (exposure.py), under the curve fitted so far, and
+    # the curve fitted again with every photo brought to white's exposure (twice: the exposures
+    # read the frame's codes through the curve).  The blend of the two models stays what the
+    # photos as taken said: with the exposures undone a phone's S-curve no longer shows as a bend
+    # of the halves (bench hard case 6: a bend gain of 0.42 became 0.02, the power was taken, and
+    # its dark end put the glare fit off and the own view 0.024 high; the curve refitted with the
+    # exposures is 0.006 off)
+    exposures, weight = None, (fitted.alternative_weight if fitted.model == "power" else 1.0 - fitted.alternative_weight)
+    for _ in range(EXPOSURE_ROUNDS):
+        found = measure_exposures({k: images[k] for k in hist}, fitted.table)
+        if found is None:
+            break
+        exposures = found
+        applied = exposures.applied()
+        if all(v == 1.0 for v in applied.values()):
+            break  # an exposure that held: the fit stands as it is
+        fitted = _fit_with_levels({k: v / applied[k] for k, v in hist.items()}, mixed, group, codes, weight)
+    return dataclasses.replace(fitted, code_range=(black, white), exposures=exposures)
+
+
+def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None) -> ToneCurve:
+    """The power and the bent curve fitted to the half and level relations of ``hist`` (each photo's
+    tile histograms, at one exposure), the main model and its blend weight (:mod:`.tone_choice`;
+    ``weight``: the curve's weight given instead); model "power" with a NaN sigma where a level
+    photo is too far from its share of white."""
     # a level photo of another pattern would bend the fit: each is judged first under the halves' power
     halves_power, halves_residual = _best_power({k: v[mixed] for k, v in hist.items()})
     biases = _level_biases(hist, srgb_decode_lut() ** halves_power)
     if max(abs(b) for b in biases) > MAX_LEVEL_BIAS:
-        return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(picked.size), halves_power,
-                         level_residuals=biases, levels=True, code_range=(black, white))
+        return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(hist["white"].shape[0]),
+                         halves_power, level_residuals=biases, levels=True)
     relations = _relations(hist, mixed)
     finest = _relations(hist, mixed, PINNING)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
@@ -350,13 +404,14 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     # the camera.  Between the two, both models are measured and blended
     gain = _bend_gain(relations[:1], power)
     level_bias = max(abs(b) for b in biases)
-    weight = curve_weight(gain, level_bias) if np.all(np.diff(curve[codes]) > 0) else 0.0
-    fitted = {}
-    for model, table, used in (("power", srgb_decode_lut() ** power, weight < 1.0), ("curve", curve, weight > 0.0)):
-        if used:
-            fitted[model] = _finished(model, table, power, hist, mixed, group, codes, finest)
+    if weight is None:
+        weight = curve_weight(gain, level_bias)
+    weight = weight if np.all(np.diff(curve[codes]) > 0) else 0.0
+    # both models, whatever the weight: the other one's distance says how undecided the photos are
+    fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest)
+              for model, table in (("power", srgb_decode_lut() ** power), ("curve", curve))}
     main, other = ("curve", "power") if weight > 0.5 else ("power", "curve")
-    return dataclasses.replace(fitted[main], alternative=fitted.get(other), code_range=(black, white),
+    return dataclasses.replace(fitted[main], alternative=fitted[other],
                                alternative_weight=min(weight, 1.0 - weight), bend_gain=gain, level_bias=level_bias)
 
 

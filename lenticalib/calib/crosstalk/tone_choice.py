@@ -44,9 +44,10 @@ def blended(main: np.ndarray, other: np.ndarray, weight: float) -> np.ndarray:
     return (1.0 - weight) * np.asarray(main) + weight * np.asarray(other)
 
 
-def blended_sigma(main, main_sigma, other, other_sigma, weight: float) -> np.ndarray:
+def blended_sigma(main, main_sigma, other, other_sigma, weight: float, undecided: float = 0.0) -> np.ndarray:
     """The 1-sigma of :func:`blended`: the two models as a mixture (each's variance at its weight,
-    and the spread between their values)."""
+    and the spread between their values), and ``undecided`` (0..1, :meth:`.tone.ToneCurve.undecided`)
+    times half their difference."""
     main, other = np.asarray(main), np.asarray(other)
     return np.sqrt((1.0 - weight) * np.asarray(main_sigma) ** 2 + weight * np.asarray(other_sigma) ** 2
-                   + weight * (1.0 - weight) * (main - other) ** 2)
+                   + weight * (1.0 - weight) * (main - other) ** 2 + (0.5 * undecided * (main - other)) ** 2)

@@ -1,0 +1,192 @@
+"""Each crosstalk photo's exposure, from the registration frame every pattern carries (``docs/crosstalk.md``).
+
+Frames and units: *frame pixels* (the photo area-averaged by ``factor``, about ``WIDTH`` across);
+light linear through a tone table (units of its code 255), summed over the three channels.
+
+A phone's exposure drifts by a few per cent from photo to photo even when the user tried to lock
+it, and the tone curve's relations (:mod:`.tone`: ``half-0 + half-1 = white + black`` and the
+levels) hold only in light at one exposure: a 4 % drift moves their sum as much as a power error
+of 0.05 does.  Every pattern shows the same evenly lit registration frame (``FRAME_LEVEL`` on all
+subpixels), so the frame's light in photo ``k`` is its exposure ``e_k`` times the same light, plus
+what the panel's inside throws onto it: the camera's veiling glare, the panel's own scatter and
+the blur of the inside's edge (a white photo puts 3-7 % of the frame's light onto the frame, a
+band photo almost none; read as exposure, white comes out that much too bright).  That light
+has no shape a model can be trusted with (on the bench a steep spill across the frame's inner
+half on top of a wide halo), but it is smooth where the frame meets the bezel, while the frame's
+own light steps down there.  So the exposure is read on that step: across the frame's outer
+edge, within half a frame's width on either side, in ``SECTORS`` sectors around the panel,
+
+    L_k(p) = rho_k L_black(p) + a_ks + b_ks d(p)
+
+``d`` the signed distance to the outer edge, ``a_ks + b_ks d`` whatever smooth light sector ``s``
+of photo ``k`` gets, ``rho_k = e_k / e_black``: with the sectors' lines projected out of every photo, the rank-1 fit
+of what is left (the step's profile, blur included, is the same in every photo; taken from the
+black photo as a regressor, its noise would shrink every other photo's ``rho`` by 8 % on the
+bench's noisy phone).
+Pixels crushed to black or clipped in any photo are left out (no light can be read there); where
+the rank-1 fit leaves more than ``MAX_RESIDUAL`` of the frame's light (on the bench 0.011-0.029;
+0.08-0.11 for a phone whose S-curve crushes the bezel to black, where the step cannot be read and
+the exposures came out up to 20 % off) there is no estimate.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+
+WIDTH = 1000  # frame pixels across the photo (about)
+FRAME_SHARE = 1.0 / 38.0  # the frame's width over the inside's height (FRAME_FRACTION / (1 - 2 FRAME_FRACTION))
+INNER = 0.6  # the pixels used: this share of the frame's width inside its outer edge (the inside's spill beyond)
+OUTER = 1.0  # ... and this share of it outside
+SECTORS = 32  # sectors around the panel, each with its own smooth light
+MIN_PIXELS = 400  # pixels across the outer edge at least (fewer: no estimate)
+CODE_RANGE = (8, 247)  # codes between which each channel of a pixel is read (its mean over the pixel's photo pixels)
+MAX_RESIDUAL = 0.05  # relative RMS of the rank-1 fit above which the step is not read (no estimate)
+DRIFT_RANGE = (0.006, 0.012)  # RMS drift over which the exposures go from ignored to undone (Exposures.applied)
+BIN = 0.5  # frame pixels: the bins of the distance to the edge the light is averaged in
+GAP_PIXELS = 4.0  # photo pixels on either side of the edge left out (its blur and the shake)
+
+
+@dataclasses.dataclass(frozen=True)
+class Exposures:
+    """``relative``: each photo's exposure over white's, with its 1-sigma ``sigma`` (from the
+    spread of the sectors); ``rms``: the fit's residual over the frame's light; ``pixels``: frame
+    pixels used; ``factor``: photo pixels per frame pixel."""
+
+    relative: dict[str, float]
+    sigma: dict[str, float]
+    rms: float
+    pixels: int
+    factor: int
+
+    def drift(self) -> float:
+        """RMS of the exposures about their median (relative)."""
+        values = np.array(list(self.relative.values()))
+        return float(np.sqrt(np.mean((values / np.median(values) - 1.0) ** 2)))
+
+    def applied_weight(self) -> float:
+        """0..1: how much of the measured drift is undone, rising over ``DRIFT_RANGE`` (an exposure
+        that held reads a few tenths of a per cent of drift through an imperfect tone curve, which
+        undone would only add that error)."""
+        lo, hi = DRIFT_RANGE
+        return float(np.clip((self.drift() - lo) / (hi - lo), 0.0, 1.0))
+
+    def applied(self) -> dict[str, float]:
+        """The exposures the photos are divided by: ``1 + weight (relative - 1)``."""
+        weight = self.applied_weight()
+        return {k: 1.0 + weight * (v - 1.0) for k, v in self.relative.items()}
+
+    def to_dict(self) -> dict:
+        return {"relative_to_white": {k: round(v, 5) for k, v in self.relative.items()},
+                "drift_rms": round(self.drift(), 5), "applied_weight": round(self.applied_weight(), 3),
+                "sigma": {k: round(v, 5) for k, v in self.sigma.items()},
+                "relative_residual": round(self.rms, 5), "pixels": self.pixels, "photo_pixels_per_pixel": self.factor}
+
+
+def _area_mean(image: np.ndarray, factor: int) -> np.ndarray:
+    """``image`` (h, w, ...) averaged over ``factor`` x ``factor`` blocks (float64)."""
+    h, w = image.shape[0] // factor, image.shape[1] // factor
+    blocks = image[:h * factor, :w * factor].reshape(h, factor, w, factor, *image.shape[2:])
+    return blocks.mean(axis=(1, 3), dtype=np.float64)
+
+
+def _edge(black: np.ndarray, white: np.ndarray):
+    """(signed distance (frame pixels, + outside) to the frame's outer edge, sector index, frame
+    width) or None: the panel's inside is where white clearly exceeds black, the frame the ring
+    around it that is bright in the black photo."""
+    import cv2
+
+    lit = cv2.blur((white - black).astype(np.float32), (3, 3))
+    inside = lit > 0.5 * np.percentile(lit, 95)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(inside.astype(np.uint8), connectivity=8)
+    if count < 2:
+        return None
+    inside = labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    inside = cv2.morphologyEx(inside.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8)) > 0
+    rows, cols = np.nonzero(inside)
+    frame = max(3.0, FRAME_SHARE * (rows.max() - rows.min() + 1))
+    beyond = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5)
+    near = (beyond > 0) & (beyond < 1.6 * frame)
+    smooth = cv2.blur(black.astype(np.float32), (3, 3))
+    if near.sum() < MIN_PIXELS:
+        return None  # the panel fills the photo: no frame to be seen
+    high, low = np.percentile(smooth[near], [90, 5])
+    if not high > 2 * max(low, 0.0):
+        return None  # nothing bright around the inside: no frame
+    panel = inside | (near & (smooth > 0.5 * (high + low)))
+    panel = cv2.morphologyEx(panel.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(panel, connectivity=8)
+    panel = (labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    signed = cv2.distanceTransform(1 - panel, cv2.DIST_L2, 5) - cv2.distanceTransform(panel, cv2.DIST_L2, 5)
+    yy, xx = np.indices(black.shape)
+    angle = np.arctan2(yy - rows.mean(), xx - cols.mean())
+    sector = np.minimum(((angle + math.pi) / (2 * math.pi) * SECTORS).astype(np.int64), SECTORS - 1)
+    return signed, sector, frame
+
+
+def measure_exposures(images: dict[str, np.ndarray], table: np.ndarray) -> Exposures | None:
+    """Each photo's exposure over white's, from uint8 RGB photos ``images`` ((h, w, 3), all the
+    same size, "black" and "white" among them) linearised through ``table`` (float (256,)); None
+    where the frame's outer edge cannot be read (fewer than ``MIN_PIXELS`` pixels, or a residual
+    above ``MAX_RESIDUAL``)."""
+    table = np.asarray(table, np.float64)
+    width = images["white"].shape[1]
+    factor = max(1, int(round(width / WIDTH)))
+    light = {k: _area_mean(table[v].sum(axis=2), factor) for k, v in images.items()}
+    found = _edge(light["black"], light["white"])
+    if found is None:
+        return None
+    signed, sector, frame = found
+    readable = np.ones(signed.shape, bool)
+    lo, hi = CODE_RANGE
+    h, w = signed.shape
+    for v in images.values():
+        means = _area_mean(v, factor)[:h, :w]
+        readable &= np.all((means >= lo) & (means <= hi), axis=2)
+    used = readable & (signed >= -max(2.0, INNER * frame)) & (signed <= max(3.0, OUTER * frame))
+    if used.sum() < MIN_PIXELS:
+        return None
+    # the frame's texture (the lens sheet's moire) averaged out along the edge: the light of each
+    # sector in bins of the distance (a photo shaken by a fifth of a pixel against another keeps the
+    # step but not the texture, which would take its scale down by 2-3 %)
+    d, s = signed[used], sector[used]
+    key = s * 10_000 + np.round(d / BIN).astype(np.int64) + 5_000
+    keys, index, counts = np.unique(key, return_inverse=True, return_counts=True)
+    names = list(images)
+    targets = np.stack([np.bincount(index, light[k][used], keys.size) / counts for k in names], axis=1)  # (bins, K)
+    d_bin = np.bincount(index, d, keys.size) / counts
+    s_bin = keys // 10_000
+    # each sector's step: the light on either side of the edge, the pixels of the step's own blur
+    # and shake left out, as one line (whatever smooth light falls there) plus a step down at d = 0
+    gap = max(GAP_PIXELS / factor, 1.5)
+    heights = np.full((SECTORS, len(names)), np.nan)
+    for sector_index in range(SECTORS):
+        sel = (s_bin == sector_index) & (np.abs(d_bin) >= gap)
+        if np.count_nonzero(sel & (d_bin < 0)) < 2 or np.count_nonzero(sel & (d_bin > 0)) < 2:
+            continue
+        weight = np.sqrt(counts[sel])[:, None]
+        a = np.stack([np.ones(sel.sum()), d_bin[sel], (d_bin[sel] < 0).astype(np.float64)], axis=1) * weight
+        coef, *_ = np.linalg.lstsq(a, targets[sel] * weight, rcond=None)
+        heights[sector_index] = coef[2]
+    ok = np.all(np.isfinite(heights), axis=1) & (heights[:, names.index("black")] > 0)
+    if ok.sum() < SECTORS // 2:
+        return None
+    black = names.index("black")
+    rho = heights[ok].sum(axis=0) / heights[ok, black].sum()
+    # the residual: how far the sectors' steps disagree with one scale per photo; the 1-sigma of
+    # each photo's exposure from that disagreement (the sectors are independent reads)
+    residual = heights[ok] - np.outer(heights[ok, black], rho)
+    level = float(np.mean(heights[ok, black]))
+    white = float(rho[names.index("white")])
+    if not white > 0:
+        return None
+    rms = float(np.sqrt(np.mean(residual ** 2))) / max(level, 1e-12)
+    ratios = heights[ok] / heights[ok, black][:, None]
+    sigma = np.std(ratios / ratios[:, [names.index("white")]], axis=0, ddof=1) / math.sqrt(ok.sum())
+    if not rms <= MAX_RESIDUAL:
+        return None
+    return Exposures({k: float(r) / white for k, r in zip(names, rho)}, {k: float(v) for k, v in zip(names, sigma)},
+                     rms, int(used.sum()), factor)
