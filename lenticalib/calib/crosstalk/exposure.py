@@ -12,21 +12,23 @@ what the panel's inside throws onto it: the camera's veiling glare, the panel's 
 the blur of the inside's edge (a white photo puts 3-7 % of the frame's light onto the frame, a
 band photo almost none; read as exposure, white comes out that much too bright).  That light
 has no shape a model can be trusted with (on the bench a steep spill across the frame's inner
-half on top of a wide halo), but it is smooth where the frame meets the bezel, while the frame's
-own light steps down there.  So the exposure is read on that step: across the frame's outer
-edge, within half a frame's width on either side, in ``SECTORS`` sectors around the panel,
+half on top of a wide halo; a one-Gaussian halo fitted beside the exposures took white's 2-11 %
+off), but it is smooth where the frame meets the bezel, while the frame's own light steps down
+there.  So the exposure is read on that step: across the frame's outer edge, from ``INNER`` of
+the frame's width inside it to ``OUTER`` outside, in ``SECTORS`` sectors around the panel, each
+photo's light averaged in bins of the signed distance ``d`` to the edge (the frame's texture, the
+lens sheet's moire, averages out along the edge: read pixel by pixel against another photo's
+texture, a shake of a fifth of a pixel took 2-3 % off a photo's scale), and fitted in each sector as
 
-    L_k(p) = rho_k L_black(p) + a_ks + b_ks d(p)
+    L_k(d) = a_ks + b_ks d + h_ks [d < 0]
 
-``d`` the signed distance to the outer edge, ``a_ks + b_ks d`` whatever smooth light sector ``s``
-of photo ``k`` gets, ``rho_k = e_k / e_black``: with the sectors' lines projected out of every photo, the rank-1 fit
-of what is left (the step's profile, blur included, is the same in every photo; taken from the
-black photo as a regressor, its noise would shrink every other photo's ``rho`` by 8 % on the
-bench's noisy phone).
-Pixels crushed to black or clipped in any photo are left out (no light can be read there); where
-the rank-1 fit leaves more than ``MAX_RESIDUAL`` of the frame's light (on the bench 0.011-0.029;
-0.08-0.11 for a phone whose S-curve crushes the bezel to black, where the step cannot be read and
-the exposures came out up to 20 % off) there is no estimate.
+leaving out ``GAP_PIXELS`` on either side of the edge (its blur and the shake): ``a + b d`` is
+whatever smooth light falls there, ``h_ks`` the step.  A photo's exposure over black's is the sum of
+its steps over black's; its 1-sigma the spread of the sectors' ratios over sqrt(sectors).  Pixels
+crushed to black or clipped in any photo are left out (no light can be read there); with fewer
+than half the sectors read, or the sectors' steps disagreeing with one scale per photo by more
+than ``MAX_RESIDUAL`` of the step (0.003-0.015 on the bench), there is no estimate: hard case 3,
+whose S-curve crushes the bezel to codes 0-20, read anyway gave exposures up to 20 % off.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ OUTER = 1.0  # ... and this share of it outside
 SECTORS = 32  # sectors around the panel, each with its own smooth light
 MIN_PIXELS = 400  # pixels across the outer edge at least (fewer: no estimate)
 CODE_RANGE = (8, 247)  # codes between which each channel of a pixel is read (its mean over the pixel's photo pixels)
-MAX_RESIDUAL = 0.05  # relative RMS of the rank-1 fit above which the step is not read (no estimate)
+MAX_RESIDUAL = 0.05  # relative RMS of the sectors' steps about one scale per photo above which there is no estimate
 DRIFT_RANGE = (0.006, 0.012)  # RMS drift over which the exposures go from ignored to undone (Exposures.applied)
 BIN = 0.5  # frame pixels: the bins of the distance to the edge the light is averaged in
 GAP_PIXELS = 4.0  # photo pixels on either side of the edge left out (its blur and the shake)
