@@ -271,3 +271,40 @@ def test_a_photo_with_too_few_corners_is_named_with_its_reason_in_the_summary():
                "cross_validation": {"scale": 1.0, "skipped": "not run"}, "report": None}
     lines = summary_lines(summary)
     assert [line for line in lines if "board-04.jpg: only 5 of 66 ChArUco corners identified" in line]
+
+
+def test_board_json_problems_and_a_wrong_lens_pitch_say_what_to_do(tmp_path):
+    """A board.json lacking a field (or with one of the wrong type) says how to get a good one; a
+    lens pitch whose soft edges would not fit the squares (50 mm typed for 0.5) is refused, where
+    it once gave ramps cut to a third of a square; photos linked into a folder of their own still
+    find the board.json beside the originals."""
+    from lenticalib.core.errors import InputError
+
+    folder = tmp_path / "set"
+    folder.mkdir()
+    board = boards.panel_board(1920, 1080, 0.3)
+    boards.write_manifest(board, folder)
+    doc = json.loads((folder / "board.json").read_text())
+    for change in ({"cols": None}, {"square_mm": "twenty"}):
+        broken = {k: v for k, v in doc.items() if k not in change}
+        if change.get("square_mm"):
+            broken["square_mm"] = change["square_mm"]
+        (folder / "board.json").write_text(json.dumps(broken))
+        with pytest.raises(InputError) as info:
+            boards.read_board(folder / "board.json")
+        assert info.value.source == str(folder / "board.json") and "camera patterns" in info.value.hint
+    with pytest.raises(InputError) as info:
+        boards.panel_board(1920, 1080, 0.3, lens_pitch_px=50 / 0.3)
+    assert info.value.source == "lens_pitch_mm" and "lens pitch" in info.value.hint
+    assert boards.panel_board(1920, 1080, 0.3, lens_pitch_px=0.5 / 0.3).edge_px >= 2 * 0.5 / 0.3
+    # links in another folder: board.json found where the photos lie
+    boards.write_manifest(board, folder)
+    (folder / "captures").mkdir()
+    (folder / "captures" / "a.jpg").write_bytes(b"x")
+    linked = tmp_path / "elsewhere" / "deep" / "down"
+    linked.mkdir(parents=True)
+    os.symlink(folder / "captures" / "a.jpg", linked / "a.jpg")
+    assert boards.find_board_manifest([linked / "a.jpg"]) == (folder / "board.json").resolve()
+    # and a board.json beside the links wins over the one they point to
+    boards.write_manifest(board, linked)
+    assert boards.find_board_manifest([linked / "a.jpg"]) == linked / "board.json"

@@ -231,12 +231,18 @@ class Board:
                         dictionary=data.get("dictionary"), marker_mm=data.get("marker_mm"),
                         marker_px=data.get("marker_px"))
         except KeyError as exc:
-            raise InputError(f"board manifest lacks the field {exc.args[0]!r}", source=source) from None
+            raise InputError(f"board manifest lacks the field {exc.args[0]!r}", source=source,
+                             hint=REWRITE_HINT) from None
         except InputError as exc:
-            raise InputError(exc.message, source=source, hint=exc.hint) from None
+            raise InputError(exc.message, source=source, hint=exc.hint or REWRITE_HINT) from None
         except (TypeError, ValueError) as exc:
-            raise InputError(f"board manifest has a field of the wrong type ({exc})", source=source) from None
+            raise InputError(f"board manifest has a field of the wrong type ({exc})", source=source,
+                             hint=REWRITE_HINT) from None
         return board
+
+
+REWRITE_HINT = ("write the board again with 'lenticalib camera patterns' (it writes board.json), or remove "
+                "board.json and describe a board you already have with the calibrate command's board options")
 
 
 def parse_squares(text: str, source: str = "squares") -> tuple[int, int]:
@@ -306,6 +312,13 @@ def panel_board(width: int, height: int, pixel_pitch_mm: float,
     oy = (height - rows_sq * square_px) // 2
     edge = max(MIN_EDGE_PX, round(square_px / 12))
     if lens_pitch_px is not None and math.isfinite(lens_pitch_px) and lens_pitch_px > 0:
+        if 2 * lens_pitch_px > square_px // 3:
+            # the ramps would be cut to a third of a square and then span less than two lenses
+            raise InputError(f"a lens pitch of {lens_pitch_px:.3g} panel pixels needs soft edges of "
+                             f"{2 * lens_pitch_px:.3g} pixels, more than a third of the {square_px}-pixel squares",
+                             source="lens_pitch_mm",
+                             hint="check the lens pitch: a lenticular sheet's is a few panel pixels, the data "
+                                  "sheet's horizontal pitch in mm; or use fewer squares")
         edge = max(edge, math.ceil(2 * lens_pitch_px))
     edge = min(edge, square_px // 3)
     square_mm = round(square_px * float(pixel_pitch_mm), 10)
@@ -387,12 +400,16 @@ def read_board(path: str | os.PathLike) -> Board:
 
 def find_board_manifest(photos: list[Path]) -> Path | None:
     """The ``board.json`` of a set of photos: in their common folder or up to two folders above it
-    (``DIR/captures/*.jpg`` -> ``DIR/board.json``); None when there is none."""
+    (``DIR/captures/*.jpg`` -> ``DIR/board.json``), as given and, for links, where they point;
+    None when there is none."""
     if not photos:
         return None
-    folder = Path(os.path.commonpath([str(p.resolve().parent) for p in photos]))
-    for candidate in (folder, folder.parent, folder.parent.parent):
-        manifest = candidate / MANIFEST_NAME
-        if manifest.is_file():
-            return manifest
+    # where the photos were given first, then where they lie (photos linked into a folder of
+    # their own keep the board.json of the folder they were linked from)
+    for folder in dict.fromkeys(Path(os.path.commonpath([str(f(p)) for p in photos]))
+                                for f in (lambda p: Path(os.path.abspath(p)).parent, lambda p: p.resolve().parent)):
+        for candidate in (folder, folder.parent, folder.parent.parent):
+            manifest = candidate / MANIFEST_NAME
+            if manifest.is_file():
+                return manifest
     return None
