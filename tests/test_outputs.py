@@ -1,5 +1,6 @@
 """lenticalib.outputs: output paths checked before work, staged folders, all-or-nothing results."""
 
+import os
 import shutil
 from pathlib import Path
 
@@ -35,6 +36,7 @@ def test_output_file_checks(tmp_path, read_only):
 
 def test_output_folder_checks(tmp_path, read_only):
     (tmp_path / "file").write_text("x")
+    os.mkfifo(tmp_path / "pipe")
     report = tmp_path / "report"
     report.mkdir()
     (report / "panel.png").write_bytes(b"png")
@@ -42,7 +44,8 @@ def test_output_folder_checks(tmp_path, read_only):
     assert check_output_folder(tmp_path / "new", "report") == tmp_path / "new"
     (report / "thesis.tex").write_text("my work")
     cases = {
-        tmp_path / "file": "is a file",
+        tmp_path / "file": "is a file, not a folder",
+        tmp_path / "pipe": "is a named pipe (FIFO), not a folder",  # once called "a file"
         tmp_path / "missing" / "report": "does not exist",
         read_only(tmp_path / "ro"): "not writable",
         read_only(tmp_path / "ro2") / "report": "not writable",

@@ -38,6 +38,12 @@ def _kind(mode: int) -> str:
     return _KINDS.get(stat.S_IFMT(mode), "not a regular file")
 
 
+def kind_of(path: str | os.PathLike) -> str:
+    """What ``path`` is, in words ("a file", "a named pipe (FIFO)", "a folder", ...), for messages."""
+    mode = os.stat(path).st_mode
+    return "a file" if stat.S_ISREG(mode) else _kind(mode)
+
+
 def output_target(path: str | os.PathLike, what: str = "output file", follow_links: bool = True) -> Path:
     """The regular file that writing ``path`` creates or replaces: ``path`` itself, or the regular
     file a symbolic link ``path`` points to (with ``follow_links=False``: the link itself, which

@@ -40,7 +40,7 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from .atomic import current_umask, hold, output_target, remove_leftovers
+from .atomic import current_umask, hold, kind_of, output_target, remove_leftovers
 from .errors import InputError
 
 
@@ -119,8 +119,9 @@ def check_output_folder(path: str | os.PathLike, what: str = "output folder",
         target = real
     if target.exists():
         if not target.is_dir():
-            raise InputError(f"is a file, not a folder for the {what}", source=str(target),
-                             hint=f"choose a folder path for the {what}, or remove the file")
+            kind = kind_of(target)
+            raise InputError(f"is {kind}, not a folder for the {what}", source=str(target),
+                             hint=f"choose a folder path for the {what}" + (", or remove the file" if kind == "a file" else ""))
         if not os.access(target, os.W_OK | os.X_OK):
             raise InputError(f"is not writable, so the {what} cannot be written", source=str(target),
                              hint=f"choose a writable folder for the {what}")
