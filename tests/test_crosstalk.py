@@ -815,3 +815,19 @@ def test_a_bare_eye_pair_limit_above_one_must_say_whether_it_is_percent(tmp_path
     for limit in ("5%", "0.05"):
         code, stdout, err = cli("crosstalk", "check", path, "--max-eye-pair", limit)
         assert code in (0, 1) and stdout.startswith(("PASS", "FAIL")), err
+
+
+def test_an_eye_pair_limit_on_a_file_measured_without_eye_separation_is_a_usage_error(tmp_path, cli):
+    """The limit cannot be judged: one line naming the file and how to measure the figure, exit 2
+    (it was a FAIL line and exit 1, as if the panel had failed)."""
+    path, _ = _soft_sheet_file(tmp_path)
+    data = json.loads(path.read_text())
+    del data["figures"]["eye_pair_crosstalk"]
+    data.pop("eye_separation_views")
+    path.write_text(json.dumps(data))
+    code, out, err = cli("crosstalk", "check", path, "--max-adjacent", "200%", "--max-eye-pair", "5%")
+    assert code == 2 and out == "", (out, err)
+    line = one_error_line(err)
+    assert line.startswith(f"lenticalib: error: {path}: has no eye-pair crosstalk") and "--eye-separation" in line
+    code, out, _ = cli("crosstalk", "check", path, "--max-adjacent", "200%")
+    assert code == 0 and out.startswith("PASS")

@@ -152,6 +152,11 @@ def run_check(args: argparse.Namespace) -> int:
         raise InputError("no limit given", source="crosstalk check",
                          hint="give --max-adjacent A, --max-system S and/or --max-eye-pair E")
     data = read_crosstalk(args.file)
+    if args.max_eye_pair is not None and (data.get("figures", {}).get("eye_pair_crosstalk") or {}).get("value") is None:
+        # a limit on a figure the file does not hold is the user's to fix, not the panel's failure
+        raise InputError("has no eye-pair crosstalk: it was measured without an eye separation", source=args.file,
+                         hint="measure again with --eye-separation VIEWS (or --eye-separation-mm, --distance and "
+                              "--cone-angle), or leave out --max-eye-pair")
     failures = check_crosstalk(data, args.max_adjacent, args.max_eye_pair, args.max_system)
     for line in failures:
         print(f"FAIL {args.file}: {line}")

@@ -207,7 +207,7 @@ def check_crosstalk(data: Mapping[str, Any], max_adjacent: float | None, max_eye
             continue
         value = (figures.get(key) or {}).get("value")
         if value is None:
-            failures.append(f"{FIGURES[key][0]} was not measured (measure with --eye-separation VIEWS)"
+            failures.append(f"{FIGURES[key][0]} was not measured (measure with the viewer's eye separation given)"
                             if key == "eye_pair_crosstalk" else f"{FIGURES[key][0]} is missing from the file")
         elif value > limit:
             line = f"{describe_figure(key, value)} exceeds the limit {100 * limit:.2f}%"
