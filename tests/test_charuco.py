@@ -274,8 +274,8 @@ def test_a_photo_with_too_few_corners_is_named_with_its_reason_in_the_summary():
 
 
 def test_board_json_problems_and_a_wrong_lens_pitch_say_what_to_do(tmp_path):
-    """A board.json lacking a field (or with one of the wrong type) says how to get a good one; a
-    lens pitch whose soft edges would not fit the squares (50 mm typed for 0.5) is refused, where
+    """A board.json lacking a field (or with one of the wrong type, or a panel board whose square in
+    mm is not its pixels times the pitch) says how to get a good one; a lens pitch whose soft edges would not fit the squares (50 mm typed for 0.5) is refused, where
     it once gave ramps cut to a third of a square; photos linked into a folder of their own still
     find the board.json beside the originals."""
     from lenticalib.core.errors import InputError
@@ -293,6 +293,12 @@ def test_board_json_problems_and_a_wrong_lens_pitch_say_what_to_do(tmp_path):
         with pytest.raises(InputError) as info:
             boards.read_board(folder / "board.json")
         assert info.value.source == str(folder / "board.json") and "camera patterns" in info.value.hint
+    # a panel board's square in mm edited away from its pixels times the pitch
+    edited = dict(doc, square_mm=doc["square_mm"] * 1.1)
+    (folder / "board.json").write_text(json.dumps(edited))
+    with pytest.raises(InputError) as info:
+        boards.read_board(folder / "board.json")
+    assert "is not square_px x pixel_pitch_mm" in info.value.message and "camera patterns" in info.value.hint
     with pytest.raises(InputError) as info:
         boards.panel_board(1920, 1080, 0.3, lens_pitch_px=50 / 0.3)
     assert info.value.source == "lens_pitch_mm" and "lens pitch" in info.value.hint

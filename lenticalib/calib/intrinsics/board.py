@@ -114,6 +114,14 @@ class Board:
             raise InputError(f"square size must be a number > 0 mm, got {self.square_mm!r}", source="board")
         if self.kind not in KINDS:
             raise InputError(f"board kind must be one of {', '.join(KINDS)}, got {self.kind!r}", source="board")
+        pitch = (self.panel or {}).get("pixel_pitch_mm")
+        if (self.kind == "panel" and isinstance(self.square_px, (int, float)) and isinstance(pitch, (int, float))
+                and self.square_px > 0 and pitch > 0
+                and abs(self.square_mm - self.square_px * pitch) > 1e-6 * self.square_mm + 1e-9):
+            # the squares' size is what the solve scales the world with: two sizes, one of them wrong
+            raise InputError(f"square_mm {self.square_mm:g} is not square_px x pixel_pitch_mm "
+                             f"({self.square_px} x {pitch:g} = {self.square_px * pitch:g} mm)", source="square_mm",
+                             hint="write the board again with 'lenticalib camera patterns' rather than editing board.json")
         if self.pattern not in PATTERNS:
             raise InputError(f"board pattern must be one of {', '.join(PATTERNS)}, got {self.pattern!r}",
                              source="pattern")
