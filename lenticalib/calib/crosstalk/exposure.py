@@ -38,6 +38,8 @@ import math
 
 import numpy as np
 
+from .photometry import lit_region, working
+
 
 WIDTH = 1000  # frame pixels across the photo (about)
 FRAME_SHARE = 1.0 / 38.0  # the frame's width over the inside's height (FRAME_FRACTION / (1 - 2 FRAME_FRACTION))
@@ -88,11 +90,24 @@ class Exposures:
                 "relative_residual": round(self.rms, 5), "pixels": self.pixels, "photo_pixels_per_pixel": self.factor}
 
 
-def _area_mean(image: np.ndarray, factor: int) -> np.ndarray:
-    """``image`` (h, w, ...) averaged over ``factor`` x ``factor`` blocks (float64)."""
-    h, w = image.shape[0] // factor, image.shape[1] // factor
-    blocks = image[:h * factor, :w * factor].reshape(h, factor, w, factor, *image.shape[2:])
-    return blocks.mean(axis=(1, 3), dtype=np.float64)
+@dataclasses.dataclass(frozen=True)
+class FrameEdge:
+    """Where the frame's outer edge is read, found once for a set of photos: ``factor`` photo pixels
+    per frame pixel; ``used`` bool (h, w) the frame pixels read; ``index`` (n,) each used pixel's
+    bin; ``counts``, ``d``, ``sector`` per bin: pixels, mean signed distance (frame pixels, +
+    outside), sector."""
+
+    factor: int
+    used: np.ndarray
+    index: np.ndarray
+    counts: np.ndarray
+    d: np.ndarray
+    sector: np.ndarray
+
+
+def _light(image: np.ndarray, table: np.ndarray, factor: int) -> np.ndarray:
+    """float32 (h, w): the light of uint8 RGB ``image`` through ``table``, summed over the channels, in frame pixels."""
+    return working(table[image].sum(axis=2), factor)
 
 
 def _edge(black: np.ndarray, white: np.ndarray):
@@ -101,13 +116,9 @@ def _edge(black: np.ndarray, white: np.ndarray):
     around it that is bright in the black photo."""
     import cv2
 
-    lit = cv2.blur((white - black).astype(np.float32), (3, 3))
-    inside = lit > 0.5 * np.percentile(lit, 95)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(inside.astype(np.uint8), connectivity=8)
-    if count < 2:
+    inside = lit_region(white - black, blur=3)
+    if inside is None:
         return None
-    inside = labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    inside = cv2.morphologyEx(inside.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8)) > 0
     rows, cols = np.nonzero(inside)
     frame = max(3.0, FRAME_SHARE * (rows.max() - rows.min() + 1))
     beyond = cv2.distanceTransform((~inside).astype(np.uint8), cv2.DIST_L2, 5)
@@ -129,24 +140,20 @@ def _edge(black: np.ndarray, white: np.ndarray):
     return signed, sector, frame
 
 
-def measure_exposures(images: dict[str, np.ndarray], table: np.ndarray) -> Exposures | None:
-    """Each photo's exposure over white's, from uint8 RGB photos ``images`` ((h, w, 3), all the
-    same size, "black" and "white" among them) linearised through ``table`` (float (256,)); None
-    where the frame's outer edge cannot be read (fewer than ``MIN_PIXELS`` pixels, or a residual
-    above ``MAX_RESIDUAL``)."""
+def frame_edge(images: dict[str, np.ndarray], table: np.ndarray) -> FrameEdge | None:
+    """Where the frame's outer edge of uint8 RGB photos ``images`` ((h, w, 3), all the same size,
+    "black" and "white" among them, linearised through ``table``) can be read; None where it
+    cannot (no frame, or fewer than ``MIN_PIXELS`` readable pixels)."""
     table = np.asarray(table, np.float64)
-    width = images["white"].shape[1]
-    factor = max(1, int(round(width / WIDTH)))
-    light = {k: _area_mean(table[v].sum(axis=2), factor) for k, v in images.items()}
-    found = _edge(light["black"], light["white"])
+    factor = max(1, int(round(images["white"].shape[1] / WIDTH)))
+    found = _edge(_light(images["black"], table, factor), _light(images["white"], table, factor))
     if found is None:
         return None
     signed, sector, frame = found
     readable = np.ones(signed.shape, bool)
     lo, hi = CODE_RANGE
-    h, w = signed.shape
     for v in images.values():
-        means = _area_mean(v, factor)[:h, :w]
+        means = working(v, factor)[:signed.shape[0], :signed.shape[1]]
         readable &= np.all((means >= lo) & (means <= hi), axis=2)
     used = readable & (signed >= -max(2.0, INNER * frame)) & (signed <= max(3.0, OUTER * frame))
     if used.sum() < MIN_PIXELS:
@@ -157,38 +164,49 @@ def measure_exposures(images: dict[str, np.ndarray], table: np.ndarray) -> Expos
     d, s = signed[used], sector[used]
     key = s * 10_000 + np.round(d / BIN).astype(np.int64) + 5_000
     keys, index, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return FrameEdge(factor, used, index, counts, np.bincount(index, d, keys.size) / counts, keys // 10_000)
+
+
+def measure_exposures(images: dict[str, np.ndarray], table: np.ndarray, edge: FrameEdge | None = None) -> Exposures | None:
+    """Each photo's exposure over white's, from uint8 RGB photos ``images`` ((h, w, 3), all the
+    same size, "black" and "white" among them) linearised through ``table`` (float (256,)), read
+    where ``edge`` says (default: :func:`frame_edge` of the photos); None where the frame's outer
+    edge cannot be read (see :func:`frame_edge`), or the sectors disagree by more than ``MAX_RESIDUAL``."""
+    table = np.asarray(table, np.float64)
+    edge = frame_edge(images, table) if edge is None else edge
+    if edge is None:
+        return None
     names = list(images)
-    targets = np.stack([np.bincount(index, light[k][used], keys.size) / counts for k in names], axis=1)  # (bins, K)
-    d_bin = np.bincount(index, d, keys.size) / counts
-    s_bin = keys // 10_000
+    bins = edge.counts.size
+    targets = np.stack([np.bincount(edge.index, _light(images[k], table, edge.factor)[edge.used], bins) / edge.counts
+                        for k in names], axis=1)  # (bins, K)
     # each sector's step: the light on either side of the edge, the pixels of the step's own blur
     # and shake left out, as one line (whatever smooth light falls there) plus a step down at d = 0
-    gap = max(GAP_PIXELS / factor, 1.5)
+    gap = max(GAP_PIXELS / edge.factor, 1.5)
     heights = np.full((SECTORS, len(names)), np.nan)
     for sector_index in range(SECTORS):
-        sel = (s_bin == sector_index) & (np.abs(d_bin) >= gap)
-        if np.count_nonzero(sel & (d_bin < 0)) < 2 or np.count_nonzero(sel & (d_bin > 0)) < 2:
+        sel = (edge.sector == sector_index) & (np.abs(edge.d) >= gap)
+        if np.count_nonzero(sel & (edge.d < 0)) < 2 or np.count_nonzero(sel & (edge.d > 0)) < 2:
             continue
-        weight = np.sqrt(counts[sel])[:, None]
-        a = np.stack([np.ones(sel.sum()), d_bin[sel], (d_bin[sel] < 0).astype(np.float64)], axis=1) * weight
+        weight = np.sqrt(edge.counts[sel])[:, None]
+        a = np.stack([np.ones(sel.sum()), edge.d[sel], (edge.d[sel] < 0).astype(np.float64)], axis=1) * weight
         coef, *_ = np.linalg.lstsq(a, targets[sel] * weight, rcond=None)
         heights[sector_index] = coef[2]
-    ok = np.all(np.isfinite(heights), axis=1) & (heights[:, names.index("black")] > 0)
+    black = names.index("black")
+    ok = np.all(np.isfinite(heights), axis=1) & (heights[:, black] > 0)
     if ok.sum() < SECTORS // 2:
         return None
-    black = names.index("black")
     rho = heights[ok].sum(axis=0) / heights[ok, black].sum()
-    # the residual: how far the sectors' steps disagree with one scale per photo; the 1-sigma of
-    # each photo's exposure from that disagreement (the sectors are independent reads)
-    residual = heights[ok] - np.outer(heights[ok, black], rho)
-    level = float(np.mean(heights[ok, black]))
     white = float(rho[names.index("white")])
     if not white > 0:
         return None
-    rms = float(np.sqrt(np.mean(residual ** 2))) / max(level, 1e-12)
-    ratios = heights[ok] / heights[ok, black][:, None]
-    sigma = np.std(ratios / ratios[:, [names.index("white")]], axis=0, ddof=1) / math.sqrt(ok.sum())
+    # the residual: how far the sectors' steps disagree with one scale per photo; the 1-sigma of
+    # each photo's exposure from that disagreement (the sectors are independent reads)
+    residual = heights[ok] - np.outer(heights[ok, black], rho)
+    rms = float(np.sqrt(np.mean(residual ** 2))) / max(float(np.mean(heights[ok, black])), 1e-12)
     if not rms <= MAX_RESIDUAL:
         return None
+    ratios = heights[ok] / heights[ok, black][:, None]
+    sigma = np.std(ratios / ratios[:, [names.index("white")]], axis=0, ddof=1) / math.sqrt(ok.sum())
     return Exposures({k: float(r) / white for k, r in zip(names, rho)}, {k: float(v) for k, v in zip(names, sigma)},
-                     rms, int(used.sum()), factor)
+                     rms, int(edge.used.sum()), edge.factor)

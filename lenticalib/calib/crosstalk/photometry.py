@@ -27,6 +27,34 @@ import math
 
 import numpy as np
 
+def working(image: np.ndarray, factor: int) -> np.ndarray:
+    """``image`` (h, w) or (h, w, c) area-averaged over ``factor`` x ``factor`` blocks: float32
+    (h // factor, w // factor[, c]), the edge rows and columns that make no whole block dropped."""
+    import cv2
+
+    h, w = image.shape[:2]
+    hh, ww = h // factor, w // factor
+    return cv2.resize(image[:hh * factor, :ww * factor].astype(np.float32), (ww, hh), interpolation=cv2.INTER_AREA)
+
+
+def lit_region(lit: np.ndarray, blur: int = 0) -> np.ndarray | None:
+    """bool (h, w): the panel's lit inside in ``lit`` (white - black): above half its 95th
+    percentile (after a ``blur`` x ``blur`` box, 0: none), the largest blob, closed; None where
+    nothing is lit."""
+    import cv2
+
+    if blur:
+        lit = cv2.blur(lit.astype(np.float32), (blur, blur))
+    level = float(np.percentile(lit, 95))
+    if not level > 0:
+        return None
+    count, labels, stats, _ = cv2.connectedComponentsWithStats((lit > 0.5 * level).astype(np.uint8), connectivity=8)
+    if count < 2:
+        return None
+    mask = (labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    return cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8)) > 0
+
+
 GLARE_SIGMAS = (0.015, 0.02, 0.03, 0.04, 0.05, 0.065, 0.08, 0.1, 0.13)  # of the image width
 
 

@@ -16,6 +16,7 @@ from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
 from ...core.imageio import read_header, read_image
 from . import dark, tone
+from .photometry import lit_region, working
 
 WORKING_WIDTH = 1000  # working pixels across (about)
 MAX_CLIPPED = 0.02
@@ -40,14 +41,6 @@ def linear_channels(raw: np.ndarray, mode: str, path: Path, lut: np.ndarray | No
     value = raw.astype(np.float32) / np.float32(top)
     linear = value if mode == "linear" else srgb_decode(value).astype(np.float32)
     return linear, value.max(axis=2) >= 250 / 255
-
-
-def working(image: np.ndarray, factor: int) -> np.ndarray:
-    import cv2
-
-    h, w = image.shape
-    hh, ww = h // factor, w // factor
-    return cv2.resize(image[:hh * factor, :ww * factor].astype(np.float32), (ww, hh), interpolation=cv2.INTER_AREA)
 
 
 def load_all(capture, pattern_set, mode, progress, lut=None):
@@ -154,20 +147,14 @@ def check_encoding(luma: dict[str, np.ndarray], mask: np.ndarray, mode: str, cap
 
 
 def panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
-    """bool: the panel's lit inside (where white clearly exceeds black), the largest blob, eroded."""
-    import cv2
-
-    level = float(np.percentile(lit, 95))
-    if not level > 0:
+    """bool: the panel's lit inside (where white clearly exceeds black), the largest blob, closed
+    (:func:`.photometry.lit_region`); CaptureError naming the white photo where it is not a panel."""
+    if not float(np.percentile(lit, 95)) > 0:
         raise CaptureError("is no brighter than the black photo", source=str(white_path),
                            hint="show white.png full screen on the panel and photograph it")
-    mask = (lit > 0.5 * level).astype(np.uint8)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    if count < 2:
+    mask = lit_region(lit)
+    if mask is None:
         raise CaptureError("shows no panel", source=str(white_path), hint="show the patterns full screen")
-    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    mask = (labels == biggest).astype(np.uint8)
-    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
     if mask.mean() < 0.05:
         raise CaptureError(f"the panel fills only {100 * mask.mean():.1f}% of the photo", source=str(white_path),
                            hint="fill most of the frame with the panel (the same camera position as the fit)")

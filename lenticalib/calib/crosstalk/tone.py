@@ -55,7 +55,7 @@ import math
 import numpy as np
 
 from ...core.colour import srgb_decode_lut
-from .exposure import Exposures, measure_exposures
+from .exposure import Exposures, frame_edge, measure_exposures
 from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tone_choice import curve_weight
 
@@ -108,6 +108,11 @@ class ToneCurve:
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
         return self.table
+
+    @property
+    def curve_weight(self) -> float:
+        """The bent curve's weight in the blend (0..1), whichever model is the main one."""
+        return self.alternative_weight if self.model == "power" else 1.0 - self.alternative_weight
 
     def undecided(self) -> float:
         """0..1: how far the photos leave the choice between this model and the ``alternative`` open.
@@ -368,9 +373,11 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     # of the halves (bench hard case 6: a bend gain of 0.42 became 0.02, the power was taken, and
     # its dark end put the glare fit off and the own view 0.024 high; the curve refitted with the
     # exposures is 0.006 off)
-    exposures, weight = None, (fitted.alternative_weight if fitted.model == "power" else 1.0 - fitted.alternative_weight)
-    for _ in range(EXPOSURE_ROUNDS):
-        found = measure_exposures({k: images[k] for k in hist}, fitted.table)
+    photos = {k: images[k] for k in hist}
+    edge = frame_edge(photos, fitted.table) if EXPOSURE_ROUNDS else None  # where to read them: found once
+    exposures, weight = None, fitted.curve_weight
+    for _ in range(EXPOSURE_ROUNDS if edge is not None else 0):
+        found = measure_exposures(photos, fitted.table, edge)
         if found is None:
             break
         exposures = found

@@ -414,8 +414,9 @@ def find_board_manifest(photos: list[Path]) -> Path | None:
         return None
     # where the photos were given first, then where they lie (photos linked into a folder of
     # their own keep the board.json of the folder they were linked from)
-    for folder in dict.fromkeys(Path(os.path.commonpath([str(f(p)) for p in photos]))
-                                for f in (lambda p: Path(os.path.abspath(p)).parent, lambda p: p.resolve().parent)):
+    given = Path(os.path.commonpath([os.path.dirname(os.path.abspath(p)) for p in photos]))
+    lying = Path(os.path.commonpath([str(p.resolve().parent) for p in photos]))
+    for folder in dict.fromkeys((given, lying)):
         for candidate in (folder, folder.parent, folder.parent.parent):
             manifest = candidate / MANIFEST_NAME
             if manifest.is_file():
