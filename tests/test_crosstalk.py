@@ -622,7 +622,8 @@ def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
     along the panel's columns, where the sweep stays put, so the band-photo check passes and the row
     is the phase-averaged cone (the default virtual scene, seed 1, was refused with misfits 0.25)."""
     from lenticalib.calib.crosstalk import checks, cone
-    from lenticalib.calib.crosstalk.measure import _ratios, _row_from
+    from lenticalib.calib.crosstalk.measure import _row_from
+    from lenticalib.calib.crosstalk.ratios import band_ratios
     from lenticalib.calib.crosstalk.photometry import Glare
 
     pattern_set = design_crosstalk_patterns(profile)
@@ -638,7 +639,7 @@ def test_band_moire_of_a_close_camera_is_averaged_along_the_columns(profile):
         t = np.mod(delta + band.shift + offset + n / 2, n) - n / 2
         lit = 0.01 + 0.55 * (np.abs(t) < 0.5)
         luma[band.name] = np.where(mask, lit + rng.normal(0, 0.003, mask.shape), 0.0).astype(np.float32)
-    ratios, rr, cc, _ = _ratios(luma, mask, pattern_set, Glare(0.0, 0.0, float("nan")))
+    ratios, rr, cc, _ = band_ratios(luma, mask, pattern_set, Glare(0.0, 0.0, float("nan")))
     shifts = np.array([band.shift for band in pattern_set.bands])
     fit = cone.fit_cone(ratios, rr, cc, shifts, n, mask.shape)
     assert checks.photo_disagreement(fit, ratios, rr, cc, shifts)[0].max() < checks.MAX_DISAGREEMENT

@@ -156,3 +156,58 @@ def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_i
     record = read_figure_record(tmp_path / "blended" / "tone-curve.png")
     assert record["numbers"]["blended_weight"] == 0.3
     assert any("weight 0.30" in t and "bent curve" in t for t in record["axes"][0]["legend"])
+
+
+def test_the_toe_sigma_is_half_the_models_difference_just_above_black_weighted_by_their_sigmas():
+    """Two models whose light at black + 2 codes (relative to white) differs by 30 % leave the toe
+    open by half of log 1.3 (13 %), in full where the other model is as sure of itself as the main one, by the
+    ratio of their sigmas where it is less sure; identical toes leave nothing."""
+    codes = np.arange(12, 141)
+    main_table = tone.decode_lut(1.0).astype(np.float64)
+    other_table = main_table.copy()
+    other_table[12] *= 1.3
+
+    def curve(table, sigma):
+        return tone.ToneCurve("curve", table, sigma, 0.0, 1000)
+
+    assert tone._toe_sigma(curve(main_table, 0.02), curve(other_table, 0.02), codes) == pytest.approx(0.5 * math.log(1.3))
+    assert tone._toe_sigma(curve(other_table, 0.02), curve(main_table, 0.02), codes) == pytest.approx(0.5 * math.log(1.3))
+    assert tone._toe_sigma(curve(main_table, 0.02), curve(other_table, 0.08), codes) == pytest.approx(0.5 * math.log(1.3) / 4)
+    assert tone._toe_sigma(curve(main_table, 0.02), curve(main_table * 2.0, 0.02), codes) == pytest.approx(0.0)
+
+
+def test_a_power_camera_s_toe_is_left_open_by_a_few_per_cent_only():
+    """On photos of a camera whose curve is a power (the model chosen), the bent curve's freer toe
+    is weighted by how much less sure it is of itself: both models fitted, the toe's sigma
+    recorded, under 6 %."""
+    curve = tone.fit_tone_curve(_photos({}), tone.tile_size(600))
+    assert curve.model == "power" and curve.alternative is not None
+    assert 0.0 < curve.toe_sigma < 0.06 and curve.alternative.toe_sigma == curve.toe_sigma
+    assert curve.to_dict()["toe_sigma"] == pytest.approx(curve.toe_sigma, abs=1e-4)
+
+
+def test_the_toe_perturbation_changes_only_light_below_its_end_and_most_at_black():
+    """``ratios.relinearised``: light at or above ``TOE_END`` of white's is only raised to the
+    power; at black it changes by the whole ``toe``, half-way to TOE_END by half of it."""
+    from lenticalib.calib.crosstalk.ratios import TOE_END, relinearised
+
+    white = np.full(4, 2.0)
+    light = white * np.array([0.0, TOE_END / 2, TOE_END, 0.8])
+    assert relinearised(light, white) == pytest.approx(light)
+    out = relinearised(light + 1e-12, white, toe=0.2)
+    assert out[1] == pytest.approx(light[1] * 1.1) and out[2:] == pytest.approx(light[2:])
+    assert relinearised(np.array([1e-3]), np.array([2.0]), toe=0.2)[0] == pytest.approx(1e-3 * (1 + 0.2 * (1 - 5e-4 / TOE_END)))
+    assert relinearised(light, white, power=1.1, toe=0.0) == pytest.approx(light ** 1.1)
+
+
+def test_the_toe_s_perturbed_rows_enter_the_derived_figures_sigma():
+    """``result.figures_with_sigma``: the rows measured with the toe's light moved by +- its sigma add
+    half their difference to each figure's sigma, as the glare's and the power's do."""
+    from lenticalib.calib.crosstalk.result import figures_with_sigma
+
+    row = np.array([0.5, 0.2, 0.1, 0.2])
+    moved = {"toe-": np.array([0.52, 0.19, 0.09, 0.20]), "toe+": np.array([0.48, 0.21, 0.11, 0.20])}
+    plain = figures_with_sigma(row, {}, None)
+    with_toe = figures_with_sigma(row, moved, None)
+    assert plain["own_view_share"]["sigma"] == 0.0
+    assert with_toe["own_view_share"]["sigma"] == pytest.approx(0.02)

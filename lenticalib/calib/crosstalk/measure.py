@@ -17,8 +17,9 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    non-uniformity; a robust spread) and, in quadrature, what the photometric assumptions could
    move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the linearised light:
    ``d`` the measured curve's own 1-sigma for camera JPEGs, 0.05 where it could not be measured
-   (cameras are sRGB only to about +-8 %); 0.005 for linear photos) and the dark floor every
-   entry sits on.
+   (cameras are sRGB only to about +-8 %); 0.005 for linear photos), the light of the codes just
+   above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
+   ``ratios.TOE_END`` of white's light) and the dark floor every entry sits on.
 """
 
 from __future__ import annotations
@@ -37,12 +38,12 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct
+from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from .patterns import CrosstalkPatternSet
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 CENTRE_DEGREE = 3  # of the centre region's own sweep model
-COLUMN_AVERAGE = 1 / 16  # sigma of the average along the panel's columns, of the panel's height in the photo
 SWEEP_BLUR_PIXELS = 1.5  # working pixels: the camera's blur of the sweep (defocus, demosaicing, averaging)
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
 BLOCKS = 16  # the centre region is split into this many strips of rows for the statistical spread
@@ -115,12 +116,6 @@ def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | Non
                              hint=f"give that profile, or write the patterns again from this one with "
                                   f"'lenticalib crosstalk patterns --profile {profile_source}'")
     return pattern_set, match_captures(directory, pattern_set)
-
-
-def _bounding_box(mask: np.ndarray) -> tuple[int, int, int, int]:
-    """(first row, last row, first column, last column) of the true pixels of ``mask``."""
-    rows, cols = np.nonzero(mask)
-    return int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())
 
 
 def _row_from(fit, ratios, rows, cols, shifts, views) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,7 +211,7 @@ def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
     bands = pattern_set.bands
     shifts = np.array([p.shift for p in bands])
     no_glare = photometry.Glare(0.0, 0.0, math.nan)
-    ratios, rows, cols, _ = _ratios(luma, mask, pattern_set, no_glare, column_average=0.0)
+    ratios, rows, cols, _ = band_ratios(luma, mask, pattern_set, no_glare, column_average=0.0)
     check_distinct(ratios, bands, capture)
     try:
         check_band_photos(ratios, rows, cols, shifts, bands, capture, pattern_set.views, mask.shape)
@@ -226,7 +221,7 @@ def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
         # the same photos averaged along the panel's columns, where the sweep stays put, must then
         # agree.  If they do not either, a photo the first check named stays named; otherwise the
         # averaged photos' verdict stands (their misfits hold neither noise nor moire)
-        averaged = _ratios(luma, mask, pattern_set, no_glare, column_average=COLUMN_AVERAGE)
+        averaged = band_ratios(luma, mask, pattern_set, no_glare, column_average=COLUMN_AVERAGE)
         try:
             check_band_photos(*averaged[:3], shifts, bands, capture, pattern_set.views, mask.shape)
         except CaptureError as second:
@@ -234,34 +229,6 @@ def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
     warnings.append("the band photos show a moire of the lit subpixels (a close camera): they were averaged "
                     f"along the panel's columns (sigma {COLUMN_AVERAGE:.3f} of the panel's height)")
     return COLUMN_AVERAGE
-
-
-def _ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE):
-    """(float32 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask.
-
-    ``column_average``: sigma of the average along the panel's columns, as a share of the panel's
-    height in the photo (0: none)."""
-    import cv2
-
-    def corrected(name):
-        img = np.maximum(luma[name], 0.0) ** power - np.maximum(luma["black"], 0.0) ** power
-        return photometry.remove_glare(img.astype(np.float32), glare)
-
-    white = corrected("white")
-    inner = cv2.erode(mask.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
-    inner &= white > 0.2 * np.percentile(white[mask], 50)
-    rows, cols = np.nonzero(inner)
-    # the band photos' moire (one phase of the lit subpixels per place) averaged out along the
-    # panel's columns, where the sweep stays put (cone.average_along_columns)
-    bands = pattern_set.bands
-    if column_average:
-        r0, r1, _, _ = _bounding_box(mask)
-        sigma, angle = column_average * (r1 - r0), cone.column_angle(mask)
-        ratios = np.stack([cone.average_along_columns(corrected(p.name) / np.maximum(white, 1e-6), inner, sigma,
-                                                      angle)[rows, cols] for p in bands], axis=1)
-    else:
-        ratios = np.stack([(corrected(p.name) / np.maximum(white, 1e-6))[rows, cols] for p in bands], axis=1)
-    return ratios.astype(np.float64), rows, cols, white
 
 
 def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve, photos,
@@ -272,13 +239,13 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     lit = luma["white"] - luma["black"]
     outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
-    ratios, rows, cols, white = _ratios(luma, mask, pattern_set, glare, column_average=column_average)
+    ratios, rows, cols, white = band_ratios(luma, mask, pattern_set, glare, column_average=column_average)
     bands = pattern_set.bands
     band_shifts = np.array([p.shift for p in bands])
     panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
     if progress:
         progress("view cone")
-    r0, r1, c0, c1 = _bounding_box(mask)
+    r0, r1, c0, c1 = bounding_box(mask)
     height, width = r1 - r0, c1 - c0
     lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
     centre = ((rows >= r0 + lo * height) & (rows <= r0 + hi * height)
@@ -312,22 +279,29 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     stat_sigma = _robust_spread(block_rows) / math.sqrt(independent) if k > 1 else np.zeros(n)
     cone_stat = (_robust_spread(np.array(block_cones)) / math.sqrt(independent) if k > 1
                  else np.zeros_like(cone_values))
-    # systematic: glare size and tone curve
-    perturbed = {}
-    for label, g_scale, p in (("glare-", 1 - GLARE_RELATIVE_SIGMA, 1.0), ("glare+", 1 + GLARE_RELATIVE_SIGMA, 1.0)):
-        g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
-        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, g, p, column_average)
-        sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
-        perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
-    # the power's 1-sigma relative to the curve the photos were linearised with
+    # systematic: the glare's size, the tone curve's power (its 1-sigma relative to the curve the
+    # photos were linearised with) and its toe (camera JPEGs with a measured curve: tone._toe_sigma)
     tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
                   else curve.sigma)
-    for label, p in (("tone-", 1.0 - tone_sigma), ("tone+", 1.0 + tone_sigma)):
-        r_p, rows_p, cols_p, _ = _ratios(luma, mask, pattern_set, glare, p, column_average)
+    toe_sigma = 0.0 if curve is None or photos == "linear" else curve.toe_sigma
+    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0), "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0),
+                  "tone-": (1.0, 1.0 - tone_sigma, 0.0), "tone+": (1.0, 1.0 + tone_sigma, 0.0)}
+    if toe_sigma:
+        variations.update({"toe-": (1.0, 1.0, -toe_sigma), "toe+": (1.0, 1.0, toe_sigma)})
+    perturbed = {}
+    for label, (g_scale, p, t) in variations.items():
+        g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
+        r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
-    glare_sigma = np.abs(perturbed["glare+"][0] - perturbed["glare-"][0]) / 2
-    tone_sig = np.abs(perturbed["tone+"][0] - perturbed["tone-"][0]) / 2
+
+    def half_change(name: str, part: int):
+        """Half the change of the row (part 0) or the cone (1) between ``name``'s two variations (0: none)."""
+        if f"{name}+" not in perturbed:
+            return np.zeros_like(row if part == 0 else cone_values)
+        return (perturbed[f"{name}+"][part] - perturbed[f"{name}-"][part]) / 2
+
+    glare_sigma, tone_sig, toe_sig = (np.abs(half_change(name, 0)) for name in ("glare", "tone", "toe"))
     # the sweep model: its local error (tile by tile) smears the cone by eps^2 / 2 h''; and how the
     # row changes with the whole-panel model instead
     offsets = cone.local_offsets(fit, ratios[centre], rr, cc, band_shifts)
@@ -341,9 +315,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     model_sigma = np.sqrt((0.5 * eps2 * curvature) ** 2 + (row - panel_row) ** 2)
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
     floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
-    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + floor_sigma ** 2 + model_sigma ** 2)
-    cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2 + ((perturbed["glare+"][1] - perturbed["glare-"][1]) / 2) ** 2
-                         + ((perturbed["tone+"][1] - perturbed["tone-"][1]) / 2) ** 2)
+    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + floor_sigma ** 2
+                        + model_sigma ** 2)
+    cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
+                         + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe")))
     samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()}}
     # uniformity map: own-view share per region
     cols_n, rows_n = REGION_GRID
@@ -363,10 +338,11 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                 halves.append(_row_from(panel_fit, ratios[sub], rows[sub], cols[sub], band_shifts, n)[0][0])
             regions[j, i] = own
             regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
-                                            + glare_sigma[0] ** 2 + tone_sig[0] ** 2 + model_sigma[0] ** 2)
+                                            + glare_sigma[0] ** 2 + tone_sig[0] ** 2 + toe_sig[0] ** 2
+                                            + model_sigma[0] ** 2)
     photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
                          "tone_curve": None if curve is None else curve.to_dict(),
-                         "tone_power_sigma": round(tone_sigma, 4),
+                         "tone_power_sigma": round(tone_sigma, 4), "tone_toe_sigma": round(toe_sigma, 4),
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts,
                          # the camera's noise sigma per channel (share of full scale) where it clips dark pixels
@@ -377,6 +353,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
+                   "sigma_tone_toe": toe_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2)}
     delta = np.full(mask.shape, np.nan)

@@ -87,7 +87,8 @@ class ToneCurve:
     the level photos took part; ``code_range`` the median codes of black and white; ``alternative``
     the other model, to be blended in with ``alternative_weight`` (0..0.5; 0: not used), and the
     evidence for the curve, ``bend_gain`` and ``level_bias`` (:mod:`.tone_choice`); ``exposures`` the
-    photos' exposures the relations were brought to white's with (:mod:`.exposure`; None: taken as locked)."""
+    photos' exposures the relations were brought to white's with (:mod:`.exposure`; None: taken as locked);
+    ``toe_sigma`` the 1-sigma of the light of the codes just above black, relative (:func:`_toe_sigma`)."""
 
     model: str
     table: np.ndarray
@@ -104,6 +105,7 @@ class ToneCurve:
     bend_gain: float = math.nan
     level_bias: float = math.nan
     exposures: Exposures | None = None
+    toe_sigma: float = 0.0
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
@@ -132,7 +134,7 @@ class ToneCurve:
     def to_dict(self) -> dict:
         data = {"model": "sRGB decoding ** power" if self.model == "power" else
                 f"sRGB decoding x piecewise-linear factor (knots every {KNOT} codes)",
-                "power_sigma": round(self.sigma, 4), "code_range": list(self.code_range), "half_residual": round(self.residual, 4), "tiles": self.tiles,
+                "power_sigma": round(self.sigma, 4), "toe_sigma": round(self.toe_sigma, 4), "code_range": list(self.code_range), "half_residual": round(self.residual, 4), "tiles": self.tiles,
                 "strips": [round(v, 4) for v in self.strips],
                 "relations": "half and level photos" if self.levels else "half photos (exposures free)"}
         if self.model == "power":
@@ -418,8 +420,30 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None) -> 
     fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest)
               for model, table in (("power", srgb_decode_lut() ** power), ("curve", curve))}
     main, other = ("curve", "power") if weight > 0.5 else ("power", "curve")
-    return dataclasses.replace(fitted[main], alternative=fitted[other],
-                               alternative_weight=min(weight, 1.0 - weight), bend_gain=gain, level_bias=level_bias)
+    toe = _toe_sigma(fitted[main], fitted[other], codes)
+    return dataclasses.replace(fitted[main], alternative=dataclasses.replace(fitted[other], toe_sigma=toe),
+                               alternative_weight=min(weight, 1.0 - weight), bend_gain=gain, level_bias=level_bias,
+                               toe_sigma=toe)
+
+
+def _toe_sigma(main: ToneCurve, other: ToneCurve, codes) -> float:
+    """The 1-sigma of the light of the codes just above black, relative: half the two models' difference
+    there, in log (each table scaled to white; ``codes`` from black + 2 up to white), weighted as
+    :meth:`ToneCurve.undecided` weighs the other model (``min(1, sigma / other's sigma)``: a model that
+    is far less sure of itself than the main one says little about the toe either).
+
+    The relations pin the toe only through small differences: a tail a few codes above black sends a
+    few per cent of white's light, so a bias of a few tenths of a per cent of white in the relations
+    (a camera's demosaicing and chroma subsampling of the photos' texture; linear photos of the
+    bench's cameras broke the half relation by 0.1-0.3 % of white) moves the toe's light by tens of
+    per cent.  How far apart the power and the bent curve put it is what the photos leave open
+    there; the measurement propagates it as a relative change of the light that fades out by
+    ``ratios.TOE_END`` of white's (the power's sigma holds the rest of the curve)."""
+    first, last = int(codes[0]), int(codes[-1])
+    a = float(main.table[first]) / max(float(main.table[last]), 1e-12)
+    b = float(other.table[first]) / max(float(other.table[last]), 1e-12)
+    share = min(1.0, main.sigma / max(other.sigma, 1e-12)) if math.isfinite(main.sigma + other.sigma) else 1.0
+    return 0.5 * abs(math.log(max(b, 1e-12) / max(a, 1e-12))) * share
 
 
 def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest) -> ToneCurve:

@@ -1,0 +1,63 @@
+"""The band photos over white, as the measurement reads them (working pixels, linear light).
+
+Each photo less black, relinearised as a tone curve that differs by a power or by its toe would
+have it (:func:`relinearised`: how the measurement propagates the tone curve's uncertainty), the
+camera's veiling glare removed (:mod:`.photometry`), divided by white; inside the eroded panel
+mask, optionally averaged along the panel's columns (:func:`.cone.average_along_columns`: a close
+camera's moire of the lit subpixels).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import cone, photometry
+
+COLUMN_AVERAGE = 1 / 16  # sigma of the average along the panel's columns, of the panel's height in the photo
+TOE_END = 0.25  # share of white's light where the toe's uncertainty has faded out (it is whole at black)
+
+
+def bounding_box(mask: np.ndarray) -> tuple[int, int, int, int]:
+    """(first row, last row, first column, last column) of the true pixels of ``mask``."""
+    rows, cols = np.nonzero(mask)
+    return int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())
+
+
+def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: float = 0.0) -> np.ndarray:
+    """``light`` (working pixels, linearised) as a tone curve that differs by ``power`` and by ``toe`` would
+    have it: ``light ** power``, times ``1 + toe (1 - x / TOE_END)`` where ``x``, the light over ``white``'s
+    at the same pixel, is below ``TOE_END`` (the curve's toe: whole at black, none from TOE_END up)."""
+    out = np.maximum(light, 0.0) ** power
+    if toe:
+        share = np.maximum(light, 0.0) / np.maximum(white, 1e-9)
+        out = out * (1.0 + toe * np.clip(1.0 - share / TOE_END, 0.0, 1.0))
+    return out
+
+
+def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE, toe=0.0):
+    """(float64 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask.
+
+    ``column_average``: sigma of the average along the panel's columns, as a share of the panel's
+    height in the photo (0: none); ``power``, ``toe``: the photos relinearised (:func:`relinearised`)."""
+    import cv2
+
+    def corrected(name):
+        img = (relinearised(luma[name], luma["white"], power, toe)
+               - relinearised(luma["black"], luma["white"], power, toe))
+        return photometry.remove_glare(img.astype(np.float32), glare)
+
+    white = corrected("white")
+    inner = cv2.erode(mask.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    inner &= white > 0.2 * np.percentile(white[mask], 50)
+    rows, cols = np.nonzero(inner)
+    # the band photos' moire (one phase of the lit subpixels per place) averaged out along the
+    # panel's columns, where the sweep stays put (cone.average_along_columns)
+    bands = pattern_set.bands
+    if column_average:
+        r0, r1, _, _ = bounding_box(mask)
+        sigma, angle = column_average * (r1 - r0), cone.column_angle(mask)
+        ratios = np.stack([cone.average_along_columns(corrected(p.name) / np.maximum(white, 1e-6), inner, sigma,
+                                                      angle)[rows, cols] for p in bands], axis=1)
+    else:
+        ratios = np.stack([(corrected(p.name) / np.maximum(white, 1e-6))[rows, cols] for p in bands], axis=1)
+    return ratios.astype(np.float64), rows, cols, white
