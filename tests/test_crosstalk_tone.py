@@ -140,7 +140,7 @@ def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_i
         write_figures(tmp_path / name, [("tone-curve.png", lambda fig, _, d=data: _tone_curve(fig, d))],
                       FIGURE_SIZES, None)
     record = read_figure_record(tmp_path / "plain" / "tone-curve.png")
-    assert record["numbers"] == {"model": "power", "power_sigma": curve["power_sigma"],
+    assert record["numbers"] == {"model": "power", "power_sigma": curve["power_sigma"], "toe_sigma": curve["toe_sigma"],
                                  "code_range": curve["code_range"], "blended_weight": 0.0}
     assert "half and level photos" in record["title"]
     light, ratio = record["axes"][:2]
@@ -148,6 +148,7 @@ def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_i
     assert "sRGB" in ratio["ylabel"] and ratio["title"]
     assert all(label.endswith(")") and "(" in label for ax in (light, ratio) for label in (ax["xlabel"], ax["ylabel"]))
     assert any(f"1 ± {curve['power_sigma']:.3f}" in t for t in light["legend"])
+    assert curve["toe_sigma"] > 0 and any(f"the toe ± {100 * curve['toe_sigma']:.0f} %" in t for t in light["legend"])
     assert any(f"** {curve['power']:.3f}" in t for t in light["legend"])
     assert not any("blended" in t for t in light["legend"])
     black, white = curve["code_range"]
@@ -174,6 +175,9 @@ def test_the_toe_sigma_is_half_the_models_difference_just_above_black_weighted_b
     assert tone._toe_sigma(curve(other_table, 0.02), curve(main_table, 0.02), codes) == pytest.approx(0.5 * math.log(1.3))
     assert tone._toe_sigma(curve(main_table, 0.02), curve(other_table, 0.08), codes) == pytest.approx(0.5 * math.log(1.3) / 4)
     assert tone._toe_sigma(curve(main_table, 0.02), curve(main_table * 2.0, 0.02), codes) == pytest.approx(0.0)
+    far_off = other_table.copy()
+    far_off[12] *= 100.0
+    assert tone._toe_sigma(curve(main_table, 0.02), curve(far_off, 0.02), codes) == tone.MAX_TOE_SIGMA
 
 
 def test_a_power_camera_s_toe_is_left_open_by_a_few_per_cent_only():

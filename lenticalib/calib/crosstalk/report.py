@@ -247,8 +247,10 @@ def _tone_light(curve: dict) -> np.ndarray:
 def _tone_curve(fig, curve: dict) -> dict:
     """The camera's tone curve (``photometry.tone_curve`` of ``crosstalk.json``), normalised to 1 at
     the white photo's median code: light against code (log), and its ratio to plain sRGB."""
+    from .ratios import TOE_END
+
     black, white = (int(v) for v in curve["code_range"])
-    sigma = float(curve["power_sigma"])
+    sigma, toe = float(curve["power_sigma"]), float(curve.get("toe_sigma", 0.0))
     codes = np.arange(256)
     srgb = srgb_decode_lut().astype(np.float64)
     srgb_n = np.maximum(srgb / srgb[white], 1e-12)
@@ -257,6 +259,10 @@ def _tone_curve(fig, curve: dict) -> dict:
         return np.maximum(light, 1e-12) / max(float(light[white]), 1e-12)
 
     main = normalised(_tone_light(curve))
+    # the band the measurement propagates: the power's and the toe's (whole at black, none from
+    # TOE_END of white's light up: ratios.relinearised), in quadrature on the log light
+    spread = np.hypot(sigma * np.log(main), toe * np.clip(1.0 - main / TOE_END, 0.0, 1.0))
+    band_label = f"1-sigma: a power 1 ± {sigma:.3f} on the light" + (f", the toe ± {100 * toe:.0f} %" if toe else "")
     label = (f"measured: sRGB decoding ** {curve['power']:.3f}" if "power" in curve
              else "measured: sRGB decoding x a bent factor")
     other = curve.get("blended_with")
@@ -266,9 +272,8 @@ def _tone_curve(fig, curve: dict) -> dict:
     for k, ratio in enumerate((False, True)):
         ax = fig.add_subplot(gs[0, k])
         ref = srgb_n if ratio else 1.0
-        lo, hi = main ** (1 + sigma) / ref, main ** (1 - sigma) / ref
-        ax.fill_between(codes[shown], np.minimum(lo, hi)[shown], np.maximum(lo, hi)[shown], color="tab:blue",
-                        alpha=0.25, label=f"1-sigma: a power 1 ± {sigma:.3f} on the light")
+        lo, hi = main * np.exp(-spread) / ref, main * np.exp(spread) / ref
+        ax.fill_between(codes[shown], lo[shown], hi[shown], color="tab:blue", alpha=0.25, label=band_label)
         ax.plot(codes[shown], (main / ref)[shown], color="tab:blue", lw=2, label=label)
         if other:
             alt = normalised(_tone_light(other))
@@ -302,8 +307,10 @@ def _tone_curve(fig, curve: dict) -> dict:
     fig.suptitle(f"Camera tone curve measured from the {photos}", fontsize=14)
     _caption(fig, gs[1, :], "The measurement reads the codes between the black and the white photo's (unshaded).  An "
              "ordinary camera stays within a few per cent of sRGB there,\na phone's S-curve bends it by tens of "
-             "per cent.  The 1-sigma enters every uncertainty of crosstalk.json.  A wide band, or a bent curve "
-             "blended in,\nmeans the JPEGs limit the accuracy: shoot RAW and convert it to 16-bit linear "
-             "(--photos linear) where the camera can (docs/crosstalk.md, \"Phone-like cameras\").")
-    return {"model": "power" if "power" in curve else "curve", "power_sigma": sigma, "code_range": [black, white],
+             "per cent.  The 1-sigma (the power's, and the toe's: the light a few codes above black) enters every "
+             "uncertainty of crosstalk.json.\nA wide band, or a bent curve blended in, means the JPEGs limit the "
+             "accuracy: shoot RAW and convert it to 16-bit linear (--photos linear) where the camera can\n"
+             "(docs/crosstalk.md, \"Phone-like cameras\" and \"The toe\").")
+    return {"model": "power" if "power" in curve else "curve", "power_sigma": sigma, "toe_sigma": toe,
+            "code_range": [black, white],
             "blended_weight": float(other["weight"]) if other else 0.0}

@@ -74,6 +74,7 @@ POWER_RANGE = (0.6, 1.6)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
 MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
+MAX_TOE_SIGMA = 0.5  # the toe's 1-sigma at most (its light moved by half: the perturbation stays positive)
 EXPOSURE_ROUNDS = 2  # fits with the frame's exposures (each reads the frame through the curve before it)
 
 
@@ -443,7 +444,7 @@ def _toe_sigma(main: ToneCurve, other: ToneCurve, codes) -> float:
     a = float(main.table[first]) / max(float(main.table[last]), 1e-12)
     b = float(other.table[first]) / max(float(other.table[last]), 1e-12)
     share = min(1.0, main.sigma / max(other.sigma, 1e-12)) if math.isfinite(main.sigma + other.sigma) else 1.0
-    return 0.5 * abs(math.log(max(b, 1e-12) / max(a, 1e-12))) * share
+    return min(MAX_TOE_SIGMA, 0.5 * abs(math.log(max(b, 1e-12) / max(a, 1e-12))) * share)
 
 
 def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest) -> ToneCurve:
