@@ -38,9 +38,9 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct
-from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from .patterns import CrosstalkPatternSet
+from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 CENTRE_DEGREE = 3  # of the centre region's own sweep model

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.colour import srgb_decode_lut
+from .ratios import TOE_END
 from .result import HEADLINE, describe_figure
 
 FIGURE_SIZES = {"view-cone.png": (1600, 1300), "matrix.png": (1200, 1050), "uniformity.png": (1400, 900),
@@ -247,8 +248,6 @@ def _tone_light(curve: dict) -> np.ndarray:
 def _tone_curve(fig, curve: dict) -> dict:
     """The camera's tone curve (``photometry.tone_curve`` of ``crosstalk.json``), normalised to 1 at
     the white photo's median code: light against code (log), and its ratio to plain sRGB."""
-    from .ratios import TOE_END
-
     black, white = (int(v) for v in curve["code_range"])
     sigma, toe = float(curve["power_sigma"]), float(curve.get("toe_sigma", 0.0))
     codes = np.arange(256)
