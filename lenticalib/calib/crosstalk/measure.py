@@ -283,7 +283,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # photos were linearised with) and its toe (camera JPEGs with a measured curve: tone._toe_sigma)
     tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
                   else curve.sigma)
-    toe_sigma = 0.0 if curve is None or photos == "linear" else curve.toe_sigma
+    toe_sigma = 0.0 if curve is None else curve.toe_sigma  # no curve for linear photos
     variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0), "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0),
                   "tone-": (1.0, 1.0 - tone_sigma, 0.0), "tone+": (1.0, 1.0 + tone_sigma, 0.0)}
     if toe_sigma:

@@ -41,9 +41,10 @@ def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN
     height in the photo (0: none); ``power``, ``toe``: the photos relinearised (:func:`relinearised`)."""
     import cv2
 
+    black = relinearised(luma["black"], luma["white"], power, toe)  # once, not once per photo
+
     def corrected(name):
-        img = (relinearised(luma[name], luma["white"], power, toe)
-               - relinearised(luma["black"], luma["white"], power, toe))
+        img = relinearised(luma[name], luma["white"], power, toe) - black
         return photometry.remove_glare(img.astype(np.float32), glare)
 
     white = corrected("white")

@@ -129,7 +129,7 @@ class ToneCurve:
         black, white = self.code_range
         codes = np.arange(min(black + 2, white - 1), white + 1)
         apart = 0.5 * abs(_log_slope(np.asarray(other.table, np.float64), np.asarray(self.table, np.float64), codes))
-        share = min(1.0, self.sigma / max(other.sigma, 1e-12))
+        share = _other_share(self, other)
         return share if apart * share > self.sigma else 0.0
 
     def to_dict(self) -> dict:
@@ -443,8 +443,14 @@ def _toe_sigma(main: ToneCurve, other: ToneCurve, codes) -> float:
     first, last = int(codes[0]), int(codes[-1])
     a = float(main.table[first]) / max(float(main.table[last]), 1e-12)
     b = float(other.table[first]) / max(float(other.table[last]), 1e-12)
-    share = min(1.0, main.sigma / max(other.sigma, 1e-12)) if math.isfinite(main.sigma + other.sigma) else 1.0
+    share = _other_share(main, other) if math.isfinite(main.sigma + other.sigma) else 1.0
     return min(MAX_TOE_SIGMA, 0.5 * abs(math.log(max(b, 1e-12) / max(a, 1e-12))) * share)
+
+
+def _other_share(main: ToneCurve, other: ToneCurve) -> float:
+    """How much the ``other`` model's difference from the ``main`` one counts: ``min(1, sigma / other's
+    sigma)`` (a model far less sure of itself than the main one says little against it)."""
+    return min(1.0, main.sigma / max(other.sigma, 1e-12))
 
 
 def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest) -> ToneCurve:
