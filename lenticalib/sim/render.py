@@ -72,29 +72,29 @@ _PHI_TABLE = _phi_table()
 
 
 @njit(cache=True, inline="always")
-def _phi(t, table):
-    """Phi(t), the Gaussian CDF."""
+def _from_table(t, table, row):
+    """Row ``row`` of :func:`_phi_table` at ``t``, linear between entries; beyond the table's
+    ends, the row's limits (0 left; 1 for Phi and ``t`` for its integral right)."""
     f = (t + _PHI_RANGE) * _PHI_SCALE
     if f <= 0.0:
         return 0.0
     if f >= table.shape[1] - 1:
-        return 1.0
+        return 1.0 if row == 0 else t
     i = int(f)
     a = f - i
-    return table[0, i] + a * (table[0, i + 1] - table[0, i])
+    return table[row, i] + a * (table[row, i + 1] - table[row, i])
+
+
+@njit(cache=True, inline="always")
+def _phi(t, table):
+    """Phi(t), the Gaussian CDF."""
+    return _from_table(t, table, 0)
 
 
 @njit(cache=True, inline="always")
 def _phi_integral(t, table):
     """G(t) = integral of Phi up to t (t Phi(t) + phi(t)): 0 far left, t far right."""
-    f = (t + _PHI_RANGE) * _PHI_SCALE
-    if f <= 0.0:
-        return 0.0
-    if f >= table.shape[1] - 1:
-        return t
-    i = int(f)
-    a = f - i
-    return table[1, i] + a * (table[1, i + 1] - table[1, i])
+    return _from_table(t, table, 1)
 
 
 @njit(cache=True, inline="always")
