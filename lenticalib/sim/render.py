@@ -53,8 +53,6 @@ _PHI_RANGE = 7.0  # the Gaussian CDF table spans [-7, 7] sigma
 _PHI_SCALE = 512.0  # table entries per sigma
 SCATTER_BLOCK = 8  # panel pixels per cell of the scattered-light map
 ROW_BLOCK = 16  # sensor rows per parallel task (corner rays are shared between adjacent rows)
-
-
 EXACT_EXTENT = 0.02  # below this share of the blur's sigma a seen stretch's X-extent is a point
 
 

@@ -27,9 +27,10 @@ def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: 
     """``light`` (working pixels, linearised) as a tone curve that differs by ``power`` and by ``toe`` would
     have it: ``light ** power``, times ``1 + toe (1 - x / TOE_END)`` where ``x``, the light over ``white``'s
     at the same pixel, is below ``TOE_END`` (the curve's toe: whole at black, none from TOE_END up)."""
-    out = np.maximum(light, 0.0) ** power
+    positive = np.maximum(light, 0.0)
+    out = positive ** power
     if toe:
-        share = np.maximum(light, 0.0) / np.maximum(white, 1e-9)
+        share = positive / np.maximum(white, 1e-9)
         out = out * (1.0 + toe * np.clip(1.0 - share / TOE_END, 0.0, 1.0))
     return out
 
@@ -48,6 +49,10 @@ def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN
         return photometry.remove_glare(img.astype(np.float32), glare)
 
     white = corrected("white")
+
+    def over_white(name):
+        return corrected(name) / np.maximum(white, 1e-6)
+
     inner = cv2.erode(mask.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
     inner &= white > 0.2 * np.percentile(white[mask], 50)
     rows, cols = np.nonzero(inner)
@@ -57,8 +62,8 @@ def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN
     if column_average:
         r0, r1, _, _ = bounding_box(mask)
         sigma, angle = column_average * (r1 - r0), cone.column_angle(mask)
-        ratios = np.stack([cone.average_along_columns(corrected(p.name) / np.maximum(white, 1e-6), inner, sigma,
-                                                      angle)[rows, cols] for p in bands], axis=1)
+        ratios = np.stack([cone.average_along_columns(over_white(p.name), inner, sigma, angle)[rows, cols]
+                           for p in bands], axis=1)
     else:
-        ratios = np.stack([(corrected(p.name) / np.maximum(white, 1e-6))[rows, cols] for p in bands], axis=1)
+        ratios = np.stack([over_white(p.name)[rows, cols] for p in bands], axis=1)
     return ratios.astype(np.float64), rows, cols, white
