@@ -172,9 +172,10 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
         pos = c_lo - 3 * px
         lo = c_lo + half_bmh - xm
         for _ in range(c_lo, c_hi + 1):
-            cov = _coverage(lo, open_w, ext, s, table)
             c = chan_of_pos[pos]
-            acc[c] += wr * cov * lut[raster[r, px, c]]
+            value = lut[raster[r, px, c]]
+            if value != 0.0:  # a dark subpixel adds nothing: its coverage is not needed
+                acc[c] += wr * _coverage(lo, open_w, ext, s, table) * value
             lo += 1.0
             pos += 1
             if pos == 3:
@@ -219,6 +220,9 @@ def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, bi
         for q in range(q_lo, q_hi + 1):
             px = q // 3
             c = q - 3 * px
+            value = lut[raster[r, px, c]]
+            if value == 0.0:  # a dark subpixel adds nothing
+                continue
             col = 3 * (px % scols) + c
             dy = shifts[1, srow, col]
             a0 = max(y0, r + dy + 0.5 * bmv)
@@ -229,7 +233,7 @@ def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, bi
             xm = sx + (0.5 * (a0 + a1) - sy) * slope
             cov = _coverage(q + shifts[0, srow, col] + half_bmh - xm, open_w, abs(seg * slope), s, table)
             if cov > 0.0:
-                acc[c] += seg / h_y * cov * lut[raster[r, px, c]]
+                acc[c] += seg / h_y * cov * value
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
