@@ -770,7 +770,16 @@ def test_blurred_photos_never_give_a_silent_profile(case, mutate, culprit, tmp_p
 
 @pytest.mark.slow
 def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
+    """The gate trips on the real fit (its limit lowered); ``--force`` is then judged on that same
+    untrusted result, handed to the second run instead of fitting the set again."""
     monkeypatch.setattr(fit_module, "MAX_PREDICTED_ERROR", 1e-9)
+    real, results = fit_module.fit_capture_set, []
+
+    def fitted_once(*args, **kwargs):
+        results.append(results[0] if results else real(*args, **kwargs))
+        return results[-1]
+
+    monkeypatch.setattr(fit_module, "fit_capture_set", fitted_once)
     out = tmp_path / "out"
     out.mkdir()
     profile_path = out / "profile.json"
@@ -785,6 +794,7 @@ def test_untrustworthy_fit_needs_force(demo_fit, tmp_path, cli, monkeypatch):
 
     code, _, err = cli("fit", demo_fit.directory, "-o", profile_path, "--force")
     assert code == 0, err
+    assert len(results) == 2 and results[0].trusted is False
     assert "not trustworthy" in err and "lenticalib: error" not in err
     profile = load_profile(profile_path)
     assert profile == demo_fit.result.profile  # the same fit, only the gate differs
