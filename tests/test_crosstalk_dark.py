@@ -120,3 +120,26 @@ def test_a_black_that_is_0_without_noise_is_not_taken_for_clipped_noise(blur):
         light = cv2.GaussianBlur(light, (0, 0), blur)
     black = np.round(np.repeat(light[..., None], 3, axis=2) * 65535.0) / np.float32(65535.0)
     assert dark.clipping_noise(black, black == 0) is None
+
+
+def test_a_photo_unclipped_with_too_small_a_sigma_is_restored_by_reclipping_with_the_right_one():
+    """What the measurement's dark-clipping uncertainty computes (measure: a JPEG's sigma read too
+    small): light unclipped with sigma, clipped again and unclipped with 2 sigma, is the light a
+    camera of 2 sigma clipped; scale 1 and places far above the noise are left as they are."""
+    from scipy.stats import norm
+
+    sigma, true_sigma = 0.003, 0.006
+    light = np.linspace(-0.5, 6.0, 200) * true_sigma  # per channel
+    t = light / true_sigma
+    clipped = true_sigma * (t * norm.cdf(t) + norm.pdf(t))  # the mean of the clipped pixels
+    table_t = np.linspace(dark.LOWEST, dark.REACH + 1.0, 4001)
+    table = table_t * norm.cdf(table_t) + norm.pdf(table_t)
+    u = clipped / sigma  # unclipped with the smaller sigma, as dark.unclip would
+    too_small = np.where(u < table[-1], sigma * np.interp(u, table, table_t), clipped)
+    assert np.abs(too_small - light)[light < 2 * true_sigma].max() > 0.3 * sigma  # the error to undo
+    restored = dark.reclipped(3 * too_small, sigma, true_sigma / sigma) / 3
+    inside = light > dark.LOWEST * sigma  # what the smaller sigma could still tell apart
+    np.testing.assert_allclose(restored[inside], light[inside], atol=2e-3 * sigma)
+    np.testing.assert_array_equal(dark.reclipped(3 * too_small, sigma, 1.0), 3 * too_small)
+    far = np.array([0.2, 0.5])
+    np.testing.assert_array_equal(dark.reclipped(far, sigma, 2.0), far)

@@ -24,7 +24,10 @@ small, and the far views' light came out 0.028 of white where the truth was 0.03
 sensor's layout is found on the black photo (the Bayer layout whose red and blue phases stand out
 in their channels' share of pixels at 0, :func:`filter_sites`), sigma is measured on each
 channel's own sites, and the areas' light is taken from their means alone; a camera's JPEG shows
-no such phases, and all of its pixels are used.
+no such phases, and all of its pixels are used.  Its sigma is then too small (each pixel is
+interpolated from several clipped sites, fewer sit at 0: 0.4-0.7 of the raw photo's on the
+bench's phone cameras), and the measurement states what a larger one would change
+(:func:`reclipped`).
 
 :func:`clipping_noise` measures ``sigma`` per channel on the black photo (blocks where 2-98 % of
 the pixels at the channel's sites are at 0: their share at 0 and their mean fix both the light
@@ -190,3 +193,22 @@ def unclip(image: np.ndarray, noise: ClippingNoise) -> np.ndarray:
         m = site_mean[near] / s
         plane[near] += (s * np.interp(m, table, t) - mean[near]).astype(np.float32)
     return out
+
+
+def reclipped(light: np.ndarray, sigma: float, scale: float, channels: int = 3) -> np.ndarray:
+    """``light`` (working pixels: the sum of ``channels`` channels, each unclipped with noise ``sigma``
+    by :func:`unclip`) as it would have come out unclipped with ``scale`` times that sigma: each
+    channel taken as ``light / channels``, clipped again (``f`` at ``sigma``) and unclipped at
+    ``scale sigma``.  Places above ``REACH`` sigma are unchanged.  How the measurement states what
+    a JPEG's noise sigma leaves open (``measure``: its interpolated pixels read a smaller sigma)."""
+    if not (sigma > 0 and scale > 0) or scale == 1.0:
+        return light
+    t = np.linspace(LOWEST, REACH + 1.0, 2001)
+    table = _clipped_mean(t)
+    x = np.asarray(light, np.float64) / channels
+    clipped = sigma * _clipped_mean(np.clip(x / sigma, LOWEST, None))
+    u = clipped / (scale * sigma)
+    wider = np.where(u < table[-1], scale * sigma * np.interp(u, table, t), clipped)  # f(t) = t far above 0
+    near = x < REACH * max(sigma, scale * sigma)
+    return np.where(near, channels * wider, light).astype(np.asarray(light).dtype)
+

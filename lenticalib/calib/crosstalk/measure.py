@@ -19,7 +19,9 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    ``d`` the measured curve's own 1-sigma for camera JPEGs, 0.05 where it could not be measured
    (cameras are sRGB only to about +-8 %); 0.005 for linear photos), the light of the codes just
    above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
-   ``ratios.TOE_END`` of white's light) and the dark floor every entry sits on.
+   ``ratios.TOE_END`` of white's light), a camera JPEG's noise sigma where the sensor clips it at
+   black (read too small on interpolated pixels: the photos as unclipped with ``CLIP_SCALE`` times
+   it, :func:`.dark.reclipped`) and the dark floor every entry sits on.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ LINEAR_TONE_SIGMA = 0.005  # the same for linear photos (sensor non-linearity)
 PHOTO_MODES = ("srgb", "linear")
 FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
 FLOOR_GLARE_SHARE = 0.2  # ... plus this share of the glare fraction, spread over the N views
+CLIP_SCALE = 2.5  # the dark clipping's sigma read on a JPEG's pixels is up to this much too small (_interpolated_clip_sigma)
 
 
 @dataclasses.dataclass
@@ -284,14 +287,20 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
                   else curve.sigma)
     toe_sigma = 0.0 if curve is None else curve.toe_sigma  # no curve for linear photos
-    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0), "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0),
-                  "tone-": (1.0, 1.0 - tone_sigma, 0.0), "tone+": (1.0, 1.0 + tone_sigma, 0.0)}
+    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, None),
+                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, None),
+                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, None), "tone+": (1.0, 1.0 + tone_sigma, 0.0, None)}
     if toe_sigma:
-        variations.update({"toe-": (1.0, 1.0, -toe_sigma), "toe+": (1.0, 1.0, toe_sigma)})
-    perturbed = {}
-    for label, (g_scale, p, t) in variations.items():
+        variations.update({"toe-": (1.0, 1.0, -toe_sigma, None), "toe+": (1.0, 1.0, toe_sigma, None)})
+    clip_sigma = _interpolated_clip_sigma(noise)
+    if clip_sigma:
+        # the noise sigma read on pixels that are not the sensor's own (a camera JPEG) is a lower
+        # bound: half the change of the row with CLIP_SCALE times it is its 1-sigma (dark.reclipped)
+        variations["clip+"] = (1.0, 1.0, 0.0, (clip_sigma, CLIP_SCALE))
+    perturbed = {"clip-": (row, cone_values, counts)} if clip_sigma else {}  # the main pass: as unclipped
+    for label, (g_scale, p, t, clip) in variations.items():
         g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
-        r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t)
+        r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
 
@@ -301,7 +310,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
             return np.zeros_like(row if part == 0 else cone_values)
         return (perturbed[f"{name}+"][part] - perturbed[f"{name}-"][part]) / 2
 
-    glare_sigma, tone_sig, toe_sig = (np.abs(half_change(name, 0)) for name in ("glare", "tone", "toe"))
+    glare_sigma, tone_sig, toe_sig, clip_sig = (np.abs(half_change(name, 0)) for name in ("glare", "tone", "toe", "clip"))
     # the sweep model: its local error (tile by tile) smears the cone by eps^2 / 2 h''; and how the
     # row changes with the whole-panel model instead
     offsets = cone.local_offsets(fit, ratios[centre], rr, cc, band_shifts)
@@ -315,10 +324,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     model_sigma = np.sqrt((0.5 * eps2 * curvature) ** 2 + (row - panel_row) ** 2)
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
     floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
-    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + floor_sigma ** 2
-                        + model_sigma ** 2)
+    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + clip_sig ** 2
+                        + floor_sigma ** 2 + model_sigma ** 2)
     cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
-                         + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe")))
+                         + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "clip")))
     samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()}}
     # uniformity map: own-view share per region
     cols_n, rows_n = REGION_GRID
@@ -339,7 +348,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
             regions[j, i] = own
             regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
                                             + glare_sigma[0] ** 2 + tone_sig[0] ** 2 + toe_sig[0] ** 2
-                                            + model_sigma[0] ** 2)
+                                            + clip_sig[0] ** 2 + model_sigma[0] ** 2)
     photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
                          "tone_curve": None if curve is None else curve.to_dict(),
                          "tone_power_sigma": round(tone_sigma, 4), "tone_toe_sigma": round(toe_sigma, 4),
@@ -353,7 +362,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
-                   "sigma_tone_toe": toe_sig,
+                   "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2)}
     delta = np.full(mask.shape, np.nan)
@@ -364,6 +373,19 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     return Measurement(n, row, row_sigma, fit.grid.copy(), cone_values, cone_sigma, regions, regions_sigma, samples,
                        photometry_record, diagnostics, warnings, capture.inputs, profile, pattern_set,
                        time.perf_counter() - start, images)
+
+
+def _interpolated_clip_sigma(noise) -> float:
+    """The mean noise sigma of the channels (linear light, per channel) where the photos were
+    unclipped (:mod:`.dark`) with a sigma read on every pixel, no sensor sites found (a camera
+    JPEG: demosaicing and compression average a pixel over several sensor sites, so fewer of
+    its pixels sit at 0 than of the sensor's and the sigma read is too small: on the bench's
+    phone JPEGs 0.4-0.7 of the raw photos' sigma); 0 where none was needed or the sites were found."""
+    from .dark import ALL_PHASES
+
+    if noise is None or any(tuple(sites) != ALL_PHASES for sites in noise.sites):
+        return 0.0
+    return float(np.mean(noise.sigma))
 
 
 def _robust_spread(values: np.ndarray) -> np.ndarray:

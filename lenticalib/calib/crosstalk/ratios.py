@@ -35,17 +35,25 @@ def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: 
     return out
 
 
-def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE, toe=0.0):
+def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE, toe=0.0, clip=None):
     """(float64 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask.
 
     ``column_average``: sigma of the average along the panel's columns, as a share of the panel's
-    height in the photo (0: none); ``power``, ``toe``: the photos relinearised (:func:`relinearised`)."""
+    height in the photo (0: none); ``power``, ``toe``: the photos relinearised (:func:`relinearised`);
+    ``clip`` (sigma, scale): the photos as unclipped with ``scale`` times the noise sigma they were
+    unclipped with (:func:`.dark.reclipped`; None: as they are)."""
     import cv2
 
-    black = relinearised(luma["black"], luma["white"], power, toe)  # once, not once per photo
+    from .dark import reclipped
+
+    def linear(name):
+        light = luma[name] if clip is None else reclipped(luma[name], *clip)
+        return relinearised(light, luma["white"], power, toe)
+
+    black = linear("black")  # once, not once per photo
 
     def corrected(name):
-        img = relinearised(luma[name], luma["white"], power, toe) - black
+        img = linear(name) - black
         return photometry.remove_glare(img.astype(np.float32), glare)
 
     white = corrected("white")
