@@ -26,6 +26,7 @@ from .display_support import SCREEN
 W, H = SCREEN  # the panel is the xvfb fixture's screen
 VIEWS = 8
 CAMERA = "1200x900"
+RAYS = 1  # rays per pixel side of the virtual camera: the fit reads fringe phases over the whole panel
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +42,7 @@ def captured(xvfb, pattern_dir, tmp_path_factory):
     folder = tmp_path_factory.mktemp("capture") / "cal"
     shutil.copytree(pattern_dir, folder)
     result = run_process("capture", folder, "--camera", "sim:3", "--display", "0", "--resolution", CAMERA,
-                         env=xvfb.variables())
+                         "--subsamples", str(RAYS), env=xvfb.variables())
     assert result.returncode == 0, result.stderr
     fit = run_main("fit", folder, "-o", folder.parent / "profile.json")  # the fit needs no process of its own
     return folder, result, fit
@@ -69,14 +70,13 @@ def test_the_virtual_camera_photographs_what_the_screen_showed(captured):
     presenter put the patterns on screen unchanged.  (``simulate`` itself: tests/test_sim.py.)"""
     from lenticalib.core.imageio import read_image
     from lenticalib.sim.capture import photograph_pattern
-    from lenticalib.sim.capture_camera import DEFAULT_SUBSAMPLES
     from lenticalib.sim.scene import Scene, random_scene
 
     folder, _, _ = captured
     scene = Scene.from_dict(json.loads((folder / "simulation.json").read_text()))
     width, height = (int(v) for v in CAMERA.split("x"))
     assert scene.to_dict() == random_scene(3, width=W, height=H, resolution=(width, height),
-                                           subsamples=DEFAULT_SUBSAMPLES).to_dict()
+                                           subsamples=RAYS).to_dict()  # as --subsamples said
     for name in ("x1-0", "f16-2", "order-b"):
         raster = read_image(folder / f"{name}.png")
         assert photograph_pattern(scene, name, raster) == (folder / "captures" / f"{name}.jpg").read_bytes(), name
@@ -90,7 +90,8 @@ def test_an_interrupted_capture_resumes_where_it_stopped(captured, tmp_path, cli
     for name in ("y1-2", "f22-0", "order-r"):
         (again / "captures" / f"{name}.jpg").unlink()
     before = {p.name: p.read_bytes() for p in (again / "captures").iterdir()}
-    result = cli_process("capture", again, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
+    result = cli_process("capture", again, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA,
+                         "--subsamples", str(RAYS))
     assert result.returncode == 0, result.stderr
     assert "captured 3 photo(s), kept 20 from before" in result.stdout
     for name, data in before.items():
@@ -164,6 +165,9 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_proce
         (["capture", foreign, "--camera", "sim", "--display", "none"], None, "holds files that are not photos"),
         (["capture", big, "--camera", "sim", "--display", "0"], xvfb.variables(), "is 640x360"),
         (["capture", folder, "--camera", "sim", "--settle", "-1"], None, "--settle"),
+        (["capture", folder, "--camera", "sim", "--subsamples", "0"], None, "--subsamples: 0 is out of range"),
+        (["capture", folder, "--camera", "opencv:0", "--subsamples", "1"], None,
+         "--subsamples: applies only to --camera sim"),
         # the library names its argument (camera, display); the command says its flags
         (["capture", folder, "--camera", "polaroid"], None, "(e.g. --camera opencv:0)"),
         (["capture", folder, "--camera", "sim:x"], None, "--camera: bad seed 'x'"),
@@ -189,7 +193,8 @@ def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp
     assert code == 0, err
     xt = tmp_path / "xt"
     assert cli("crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt)[0] == 0
-    result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA)
+    result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA,
+                         "--subsamples", str(RAYS))
     assert result.returncode == 0, result.stderr
     names = sorted(p.stem for p in (xt / "captures").iterdir())
     assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)]

@@ -31,10 +31,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="sim camera resolution (default the same as 'lenticalib simulate': 4000x3000)")
     parser.add_argument("--conditions", choices=("standard", "hard"), default="standard",
                         help="sim camera behaviour (hard: phone-like tone curve, exposure drift, shake, noise)")
+    parser.add_argument("--subsamples", type=int, metavar="K",
+                        help="sim camera: rays per sensor pixel side, K x K per pixel, 1..16 (default 3; 1 is about "
+                             "five times faster and only aliases more)")
     parser.add_argument("--layout", metavar="NAME|FILE",
                         help="sim panel's subpixel layout: RGB, BGR, lkg-columns, lkg-checker, lkg-rows4 or a JSON "
                              "layout file (default: the seed's RGB or BGR stripe)")
-    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout"})  # library names -> flags
+    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout",
+                                        "subsamples": "--subsamples"})  # library names -> flags
 
 
 def run(args: argparse.Namespace) -> int:
@@ -52,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.settle} seconds is out of range", source="--settle", hint="use 0..60")
     if not 0 <= args.retakes <= 20:
         raise InputError(f"{args.retakes} is out of range", source="--retakes", hint="use 0..20")
+    if args.subsamples is not None and not 1 <= args.subsamples <= 16:
+        raise InputError(f"{args.subsamples} is out of range", source="--subsamples", hint="use 1..16")
     directory = Path(args.directory)
     pattern_set = read_pattern_folder(directory)
     size = (pattern_set.width, pattern_set.height)
@@ -64,9 +70,14 @@ def run(args: argparse.Namespace) -> int:
                        conditions=args.conditions)
         if args.layout is not None:
             options["layout"] = args.layout
+        if args.subsamples is not None:
+            options["subsamples"] = args.subsamples
     elif args.layout is not None:
         raise InputError("applies only to --camera sim", source="--layout",
                          hint="a real panel's layout is what it is; drop --layout")
+    elif args.subsamples is not None:
+        raise InputError("applies only to --camera sim", source="--subsamples",
+                         hint="a real camera takes one photo per pattern; drop --subsamples")
     if kind == "manual" and ":" not in args.camera:
         options["wait_for_user"] = lambda name: wait_for_key(presenter, name)
     camera = make_camera(args.camera, **options)  # the spec and options checked; no hardware touched yet
