@@ -32,9 +32,9 @@ Two models:
 - ``power``: ``L(c) = D(c) ** p``, ``D`` the sRGB decoding of the 8-bit code ``c``, ``p`` from the
   half relation alone; in sets drawn before the levels each half photo has its own exposure;
 - ``curve`` (sets with the level patterns, where the photos show a camera curve that bends: a
-  phone's S-curve): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``, ``B_j`` hat functions on knots
-  every ``KNOT`` codes (zero at code 256: the scale), fitted by linear least squares to the half
-  and level relations with a small second-difference penalty.
+  phone's S-curve): ``L(c) = D(c) (1 + sum_j theta_j B_j(c))``, ``B_j`` hat functions on the
+  knots ``KNOTS`` (finer near black; the last one's hat is zero at code 256: the scale), fitted by
+  linear least squares to the half and level relations with a small second-difference penalty.
 
 Which one, or a blend of both, is :mod:`.tone_choice`'s call: the result carries the other model
 and its weight (``alternative``), which :func:`lenticalib.calib.crosstalk.measure.measure_crosstalk`
@@ -62,7 +62,9 @@ from .tone_choice import curve_weight
 PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
 TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 wide
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
-KNOT = 16  # codes between the knots of the curve model
+KNOTS = (0, 2, 4, 6, 8, 10, 12, 14, 16, 20, 24, 32) + tuple(range(48, 256, 16))  # the curve model's knots (codes): finer at the toe, where an
+# S-curve bends most and the half photos' dark parts are its only data (bench hard case 11: its codes 1-15
+# above black 16-20 % too dark with knots every 16)
 SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
@@ -134,7 +136,7 @@ class ToneCurve:
 
     def to_dict(self) -> dict:
         data = {"model": "sRGB decoding ** power" if self.model == "power" else
-                f"sRGB decoding x piecewise-linear factor (knots every {KNOT} codes)",
+                f"sRGB decoding x piecewise-linear factor (knots at codes {', '.join(map(str, KNOTS))})",
                 "power_sigma": round(self.sigma, 4), "toe_sigma": round(self.toe_sigma, 4), "code_range": list(self.code_range), "half_residual": round(self.residual, 4), "tiles": self.tiles,
                 "strips": [round(v, 4) for v in self.strips],
                 "relations": "half and level photos" if self.levels else "half photos (exposures free)"}
@@ -221,10 +223,12 @@ def _best_power(hist) -> tuple[float, float]:
 
 
 def _basis() -> np.ndarray:
-    """float64 (256, 16): the sRGB decoding times hat functions on the knots 0, 16, ... 240."""
-    codes = np.arange(256)[:, None]
-    knots = np.arange(0, 256, KNOT)[None, :]
-    return srgb_decode_lut()[:, None] * np.maximum(0.0, 1.0 - np.abs(codes - knots) / KNOT)
+    """float64 (256, len(KNOTS)): the sRGB decoding times hat functions on ``KNOTS`` (each rises from
+    the knot before and falls to the knot after; the last one falls to 0 at code 256)."""
+    codes = np.arange(256, dtype=np.float64)
+    knots = np.asarray(KNOTS + (256,), np.float64)
+    hats = np.stack([np.interp(codes, knots, np.eye(knots.size)[j]) for j in range(len(KNOTS))], axis=1)
+    return srgb_decode_lut()[:, None] * hats
 
 
 def _relations(hist, mixed, levels=LEVELS) -> list:
