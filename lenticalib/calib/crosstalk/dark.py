@@ -93,6 +93,13 @@ def _clipped_mean(t: np.ndarray) -> np.ndarray:
     return t * norm.cdf(t) + norm.pdf(t)
 
 
+def _inverse_table() -> tuple[np.ndarray, np.ndarray]:
+    """(t, f(t)) on ``LOWEST .. REACH + 1`` sigmas, ``f`` increasing: ``np.interp(m, f, t)`` is the
+    light (in sigmas) whose clipped mean is ``m``."""
+    t = np.linspace(LOWEST, REACH + 1.0, 2001)
+    return t, _clipped_mean(t)
+
+
 def filter_sites(zero: np.ndarray) -> tuple[tuple[tuple[int, int], ...], ...]:
     """Per channel, the 2 x 2 phases ``(row % 2, column % 2)`` of a photo's pixels at 0 (``zero``:
     bool (h, w, 3)) that hold a Bayer sensor's own values.  Of the four Bayer layouts (red at one
@@ -172,8 +179,7 @@ def unclip(image: np.ndarray, noise: ClippingNoise) -> np.ndarray:
     than ``REACH`` sigma unchanged."""
     import cv2
 
-    t = np.linspace(LOWEST, REACH + 1.0, 2001)
-    table = _clipped_mean(t)  # increasing
+    t, table = _inverse_table()
     out = image.astype(np.float32, copy=True)
     h, w = image.shape[:2]
     for k in range(image.shape[2]):
@@ -203,12 +209,10 @@ def reclipped(light: np.ndarray, sigma: float, scale: float, channels: int = 3) 
     a JPEG's noise sigma leaves open (``measure``: its interpolated pixels read a smaller sigma)."""
     if not (sigma > 0 and scale > 0) or scale == 1.0:
         return light
-    t = np.linspace(LOWEST, REACH + 1.0, 2001)
-    table = _clipped_mean(t)
+    t, table = _inverse_table()
     x = np.asarray(light, np.float64) / channels
     clipped = sigma * _clipped_mean(np.clip(x / sigma, LOWEST, None))
     u = clipped / (scale * sigma)
     wider = np.where(u < table[-1], scale * sigma * np.interp(u, table, t), clipped)  # f(t) = t far above 0
     near = x < REACH * max(sigma, scale * sigma)
     return np.where(near, channels * wider, light).astype(np.asarray(light).dtype)
-

@@ -62,9 +62,10 @@ from .tone_choice import curve_weight
 PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
 TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 wide
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
-KNOTS = (0, 2, 4, 6, 8, 10, 12, 14, 16, 20, 24, 32) + tuple(range(48, 256, 16))  # the curve model's knots (codes): finer at the toe, where an
-# S-curve bends most and the half photos' dark parts are its only data (bench hard case 11: its codes 1-15
-# above black 16-20 % too dark with knots every 16)
+# the curve model's knots (codes): finer at the toe, where an S-curve bends most and the half photos'
+# dark tiles are its only data (bench hard case 11: its codes 1-15 above black 16-20 % too dark with
+# knots every 16, the mid-tones' bend carried into the toe by the smoothing)
+KNOTS = (0, 2, 4, 6, 8, 10, 12, 14, 16, 20, 24, 32) + tuple(range(48, 256, 16))
 SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
