@@ -165,7 +165,7 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_proce
         (["capture", foreign, "--camera", "sim", "--display", "none"], None, "holds files that are not photos"),
         (["capture", big, "--camera", "sim", "--display", "0"], xvfb.variables(), "is 640x360"),
         (["capture", folder, "--camera", "sim", "--settle", "-1"], None, "--settle"),
-        (["capture", folder, "--camera", "sim", "--subsamples", "0"], None, "--subsamples: 0 is out of range"),
+        (["capture", folder, "--camera", "sim", "--subsamples", "0"], None, "--camera sim: option 'subsamples' must be 1..16, got 0"),
         (["capture", folder, "--camera", "opencv:0", "--subsamples", "1"], None,
          "--subsamples: applies only to --camera sim"),
         # the library names its argument (camera, display); the command says its flags

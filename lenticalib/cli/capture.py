@@ -37,8 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--layout", metavar="NAME|FILE",
                         help="sim panel's subpixel layout: RGB, BGR, lkg-columns, lkg-checker, lkg-rows4 or a JSON "
                              "layout file (default: the seed's RGB or BGR stripe)")
-    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout",
-                                        "subsamples": "--subsamples"})  # library names -> flags
+    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout"})  # library names -> flags
 
 
 def run(args: argparse.Namespace) -> int:
@@ -56,8 +55,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.settle} seconds is out of range", source="--settle", hint="use 0..60")
     if not 0 <= args.retakes <= 20:
         raise InputError(f"{args.retakes} is out of range", source="--retakes", hint="use 0..20")
-    if args.subsamples is not None and not 1 <= args.subsamples <= 16:
-        raise InputError(f"{args.subsamples} is out of range", source="--subsamples", hint="use 1..16")
     directory = Path(args.directory)
     pattern_set = read_pattern_folder(directory)
     size = (pattern_set.width, pattern_set.height)
