@@ -72,7 +72,7 @@ def _compare(visual, n, profile=None):
 
 
 def test_portrait_constants():
-    profile = lkg.profile_from_visual(lkg._normalize(PORTRAIT, "PORTRAIT"), 45)
+    profile = lkg.profile_from_visual(lkg.normalize_visual(PORTRAIT, "PORTRAIT"), 45)
     assert abs(profile.period - 18.668) < 0.002
     assert profile.slant < 0
     assert abs(abs(profile.slant) - 0.1380) < 0.0002
@@ -131,7 +131,7 @@ def test_flip_subp_gives_bgr_and_same_positions():
 
 def test_golden_model_gives_n_on_exact_tie():
     w, h, n = 64, 32, 8
-    v = lkg._normalize(dict(PORTRAIT, screenW={"value": w}, screenH={"value": h}), "t")
+    v = lkg.normalize_visual(dict(PORTRAIT, screenW={"value": w}, screenH={"value": h}), "t")
     p = v["pitch"] * w / v["DPI"] * math.cos(math.atan(1.0 / v["slope"]))
     tilt = h / (w * v["slope"])
     # make the phase of pixel (0, bottom row), position 0 exactly 0

@@ -35,10 +35,13 @@ Helpers (not commands)
 :func:`build_parser` imports every subcommand module to build the full parser (their
 ``add_arguments``); those modules import numpy, OpenCV, numba and the library layers only inside
 their run functions, so building the parser loads no third-party library and, of the library,
-only ``core.errors``: ``--help`` is instant.  Every
+only ``core.errors`` and ``core.terminal_text``: ``--help`` is instant.  Every
 :class:`~lenticalib.core.errors.LenticalibError` ends as one line on stderr and exit status 2,
 told in the command's flags: a subcommand's parser may set a default ``flags`` (the library's
-argument names -> its flags, :mod:`._flags`).
+argument names -> its flags, :mod:`._flags`), its control characters escaped and a long line cut
+(:func:`~lenticalib.core.terminal_text.safe_line`: messages quote files and devices).  Text from
+outside that a command prints (a serial, a field, a name a device reports) goes through
+:func:`~lenticalib.core.terminal_text.terminal_safe` too.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ import sys
 
 from .. import __version__
 from ..core.errors import LenticalibError
+from ..core.terminal_text import safe_line
 from ._flags import with_flags
 
 _COMMANDS = {
@@ -94,7 +98,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.run(args) or 0)
     except LenticalibError as exc:
-        print(f"lenticalib: error: {with_flags(exc, getattr(args, 'flags', None) or {})}", file=sys.stderr)
+        # messages quote files and devices: escaped and cut here, for every error (core.terminal_text)
+        print(f"lenticalib: error: {safe_line(with_flags(exc, getattr(args, 'flags', None) or {}))}",
+              file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. head: not an error of ours
         import os

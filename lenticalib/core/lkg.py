@@ -64,10 +64,11 @@ from .errors import ProfileError
 from .fields import is_finite_number
 from .layout import LKG_CELL_PATTERNS, SubpixelLayout, mode_for_pattern, pattern_for_mode
 from .lkg_file import (CELL_KEYS, DEFAULT_SOURCE, FLAG_FIELDS, NUMERIC_FIELDS, REQUIRED_FIELDS, ROUTING_FIELDS,
-                       _normalize, read_visual_json)
+                       normalize_visual, read_visual_json)
 from .profile import MAX_VIEWS, PanelProfile, make_provenance
 
 __all__ = ["CELL_KEYS", "FLAG_FIELDS", "NUMERIC_FIELDS", "REQUIRED_FIELDS", "ROUTING_FIELDS", "read_visual_json",
+           "normalize_visual",
            "routing_constants", "profile_from_visual", "import_visual_json", "visual_from_profile",
            "export_visual_json", "import_assumptions", "layout_of_visual", "has_cells"]
 
@@ -105,7 +106,7 @@ def routing_constants(visual: Mapping[str, Any], source: str = DEFAULT_SOURCE) -
     SubpixelLayout | None, "views_reversed": bool, "flip_image_x": bool, "flip_image_y": bool}``.
     ``visual`` may be wrapped or plain.
     """
-    v = _normalize(visual, source)
+    v = normalize_visual(visual, source)
     slope, pitch, dpi, center, height = v["slope"], v["pitch"], v["DPI"], v["center"], v["screenH"]
     flip_x = v.get("flipImageX", 0.0) == 1.0
     sigma = -1.0 if flip_x else 1.0
@@ -178,7 +179,7 @@ def profile_from_visual(visual: Mapping[str, Any], views: int, source: str = DEF
     if not isinstance(views, int) or isinstance(views, bool) or not 2 <= views <= MAX_VIEWS:
         raise ProfileError(f"views: must be a whole number between 2 and {MAX_VIEWS}, got {views!r}",
                            source=source, hint="give the number of views of the quilts (45 or 48 on a Portrait)")
-    v = _normalize(visual, source)
+    v = normalize_visual(visual, source)
     routing = routing_constants(v, source)
     direction = -1 if routing["views_reversed"] else 1
     extras = {k: val for k, val in v.items() if k not in ROUTING_FIELDS}

@@ -21,7 +21,7 @@ from typing import Any, Mapping
 from ...core.documents import json_from_bytes
 from ...core.errors import DeviceDisconnectedError, DeviceProtocolError, InputError, \
     LenticalibError
-from ...core.lkg import profile_from_visual
+from ...core.lkg import normalize_visual, profile_from_visual
 from ...core.profile import PanelProfile
 from ..transports.base import Link, reason
 from ..url import DeviceURL
@@ -40,7 +40,10 @@ class LookingGlassCalibration:
     ``usb_serial``: the serial number the unit reports on USB (None when it has none or it was
     read from a folder); ``visual``: the visual.json object as parsed (values still wrapped as
     ``{"value": x}``); ``size``: its length in bytes; ``sha256``: of its bytes; ``path``: the
-    file it was read from (a drive), else None; ``read``: when it was read (ISO 8601 UTC).
+    file it was read from (a drive), else None; ``read``: when it was read (ISO 8601 UTC);
+    ``fields``: ``visual`` unwrapped and checked (:func:`~lenticalib.core.lkg.normalize_visual`:
+    numbers as float, ``screenW``/``screenH`` as int, ``serial``/``configVersion`` as str), what
+    :meth:`field` returns, or None for a calibration made by hand (then ``visual`` unwrapped).
     """
 
     url: str
@@ -51,8 +54,11 @@ class LookingGlassCalibration:
     sha256: str
     path: str | None
     read: str
+    fields: Mapping[str, Any] | None = None
 
     def _field(self, key: str) -> Any:
+        if self.fields is not None:
+            return self.fields.get(key)
         value = self.visual.get(key)
         return value["value"] if isinstance(value, dict) and set(value) == {"value"} else value
 
@@ -103,7 +109,9 @@ class LookingGlassUnit(Link):
 
     def read_calibration(self) -> LookingGlassCalibration:
         """The unit's calibration, checked: at most :data:`MAX_CALIBRATION_BYTES`, UTF-8 JSON text
-        holding one object.  Each problem is one DeviceError line naming the URL."""
+        holding one object (each problem one DeviceError line naming the URL), and every field
+        (:func:`~lenticalib.core.lkg.normalize_visual`: one ProfileError line naming the URL and the
+        field), before anything of it is shown or used."""
         if not self.is_open:
             self.open()
         try:
@@ -114,10 +122,11 @@ class LookingGlassUnit(Link):
             raise DeviceDisconnectedError(f"reading the calibration failed: {reason(exc)}", source=str(self.url),
                                           hint="check the cable and read again") from None
         visual = parse_calibration(raw, str(self.url), self.retry_hint())
+        fields = normalize_visual(visual, str(self.url))
         read = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         return LookingGlassCalibration(str(self.url), self.kind, self.usb_serial, visual, len(raw),
                                        hashlib.sha256(raw).hexdigest(), None if path is None else os.fspath(path),
-                                       read)
+                                       read, fields)
 
     def open_hint(self) -> str:
         return "check the URL ('lenticalib device list' prints those of the units it finds)"
