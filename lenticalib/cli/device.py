@@ -6,6 +6,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..core.terminal_text import safe_line
+from ..core.terminal_text import terminal_safe as shown  # what units, drives and controllers report
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="device_command", metavar="ACTION")
@@ -53,12 +56,12 @@ def run_list(args) -> int:
         print(json.dumps({"devices": [dataclasses.asdict(d) for d in found], "notes": notes}, indent=2))
         return 0
     for d in found:
-        serial = f"  serial {d.serial}" if d.serial else ""
-        print(f"{d.url:<40} {d.family:<6} {d.description}{serial}")
+        serial = f"  serial {shown(d.serial)}" if d.serial else ""
+        print(f"{shown(d.url):<40} {shown(d.family):<6} {shown(d.description)}{serial}")
     if not found:
         print("no controllers or Looking Glass units found (start an emulated one with 'lenticalib emulate')")
     for note in notes:
-        print(f"note: {note}")
+        print(f"note: {safe_line(note)}")
     return 0
 
 
@@ -89,15 +92,15 @@ def run_info_looking_glass(args) -> int:
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
-    usb = (f", USB serial {calibration.usb_serial}"
+    usb = (f", USB serial {shown(calibration.usb_serial)}"
            if calibration.usb_serial and calibration.usb_serial != calibration.serial else "")
-    print(f"Looking Glass unit ({calibration.kind}), serial {calibration.serial or '?'}{usb}")
-    print(f"calibration version {calibration.config_version or '? (no configVersion)'}, "
+    print(f"Looking Glass unit ({calibration.kind}), serial {shown(calibration.serial or '?')}{usb}")
+    print(f"calibration version {shown(calibration.config_version or '? (no configVersion)')}, "
           f"visual.json of {calibration.size} bytes")
     cal = out["calibration"]
     if cal:
-        print(", ".join(f"{key} {value}" for key, value in cal.items()))
-    print(f"read it into a profile with 'lenticalib device read {args.url} -o profile.json --views N'")
+        print(", ".join(f"{key} {shown(value)}" for key, value in cal.items()))
+    print(f"read it into a profile with 'lenticalib device read {shown(args.url)} -o profile.json --views N'")
     return 0
 
 
@@ -128,10 +131,10 @@ def run_info(args) -> int:
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
-    print(f"{identity.model}, firmware {identity.firmware_version}, serial {identity.serial}")
+    print(f"{shown(identity.model)}, firmware {shown(identity.firmware_version)}, serial {shown(identity.serial)}")
     print(f"protocol v{identity.version}, record layout v{identity.layout_version}")
     if geometry is not None:
-        print(f"panel {geometry.describe()}")
+        print(f"panel {shown(geometry.describe())}")
     else:
         print(f"panel not reported (protocol {identity.version} firmware)")
     if current is None:
@@ -139,7 +142,7 @@ def run_info(args) -> int:
     else:
         r = out["record"]
         crc = r["crc32"] + ("" if current.crc_from_device else ", from the bytes read back")
-        print(f"record #{r['sequence']} in slot {r['slot']} (CRC-32 {crc}), written {r['written'] or '?'}: "
+        print(f"record #{r['sequence']} in slot {r['slot']} (CRC-32 {crc}), written {shown(r['written'] or '?')}: "
               f"{r['views']} views, slant {format_constant('slant', r['slant'])}, "
               f"period {format_constant('period', r['period'])}, offset {format_constant('offset', r['offset'])}, "
               f"i_ref {format_constant('reference_view', r['reference_view'])}, "
@@ -165,9 +168,9 @@ def run_read_looking_glass(args) -> int:
     for note in (profile.provenance or {}).get("assumptions", []):
         _warn(f"{args.url}: {note}")
     save_profile(profile, args.output)
-    print(f"read the Looking Glass calibration of {args.url} (serial {calibration.serial or '?'}, calibration "
-          f"version {calibration.config_version or '?'}) into {args.output}: {profile.views} views, "
-          f"{profile.width}x{profile.height} {profile.layout_name}")
+    print(f"read the Looking Glass calibration of {shown(args.url)} (serial {shown(calibration.serial or '?')}, "
+          f"calibration version {shown(calibration.config_version or '?')}) into {shown(args.output)}: "
+          f"{profile.views} views, {profile.width}x{profile.height} {profile.layout_name}")
     return 0
 
 
@@ -196,7 +199,7 @@ def run_read(args) -> int:
 def _warn(line: str) -> None:
     import sys
 
-    print(f"lenticalib: warning: {line}", file=sys.stderr, flush=True)
+    print(f"lenticalib: warning: {safe_line(line)}", file=sys.stderr, flush=True)
 
 
 def run_flash(args) -> int:
@@ -234,7 +237,7 @@ def run_verify(args) -> int:
     if result.matches:
         print(f"{args.url} holds {args.profile} (record #{result.record.sequence})")
         return 0
-    print(f"{args.url} does not hold {args.profile}:")
+    print(f"{shown(args.url)} does not hold {shown(args.profile)}:")
     for line in result.differences:
-        print(f"  {line}")
+        print(f"  {safe_line(line)}")
     return 1

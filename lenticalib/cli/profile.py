@@ -6,6 +6,9 @@ import argparse
 import json
 import sys
 
+from ..core.terminal_text import safe_line
+from ..core.terminal_text import terminal_safe as shown  # text a profile or a visual.json holds
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="profile_command", metavar="ACTION")
@@ -98,7 +101,7 @@ def _print_profile(profile) -> None:
     if flags:
         print(f"{'routing':>15}  " + "; ".join(flags))
     how = (profile.provenance or {}).get("view_direction")
-    how = (f"; {how['method']}" + (f" on {how['set']}" if how.get("set") else "")
+    how = (f"; {shown(how['method'])}" + (f" on {shown(how['set'])}" if how.get("set") else "")
            if isinstance(how, dict) and how.get("method") and profile.view_direction is not None else "")
     print(f"{'view_direction':>15}  {describe_direction(profile.view_direction)}{how}")
     phys = profile.physical or {}
@@ -106,10 +109,10 @@ def _print_profile(profile) -> None:
         parts = [f"{k} {v:g}" for k, v in phys.items() if isinstance(v, float)]
         if phys.get("eye_mm"):
             parts.append("eye_mm [" + ", ".join(f"{v:.1f}" for v in phys["eye_mm"]) + "]")
-        print(f"{'physical':>15}  " + ", ".join(parts) + (f" ({phys['source']})" if phys.get("source") else ""))
+        print(f"{'physical':>15}  " + ", ".join(parts) + (f" ({shown(phys['source'])})" if phys.get("source") else ""))
     if profile.provenance and set(profile.provenance) - {"view_direction"}:
         for label, line in zip(("made by", "from"), describe_provenance(profile.provenance)):
-            print(f"{label:>15}  {line}")
+            print(f"{label:>15}  {safe_line(line)}")  # the file's own words: method, dates, device, serial
 
 
 def run_show(args) -> int:
@@ -127,7 +130,7 @@ def run_validate(args) -> int:
     from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
-    print(f"{args.profile}: valid ({profile.views} views, {profile.width}x{profile.height})")
+    print(f"{shown(args.profile)}: valid ({profile.views} views, {profile.width}x{profile.height})")
     return 0
 
 
@@ -143,7 +146,7 @@ def run_import(args) -> int:
     profile = import_visual_json(args.visual, args.views)
     save_profile(profile, args.output)
     for note in (profile.provenance or {}).get("assumptions", []):
-        print(f"lenticalib: warning: {args.visual}: {note}", file=sys.stderr)
+        print(f"lenticalib: warning: {safe_line(f'{args.visual}: {note}')}", file=sys.stderr)
     if args.json:
         print(json.dumps({"output": args.output, "period": profile.period, "slant": profile.slant,
                           "offset": profile.offset, "reference_view": profile.reference_view}))
@@ -184,12 +187,12 @@ def run_compare(args) -> int:
                     "view_direction_match": direction_match})
         print(json.dumps(out))
         return 0
-    print(f"{args.profile} against {args.reference}, w - w_ref over {diff.subpixels} subpixels:")
+    print(f"{shown(args.profile)} against {shown(args.reference)}, w - w_ref over {diff.subpixels} subpixels:")
     print(f"  non-uniformity  {diff.rms:.4f} views RMS, {diff.worst:.4f} views worst")
     print(f"  centring        {diff.centring:+.4f} views")
     print(f"  period          {a.period:.6f} vs {b.period:.6f} subpixels ({a.period - b.period:+.2e})")
     print(f"  slant           {a.slant:.7f} vs {b.slant:.7f} pixels/row ({a.slant - b.slant:+.2e})")
-    print(f"  subpixel order  {a.layout_name} vs {b.layout_name}"
+    print(f"  subpixel order  {shown(a.layout_name)} vs {shown(b.layout_name)}"
           f"{'' if diff.order_match else '  MISMATCH'}")
     note = {True: "", False: "  MISMATCH (one of them shows inverted depth)",
             None: "  (not compared: unknown)"}[direction_match]
