@@ -244,3 +244,45 @@ def test_listing_drives_reads_their_serial(tmp_path, monkeypatch):
     assert [(d.url, d.serial) for d in found] == [(f"lkg-drive://{good}", STRIPE["serial"]),
                                                   (f"lkg-drive://{bad}", None)]
     assert len(notes) == 1 and notes[0].startswith(f"lkg-drive://{bad}: ") and "not valid JSON" in notes[0]
+
+
+def test_a_slow_unit_ends_in_one_timeout_line_within_the_reads_deadline(tmp_path, cli):
+    import time
+
+    from lenticalib.device.looking_glass.hid import CONVERSATION_TIMEOUTS
+
+    timeout = 0.1
+    text = visual_bytes(dict(STRIPE, notes="x" * (100 * PAGE_SIZE)))  # 106 pages: 9.5 s at 0.09 s a page
+    create_unit("slow", text)
+    slow = f"lkg-emu://slow?delay=1&delay-s=0.09&timeout={timeout}"  # every page answered just in time
+    deadline = CONVERSATION_TIMEOUTS * timeout
+    start = time.monotonic()
+    with pytest.raises(DeviceTimeoutError) as info:
+        read_calibration(slow)
+    took = time.monotonic() - start
+    assert deadline <= took < deadline + 0.5, took
+    assert (f"did not finish within {deadline:g} s ({CONVERSATION_TIMEOUTS} x the {timeout:g} s page timeout)"
+            in str(info.value)) and f" of {pages_for(len(text))} pages read" in str(info.value) and info.value.source == slow
+    out = tmp_path / "out.json"
+    start = time.monotonic()
+    code, _, err = cli("device", "read", slow, "-o", out, "--views", VIEWS)
+    assert code == 2 and "did not finish within" in one_error_line(err, slow) and not out.exists()
+    assert time.monotonic() - start < deadline + 0.5
+    # the same calibration from a unit in order, at the same timeout, is read whole
+    assert read_calibration(f"lkg-emu://slow?timeout={timeout}").size == len(text)
+
+
+@pytest.mark.parametrize("field,value,words", [
+    ("slope", {"value": "5.45"}, "field 'slope': must be a number"),
+    ("serial", {"value": 1234}, "field 'serial': must be a string"),
+    ("viewCone", {"value": [40.0]}, "field 'viewCone': must be a number"),
+    ("screenW", {"value": 1e300}, "field 'screenW': must be a whole number"),
+])
+def test_info_and_read_check_every_field_they_show(field, value, words, tmp_path, cli):
+    url = create_unit("u", visual_bytes(dict(STRIPE, **{field: value})))
+    drive = make_drive(tmp_path / "LKG", visual_bytes(dict(STRIPE, **{field: value})))
+    for where in (url, f"lkg-drive://{drive}"):
+        code, out, err = cli("device", "info", where)
+        assert code == 2 and out == "" and words in one_error_line(err, where)
+        code, _, err = cli("device", "read", where, "-o", tmp_path / "o.json", "--views", VIEWS)
+        assert code == 2 and words in one_error_line(err, where) and not (tmp_path / "o.json").exists()

@@ -33,7 +33,7 @@ class FaultPlan:
     wrong_page_rate   (Looking Glass unit) an answer echoes and carries another page than asked
 
     For the emulated Looking Glass unit (:mod:`.looking_glass`) ``drop_rate`` is the chance that
-    a page request gets no answer.
+    a page request gets no answer, ``delay_rate`` the chance that its answer comes ``delay_s`` late.
     """
 
     drop_rate: float = 0.0

@@ -12,8 +12,9 @@ does the same from the command line.
 OSError("open failed"), ``send_feature_report`` returns the bytes sent or -1, ``read`` returns a
 list, empty after ``timeout_ms`` without an answer), so the reader talks to it exactly as to
 the hardware.  Faults (:class:`~.faults.FaultPlan`, seeded) act per request: ``drop_rate`` (no
-answer), ``short_rate`` (an answer cut to 20 bytes) and ``wrong_page_rate`` (the next page
-answered instead).  Requests other than reads get no answer: the emulated unit, as lenticalib,
+answer), ``short_rate`` (an answer cut to 20 bytes), ``wrong_page_rate`` (the next page
+answered instead) and ``delay_rate`` (the answer comes ``delay_s`` seconds late: with
+``delay=1&delay-s=S`` just under the reader's timeout, a slow unit that answers every page).  Requests other than reads get no answer: the emulated unit, as lenticalib,
 never writes its EEPROM.
 """
 
@@ -34,7 +35,8 @@ from .faults import FaultPlan
 IMAGE_SUFFIX = ".lkg"
 MANUFACTURER = "Looking Glass Factory"
 SHORT_ANSWER = 20  # bytes of an answer cut short
-URL_FAULTS = {"drop": "drop_rate", "short": "short_rate", "wrong-page": "wrong_page_rate", "seed": "seed"}
+URL_FAULTS = {"drop": "drop_rate", "short": "short_rate", "wrong-page": "wrong_page_rate", "delay": "delay_rate",
+              "delay-s": "delay_s", "seed": "seed"}
 
 
 def eeprom_bytes(text: bytes | None) -> bytes:
@@ -67,7 +69,7 @@ def serial_for(name: str) -> str:
 
 
 def fault_plan(url) -> FaultPlan:
-    """The faults an ``lkg-emu://NAME?drop=P&short=P&wrong-page=P&seed=S`` URL asks for
+    """The faults an ``lkg-emu://NAME?drop=P&short=P&wrong-page=P&delay=P&delay-s=S&seed=S`` URL asks for
     (``timeout`` is the reader's, passed over); InputError naming the URL and the parameter."""
     values = {}
     for key, text in url.options:
@@ -95,7 +97,7 @@ class EmulatedLookingGlassHid:
         self.name = url.target
         self.faults = fault_plan(url)
         self.eeprom: bytes | None = None
-        self._answers: list[bytes] = []
+        self._answers: list[tuple[float, bytes]] = []  # (when it is ready, time.monotonic(); the report)
         self.requests = 0
 
     def open(self, vendor_id: int, product_id: int, serial_number: str | None = None) -> None:
@@ -131,7 +133,8 @@ class EmulatedLookingGlassHid:
         answer = bytes([0, command, page >> 8, page & 0xFF]) + self.page(page)
         if faults.hit(faults.short_rate):
             answer = answer[:SHORT_ANSWER]
-        self._answers.append(answer)
+        delay = faults.delay_s if faults.hit(faults.delay_rate) else 0.0
+        self._answers.append((time.monotonic() + delay, answer))
         return len(report)
 
     def page(self, page: int) -> bytes:
@@ -143,10 +146,18 @@ class EmulatedLookingGlassHid:
     def read(self, max_length: int, timeout_ms: int = 0) -> list[int]:
         if self.eeprom is None:
             raise OSError("read error")
+        wait = max(0, timeout_ms) / 1000.0
         if not self._answers:
-            time.sleep(max(0, timeout_ms) / 1000.0)  # no answer comes: the wait a device would take
+            time.sleep(wait)  # no answer comes: the wait a device would take
             return []
-        return list(self._answers.pop(0)[:max_length])
+        ready, answer = self._answers[0]
+        early = ready - time.monotonic()
+        if early > 0:  # a late answer: waited for, as long as the caller waits
+            time.sleep(min(early, wait))
+            if early > wait:
+                return []
+        self._answers.pop(0)
+        return list(answer[:max_length])
 
     def get_serial_number_string(self) -> str:
         return serial_for(self.name)

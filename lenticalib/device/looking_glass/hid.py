@@ -13,6 +13,11 @@ The answer's first byte is the state of the unit's buttons, so input reports als
 command and page asked for is skipped, as is one shorter than 68 bytes, and the request is sent
 again (:data:`RETRIES` times) when no matching answer comes within :data:`PAGE_TIMEOUT_S`.  What
 still fails is one line: the page that was answered instead, the short length, or no answer.
+The whole read, every page and every resend, has one deadline: :data:`CONVERSATION_TIMEOUTS`
+times the page timeout (30 s at the default 1 s), so a unit that answers each page just before
+its timeout ends in one DeviceTimeoutError line instead of taking up to 3 x 1025 page timeouts
+(a 64 KiB length).  A unit in order reads even the longest calibration well within it (a page
+takes a few milliseconds; 1025 pages at up to 29 ms each fit 30 s).
 A length of 0xFFFFFFFF is a blank EEPROM; 0 or more than
 :data:`~.unit.MAX_CALIBRATION_BYTES` is refused before any further page is read.
 
@@ -43,6 +48,7 @@ LENGTH_BYTES = 4
 BLANK_LENGTH = 0xFFFFFFFF  # an erased EEPROM reads as 0xff bytes
 PAGE_TIMEOUT_S = 1.0  # per request; the vendor's reader waits 1 s too
 RETRIES = 2  # requests sent again after a missing, short or mismatched answer
+CONVERSATION_TIMEOUTS = 30  # the whole read (all pages, all resends) ends within this many page timeouts
 MAX_PAGE = 0xFFFF
 
 
@@ -83,7 +89,8 @@ class HidUnit(LookingGlassUnit):
     ``device_factory``: makes the hidapi ``device`` object (default ``hid.device``); ``ids``:
     (vendor, product, serial or None) to open, by default the URL's; ``retries``: requests sent
     again.  The URL option ``timeout=S`` sets the seconds to wait for each page's answer (default
-    :data:`PAGE_TIMEOUT_S`); ``more_options`` are further options the caller reads itself.
+    :data:`PAGE_TIMEOUT_S`); the whole read ends within :data:`CONVERSATION_TIMEOUTS` times it
+    (``deadline_s``); ``more_options`` are further options the caller reads itself.
     """
 
     kind = "hid"
@@ -94,6 +101,9 @@ class HidUnit(LookingGlassUnit):
         self._factory = device_factory
         self._ids = ids
         self.timeout = page_timeout(url, more_options)
+        self.deadline_s = CONVERSATION_TIMEOUTS * self.timeout  # the whole read, seconds
+        self._deadline: float | None = None  # time.monotonic() when the read in progress must end
+        self._pages: tuple[int, int | None] = (0, None)  # (pages read, pages to read or None) of that read
         self.retries = retries
         self.device = None
         self.skipped = 0  # reports skipped: unasked, late, short or for another page
@@ -142,6 +152,13 @@ class HidUnit(LookingGlassUnit):
         self.device.close()
 
     def _read_text(self) -> tuple[bytes, None]:
+        self._deadline, self._pages = time.monotonic() + self.deadline_s, (0, None)
+        try:
+            return self._read_pages()
+        finally:
+            self._deadline = None
+
+    def _read_pages(self) -> tuple[bytes, None]:
         first = self.read_page(0)
         length = int.from_bytes(first[:LENGTH_BYTES], "big")
         if length == BLANK_LENGTH:
@@ -156,21 +173,26 @@ class HidUnit(LookingGlassUnit):
                                       hint=self.retry_hint())
         data = bytearray(first)
         for page in range(1, pages_for(length)):
+            self._pages = (page, pages_for(length))
             data += self.read_page(page)
         return bytes(data[LENGTH_BYTES:LENGTH_BYTES + length]), None
 
     def read_page(self, page: int) -> bytes:
         """The 64 bytes of EEPROM page ``page``: the request is sent (again, up to ``retries``
         times) until an answer echoes command and page; DeviceProtocolError or
-        DeviceTimeoutError naming the page when none does."""
+        DeviceTimeoutError naming the page when none does, DeviceTimeoutError when the whole
+        read's deadline (:meth:`_read_text`) passes first."""
         request = page_request(page)
         echo = request[1:HEADER_SIZE]
         wrong: list[int] = []
         short: list[int] = []
         for _ in range(self.retries + 1):
+            self._check_deadline()
             if self.device.send_feature_report(request) < 0:
                 raise OSError(f"sending the request for page {page} failed (unit gone?)")
             deadline = time.monotonic() + self.timeout
+            if self._deadline is not None:
+                deadline = min(deadline, self._deadline)
             while (left := deadline - time.monotonic()) > 0:
                 report = bytes(self.device.read(REPORT_SIZE, max(1, int(round(left * 1000)))))
                 if not report:
@@ -182,6 +204,7 @@ class HidUnit(LookingGlassUnit):
                 else:
                     return report[HEADER_SIZE:REPORT_SIZE]
                 self.skipped += 1
+        self._check_deadline()
         attempts = f"{self.retries + 1} requests"
         if wrong:
             pages = sorted({p for p in wrong if p >= 0})
@@ -198,3 +221,17 @@ class HidUnit(LookingGlassUnit):
                                  f"({attempts})", source=str(self.url),
                                  hint="check that the URL names a Looking Glass unit (product HoloPlay) and "
                                       "that nothing else (HoloPlay Service, another reader) is using it")
+
+    def _check_deadline(self) -> None:
+        """DeviceTimeoutError when the read in progress has passed its deadline (one line: how long,
+        the page timeout it is a multiple of, how far the read came)."""
+        if self._deadline is None or time.monotonic() < self._deadline:
+            return
+        done, total = self._pages
+        came = f"{done} of {total} pages" if total is not None else "the length page not yet"
+        raise DeviceTimeoutError(f"the calibration read did not finish within {self.deadline_s:g} s "
+                                 f"({CONVERSATION_TIMEOUTS} x the {self.timeout:g} s page timeout): {came} read",
+                                 source=str(self.url),
+                                 hint="the unit answers too slowly (a unit in order answers a page in "
+                                      "milliseconds); unplug and replug it, close other programs using it, or "
+                                      "give a longer 'timeout=S' in the URL")
