@@ -28,6 +28,10 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fov", type=float, default=20.0, help="vertical field of view, degrees (default 20)")
     parser.add_argument("--yaw-range", type=float, default=50.0, help="yaw range of the N cameras, degrees "
                         "(default 50: -25..+25)")
+    parser.add_argument("--target", metavar="X,Y,Z", help="the point the cameras look at, in the avatar's frame "
+                        "and units (metres for the demo avatar and most 3DGS captures; write --target=-1,0,0 when X "
+                        "is negative); default: the centre of the avatar's robust box (1st-99th percentile of the "
+                        "Gaussians, so strays far away do not pull it), lifted to eye level")
     parser.add_argument("--view-size", default="960x540", metavar="WxH", help="view size (default 960x540)")
     parser.add_argument("--background", metavar="R,G,B|IMAGE", help="background colour (0..1 or 0..255) or an "
                         "image (resized to the view size; the same behind every view); default black")
@@ -42,7 +46,7 @@ FLAGS = {"profile": "--profile", "controls": "--controls", "edge_desaturation": 
          "frames": "--frames", "fps": "--fps", "output": "--output", "views_out": "--views-out VDIR",
          "camera_model": "--camera-model", "radius": "--radius", "fov_deg": "--fov", "yaw_range_deg": "--yaw-range",
          "view_size": "--view-size", "background": "--background", "encoder": "--encoder", "device": "--device",
-         "driver": "--driver", "renderer": "--renderer"}
+         "driver": "--driver", "renderer": "--renderer", "target": "--target X,Y,Z"}
 """The library's argument names, as the flags of play and render (with those of --compensate)."""
 
 
@@ -54,7 +58,37 @@ def avatar_options(args: argparse.Namespace):
     return AvatarOptions(controls=args.controls, driver=args.driver, renderer=args.renderer, encoder=args.encoder,
                          device=args.device, camera_model=args.camera_model, radius=args.radius, fov_deg=args.fov,
                          yaw_range_deg=args.yaw_range, view_size=_size(args.view_size), background=args.background,
-                         compensation=compensation_options(args), edge_desaturation=args.edge_desaturation)
+                         compensation=compensation_options(args), edge_desaturation=args.edge_desaturation,
+                         target=parse_target(args.target))
+
+
+def parse_target(text: str | None) -> tuple[float, float, float] | None:
+    """``--target X,Y,Z`` as three finite floats (None when not given); one InputError naming
+    ``target`` otherwise, before anything is loaded."""
+    import math
+
+    from ..core.errors import InputError
+
+    if text is None:
+        return None
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        shown = repr(text) if len(text) <= 40 else f"{text[:40]!r}... ({len(text)} characters)"
+        raise InputError(f"{shown} is not X,Y,Z, three finite numbers", source="target",
+                         hint="e.g. --target 0,1.6,0, in the avatar's frame and units: metres for the demo avatar")
+    return values
+
+
+def warning_line(text: str) -> str:
+    """A warning of the library (``pipeline.notes``) in the command line's words: its argument
+    names become flags (`target` -> --target X,Y,Z)."""
+    from ..core.errors import LenticalibError
+    from ._flags import with_flags
+
+    return with_flags(LenticalibError(text), flags()).message
 
 
 def flags():

@@ -31,11 +31,11 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from ..render.live import play_avatar
-    from ._avatar import avatar_options, flags
+    from ._avatar import avatar_options, flags, warning_line
     from ._flags import flag_names
 
-    def warn(text: str) -> None:
-        print(f"lenticalib: warning: {text}", file=sys.stderr)
+    def warn(text: str) -> None:  # the views that show nothing of the avatar come before the first frame
+        print(f"lenticalib: warning: {warning_line(text)}", file=sys.stderr, flush=True)
 
     def stats(stages: dict) -> None:
         print("  ".join(f"{k} {v:.1f} ms" for k, v in stages.items()) + f"  total {sum(stages.values()):.1f} ms",

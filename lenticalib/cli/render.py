@@ -27,15 +27,15 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from ..render.offline import render_avatar
-    from ._avatar import avatar_options, flags
+    from ._avatar import avatar_options, flags, warning_line
     from ._flags import flag_names
 
     with flag_names(flags()):
         done = render_avatar(args.avatar, args.profile, args.output, options=avatar_options(args), frames=args.frames,
                              fps=args.fps, views_out=args.views_out)
     pipeline = done.session.pipeline
-    for warning in ([pipeline.warning] if pipeline.warning else []) + pipeline.notes:
-        print(f"lenticalib: warning: {warning}", file=sys.stderr)
+    for warning in ([pipeline.warning] if pipeline.warning else []) + pipeline.notes:  # empty views among them
+        print(f"lenticalib: warning: {warning_line(warning)}", file=sys.stderr)
     what = args.output if done.kind == "image" else f"{args.frames} frame(s) in {args.output}"
     if done.kind == "video":
         what = f"{args.frames} frame(s), lossless, in {args.output}"

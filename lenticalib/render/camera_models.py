@@ -1,13 +1,17 @@
 """The camera models, selected by name: the LentiAvatar arc and the Looking Glass shear rig.
 
-Both take the bounding box of the Gaussian centres and share one rig (world units, degrees):
+Both take a box around the Gaussian centres and share one rig (world units, degrees).
+:func:`make_cameras` frames an avatar on its *robust* box (:func:`robust_box`: the 1st to 99th
+percentile of the centres per axis, the box ``avatar diagnose`` checks meshes against), so a few
+stray Gaussians far away (floaters) neither move the look-at point nor shrink the avatar.
 
     e_up      = up / |up|;  e_forward = forward with its e_up component removed, normalised
                 (the direction the avatar faces);  e_side = e_up x e_forward (the viewer's right,
                 see :mod:`.cameras`; +x for up=+y, forward=+z)
     c0        = centre of the bounding box            (``centre`` overrides)
     h         = the box's extent along e_up            (``height`` overrides)
-    c         = c0 + 0.08 h e_up                       (the look-at point, about eye level)
+    c         = c0 + 0.08 h e_up                       (the look-at point, about eye level;
+                                                        ``target`` overrides c itself)
     theta_i   = -Y/2 + Y i/(N-1), i = 0..N-1           (N = 1: theta_0 = 0)
     r         = (h / 0.8) / (2 tan(fov/2)) + d/2       (``radius`` overrides) where d is the box's
                 extent along e_forward: the front face of the box, at r - d/2 from the front camera,
@@ -48,6 +52,7 @@ from .gaussians import Gaussians
 DEFAULT_FOV_DEG = 20.0
 FILL = 0.8          # fraction of the view height the box's front face fills at the default radius
 CENTRE_LIFT = 0.08  # c = c0 + CENTRE_LIFT * h * e_up
+BOX_PERCENTILES = (1.0, 99.0)  # the robust box: these percentiles of the Gaussian centres, per axis
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,15 +78,17 @@ class _Rig:
 def arc_cameras(bbox_min: Any, bbox_max: Any, n_views: int = 32, *, radius: float | None = None,
                 fov_deg: float = DEFAULT_FOV_DEG, yaw_range_deg: float = 50.0,
                 view_size: tuple[int, int] = (960, 540), up: Any = (0, 1, 0), forward: Any = (0, 0, 1),
-                centre: Any = None, height: float | None = None) -> ViewCameras:
+                centre: Any = None, height: float | None = None, target: Any = None) -> ViewCameras:
     """The LentiAvatar arc: N cameras on a horizontal arc of radius r around c, all looking at c.
 
     ``bbox_min``, ``bbox_max``: (3,) corners of the box around the Gaussian centres (world);
-    ``view_size``: (width, height) pixels; see the module docstring for every formula.  View 0 is
+    ``view_size``: (width, height) pixels; ``target``: the look-at point c, (3,) world units (the
+    avatar's frame: metres for the demo avatar), or None for c0 + 0.08 h e_up; see the module
+    docstring for every formula.  View 0 is
     at yaw -Y/2, on the viewer's left; view N-1 on the viewer's right.
     """
     rig = _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size, up, forward, centre,
-               height)
+               height, target)
     origins = rig.c + rig.r * (np.sin(rig.theta)[:, None] * rig.e_side + np.cos(rig.theta)[:, None] * rig.e_forward)
     viewmats = np.stack([_look_at(o, rig.c, rig.e_up) for o in origins])
     return ViewCameras(np.repeat(rig.K[None], len(origins), axis=0), viewmats, rig.width, rig.height, rig.yaw_deg,
@@ -91,13 +98,13 @@ def arc_cameras(bbox_min: Any, bbox_max: Any, n_views: int = 32, *, radius: floa
 def shear_cameras(bbox_min: Any, bbox_max: Any, n_views: int = 32, *, radius: float | None = None,
                   fov_deg: float = DEFAULT_FOV_DEG, yaw_range_deg: float = 50.0,
                   view_size: tuple[int, int] = (960, 540), up: Any = (0, 1, 0), forward: Any = (0, 0, 1),
-                  centre: Any = None, height: float | None = None) -> ViewCameras:
+                  centre: Any = None, height: float | None = None, target: Any = None) -> ViewCameras:
     """Parallel off-axis cameras on a line through c + r e_forward along e_side, converging on the
     focal plane through c.  Options as :func:`arc_cameras`; yaw_deg holds the viewing angle
     theta_i = atan(x_i / r) of camera i towards c.
     """
     rig = _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size, up, forward, centre,
-               height)
+               height, target)
     offsets = rig.r * np.tan(rig.theta)  # x_i along e_side
     origins = rig.c + rig.r * rig.e_forward + offsets[:, None] * rig.e_side
     viewmats = np.stack([_look_at(o, o - rig.e_forward, rig.e_up) for o in origins])
@@ -116,21 +123,49 @@ def make_cameras(model: str, gaussians_or_bbox: Gaussians | tuple[Any, Any], n_v
                  **options: Any) -> ViewCameras:
     """N cameras of the named model (``CAMERA_MODELS``) around a Gaussians avatar or a (min, max) box.
 
-    ``options`` are the model's keyword options (radius, fov_deg, yaw_range_deg, view_size, up,
-    forward, centre, height).  An unknown model is an InputError naming ``model`` (before
-    the avatar is looked at).
+    An avatar is framed on its :func:`robust_box`; a box is taken as given.  ``options`` are the
+    model's keyword options (radius, fov_deg, yaw_range_deg, view_size, up, forward, centre,
+    height, target); ``target=None`` is left out, so a plug-in model need not take it.  An
+    unknown model is an InputError naming ``model`` (before the avatar is looked at).
     """
     build = CAMERA_MODELS.load(model, "model")
+    if options.get("target", 0) is None:
+        del options["target"]
+    if "target" in options and not _takes(build, "target"):
+        raise InputError(f"camera model {model!r} takes no target", source="target",
+                         hint="leave the target out, or use the arc or shear model")
     if isinstance(gaussians_or_bbox, Gaussians):
         if gaussians_or_bbox.count == 0:
             raise InputError("the avatar has no Gaussians", source="avatar")
-        bbox_min, bbox_max = gaussians_or_bbox.bounding_box()
+        means = gaussians_or_bbox.means
+        bbox_min, bbox_max = robust_box(means if isinstance(means, np.ndarray) else gaussians_or_bbox.to_numpy().means)
     else:
         try:
             bbox_min, bbox_max = gaussians_or_bbox
         except (TypeError, ValueError):
             raise InputError("expected a Gaussians avatar or a (min, max) box", source="bbox") from None
     return build(bbox_min, bbox_max, n_views, **options)
+
+
+def robust_box(means: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max), (3,) float64 each, world units: the :data:`BOX_PERCENTILES` (1st and 99th) of the
+    Gaussian centres ``means`` (G, 3) per axis, so that stray Gaussians do not widen it.  The box
+    every avatar is framed on (:func:`make_cameras`) and ``avatar diagnose`` fits meshes to; its
+    centre is where the cameras look (lifted by 0.08 h, module docstring).  With few Gaussians a
+    stray one still pulls it (the percentiles interpolate: 1 of 11 moves the 99th 90 % of the way)."""
+    lo, hi = np.percentile(np.asarray(means, dtype=np.float64), BOX_PERCENTILES, axis=0)
+    return lo, hi
+
+
+def _takes(build: Any, name: str) -> bool:
+    """Whether the callable ``build`` accepts the keyword ``name`` (or any keyword)."""
+    import inspect
+
+    try:
+        parameters = inspect.signature(build).parameters.values()
+    except (TypeError, ValueError):
+        return True
+    return any(p.name == name or p.kind is p.VAR_KEYWORD for p in parameters)
 
 
 def _look_at(origin: np.ndarray, target: np.ndarray, e_up: np.ndarray) -> np.ndarray:
@@ -146,7 +181,7 @@ def _look_at(origin: np.ndarray, target: np.ndarray, e_up: np.ndarray) -> np.nda
 
 
 def _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size, up, forward, centre,
-         height) -> _Rig:
+         height, target=None) -> _Rig:
     """Check every option (InputError naming it) and compute the shared rig."""
     if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 1 <= n_views <= MAX_VIEWS:
         raise InputError(f"{n_views!r} views is out of range", source="n_views", hint=f"use 1..{MAX_VIEWS}")
@@ -180,7 +215,7 @@ def _rig(bbox_min, bbox_max, n_views, radius, fov_deg, yaw_range_deg, view_size,
         r = _number(radius, "radius", "give the camera distance in world units")
         if not 0.0 < r < math.inf:
             raise InputError(f"radius {r:g} is not positive", source="radius", hint="use a radius > 0")
-    c = c0 + CENTRE_LIFT * h * e_up
+    c = c0 + CENTRE_LIFT * h * e_up if target is None else _target(target)
     yaw = np.zeros(1) if n_views == 1 else -span / 2 + span * np.arange(n_views) / (n_views - 1)
     f = height_px / (2 * tan_half)
     K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height_px - 1) / 2], [0.0, 0.0, 1.0]])
@@ -227,6 +262,16 @@ def _number(value: Any, source: str, hint: str) -> float:
     if not math.isfinite(x):
         raise InputError(f"{value!r} is not finite", source=source, hint=hint)
     return x
+
+
+def _target(value: Any) -> np.ndarray:
+    """The look-at point ``target`` as a (3,) float64, or one InputError naming it."""
+    try:
+        return _vector(value, "target")
+    except InputError as exc:
+        raise InputError(exc.message, source="target",
+                         hint="give X, Y, Z, three finite numbers in the avatar's frame and units "
+                              "(metres for the demo avatar)") from None
 
 
 def _vector(value: Any, source: str) -> np.ndarray:

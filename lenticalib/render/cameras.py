@@ -22,6 +22,11 @@ Left and right
     (``view_direction = +1``).  The image x axis of the front camera is e_side too, so the right
     of every rendered view is the viewer's right.
 
+Views with nothing in them
+    :func:`empty_views` finds the views in which no Gaussian can show, from the centres alone
+    (projected once, before any render), and :func:`empty_views_warning` says so in one line:
+    what ``render`` and ``play`` warn about instead of rendering black views without a word.
+
 View order
     A panel profile's ``view_direction`` is +1 when its view index grows as the viewer moves
     right (the convention of optics.md: an eye right of the calibration camera sees higher view
@@ -41,6 +46,9 @@ from ..core.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
 
 DOCUMENT = FORMATS["lenticalib.cameras"]
+NEAR = 0.01  # camera-frame z, world units: nearer Gaussians are culled (the renderers' near plane)
+ALPHA_MIN = 1.0 / 255.0  # a Gaussian of lower opacity draws nothing (the renderers' cut-off)
+FOOTPRINT_SIGMAS = 3.33  # a splat reaches at most this many standard deviations (the renderers' box)
 
 
 def camera_side(yaw_deg: float) -> str:
@@ -161,6 +169,64 @@ def order_for_direction(cameras: ViewCameras, view_direction: int) -> ViewCamera
         return cameras
     return dataclasses.replace(cameras, K=cameras.K[::-1].copy(), viewmats=cameras.viewmats[::-1].copy(),
                                yaw_deg=cameras.yaw_deg[::-1].copy(), view_direction=view_direction)
+
+
+def empty_views(cameras: ViewCameras, points: Any, reach: Any = None) -> list[int]:
+    """The views in which none of ``points`` can show: their indices, ascending.
+
+    ``points`` (P, 3) world; ``reach`` (P,) world units, the radius of each point's footprint (a
+    Gaussian's: :data:`FOOTPRINT_SIGMAS` times its largest standard deviation), None for 0.  A
+    point shows in view i when it lies at least :data:`NEAR` in front of camera i and the disc of
+    radius ``f reach / z`` pixels around its projection (f the larger focal length) meets the
+    view's pixels, [-0.5, W - 0.5] x [-0.5, H - 0.5].  In chunks of 8192 points, a view at a time,
+    stopping at the first that shows: a view with the avatar in it costs one chunk (the demo
+    avatar's 32 views: 25 ms), an empty one every point (13 ms per 100 000 points, 2 cores).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    rad = np.zeros(len(pts)) if reach is None else np.asarray(reach, dtype=np.float64).reshape(-1)
+    # points in a spread order (every 997th first), so a view that shows the avatar is told by the first chunk
+    order = np.argsort(np.arange(len(pts)) % 997, kind="stable")
+    return [i for i in range(cameras.n_views)
+            if not any(_shows(cameras, i, pts[part], rad[part]) for part in np.array_split(order, -(-len(pts) // 8192)))]
+
+
+def _shows(cameras: ViewCameras, i: int, pts: np.ndarray, rad: np.ndarray) -> bool:
+    """Whether any of ``pts`` (P, 3) with footprint radii ``rad`` (P,) shows in view ``i`` (:func:`empty_views`)."""
+    cam = pts @ cameras.viewmats[i, :3, :3].T + cameras.viewmats[i, :3, 3]
+    ahead = cam[:, 2] >= NEAR
+    z = cam[ahead, 2]
+    k = cameras.K[i]
+    u = k[0, 0] * cam[ahead, 0] / z + k[0, 2]
+    v = k[1, 1] * cam[ahead, 1] / z + k[1, 2]
+    r = max(k[0, 0], k[1, 1]) * rad[ahead] / z + 0.5
+    return bool(((u >= -r) & (u <= cameras.width - 1 + r) & (v >= -r) & (v <= cameras.height - 1 + r)).any())
+
+
+def empty_views_warning(cameras: ViewCameras, gaussians: Any) -> str | None:
+    """One line naming the views of ``cameras`` that show nothing of ``gaussians`` (a numpy
+    :class:`~.gaussians.Gaussians`; those of opacity below :data:`ALPHA_MIN` left out), where the
+    cameras look and how to aim them; None when every view shows some of it (:func:`empty_views`)."""
+    seen = np.asarray(gaussians.opacities) >= ALPHA_MIN
+    empty = empty_views(cameras, np.asarray(gaussians.means)[seen],
+                        FOOTPRINT_SIGMAS * np.asarray(gaussians.scales)[seen].max(axis=1, initial=0.0))
+    if not empty:
+        return None
+    look = cameras.params.get("c")
+    at = "" if look is None else " (they look at " + ", ".join(f"{float(x):.4g}" for x in look) + ")"
+    return (f"{view_list(empty)} of {cameras.n_views} show nothing of the avatar: none of its Gaussians is in their "
+            f"field of view{at}; aim the cameras with `target` (in the avatar's frame and units)")
+
+
+def view_list(indices: list[int]) -> str:
+    """``[0, 1, 2, 5]`` -> "views 0-2, 5"; ``[4]`` -> "view 4" (ascending indices)."""
+    runs: list[list[int]] = []
+    for i in indices:
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    parts = [f"{a}" if a == b else f"{a}-{b}" for a, b in runs]
+    return ("view " if len(indices) == 1 else "views ") + ", ".join(parts)
 
 
 def _check(cams: ViewCameras, source: str) -> None:

@@ -8,7 +8,8 @@ For each avatar, in this order (every check of every avatar comes before the fir
    K-th sample, the demo's time K / :data:`DEMO_FPS`) and its mesh: the mesh file given
    (``mesh``, OBJ or PLY in the avatar's frame, taken as it is) or the rig's own mesh posed by
    the same controls (:mod:`.rig_mesh`).  A mesh whose box does not fit the avatar's Gaussians
-   (1st to 99th percentile of their centres, so floaters do not widen it) is refused
+   (:func:`~.camera_models.robust_box`, 1st to 99th percentile of their centres, so floaters do
+   not widen it; the box render and play frame an avatar on) is refused
    (:func:`~.mesh.check_mesh_fits`).
 2. The cameras: the camera model (``arc``, the LentiAvatar arc, by default) framed on the
    *mesh's* box, so that avatars of one subject are seen by the same cameras whatever their
@@ -50,13 +51,13 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.outputs import check_output_folder
+from .camera_models import robust_box
 from .side_metrics import HIGHER_IS_BETTER, METRICS, crop_rule, view_metrics
 
 SIDE_YAW_DEG = 25.0
 DEMO_FPS = 30.0
 REPORT_WHAT = "avatar diagnostics report"
 REPORT_CONTENTS = ("*.json", "*-metrics.png", "*-sides.png")
-BOX_PERCENTILES = (1.0, 99.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,12 +90,6 @@ class _Prepared:
     triangles: np.ndarray
     mask_source: str
     controls: dict | None
-
-
-def robust_box(means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(min, max) (3,) of the Gaussian centres (G, 3) between the :data:`BOX_PERCENTILES`."""
-    lo, hi = np.percentile(np.asarray(means, dtype=np.float64), BOX_PERCENTILES, axis=0)
-    return lo, hi
 
 
 def _pose_controls(avatar, options: DiagnoseOptions) -> tuple[np.ndarray | None, dict | None]:

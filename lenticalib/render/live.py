@@ -69,7 +69,8 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
                 frames: int | None = None, on_warning: Callable[[str], None] | None = None,
                 on_stats: Callable[[dict], None] | None = None) -> PlayRun:
     """Play ``avatar`` on ``profile``'s panel until Esc/q, Ctrl-C or ``frames`` frames (module
-    docstring).  ``on_warning`` gets the pipeline's warning (before the first frame), ``on_stats``
+    docstring).  ``on_warning`` gets the pipeline's warning and notes (before the first frame: the
+    profile's direction, the views that show nothing of the avatar; after it: fallbacks taken), ``on_stats``
     the stage times (ms, by stage) of a frame about once a second.  Returns :class:`PlayRun`."""
     from .loop import StageTimes, views_on_host
     from .present import WindowPresenter, open_presenter
@@ -82,8 +83,9 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
     session = open_avatar_session(avatar, profile, options)
     pipeline = session.pipeline
     profile, cameras = pipeline.profile, pipeline.cameras
-    if pipeline.warning and on_warning is not None:
-        on_warning(pipeline.warning)
+    early = ([pipeline.warning] if pipeline.warning else []) + pipeline.notes  # the profile's, the empty views'
+    for warning in early if on_warning is not None else ():
+        on_warning(warning)
     if output == "headless":
         presenter = MemoryPresenter((profile.width, profile.height))
     elif output == "preview":
@@ -98,7 +100,7 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
             if presenter.ctx is not None:  # the gl renderer renders in the presenter's context
                 pipeline.use_context(presenter.ctx)
             on_gpu = output == "panel" and pipeline.keeps_raster_on_gpu
-            told = 0
+            told = len(pipeline.notes)  # those said before the first frame
             while (frames is None or times.frames < frames) and not interrupted.is_set():
                 t_controls = time.perf_counter()
                 controls = session.controls_at(t_controls - start)  # a student driver predicts here

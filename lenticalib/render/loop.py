@@ -39,7 +39,7 @@ from ..core.imageio import read_image
 from ..core.profile import PanelProfile
 from ..core.retarget import Retargeter
 from ..core.view_direction import direction_warning
-from .cameras import ViewCameras, order_for_direction
+from .cameras import ViewCameras, empty_views_warning, order_for_direction
 
 STAGES = ("drive", "render", "compose", "present")
 
@@ -175,7 +175,9 @@ class AvatarPipeline:
 
     ``cameras`` come ordered for ``view_direction = +1`` (as the camera models make them) and
     are reordered for the profile; a profile that does not say its direction renders as +1
-    with ``warning`` set (the caller prints it).  A renderer or encoder that cannot run here
+    with ``warning`` set (the caller prints it), as it prints ``notes``: the views that show nothing
+    of the avatar's neutral pose (:func:`~.cameras.empty_views_warning`, decided once, here) and the
+    fallbacks taken.  A renderer or encoder that cannot run here
     (BackendUnavailableError) and a ``device`` torch cannot use (InputError) are refused here.
     """
 
@@ -191,8 +193,9 @@ class AvatarPipeline:
                              hint="render as many views as the profile has")
         self.avatar, self.profile = avatar, profile
         self.warning = direction_warning(profile)
-        self.notes: list[str] = []  # one line per fallback taken (the gl renderer's), for the caller to print
         self.cameras = order_for_direction(cameras, profile.view_direction or 1)
+        empty = empty_views_warning(self.cameras, avatar.pose(None))  # once, from the neutral pose's centres
+        self.notes: list[str] = [empty] if empty else []  # lines for the caller: empty views, fallbacks taken
         self.render_fn = get_renderer(renderer, device=device)  # refused here if it cannot run on this machine
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"

@@ -27,7 +27,9 @@ class AvatarOptions:
     udp://HOST:PORT; ``driver``: 'rig' or module:callable; ``renderer`` (default cpu),
     ``encoder`` (default torch with gsplat, gl with gl, fast otherwise), ``device`` (default cuda with
     gsplat, cpu otherwise); ``camera_model`` 'arc', 'shear' or a plug-in's, with ``radius`` (avatar units),
-    ``fov_deg``, ``yaw_range_deg``; ``view_size`` (W, H) pixels; ``background``: 'R,G,B' or an
+    ``fov_deg``, ``yaw_range_deg`` and ``target`` (the look-at point (X, Y, Z) in the avatar's frame and
+    units, metres for the demo avatar; None: the centre of the avatar's robust box, lifted to eye level,
+    :mod:`.camera_models`); ``view_size`` (W, H) pixels; ``background``: 'R,G,B' or an
     image file; ``compensation``; ``edge_desaturation`` 0..1.
     """
 
@@ -44,6 +46,7 @@ class AvatarOptions:
     background: str | None = None
     compensation: CompensationOptions | None = None
     edge_desaturation: float = 0.0
+    target: tuple[float, float, float] | None = None
 
 
 @dataclasses.dataclass
@@ -78,6 +81,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     from .encoders import get_encoder
     from .loop import AvatarPipeline, parse_background
     from .renderers import get_renderer
+    from .renderers.common import check_view_memory
 
     o = options or AvatarOptions()
     renderer = o.renderer or "cpu"
@@ -88,6 +92,8 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     CAMERA_MODELS.load(o.camera_model, "camera_model")
     if not isinstance(profile, PanelProfile):
         profile = load_profile(profile, "`profile`")
+    size = o.view_size if isinstance(o.view_size, (tuple, list)) and len(o.view_size) == 2 else (0, 0)
+    check_view_memory(profile.views, *size)  # before anything of that size is made
     if not 0.0 <= o.edge_desaturation <= 1.0:
         raise InputError(f"{o.edge_desaturation} is out of range", source="edge_desaturation", hint="use 0..1")
     compensator = (o.compensation or CompensationOptions()).compensator(profile.views)
@@ -102,7 +108,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     camera_options = {"fov_deg": o.fov_deg, "yaw_range_deg": o.yaw_range_deg, "view_size": o.view_size}
     if o.radius is not None:
         camera_options["radius"] = o.radius
-    cameras = make_cameras(o.camera_model, loaded.bounding_box(), profile.views, **camera_options)
+    cameras = make_cameras(o.camera_model, loaded.pose(None), profile.views, target=o.target, **camera_options)
     pipeline = AvatarPipeline(loaded, profile, cameras, renderer=renderer, encoder=encoder, device=device,
                               background=background, edge_desaturation=o.edge_desaturation,
                               compensator=compensator)

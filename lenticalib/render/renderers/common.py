@@ -1,4 +1,13 @@
-"""What every renderer checks at its boundary, and the conventions they share."""
+"""What every renderer checks at its boundary, and the conventions they share.
+
+Memory of the views.  A renderer holds the N views of a frame as float32 RGBA, N x H x W x 4
+channels x 4 bytes (:data:`VIEW_BYTES_PER_PIXEL`), on the host (``cpu``) or on the GPU (``gl``,
+``gsplat``); the pipeline adds 3 bytes a pixel for the 8-bit views.  :func:`check_view_memory`
+refuses, in one line before anything is allocated, views of one frame above
+:data:`MAX_VIEW_BYTES` (8 GiB: 32 views of 3840x2160, or 100 views of 2560x1440, still fit; 200
+views of 16384x9216, 534 GiB, do not); every renderer calls it with its inputs, and the avatar
+session (``render``, ``play``) before the avatar is loaded.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +22,8 @@ NEAR_PLANE = 0.01  # camera-frame z, world units (gsplat's default)
 FAR_PLANE = 1e10
 EPS2D = 0.3  # px^2 added to the projected covariance's diagonal (gsplat's default)
 TILE_SIZE = 16
+VIEW_BYTES_PER_PIXEL = 4 * 4 + 3  # float32 RGBA as rendered, and the 8-bit RGB views made from it
+MAX_VIEW_BYTES = 8 * 2**30  # the views of one frame, at most (module docstring)
 
 
 def _as_numpy(a) -> np.ndarray:
@@ -23,6 +34,22 @@ def _as_numpy(a) -> np.ndarray:
 
 def _shape_error(name: str, got, expected: str) -> InputError:
     return InputError(f"shape {tuple(got)}, expected {expected}", source=name)
+
+
+def check_view_memory(n_views: int, width: int, height: int) -> int:
+    """The bytes the N views of ``width`` x ``height`` pixels take (N x W x H x
+    :data:`VIEW_BYTES_PER_PIXEL`); one InputError naming ``view_size`` when they exceed
+    :data:`MAX_VIEW_BYTES`, before anything is allocated.  Sizes that are not positive whole
+    numbers are left to the callers' own checks (0 is returned)."""
+    if not all(isinstance(v, numbers.Integral) and not isinstance(v, bool) and v > 0 for v in (n_views, width, height)):
+        return 0
+    need = int(n_views) * int(width) * int(height) * VIEW_BYTES_PER_PIXEL
+    if need > MAX_VIEW_BYTES:
+        raise InputError(f"{n_views} views of {width}x{height} pixels take {need / 2**30:.4g} GiB "
+                         f"({n_views} x {width} x {height} x {VIEW_BYTES_PER_PIXEL} bytes), more than the "
+                         f"{MAX_VIEW_BYTES / 2**30:.0f} GiB the views of a frame may take", source="view_size",
+                         hint="render smaller views with `view_size`, or for a panel with fewer views")
+    return need
 
 
 def check_render_inputs(gaussians, viewmats, Ks, width, height, background):
@@ -43,6 +70,7 @@ def check_render_inputs(gaussians, viewmats, Ks, width, height, background):
         raise _shape_error("viewmats", v.shape, "(N, 4, 4) with N >= 1")
     if k.shape != (v.shape[0], 3, 3):
         raise _shape_error("Ks", k.shape, f"({v.shape[0]}, 3, 3), one per viewmat")
+    check_view_memory(v.shape[0], width, height)
     if not np.isfinite(v).all():
         raise InputError("non-finite values", source="viewmats")
     if not np.isfinite(k).all():

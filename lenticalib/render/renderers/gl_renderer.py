@@ -79,7 +79,7 @@ from ...core.errors import DisplayError, InputError
 from ..gaussians import Gaussians
 from ..gl_context import headless_context, headless_unavailable
 from . import gl_shaders as sh
-from .common import check_finite_gaussians, check_render_inputs
+from .common import check_finite_gaussians, check_render_inputs, check_view_memory
 from .cpu_project import _RECORD
 from .gl_sort import GLSorter
 from .gl_upload import camera_table, host_records, pack_gaussians, record_table
@@ -96,6 +96,36 @@ def _driver_limits(ctx) -> tuple[int, int]:
     """(GL_MAX_TEXTURE_SIZE, GL_MAX_ARRAY_TEXTURE_LAYERS) of ``ctx``'s driver, 0 where unknown."""
     info = ctx.info
     return (int(info.get("GL_MAX_TEXTURE_SIZE", 0) or 0), int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0))
+
+
+def _framebuffer_limits(ctx) -> dict[str, int]:
+    """The driver's limits on a layered framebuffer of the views, by GL name (the smaller side of
+    GL_MAX_VIEWPORT_DIMS; GL_MAX_FRAMEBUFFER_WIDTH / _HEIGHT / _LAYERS from OpenGL 4.3); 0 where unknown."""
+    info = ctx.info
+    limits = {name: int(info.get(name, 0) or 0) for name in (
+        "GL_MAX_FRAMEBUFFER_WIDTH", "GL_MAX_FRAMEBUFFER_HEIGHT", "GL_MAX_FRAMEBUFFER_LAYERS")}
+    limits["GL_MAX_VIEWPORT_DIMS"] = int(min(info.get("GL_MAX_VIEWPORT_DIMS") or (0,)))
+    return limits
+
+
+def _check_driver_limits(ctx, n_views: int, width: int, height: int) -> None:
+    """One DisplayError naming the first of the driver's limits that N views of ``width`` x
+    ``height`` exceed (:func:`_driver_limits`, :func:`_framebuffer_limits`), before anything is allocated."""
+    hint = "render smaller views with `view_size`, for a panel with fewer views, or use the cpu renderer"
+    largest, layers = _driver_limits(ctx)
+    if largest and max(width, height) > largest:
+        raise DisplayError(f"the OpenGL driver takes textures up to {largest} pixels, the views are "
+                           f"{width}x{height}", hint=hint)
+    if layers and n_views > layers:
+        raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
+                           f"{n_views} views were asked for", hint=hint)
+    limits = _framebuffer_limits(ctx)
+    asked = {"GL_MAX_FRAMEBUFFER_WIDTH": width, "GL_MAX_FRAMEBUFFER_HEIGHT": height,
+             "GL_MAX_FRAMEBUFFER_LAYERS": n_views, "GL_MAX_VIEWPORT_DIMS": max(width, height)}
+    for name, value in asked.items():
+        if limits[name] and value > limits[name]:
+            raise DisplayError(f"the OpenGL driver's {name} is {limits[name]}, {n_views} views of {width}x{height} "
+                               "were asked for", hint=hint)
 
 
 def _storage_limit(ctx) -> int:
@@ -169,14 +199,8 @@ class GLSplatRenderer:
         self.fallback_reason = None
         if sort is None and missing:
             self.fallback_reason = f"the gl renderer projects and sorts on the CPU: {missing}"
-        largest, layers = _driver_limits(ctx)
-        if largest and max(self.width, self.height) > largest:
-            raise DisplayError(f"the OpenGL driver takes textures up to {largest} pixels, the views are "
-                               f"{self.width}x{self.height}", hint="render smaller views or use the cpu renderer")
-        if layers and self.n_views > layers:
-            raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
-                               f"{self.n_views} views were asked for",
-                               hint="render fewer views or use the cpu renderer")
+        check_view_memory(self.n_views, self.width, self.height)
+        _check_driver_limits(ctx, self.n_views, self.width, self.height)
         self.profile = False
         self.stage_ms: dict[str, float] = {}
         self._objects: list = []
