@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from ..core.errors import CalibrationError, CaptureError, InputError
+from ..core.identity import virtual_panel_record
 from ..core.profile import PanelProfile, make_provenance
 from . import layout_fit, model, phase, photometric
 from .camera import CameraModel, describe_pose, estimate_camera, load_camera_model
@@ -303,10 +304,12 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
                         "--cells')")
 
     seconds = time.perf_counter() - start
+    virtual_panel = virtual_panel_record(capture.directory)  # photos of the virtual panel: which one (docs/identity.md)
     provenance = make_provenance(
         "lenticalib fit: phase-shifted sinusoids seen through the lens sheet; plane fit of the lens alias",
         capture.inputs, pattern_set=ps.set_id, quality=quality, seconds=round(seconds, 2),
-        convention="w(x_s, y) = w*(x_s + 0.5, y + 0.5); calibration camera at w* = N/2")
+        convention="w(x_s, y) = w*(x_s + 0.5, y + 0.5); calibration camera at w* = N/2",
+        **({} if virtual_panel is None else {"virtual_panel": virtual_panel}))
     profile = PanelProfile(views=n_views, slant=constants["slant"], period=constants["period"],
                            offset=constants["offset"], reference_view=n_views / 2.0,
                            width=ps.width, height=ps.height,

@@ -17,7 +17,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--camera", required=True, metavar="KIND",
                         help="gphoto2[:PORT] (USB-tethered camera), opencv:INDEX (webcam), manual[:FOLDER] "
                              "(you press the shutter; FOLDER is watched for each new photo), sim[:SEED] "
-                             "(the virtual panel is the camera)")
+                             "(the virtual panel is the camera; for crosstalk patterns, the virtual panel their "
+                             "profile was fitted on)")
     parser.add_argument("--display", metavar="SPEC",
                         help="monitor: index, @X,Y or part of its name (default: the one whose mode is the "
                              "panel's size; for --camera sim: offscreen, or 'none' for no graphics)")
@@ -64,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     options = {"timeout": args.timeout}
     if kind == "sim":
         options.update(resolution=None if args.resolution is None else _resolution(args.resolution),
-                       conditions=args.conditions)
+                       conditions=args.conditions, folder=directory)  # the folder's virtual panel, named below
         if args.layout is not None:
             options["layout"] = args.layout
         if args.subsamples is not None:

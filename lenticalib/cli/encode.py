@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--compensate FILE`` and its three knobs (shared by encode, play and render)."""
+    """``--compensate FILE``, its three knobs and ``--force`` (shared by encode, play and render)."""
     parser.add_argument("--compensate", metavar="CROSSTALK", help="pre-compensate the views for the crosstalk "
                         "measured by 'lenticalib crosstalk measure' (crosstalk.json)")
     parser.add_argument("--black-lift", type=float, default=0.0, metavar="B",
@@ -31,10 +31,13 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --compensate: weight of staying close to the intended views (default 0.02)")
     parser.add_argument("--iterations", type=int, default=None, metavar="K",
                         help="with --compensate: projected-gradient steps of the bounded solve (default 2)")
+    parser.add_argument("--force", action="store_true",
+                        help="with --compensate: use a crosstalk file measured for another panel (or another fit "
+                             "of this one) anyway; the output's provenance says so (docs/identity.md)")
 
 
 COMPENSATION_FLAGS = {"crosstalk_file": "--compensate crosstalk.json", "black_lift": "--black-lift",
-                      "regularisation": "--regularisation", "iterations": "--iterations"}
+                      "regularisation": "--regularisation", "iterations": "--iterations", "force": "--force"}
 FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir DIR", "quilt": "--quilt FILE",
          "allow_stretch": "--stretch", "grid": "--grid"}
 
@@ -43,19 +46,23 @@ def compensation_options(args: argparse.Namespace):
     """The :class:`~lenticalib.render.encode_file.CompensationOptions` of ``--compensate`` and its knobs."""
     from ..render.encode_file import CompensationOptions
 
-    return CompensationOptions(args.compensate, args.black_lift, args.regularisation, args.iterations)
+    return CompensationOptions(args.compensate, args.black_lift, args.regularisation, args.iterations, args.force)
 
 
-def compensator_from_args(args: argparse.Namespace, views: int):
-    """The :class:`~lenticalib.render.compensation.Compensator` the options ask for, or None; InputError
-    naming the flag for knobs without ``--compensate`` or out of range."""
+def compensator_from_args(args: argparse.Namespace, profile):
+    """The :class:`~lenticalib.render.compensation.Compensator` the options ask for the panel of
+    ``profile``, or None; InputError naming the flag for knobs without ``--compensate`` or out of
+    range, or the file for a crosstalk file of another panel without ``--force``."""
     from ._flags import flag_names
 
     with flag_names(COMPENSATION_FLAGS):
-        return compensation_options(args).compensator(views)
+        return compensation_options(args).compensator(profile)
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from ..core.identity import forced_note
     from ..render.encode_file import encode_to_file
     from ..render.views import parse_grid
     from ._flags import flag_names
@@ -72,4 +79,7 @@ def run(args: argparse.Namespace) -> int:
               f"({done.encoder} encoder, {done.encode_seconds * 1000:.0f} ms incl. compile"
               + (f"; crosstalk pre-compensation {compensate * 1000:.0f} ms" if compensate is not None else "")
               + ("; crosstalk pre-compensation on the GPU" if done.compensated_on == "gpu" else "") + ")")
+    note = forced_note(done.compensation_origin or {}, args.compensate)
+    if note:
+        print(f"lenticalib: warning: {note}", file=sys.stderr)
     return 0

@@ -25,6 +25,7 @@ Files and documents
     outputs             output files and folders checked before the work, folders staged whole
     documents           the one document envelope (format, version), its table and its reader
     crosstalk_document  ``crosstalk.json``'s format and reader (the mixing matrix)
+    identity            a panel profile's identity; results of different panels refused together
     pattern_sets        pattern-set folders: the PNGs and their manifest ``patterns.json``
     arrayfile           ``.npy`` and ``.npz`` files read with every header checked first
     imageio             images as RGB numpy arrays ``(H, W, 3)``: read and written (atomically)

@@ -17,6 +17,7 @@ import numpy as np
 from .errors import InputError
 from .fields import is_finite_number
 from .documents import FORMATS, check_envelope, read_json_file
+from .identity import identity_of_record, is_identity
 from .profile import MAX_VIEWS
 
 DOCUMENT = FORMATS["lenticalib.crosstalk"]
@@ -28,7 +29,8 @@ def read_crosstalk_document(path: str | os.PathLike, views: int | None = None,
     """A ``crosstalk.json`` document, checked: format, a square N x N ``matrix`` of numbers whose rows
     sum to 1, ``views`` equal to ``views`` when given, ``eye_separation_views`` a number >= 0 or
     null.  InputError naming ``source`` (default: the file) otherwise.  The rest of the document
-    (the figures among it) is returned as it is in the file."""
+    (the figures among it) is returned as it is in the file.  The panel it was measured for:
+    :func:`measured_for`."""
     source = source or str(path)
     data = read_json_file(path, DOCUMENT.what, DOCUMENT.hint)
     check_envelope(data, DOCUMENT, source)
@@ -55,3 +57,23 @@ def read_crosstalk_document(path: str | os.PathLike, views: int | None = None,
 def mixing_matrix(document: dict[str, Any]) -> np.ndarray:
     """The checked document's ``matrix`` as float64 ``(N, N)``."""
     return np.asarray(document["matrix"], np.float64)
+
+
+def measured_for(document: dict[str, Any], source: str) -> str | None:
+    """The identity (:mod:`lenticalib.core.identity`) of the panel profile a checked document was
+    measured for: that of its ``profile`` constants (``crosstalk measure`` writes them, and
+    ``profile_id`` since identities exist), else its ``profile_id``; None when it records neither
+    (a hand-written file).  InputError naming ``source`` for constants that are not a profile, an
+    identity that is not one, or the two disagreeing (an edited file)."""
+    recorded = document.get("profile_id")
+    if recorded is not None and not is_identity(recorded):
+        raise InputError(f"field 'profile_id' is not a panel identity (p- and 16 hex digits), got {recorded!r:.40}",
+                         source=source, hint="measure the crosstalk again with 'lenticalib crosstalk measure'")
+    if document.get("profile") is None:
+        return recorded
+    derived = identity_of_record(document["profile"], source)
+    if recorded is not None and recorded != derived:
+        raise InputError(f"field 'profile_id' {recorded} is not the identity of its field 'profile' ({derived}): "
+                         "an edited file", source=source,
+                         hint="measure the crosstalk again with 'lenticalib crosstalk measure'")
+    return derived

@@ -30,14 +30,16 @@ from numba import njit, prange, types
 from numba.extending import overload
 
 from ..core.colour import srgb_decode_lut, srgb_encode8
-from ..core.crosstalk_document import mixing_matrix, read_crosstalk_document
+from ..core.crosstalk_document import measured_for, mixing_matrix, read_crosstalk_document
 from ..core.errors import InputError
+from ..core.identity import check_same_panel
 
 TAP_FLOOR = 2e-3
 DEFAULT_REGULARISATION = 0.02
 DEFAULT_ITERATIONS = 2
 _LEVELS = 4096  # linear -> sRGB table resolution
 _CHUNK = 2048  # pixel-channels per chunk (N x CHUNK floats stay in cache)
+MIN_CONDITION = 1e-12  # smallest over largest eigenvalue of M^T M + lam I: below it the solve is singular
 
 
 def circulant_row(matrix: np.ndarray) -> np.ndarray:
@@ -66,7 +68,9 @@ class Compensator:
     """Precomputed pre-compensation for one mixing matrix (see the module docstring).
 
     ``mixing``: (N,) circulant row of M; ``solve_*``: taps of C; ``normal_*``: taps of
-    ``M^T M + lam I``; ``rhs_*``: taps of ``M^T + lam I``; ``step``: gradient step.
+    ``M^T M + lam I``; ``rhs_*``: taps of ``M^T + lam I``; ``step``: gradient step; ``origin``:
+    what it was made from, for the output's provenance (:func:`compensator_from_file`: the
+    crosstalk file and :func:`~lenticalib.core.identity.check_same_panel`'s record), or None.
     """
 
     views: int
@@ -81,6 +85,7 @@ class Compensator:
     rhs_offsets: np.ndarray
     rhs_weights: np.ndarray
     step: float
+    origin: dict | None = dataclasses.field(default=None, compare=False)
 
     @classmethod
     def from_matrix(cls, matrix, regularisation: float = DEFAULT_REGULARISATION, black_lift: float = 0.0,
@@ -100,6 +105,11 @@ class Compensator:
         spectrum = np.fft.fft(row)  # eigenvalues of the circulant M (M[i][j] = row[j - i])
         lam = regularisation
         normal = np.abs(spectrum) ** 2 + lam
+        if not normal.min() >= MIN_CONDITION * normal.max():  # a zero eigenvalue and no regularisation to lift it
+            raise InputError(f"the mixing matrix is singular (its smallest eigenvalue is "
+                             f"{np.abs(spectrum).min():.3g} of {np.abs(spectrum).max():.3g}) and regularisation "
+                             f"{lam:g} cannot make it invertible", source="regularisation",
+                             hint=f"use a positive regularisation, e.g. {DEFAULT_REGULARISATION:g} (the default)")
         solve = np.real(np.fft.ifft((np.conj(spectrum) + lam) / normal))
         normal_row = np.real(np.fft.ifft(normal))
         rhs_row = np.real(np.fft.ifft(np.conj(spectrum) + lam))
@@ -275,13 +285,24 @@ def _compensate(src, out, decode, encode, so, sw, no, nw, ro, rw, step, lift, it
                 _store(out, encode, i, start + p, e[i, p])
 
 
-def compensator_from_file(path, views: int, regularisation: float = DEFAULT_REGULARISATION,
+def compensator_from_file(path, profile, regularisation: float = DEFAULT_REGULARISATION,
                           black_lift: float = 0.0, iterations: int = DEFAULT_ITERATIONS,
-                          source: str | None = None) -> Compensator:
-    """A compensator from a ``crosstalk.json`` for a panel of ``views`` views (InputError naming ``source``,
-    by default ``path``)."""
-    data = read_crosstalk_document(path, views=views, source=str(path) if source is None else source)
-    return Compensator.from_matrix(mixing_matrix(data), regularisation, black_lift, iterations)
+                          source: str | None = None, force: bool = False) -> Compensator:
+    """A compensator from a ``crosstalk.json`` for the panel of ``profile`` (a
+    :class:`~lenticalib.core.profile.PanelProfile`).
+
+    The file must have ``profile``'s view count and, where it records the panel it was measured
+    for (:func:`~lenticalib.core.crosstalk_document.measured_for`), be of that panel: a crosstalk
+    file of another panel (or of another fit of it) is refused unless ``force``
+    (:func:`~lenticalib.core.identity.check_same_panel`).  The compensator's ``origin`` holds the
+    file and that check's record.  InputError naming ``source`` (default ``path``) otherwise.
+    """
+    source = str(path) if source is None else source
+    data = read_crosstalk_document(path, views=profile.views, source=source)
+    panel = check_same_panel(measured_for(data, source), profile, what="was measured for", source=source,
+                             force=force, hint="measure the crosstalk of this panel with this profile")
+    compensator = Compensator.from_matrix(mixing_matrix(data), regularisation, black_lift, iterations)
+    return dataclasses.replace(compensator, origin={"crosstalk_file": source, **panel})
 
 
 def compensation_study(compensator: Compensator, true_matrix: np.ndarray, linear_views: np.ndarray) -> dict:

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import ImageError, InputError
+from ..core.identity import profile_identity
 from ..core.imageio import check_image_output, write_image
 from ..core.profile import PanelProfile, load_profile
 from .compensation import DEFAULT_ITERATIONS, DEFAULT_REGULARISATION, Compensator, compensator_from_file
@@ -28,28 +29,32 @@ from .compensation import DEFAULT_ITERATIONS, DEFAULT_REGULARISATION, Compensato
 class CompensationOptions:
     """Pre-compensation of the views for the crosstalk in ``crosstalk_file`` (``crosstalk.json``
     of a crosstalk measurement): ``black_lift`` (linear, 0..0.5), ``regularisation`` (default
-    0.02), ``iterations`` (default 2); see :class:`~.compensation.Compensator`.  No
-    ``crosstalk_file``: no compensation (and the other fields must stay at their defaults)."""
+    0.02), ``iterations`` (default 2); see :class:`~.compensation.Compensator`.  ``force``: use a
+    crosstalk file measured for another panel (``docs/identity.md``; the compensator's ``origin``
+    then says so).  No ``crosstalk_file``: no compensation (and the other fields must stay at their
+    defaults)."""
 
     crosstalk_file: str | os.PathLike | None = None
     black_lift: float = 0.0
     regularisation: float | None = None
     iterations: int | None = None
+    force: bool = False
 
-    def compensator(self, views: int) -> Compensator | None:
-        """The compensator for a panel of ``views`` views, or None; InputError naming the field for
-        a setting without ``crosstalk_file`` or out of range."""
+    def compensator(self, profile: PanelProfile) -> Compensator | None:
+        """The compensator for the panel of ``profile``, or None; InputError naming the field for a
+        setting without ``crosstalk_file`` or out of range, or naming the file when it was measured
+        for another panel (unless ``force``)."""
         if self.crosstalk_file is None:
             for field, value, default in (("black_lift", self.black_lift, 0.0),
                                           ("regularisation", self.regularisation, None),
-                                          ("iterations", self.iterations, None)):
+                                          ("iterations", self.iterations, None), ("force", self.force, False)):
                 if value != default:
                     raise InputError("is only used with crosstalk_file", source=field, hint="add crosstalk_file")
             return None
-        return compensator_from_file(self.crosstalk_file, views,
+        return compensator_from_file(self.crosstalk_file, profile,
                                      DEFAULT_REGULARISATION if self.regularisation is None else self.regularisation,
                                      self.black_lift, DEFAULT_ITERATIONS if self.iterations is None else self.iterations,
-                                     source=str(self.crosstalk_file))
+                                     source=str(self.crosstalk_file), force=self.force)
 
 
 @dataclasses.dataclass
@@ -57,7 +62,8 @@ class EncodedFile:
     """What :func:`encode_to_file` wrote: ``output``; the ``profile``; ``view_size`` (W_v, H_v);
     ``dtype`` of the raster; the ``encoder``; ``encode_seconds`` (incl. a first compile) and
     ``compensate_seconds`` (None: no compensation, or done by the encoder on its device (``gl``)
-    and counted in ``encode_seconds``); ``crosstalk_file``."""
+    and counted in ``encode_seconds``); ``crosstalk_file``; ``compensation_origin``: the
+    compensator's ``origin`` (the file, the panel it was measured for, whether it was forced)."""
 
     output: Path
     profile: PanelProfile
@@ -68,6 +74,16 @@ class EncodedFile:
     compensate_seconds: float | None
     crosstalk_file: str | None
     compensated_on: str | None = None  # "host", "gpu" (the encoder's device), None: not compensated
+    compensation_origin: dict | None = None
+
+    @property
+    def provenance(self) -> dict:
+        """What the raster was made from: the profile's identity and, with compensation, the
+        crosstalk file, the panel it was measured for and whether that was forced."""
+        record = {"profile_id": profile_identity(self.profile)}
+        if self.compensation_origin is not None:
+            record["compensation"] = dict(self.compensation_origin)
+        return record
 
     def summary(self) -> dict:
         """The JSON summary ``lenticalib encode --json`` prints."""
@@ -76,7 +92,7 @@ class EncodedFile:
                 "view_size": list(self.view_size), "dtype": self.dtype, "encoder": self.encoder,
                 "encode_seconds": round(self.encode_seconds, 4), "compensate": self.crosstalk_file,
                 "compensate_seconds": None if self.compensate_seconds is None else round(self.compensate_seconds, 4),
-                "compensated_on": self.compensated_on}
+                "compensated_on": self.compensated_on, "provenance": self.provenance}
 
 
 def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.PathLike, *,
@@ -97,7 +113,7 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
     if not isinstance(profile, PanelProfile):
         profile = load_profile(profile, "`profile`")
     get_encoder(encoder)  # an unknown encoder is refused before the views are read
-    compensator = (compensation or CompensationOptions()).compensator(profile.views)
+    compensator = (compensation or CompensationOptions()).compensator(profile)
     check_image_output(output, what="panel raster")  # a wrong output path costs nothing
     if quilt is not None:
         views, found = load_quilt(quilt, profile.views, grid)
@@ -130,4 +146,5 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
                        elapsed, compensate_seconds,
                        None if compensation is None or compensation.crosstalk_file is None
                        else str(compensation.crosstalk_file),
-                       None if compensator is None else "gpu" if on_device else "host")
+                       None if compensator is None else "gpu" if on_device else "host",
+                       None if compensator is None else compensator.origin)

@@ -15,6 +15,7 @@ import dataclasses
 import os
 
 from ..core.errors import InputError
+from ..core.identity import forced_note
 from ..core.profile import PanelProfile, load_profile
 from .encode_file import CompensationOptions
 
@@ -96,7 +97,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     check_view_memory(profile.views, *size)  # before anything of that size is made
     if not 0.0 <= o.edge_desaturation <= 1.0:
         raise InputError(f"{o.edge_desaturation} is out of range", source="edge_desaturation", hint="use 0..1")
-    compensator = (o.compensation or CompensationOptions()).compensator(profile.views)
+    compensator = (o.compensation or CompensationOptions()).compensator(profile)
     background = parse_background(o.background, o.view_size)
     loaded = load_avatar(avatar, o.driver)
     controls = None
@@ -112,4 +113,6 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     pipeline = AvatarPipeline(loaded, profile, cameras, renderer=renderer, encoder=encoder, device=device,
                               background=background, edge_desaturation=o.edge_desaturation,
                               compensator=compensator)
+    if compensator is not None and compensator.origin.get("forced"):
+        pipeline.notes.append(forced_note(compensator.origin, compensator.origin["crosstalk_file"]))
     return AvatarSession(pipeline, controls, loaded)

@@ -2,13 +2,23 @@
 
 A capture camera backend (``--camera sim``), registered by name in :mod:`lenticalib.calib.cameras`.
 
-Spec: ``sim`` or ``sim:SEED``.  Options: ``seed`` (default the spec's, else 1), ``resolution``
+Spec: ``sim`` or ``sim:SEED``.  Options: ``seed`` (default the spec's, else the folder's, else 1), ``resolution``
 camera (w, h) in pixels or ``"WxH"`` (default :data:`lenticalib.sim.scene.DEFAULT_RESOLUTION`, as for
 ``lenticalib simulate``; the fit needs at least 1 megapixel),
 ``conditions`` ("standard" or "hard", see :data:`lenticalib.sim.scene.CONDITIONS`),
 ``subsamples`` (rays per pixel side, default 3), ``layout`` (the panel's subpixel layout: RGB, BGR, a
-name of :data:`lenticalib.sim.layouts.NAMED_LAYOUTS` or a JSON layout file; default the seed's stripe).  ``timeout`` is accepted like every kind's and
-has nothing to bound: the virtual camera never waits.
+name of :data:`lenticalib.sim.layouts.NAMED_LAYOUTS` or a JSON layout file; default the seed's stripe),
+``folder`` (the pattern folder it will photograph: the virtual panel is then chosen, checked and
+named by :meth:`settings` when the camera opens, before any pattern is shown).  ``timeout`` is
+accepted like every kind's and has nothing to bound: the virtual camera never waits.
+
+Which virtual panel (:func:`choose_virtual_panel`, ``docs/identity.md``): for calibration patterns,
+the seed's.  For patterns drawn from a profile (crosstalk patterns), the virtual panel that profile
+was fitted on, as its fit recorded it (the calibration folder's ``simulation.json``, carried in the
+profile's provenance and the patterns' manifest): ``sim`` photographs that panel, with its subpixel
+layout, and checks that it is the one the fit photographed (the same truth); ``sim:SEED`` of another
+seed is refused, and so is ``sim`` for a profile that names no virtual panel (the camera cannot tell
+which panel to photograph).
 
 Each :meth:`capture` photographs the raster the panel shows (``shown``) with the simulator
 (:func:`lenticalib.sim.capture.photograph_pattern`: the same bytes ``lenticalib simulate``
@@ -30,6 +40,7 @@ again.  What else is in ``DIR/captures`` is the caller's business.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -41,11 +52,48 @@ from ..core.documents import FORMATS, read_document
 from ..core.errors import CameraError, InputError
 from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.sizes import MIN_CAMERA_SIDE, check_raster, parse_size
+from ..core.identity import describe_truth, profile_identity, recorded_virtual_panel
+from ..core.layout import layout_from_dict
 from .layouts import resolve_layout
 from .scene import DEFAULT_RESOLUTION
 
 DEFAULT_SEED = 1
 DEFAULT_SUBSAMPLES = 3
+
+
+@dataclasses.dataclass(frozen=True)
+class VirtualPanel:
+    """The virtual panel a capture photographs: ``seed``, ``why`` it is that one (for the line naming
+    it), and the ``record`` of the fit it must match (:func:`~lenticalib.core.identity.recorded_virtual_panel`:
+    its ``truth`` constants and ``truth_id``), or None when nothing is recorded."""
+
+    seed: int
+    why: str
+    record: dict | None = None
+
+
+def choose_virtual_panel(pattern_set, seed: int | None, source: str) -> VirtualPanel:
+    """The virtual panel to photograph ``pattern_set`` on (module docstring); ``seed``: the one the
+    spec or options give, or None.  InputError naming ``source`` (the manifest) when the seed
+    contradicts the panel the patterns' profile was fitted on, or when none is given and the profile
+    names none."""
+    profile = getattr(pattern_set, "profile", None)
+    if profile is None:  # calibration patterns: the folder's own fit does not exist yet
+        return VirtualPanel(DEFAULT_SEED if seed is None else seed, "the default" if seed is None else "as given")
+    record = recorded_virtual_panel(profile.provenance, source)
+    if record is None:
+        if seed is None:
+            raise InputError("the patterns' profile names no virtual panel (a real panel's, or written by hand): "
+                             "the virtual camera cannot tell which panel to photograph", source=source,
+                             hint="give the seed of the virtual panel the profile is from, sim:SEED")
+        return VirtualPanel(seed, "as given; the patterns' profile names no virtual panel")
+    if seed is not None and seed != record["seed"]:
+        raise InputError(f"the patterns were drawn from a profile of virtual panel seed {record['seed']}; sim:{seed} "
+                         "would photograph another panel", source=source,
+                         hint=f"photograph the panel the profile is from: sim or sim:{record['seed']}")
+    where = record.get("capture_folder")
+    return VirtualPanel(record["seed"], "the panel the patterns' profile was fitted on"
+                        + (f", photographed in {where}" if where else ""), record)
 
 
 def parse_resolution(value) -> tuple[int, int]:
@@ -58,7 +106,7 @@ class SimCamera(CaptureCamera):
     """A simulated camera in front of a simulated panel (see the module docstring)."""
 
     kind = "sim"
-    OPTIONS = ("seed", "resolution", "conditions", "subsamples", "layout")
+    OPTIONS = ("seed", "resolution", "conditions", "subsamples", "layout", "folder")
 
     def __init__(self, target: str | None = None, **options):
         super().__init__(target, **options)
@@ -72,10 +120,10 @@ class SimCamera(CaptureCamera):
             if seed is not None and seed != int(target):
                 raise InputError(f"seed {seed!r} contradicts the spec {self.spec!r}", source="camera")
             seed = int(target)
-        seed = DEFAULT_SEED if seed is None else seed
-        if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2 ** 63:
+        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2 ** 63):
             raise InputError(f"bad seed {seed!r}", source="camera sim", hint="use a whole number 0..2^63-1")
-        self.seed = seed
+        self.given_seed = seed
+        self.seed = DEFAULT_SEED if seed is None else seed
         self.resolution = parse_resolution(self.options.get("resolution", DEFAULT_RESOLUTION))
         self.conditions = self.options.get("conditions", "standard")
         if self.conditions not in CONDITIONS:
@@ -90,35 +138,72 @@ class SimCamera(CaptureCamera):
         self.layout_spec = layout
         self.order, self.layout = (None, None) if layout is None else resolve_layout(layout, "layout")
         self.scene = None
+        self.panel: VirtualPanel | None = None
         self.directory: Path | None = None
         self.pattern_set = None
         self._records: dict[str, dict] = {}
         self._truth: dict | None = None
+        if self.options.get("folder") is not None:  # the panel chosen and checked before anything opens
+            self._prepare(Path(self.options["folder"]))
 
     def _open(self) -> list[str]:
         width, height = self.resolution
         lines = [f"virtual camera: seed {self.seed}, {width}x{height} pixels, {self.subsamples}x{self.subsamples} "
-                 f"rays per pixel, conditions {self.conditions}; the scene is drawn for the panel size of the "
-                 "first pattern shown",
+                 f"rays per pixel, conditions {self.conditions}"
+                 + ("" if self.scene is not None else "; the scene is drawn for the panel size of the first pattern "
+                    "shown"),
                  "exposure, focus, white balance: fixed by the simulated scene"]
+        if self.scene is not None:
+            lines.insert(0, self.panel_line())
         if width * height < MIN_PHOTO_PIXELS:
             lines.append(f"resolution: {width}x{height} is below the {MIN_PHOTO_PIXELS / 1e6:g} megapixel "
                          "'lenticalib fit' needs; these photos are for tests only")
         return lines
 
-    def _start(self, shown: np.ndarray, directory: Path) -> None:
-        """Read the pattern set of ``directory`` and draw the scene for the shown panel size."""
+    def panel_line(self) -> str:
+        """One line naming the virtual panel photographed: seed, why, and its truth (period, slant,
+        order or layout, identity).  Empty before the scene is drawn."""
+        if self.scene is None:
+            return ""
+        truth = self.scene.truth_profile(self.pattern_set.views)
+        return (f"virtual panel: seed {self.seed} ({self.panel.why}): truth {describe_truth(truth.to_dict())}, "
+                f"{profile_identity(truth)}")
+
+    def _prepare(self, directory: Path) -> None:
+        """Read the pattern set of ``directory``, choose the virtual panel (:func:`choose_virtual_panel`)
+        and draw its scene for the set's panel size; InputError when the panel the patterns' profile
+        was fitted on cannot be photographed again (another seed, or another truth)."""
         from .scene import random_scene
 
+        source = str(directory / MANIFEST_NAME)
+        pattern_set = read_pattern_folder(directory)
+        panel = choose_virtual_panel(pattern_set, self.given_seed, source)
+        order, layout = self.order, self.layout
+        truth = (panel.record or {}).get("truth")
+        if self.layout_spec is None and isinstance(truth, dict):  # the fitted panel's own layout
+            if truth.get("subpixel_layout") is not None:
+                order, layout = None, layout_from_dict(truth["subpixel_layout"], f"{source} (virtual_panel)")
+            elif truth.get("subpixel_order") in ("RGB", "BGR"):
+                order = truth["subpixel_order"]
+        scene = random_scene(panel.seed, width=pattern_set.width, height=pattern_set.height,
+                             resolution=self.resolution, conditions=self.conditions, subsamples=self.subsamples,
+                             order=order, layout=layout)
+        recorded = (panel.record or {}).get("truth_id")
+        drawn = profile_identity(scene.truth_profile(pattern_set.views))
+        if recorded is not None and drawn != recorded:
+            raise InputError(f"seed {panel.seed} now draws a virtual panel of truth {drawn}, the profile was fitted "
+                             f"on truth {recorded}", source=source,
+                             hint="photograph with the calibration capture's layout (drop or match --layout)")
+        self.seed, self.panel, self.scene = panel.seed, panel, scene
+        self.directory, self.pattern_set = directory, pattern_set
+        self._records = self._earlier_records()
+
+    def _start(self, shown: np.ndarray, directory: Path) -> None:
+        """Draw the scene for the pattern set of ``directory`` (:meth:`_prepare`), checking the shown size."""
         pattern_set = read_pattern_folder(directory)
         check_raster(shown, pattern_set.width, pattern_set.height, str(directory / MANIFEST_NAME),
                      "the pattern set's panel", hint="show the patterns of this folder")
-        height, width = shown.shape[:2]
-        self.scene = random_scene(self.seed, width=width, height=height, resolution=self.resolution,
-                                  conditions=self.conditions, subsamples=self.subsamples, order=self.order,
-                                  layout=self.layout)
-        self.directory, self.pattern_set = directory, pattern_set
-        self._records = self._earlier_records()
+        self._prepare(directory)
 
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
@@ -148,7 +233,7 @@ class SimCamera(CaptureCamera):
         directory = destination.parent.parent
         if self.scene is None:
             self._start(shown, directory)
-        elif directory.resolve() != self.directory.resolve():
+        if directory.resolve() != self.directory.resolve():
             raise InputError(f"this virtual camera already photographs {self.directory}", source=str(destination),
                              hint="open another camera for another capture set")
         optics = self.scene.optics

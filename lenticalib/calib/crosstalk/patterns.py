@@ -28,7 +28,10 @@ pattern carries the calibration patterns' registration frame (the same even fram
 sides), so shake is measured and undone as in the fit.
 
 The manifest ``patterns.json`` (format ``lenticalib.crosstalk-patterns``) records the profile the
-bands were drawn from; the measurement uses exactly that profile.
+bands were drawn from; the measurement uses exactly that profile.  When that profile was fitted
+from photos of the virtual panel (or is a simulation's truth), the manifest also records which
+virtual panel (``virtual_panel``), so ``capture --camera sim`` photographs that one
+(``docs/identity.md``).
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ import numpy as np
 from ...core.colour import srgb_encode8
 from ...core.documents import FORMATS, check_envelope
 from ...core.errors import InputError
+from ...core.identity import recorded_virtual_panel
 from ...core.pattern_sets import manifest_matches
 from ...core.profile import PanelProfile, profile_from_dict
 from ...core.routing import slot_shift_rows, view_coordinate
@@ -138,10 +142,12 @@ class CrosstalkPatternSet:
         return hashlib.sha256(body.encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
+        virtual_panel = recorded_virtual_panel(self.profile.provenance, "profile")
         return {**DOCUMENT.envelope(), "set_id": self.set_id,
                 "width": self.width, "height": self.height, "views": self.views, "sweep_pixels": self.sweep,
                 "frame_pixels": frame_width(self.height), "frame_level": FRAME_LEVEL, "encoding": "sRGB",
-                "profile": self._profile_dict(), "patterns": [p.to_dict() for p in self.patterns]}
+                "profile": self._profile_dict(), "patterns": [p.to_dict() for p in self.patterns],
+                **({} if virtual_panel is None else {"virtual_panel": virtual_panel})}
 
     def render(self, pattern: CrosstalkPattern) -> np.ndarray:
         """The pattern as the panel shows it: uint8 RGB ``(height, width, 3)``."""
@@ -253,6 +259,9 @@ def crosstalk_set_from_manifest(data: dict[str, Any], source: str) -> CrosstalkP
         raise InputError("field 'profile' is missing", source=source,
                          hint="write the patterns again with 'lenticalib crosstalk patterns'")
     profile = profile_from_dict(data["profile"], source=f"{source} (profile)")
+    if data.get("virtual_panel") is not None:  # the virtual panel the profile was fitted on, checked
+        recorded_virtual_panel({"virtual_panel": data["virtual_panel"]}, source)
+        profile = profile.replace(provenance={"virtual_panel": data["virtual_panel"]})
     sweep = data.get("sweep_pixels")
     if not (isinstance(sweep, (int, float)) and math.isfinite(sweep) and sweep > 0):
         raise InputError("field 'sweep_pixels' is missing or not a positive number", source=source)

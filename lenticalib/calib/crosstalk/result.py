@@ -31,6 +31,7 @@ import numpy as np
 from ...core.atomic import write_text_atomic
 from ...core.crosstalk_document import DOCUMENT, mixing_matrix, read_crosstalk_document
 from ...core.fields import is_finite_number
+from ...core.identity import profile_identity
 
 
 # key in crosstalk.json "figures": (name, what it is, in a few words), and the unit it is quoted in
@@ -168,6 +169,7 @@ def crosstalk_document(measurement, eye_separation: float | None, eye_note: str 
                        **region_edges(m.profile.width, m.profile.height, m.regions.shape)},
         "photometry": m.photometry, "diagnostics": diag, "warnings": list(m.warnings),
         "profile": {k: v for k, v in m.profile.to_dict().items() if k != "provenance"},
+        "profile_id": profile_identity(m.profile),
         "provenance": dict(provenance),
     }
 
