@@ -153,3 +153,26 @@ def test_disconnect_of_the_pty_process(tmp_path):
             with pytest.raises(DeviceError):
                 panel.flash(profile_b())
         assert proc.wait(timeout=10) == 76
+
+
+def test_a_slow_controller_ends_in_one_timeout_line_within_the_operations_deadline():
+    """A controller that asks for one-byte chunks (136 requests a flash) and answers each request
+    just before its timeout would take 136 x 0.09 s; the flash as a whole has one deadline,
+    ``conversation_s`` (10 x (retries + 1) command timeouts + 2 flash timeouts), and ends in one
+    DeviceTimeoutError line within it.  The same controller without the delay flashes fine."""
+    from lenticalib.device.client import CONVERSATION_TIMEOUTS
+
+    url = "emu://slow?via=serial&chunk=1"
+    with PanelController.open(url) as panel:  # a controller in order, one-byte chunks: flashes whole
+        panel.flash(profile_a())
+    with PanelController.open(f"{url}&delay=1&delay-s=0.09", retries=1) as panel, no_hang(60):
+        panel.command_timeout, panel.flash_timeout = 0.1, 0.2
+        limit = panel.conversation_s()
+        assert limit == pytest.approx(CONVERSATION_TIMEOUTS * 2 * 0.1 + 2 * 0.2)
+        start = time.monotonic()
+        with pytest.raises(DeviceTimeoutError, match="flash did not finish within 2.4 s") as info:
+            panel.flash(profile_b())
+        took = time.monotonic() - start
+    assert limit <= took < limit + 0.5, took
+    assert "\n" not in str(info.value) and "WRITE_CHUNK" in str(info.value) and url in str(info.value)
+    check_device_holds_old_or_new("slow", "serial")

@@ -4,7 +4,12 @@
 :class:`~lenticalib.device.transports.base.Transport`.  Every request waits for its reply at
 most the family's timeout and is resent (same SEQ, so the firmware answers a duplicate from
 its cache instead of executing it twice) up to ``retries`` times; a reply with another SEQ or
-command, or a corrupt frame, is discarded.  :meth:`PanelController.flash` reports success
+command, or a corrupt frame, is discarded.  Each public operation (identify, read, verify,
+flash, ...) is one conversation with one deadline over all its requests and resends,
+:meth:`PanelController.conversation_s`: ``10 (retries + 1)`` command timeouts and 2 flash
+timeouts (24 s for the lc32 family), so a controller that answers each request just before its
+timeout, or only the last resend, ends in one DeviceTimeoutError line instead of taking up to
+136 requests x ``retries + 1`` timeouts (a controller asking for one-byte chunks).  :meth:`PanelController.flash` reports success
 only when the record read back from the controller is byte-for-byte the record it meant to
 write, and refuses (before writing anything) a profile made for another panel than the one the
 controller reports.
@@ -20,6 +25,7 @@ checks the panel against the record the controller already holds (1.0 does not r
 from __future__ import annotations
 
 import dataclasses
+import functools
 import random
 import time
 from typing import Callable
@@ -37,6 +43,25 @@ from .transports.base import Transport
 
 Progress = Callable[[int, int], None]
 Warn = Callable[[str], None]
+CONVERSATION_TIMEOUTS = 10  # an operation's deadline: this many command timeouts per attempt a request may make
+
+
+def conversation(method):
+    """A public operation of :class:`PanelController`: every request it makes shares one deadline,
+    :meth:`~PanelController.conversation_s` from its start (an operation called inside another
+    runs under the outer one's)."""
+
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        if self._deadline is not None:
+            return method(self, *args, **kwargs)
+        self._deadline, self._operation = time.monotonic() + self.conversation_s(), method.__name__
+        try:
+            return method(self, *args, **kwargs)
+        finally:
+            self._deadline = None
+
+    return run
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +105,8 @@ class PanelController:
         self.flash_timeout = family.flash_timeout_s
         self._parser = FrameParser()
         self._seq = random.randrange(256)  # a fresh session never matches an old session's replies
+        self._deadline: float | None = None  # time.monotonic() when the operation in progress must end
+        self._operation = ""
         self.resends = 0       # requests sent again after a timeout or a corrupt/stale reply
         self.discarded = 0     # frames thrown away (wrong SEQ/command, or corrupt)
 
@@ -100,6 +127,21 @@ class PanelController:
     def __exit__(self, *exc):
         self.close()
 
+    def conversation_s(self) -> float:
+        """Seconds one operation may take in all: :data:`CONVERSATION_TIMEOUTS` x (``retries`` + 1)
+        command timeouts and 2 flash timeouts (BEGIN_WRITE and COMMIT wait for the flash)."""
+        return CONVERSATION_TIMEOUTS * (self.retries + 1) * self.command_timeout + 2 * self.flash_timeout
+
+    def _check_deadline(self, command: Command) -> None:
+        if self._deadline is None or time.monotonic() < self._deadline:
+            return
+        raise DeviceTimeoutError(f"{self._operation} did not finish within {self.conversation_s():g} s "
+                                 f"({CONVERSATION_TIMEOUTS} x {self.retries + 1} attempts x the "
+                                 f"{self.command_timeout:g} s command timeout + 2 x the {self.flash_timeout:g} s "
+                                 f"flash timeout; it was at {command.name})", source=self.url,
+                                 hint="the controller answers too slowly: check the cable and that nothing else "
+                                      "uses the port; a controller in order answers in milliseconds")
+
     # --- one request ---
 
     def request(self, command: Command, payload: bytes = b"", *, timeout: float | None = None,
@@ -118,10 +160,13 @@ class PanelController:
         self._parser.reset()
         errors_before = self._parser.errors
         for attempt in range(self.retries + 1):
+            self._check_deadline(command)
             if attempt:
                 self.resends += 1
             self.transport.write(frame)
             deadline = time.monotonic() + timeout
+            if self._deadline is not None:
+                deadline = min(deadline, self._deadline)
             while True:
                 left = deadline - time.monotonic()
                 if left <= 0:
@@ -136,6 +181,7 @@ class PanelController:
                         raise self._status_error(command, code)
                     return Status(code), reply.payload[1:]
         self.discarded += self._parser.errors - errors_before
+        self._check_deadline(command)
         raise DeviceTimeoutError(f"no valid reply to {command.name} within {timeout:g} s "
                                  f"({self.retries + 1} attempts)", source=self.url,
                                  hint="check the cable, the URL and that the controller is powered")
@@ -150,6 +196,7 @@ class PanelController:
 
     # --- commands ---
 
+    @conversation
     def identify(self) -> Identity:
         _, body = self.request(Command.IDENTIFY)
         try:
@@ -157,6 +204,7 @@ class PanelController:
         except ValueError as exc:
             raise DeviceProtocolError(f"malformed IDENTIFY reply: {exc}", source=self.url) from None
 
+    @conversation
     def current(self, identity: Identity) -> CurrentRecord | None:
         """The current record and its identity CRC, cross-checked with VERIFY; None when none.
 
@@ -187,6 +235,7 @@ class PanelController:
                     "but computes its CRCs as 1.0 firmware did, so it cannot tell records apart")
         return f"VERIFY reports CRC-32 {got:08x} and another sequence or record than read back ({expected:08x})"
 
+    @conversation
     def read_raw_record(self) -> bytes | None:
         """The current record's 128 bytes as the controller sends them, or None when it holds none."""
         status, body = self.request(Command.READ_RECORD, accept=(Status.OK, Status.NO_RECORD))
@@ -197,6 +246,7 @@ class PanelController:
                                       source=self.url)
         return body[1:]
 
+    @conversation
     def read_record(self) -> CalibrationRecord | None:
         """The current record, decoded and checked, or None when the controller holds none."""
         raw = self.read_raw_record()
@@ -210,9 +260,11 @@ class PanelController:
                                       code=int(Status.NO_RECORD))
         return record
 
+    @conversation
     def read_profile(self) -> PanelProfile:
         return self._require_record().to_profile(device_url=self.url)
 
+    @conversation
     def verify_crc(self) -> tuple[int, int, int] | None:
         """(slot, sequence, CRC-32) of the current record, or None when there is none."""
         status, body = self.request(Command.VERIFY, accept=(Status.OK, Status.NO_RECORD))
@@ -222,9 +274,11 @@ class PanelController:
             raise DeviceProtocolError("malformed VERIFY reply", source=self.url)
         return VERIFY_REPLY.unpack(body)
 
+    @conversation
     def reboot(self) -> None:
         self.request(Command.REBOOT)
 
+    @conversation
     def flash(self, profile: PanelProfile, progress: Progress | None = None, *, force: bool = False,
               warn: Warn | None = None, source: str = "profile") -> FlashResult:
         """Write ``profile`` as the next record; success only after a byte-exact read-back.
@@ -353,6 +407,7 @@ class PanelController:
         if warn:
             warn(f"{source}: {text}; flashing anyway (forced)")
 
+    @conversation
     def verify(self, profile: PanelProfile) -> VerifyResult:
         """Does the controller hold ``profile``'s routing constants exactly?"""
         record = self._require_record()

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ...core.errors import InputError
 from ..framing import FrameParser, encode_frame
-from ..protocol import PROTOCOL_MINOR, PanelGeometry
+from ..protocol import MAX_CHUNK, PROTOCOL_MINOR, PanelGeometry
 from .faults import FaultPlan
 from .firmware import Firmware
 from .flash import FlashImage, PowerCut, create_image
@@ -73,15 +73,19 @@ class EmulatedController:
     """Firmware + flash + faults, thread-safe, reached through host_write / host_read.
 
     ``panel`` is the panel the controller drives (default: the family's, :func:`default_panel`);
-    ``protocol_minor`` 0 emulates protocol 1.0 firmware (see :class:`.firmware.Firmware`).
+    ``protocol_minor`` 0 emulates protocol 1.0 firmware (see :class:`.firmware.Firmware`);
+    ``max_chunk`` the bytes one WRITE_CHUNK may carry (default the protocol's 32; 1 makes a flash
+    take 128 chunks, the most requests a controller can ask for).
     """
 
     def __init__(self, image: str | os.PathLike, faults: FaultPlan | None = None, *,
-                 panel: PanelGeometry | None = None, protocol_minor: int = PROTOCOL_MINOR):
+                 panel: PanelGeometry | None = None, protocol_minor: int = PROTOCOL_MINOR,
+                 max_chunk: int | None = None):
         self.faults = faults or FaultPlan()
         panel = panel or default_panel()
         self.flash = FlashImage(image, power_cut_after=self.faults.power_cut_after, torn=self.faults.torn)
-        self.firmware = Firmware(self.flash, panel, protocol_minor=protocol_minor)
+        self.firmware = Firmware(self.flash, panel, protocol_minor=protocol_minor,
+                                 **({} if max_chunk is None else {"max_chunk": max_chunk}))
         self._inbound = FrameParser()
         self._outbox: list[tuple[float, bytes]] = []  # (ready time, bytes), sorted by time
         self._queued = 0  # bytes in _outbox
@@ -203,7 +207,7 @@ _URL_FAULTS = {"drop": "drop_rate", "corrupt": "corrupt_rate", "duplicate": "dup
                "delay": "delay_rate", "delay-s": "delay_s", "stale": "stale_rate",
                "disconnect-after": "disconnect_after", "power-cut-after": "power_cut_after",
                "torn": "torn", "babble": "babble", "seed": "seed"}
-_URL_SETUP = ("panel", "order", "views", "protocol")
+_URL_SETUP = ("panel", "order", "views", "protocol", "chunk")
 URL_OPTIONS = ("via", *_URL_SETUP, *_URL_FAULTS)
 
 
@@ -212,7 +216,8 @@ def controller_for_url(url) -> EmulatedController:
 
     The flash image is NAME.flash in :func:`default_image_dir` (created blank on first use);
     ``panel=WxH``, ``order=RGB|BGR``, ``views=N[,N...]`` set the panel it drives (default: the
-    family's) and ``protocol=1.0|1.1`` the firmware generation; fault options (``drop=0.1``,
+    family's), ``protocol=1.0|1.1`` the firmware generation and ``chunk=N`` (1..32) the largest
+    WRITE_CHUNK it takes; fault options (``drop=0.1``,
     ``power-cut-after=3``, ``torn=1``, ``babble=1``, ``seed=7``, ...) map onto :class:`FaultPlan` fields.
     Raises InputError naming the URL and the bad parameter.
     """
@@ -257,7 +262,12 @@ def controller_for_url(url) -> EmulatedController:
                 panel = config.panel_geometry(panel, **{argument: setup[key]})
             except ValueError as exc:
                 raise bad(key, str(exc)) from None
+    chunk = None
+    if "chunk" in setup:
+        chunk = int(setup["chunk"]) if setup["chunk"].isdigit() else 0
+        if not 1 <= chunk <= MAX_CHUNK:
+            raise bad("chunk", f"must be 1..{MAX_CHUNK} bytes, got '{setup['chunk']}'")
     folder = default_image_dir()
     folder.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder, not a user's output path
     image = ensure_image(folder / f"{url.target}.flash")
-    return EmulatedController(image, faults, panel=panel, protocol_minor=minor)
+    return EmulatedController(image, faults, panel=panel, protocol_minor=minor, max_chunk=chunk)

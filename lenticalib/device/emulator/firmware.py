@@ -41,9 +41,13 @@ _WORD = struct.Struct("<I")
 class Firmware:
     """Controller state over one :class:`FlashImage` (closed by the caller), driving ``panel``."""
 
-    def __init__(self, flash: FlashImage, panel: PanelGeometry, *, protocol_minor: int = PROTOCOL_MINOR):
+    def __init__(self, flash: FlashImage, panel: PanelGeometry, *, protocol_minor: int = PROTOCOL_MINOR,
+                 max_chunk: int = MAX_CHUNK):
         if protocol_minor not in (0, 1):
             raise ValueError(f"protocol minor version {protocol_minor} is not 0 or 1")
+        if not 1 <= max_chunk <= MAX_CHUNK:
+            raise ValueError(f"must be 1..{MAX_CHUNK} bytes, got {max_chunk}")
+        self.max_chunk = max_chunk  # WRITE_CHUNK's largest data, as IDENTIFY reports it
         self.flash = flash
         self.panel = panel
         self.protocol_minor = protocol_minor
@@ -75,7 +79,7 @@ class Firmware:
     @property
     def identity(self) -> Identity:
         return Identity(PROTOCOL_VERSION, LAYOUT_VERSION, CAP_TWO_SLOTS | CAP_READ_BACK_COMMIT,
-                        MAX_CHUNK, RECORD_SIZE, self.flash.model, self.flash.firmware_version,
+                        self.max_chunk, RECORD_SIZE, self.flash.model, self.flash.firmware_version,
                         self.flash.serial, self.protocol_minor, self.panel if self.protocol_minor else None)
 
     def receive(self, data: bytes) -> list[bytes]:
@@ -145,7 +149,7 @@ class Firmware:
         return Status.OK, bytes([slot])
 
     def _write_chunk(self, payload: bytes):
-        if len(payload) < CHUNK_HEADER.size + 1 or len(payload) > CHUNK_HEADER.size + MAX_CHUNK:
+        if len(payload) < CHUNK_HEADER.size + 1 or len(payload) > CHUNK_HEADER.size + self.max_chunk:
             return Status.BAD_FRAME, b""
         if self.session is None:
             return Status.BAD_STATE, b""

@@ -14,8 +14,9 @@ list, empty after ``timeout_ms`` without an answer), so the reader talks to it e
 the hardware.  Faults (:class:`~.faults.FaultPlan`, seeded) act per request: ``drop_rate`` (no
 answer), ``short_rate`` (an answer cut to 20 bytes), ``wrong_page_rate`` (the next page
 answered instead) and ``delay_rate`` (the answer comes ``delay_s`` seconds late: with
-``delay=1&delay-s=S`` just under the reader's timeout, a slow unit that answers every page).  Requests other than reads get no answer: the emulated unit, as lenticalib,
-never writes its EEPROM.
+``delay=1&delay-s=S`` just under the reader's timeout, a slow unit that answers every page).
+Requests other than reads get no answer: the emulated unit, as lenticalib, never writes its
+EEPROM.
 """
 
 from __future__ import annotations
