@@ -84,11 +84,13 @@ def parse_target(text: str | None) -> tuple[float, float, float] | None:
 
 def warning_line(text: str) -> str:
     """A warning of the library (``pipeline.notes``) in the command line's words: its argument
-    names become flags (`target` -> --target X,Y,Z)."""
+    names become flags (`target` -> --target X,Y,Z); control characters escaped, a long one cut
+    (:func:`~lenticalib.core.terminal_text.safe_line`: warnings quote files)."""
     from ..core.errors import LenticalibError
+    from ..core.terminal_text import safe_line
     from ._flags import with_flags
 
-    return with_flags(LenticalibError(text), flags()).message
+    return safe_line(with_flags(LenticalibError(text), flags()).message)
 
 
 def flags():

@@ -15,6 +15,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..core.terminal_text import safe_line
+
 FLAGS = {"avatar": "AVATAR", "mesh": "--mesh", "controls": "--controls", "frame": "--frame", "n_views": "--views",
          "yaw_range_deg": "--yaw-range", "radius": "--radius", "fov_deg": "--fov", "view_size": "--view-size",
          "renderer": "--renderer", "device": "--device", "report": "--report", "camera_model": "--camera-model",
@@ -67,7 +69,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         print(json.dumps(result, indent=2))
         return 0
     for line in diagnose_table(result):
-        print(line)
+        print(safe_line(line))  # names of the avatars' files
     if args.report:
         print(f"wrote the report {args.report}")
     return 0

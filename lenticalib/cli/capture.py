@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..core.terminal_text import safe_line
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", metavar="DIR", help="pattern folder written by 'lenticalib patterns'")
@@ -93,11 +95,11 @@ def run(args: argparse.Namespace) -> int:
                 raise
         try:
             for line in camera.settings():
-                print(f"camera: {line}")
+                print(f"camera: {safe_line(line)}")  # names and values the camera reports
             with progress_bar(len(pattern_set.patterns), "capturing") as bar:
                 report = capture_set(directory, presenter, camera, settle=settle, retakes=args.retakes,
                                      restart=args.restart, progress=bar.update,
-                                     notify=lambda message: print(f"note: {message}", file=sys.stderr))
+                                     notify=lambda message: print(f"note: {safe_line(message)}", file=sys.stderr))
         finally:
             presenter.close()
     retaken = sum(report.retakes.values())

@@ -18,6 +18,8 @@ import json
 import math
 from pathlib import Path
 
+from ..core.terminal_text import safe_line
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="crosstalk_command", metavar="STEP")
@@ -122,7 +124,7 @@ def run_measure(args: argparse.Namespace) -> int:
                                     progress=bar.update, progress_total=bar.set_total)
     measurement, document, output, eye = run.measurement, run.document, run.output, run.eye_separation
     for warning in measurement.warnings:
-        print(f"lenticalib: warning: {warning}", file=sys.stderr)
+        print(f"lenticalib: warning: {safe_line(warning)}", file=sys.stderr)
     if args.json:
         print(json.dumps(document, indent=2))
         return 0
@@ -159,7 +161,7 @@ def run_check(args: argparse.Namespace) -> int:
                               "--cone-angle), or leave out --max-eye-pair")
     failures = check_crosstalk(data, args.max_adjacent, args.max_eye_pair, args.max_system)
     for line in failures:
-        print(f"FAIL {args.file}: {line}")
+        print(f"FAIL {args.file}: {safe_line(line)}")
     if failures:
         return 1
     f = data["figures"]

@@ -33,6 +33,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..core.terminal_text import safe_line
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", metavar="DIR", help="pattern folder with patterns.json and captures/")
@@ -100,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
                                progress=bar.update, progress_total=bar.set_total)
     result, output, report_dir, summary = run.result, run.profile_path, run.report_dir, run.summary
     for warning in result.warnings:
-        print(f"lenticalib: warning: {warning}", file=sys.stderr)
+        print(f"lenticalib: warning: {safe_line(warning)}", file=sys.stderr)
     profile = result.profile
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -130,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
             print(describe_physical(result))
         print(f"report: {report_dir}")
     if not result.trusted:
-        reasons = "; ".join(result.problems)
+        reasons = safe_line("; ".join(result.problems))
         if args.force:
             print(f"lenticalib: warning: the fit is not trustworthy ({reasons}); written anyway (--force)",
                   file=sys.stderr)

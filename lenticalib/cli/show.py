@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..core.terminal_text import safe_line
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", nargs="?", metavar="FILE|DIR",
@@ -32,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.list_displays:
         for monitor in list_monitors():
-            print(monitor.describe())
+            print(safe_line(monitor.describe()))  # names the monitors report (EDID)
         return 0
     if args.path is None:
         raise InputError("give an image or a folder to show", source="FILE|DIR",
