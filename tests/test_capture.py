@@ -185,17 +185,20 @@ def test_every_bad_input_ends_in_one_line(xvfb, pattern_dir, tmp_path, cli_proce
 
 @pytest.mark.slow
 def test_crosstalk_patterns_are_captured_like_calibration_patterns(captured, tmp_path, cli, cli_process):
-    """``crosstalk patterns`` from the fitted profile, then ``capture`` shows and photographs them on the
-    same virtual panel (same seed: same scene) and ``crosstalk measure`` reads the set (``capture`` runs
-    as a real process like the calibration capture; the other two in this one)."""
+    """``crosstalk patterns`` from the fitted profile, then ``capture --camera sim`` (the README's route: no
+    seed) shows and photographs them on the virtual panel the profile was fitted on (seed 3, which the fit
+    recorded: the same truth), naming it, and ``crosstalk measure`` reads the set (``capture`` runs as a
+    real process like the calibration capture; the other two in this one)."""
     folder, _, fit = captured
     code, _, err = fit
     assert code == 0, err
     xt = tmp_path / "xt"
     assert cli("crosstalk", "patterns", "--profile", folder.parent / "profile.json", "-o", xt)[0] == 0
-    result = cli_process("capture", xt, "--camera", "sim:3", "--display", "none", "--resolution", CAMERA,
+    result = cli_process("capture", xt, "--camera", "sim", "--display", "none", "--resolution", CAMERA,
                          "--subsamples", str(RAYS))
     assert result.returncode == 0, result.stderr
+    assert "camera: virtual panel: seed 3 (the panel the patterns' profile was fitted on" in result.stdout
+    assert (load_profile(xt / "truth.json").routing_key() == load_profile(folder / "truth.json").routing_key())
     names = sorted(p.stem for p in (xt / "captures").iterdir())
     assert names == sorted(["black", "white", "half-0", "half-1"] + [f"band-{k:02d}" for k in range(10)]
                            + ["level-1in8", "level-1in4", "level-1in2"])
