@@ -16,7 +16,10 @@ for ``format_version`` (camera boards, camera calibration summaries, camera simu
 rigs were written with it) and a format's earlier names (the rig was ``"lenticalib-rig"``).
 
 :func:`read_json_file` is the one JSON-file reader: data only (nothing in a file is executed),
-UTF-8, unusable numbers refused; every JSON input of lenticalib goes through it.  Looking
+UTF-8, unusable numbers refused, bounded before anything is allocated (a regular file of at most
+:data:`MAX_JSON_BYTES`, or its format's smaller cap; at most :data:`MAX_JSON_ELEMENTS` values and
+:data:`MAX_JSON_DEPTH` levels: docs/input-limits.md); every JSON input of lenticalib goes through
+it, or through :func:`json_from_bytes` / :func:`json_from_text` for JSON held elsewhere.  Looking
 Glass's own ``visual.json`` is read with it but carries no envelope: it is Looking Glass's
 format, written as Looking Glass writes it (:mod:`lenticalib.core.lkg`).
 """
@@ -26,17 +29,27 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import stat
 from pathlib import Path
 from typing import Any, Mapping
 
+from .arrayfile import size_text
 from .atomic import write_text_atomic
 from .errors import InputError
-from .fields import parse_json, short_repr, unusable_number
+from .fields import json_shape, parse_json, short_repr
+from .input_files import KIB, MIB, read_input
 
 FORMAT_KEY = "format"
 VERSION_KEY = "format_version"
 OLD_VERSION_KEY = "version"  # the envelope's older spelling, still read
+
+# LIMITS of every JSON document read (docs/input-limits.md): checked before the file is read
+# (bytes), before it is parsed (values, estimated from the text) and in one pass after (depth).
+# lenticalib's own documents (fixtures/, the tests' runs) are KiBs, at most 5 levels deep.
+MAX_JSON_BYTES = 16 * MIB  # any document (parsed within some 150 MB, tests/test_input_bombs.py)
+MAX_PROFILE_BYTES = 1 * MIB  # a profile: under 1 KiB of constants, a visual.json and a provenance
+MAX_VISUAL_JSON_BYTES = 64 * KIB  # Looking Glass's visual.json: what a unit's calibration store holds
+MAX_JSON_DEPTH = 64  # levels of nesting
+MAX_JSON_ELEMENTS = 2_000_000  # values (numbers, strings, objects, arrays, keys) in one document
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,46 +181,32 @@ def write_document(path: str | os.PathLike, fmt: DocumentFormat, body: Mapping[s
     return write_text_atomic(path, document_text(fmt, body, indent), **atomic)
 
 
-def _file_noun(what: str) -> str:
-    """``what`` as a kind of file: "profile" -> "profile file", "crosstalk file" as it is."""
-    return what if what.endswith(" file") else f"{what} file"
-
-
 def read_json_file(path: str | os.PathLike, what: str, hint_missing: str,
-                   error: type[InputError] = InputError) -> Any:
+                   error: type[InputError] = InputError, max_bytes: int = MAX_JSON_BYTES) -> Any:
     """Parse a JSON file (data only: nothing in it is executed); unusable numbers are refused.
 
-    The file must be UTF-8 text (a leading byte-order mark is accepted).  Raises ``error``
-    naming the file for a missing, unreadable, empty, binary or non-UTF-8 file and for invalid
-    JSON, and naming the field too for a number no float holds (``NaN``, ``Infinity``, ``1e400``,
-    a 400-digit integer: :mod:`lenticalib.core.fields`); ``what`` names the kind of file in
+    The file must be a regular file of at most ``max_bytes`` (:data:`MAX_JSON_BYTES` unless the
+    format is smaller: :data:`MAX_PROFILE_BYTES`, :data:`MAX_VISUAL_JSON_BYTES`), checked before
+    it is read (:func:`lenticalib.core.input_files.open_input`: a FIFO or a device is refused at
+    once), and UTF-8 text (a leading byte-order mark is accepted); then :func:`json_from_bytes`.
+    Raises ``error`` naming the file for a missing, unreadable, special, too large, empty, binary
+    or non-UTF-8 file, for invalid JSON and for a document nested or numerous beyond the limits,
+    and naming the field too for a number no float holds (``NaN``, ``Infinity``, ``1e400``, a
+    400-digit integer: :mod:`lenticalib.core.fields`); ``what`` names the kind of file in
     messages (e.g. ``"profile"``), ``hint_missing`` says what to do when it does not exist.
     """
-    src = str(path)
-    try:
-        mode = os.stat(path).st_mode
-    except OSError:
-        mode = None  # missing or unreadable: said below
-    if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
-        # reading a FIFO or a device would wait for a writer or never end
-        raise error(f"is not a regular file (a FIFO, device or socket), not a {_file_noun(what)}", source=src,
-                    hint=hint_missing)
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise error("no such file", source=src, hint=hint_missing) from None
-    except IsADirectoryError:
-        raise error(f"is a folder, not a {_file_noun(what)}", source=src, hint=hint_missing) from None
-    except OSError as exc:
-        raise error(f"cannot read: {exc.strerror or exc}", source=src) from None
-    return json_from_bytes(raw, src, what, hint_missing, error)
+    raw = read_input(path, what, max_bytes, hint_missing, error)
+    return json_from_bytes(raw, str(path), what, hint_missing, error, max_bytes)
 
 
 def json_from_bytes(raw: bytes, source: str, what: str, hint_missing: str,
-                    error: type[InputError] = InputError) -> Any:
+                    error: type[InputError] = InputError, max_bytes: int = MAX_JSON_BYTES) -> Any:
     """:func:`read_json_file` for bytes already read (from a device, say): the same checks, and
     errors of class ``error`` naming ``source``."""
     src = source
+    if len(raw) > max_bytes:
+        raise error(f"is {size_text(len(raw))}, more than a JSON {what} can sensibly hold (at most "
+                    f"{size_text(max_bytes)})", source=src)
     if not raw.strip():
         raise error(f"is empty, not a JSON {what}", source=src, hint=hint_missing)
     kind = _binary_kind(raw)
@@ -218,17 +217,42 @@ def json_from_bytes(raw: bytes, source: str, what: str, hint_missing: str,
     except UnicodeDecodeError as exc:
         raise error(f"is not a JSON {what}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at "
                     f"offset {exc.start})", source=src, hint=f"save the {what} as UTF-8 JSON") from None
+    return json_from_text(text, src, error)
+
+
+def json_from_text(text: str, source: str, error: type[InputError] = InputError) -> Any:
+    """The JSON value of ``text`` (a document or a string held in another file, e.g. a rig's
+    provenance), within :data:`MAX_JSON_DEPTH` levels and :data:`MAX_JSON_ELEMENTS` values and
+    without unusable numbers; else one ``error`` naming ``source``.
+
+    The element count is bounded from the text before parsing (every value but the first of a
+    container follows a ``,`` or ``:``, every container opens with ``{`` or ``[``), so a document of
+    millions of empty objects is refused before they are built; depth and numbers are checked
+    in one pass over the parsed value (:func:`lenticalib.core.fields.json_shape`).
+    """
+    estimate = sum(text.count(c) for c in "{[,:") + 1  # at least the values and keys the text holds
+    if estimate > MAX_JSON_ELEMENTS:
+        raise error(f"holds about {estimate} JSON values, more than the {MAX_JSON_ELEMENTS} any document of "
+                    "lenticalib has", source=source)
+    too_deep = f"is nested more than {MAX_JSON_DEPTH} levels deep, deeper than any document of lenticalib"
     try:
         document = parse_json(text)
     except json.JSONDecodeError as exc:
-        raise error(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", source=src) from None
-    except (ValueError, RecursionError) as exc:
-        raise error(f"not usable JSON: {exc}", source=src) from None
-    bad = unusable_number(document)
-    if bad is not None:
-        field, number = bad
+        raise error(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", source=source) from None
+    except RecursionError:
+        raise error(too_deep, source=source) from None
+    except ValueError as exc:
+        raise error(f"not usable JSON: {exc}", source=source) from None
+    shape = json_shape(document, MAX_JSON_DEPTH, MAX_JSON_ELEMENTS)
+    if shape.too_deep:
+        raise error(too_deep, source=source)
+    if shape.too_many:
+        raise error(f"holds more than {MAX_JSON_ELEMENTS} JSON values, more than any document of lenticalib has",
+                    source=source)
+    if shape.bad is not None:
+        field, number = shape.bad
         raise error(f"field '{field}': {number.text} {number.why}" if field else f"{number.text} {number.why}",
-                    source=src, hint="write a finite number")
+                    source=source, hint="write a finite number")
     return document
 
 

@@ -5,7 +5,8 @@ NUMBERS.  A number in a JSON document is usable when it is finite and fits a flo
 2000-digit integer, ``1e400``, ``NaN``, ``Infinity``) as a marker, and :func:`unusable_number`
 finds the first marker with the path of the field that holds it (``slant``,
 ``physical.eye_mm[2]``), so a reader refuses it in one line naming file and field, before any
-arithmetic on it can overflow.  :func:`is_number` / :func:`is_finite_number` are the type tests
+arithmetic on it can overflow.  :func:`json_shape` is that search and the document's depth and
+value count in one pass, building a path only for the number it reports.  :func:`is_number` / :func:`is_finite_number` are the type tests
 for one value (a bool is not a number; a huge int is not finite).
 
 KEY NAMES.  :func:`unknown_key_message` names an unknown key and the known key it is most likely a
@@ -94,25 +95,90 @@ def parse_json(text: str) -> Any:
     return json.loads(text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant)
 
 
+class JsonShape:
+    """What one pass over a :func:`parse_json` result found: ``elements`` (values counted so far,
+    containers included), ``depth`` (the deepest nesting level reached; a bare value is 0),
+    ``bad`` (``(field path, marker)`` of the first unusable number, or None) and ``too_deep`` /
+    ``too_many`` (the limit passed, when one was: the pass stops there)."""
+
+    __slots__ = ("elements", "depth", "bad", "too_deep", "too_many")
+
+    def __init__(self):
+        self.elements, self.depth, self.bad = 0, 0, None
+        self.too_deep = self.too_many = False
+
+
+def _path_of(node: tuple | None, key: Any = None) -> str:
+    """The field path of ``key`` inside the container whose ``node`` is ``(parent node, key)``."""
+    keys = [] if key is None else [key]
+    while node is not None:
+        node, k = node
+        keys.append(k)
+    text = ""
+    for k in reversed(keys):
+        text += f"[{k}]" if isinstance(k, int) else (f".{k}" if text else str(k))
+    return text
+
+
+def json_shape(document: Any, max_depth: int | None = None, max_elements: int | None = None) -> JsonShape:
+    """Walk a :func:`parse_json` result once, in document order and without recursion: count its
+    values, measure its nesting and find its first unusable number (see :func:`unusable_number`);
+    stop at the first unusable number or at a limit passed (``max_depth`` levels of nesting,
+    ``max_elements`` values, containers included).
+
+    Paths are built only for the unusable number found: the walk keeps one ``(parent, key)`` link
+    per open container, none per value.
+    """
+    shape = JsonShape()
+    if isinstance(document, UnusableNumber):
+        shape.bad = ("", document)
+        return shape
+    if not isinstance(document, (dict, list)):
+        return shape
+    limit_depth = sys.maxsize if max_depth is None else max_depth
+    limit_count = sys.maxsize if max_elements is None else max_elements
+
+    def items(value):
+        return iter(value.items()) if isinstance(value, dict) else enumerate(value)
+
+    # the open containers: (their items still to visit, the (parent node, key) link of each)
+    iterators, nodes = [items(document)], [None]
+    count, deepest = 1 + len(document), 1
+    while iterators:
+        for key, child in iterators[-1]:
+            if isinstance(child, (dict, list)):
+                count += len(child)
+                nodes.append((nodes[-1], key))
+                iterators.append(items(child))
+                deepest = max(deepest, len(iterators))
+                break
+            if isinstance(child, UnusableNumber):
+                shape.bad = (_path_of(nodes[-1], key), child)
+                break
+        else:
+            iterators.pop()
+            nodes.pop()
+            continue
+        if shape.bad is not None:
+            break
+        if deepest > limit_depth:
+            shape.too_deep = True
+            break
+        if count > limit_count:
+            shape.too_many = True
+            break
+    shape.elements, shape.depth = count, deepest
+    return shape
+
+
 def unusable_number(document: Any) -> tuple[str, UnusableNumber] | None:
     """``(field path, marker)`` of the first unusable number in a :func:`parse_json` result, else None.
 
     Paths join object keys with ``.`` and list indices as ``[i]``: ``"looking_glass.pitch.value"``,
-    ``"matrix[3][1]"``; a bare unusable number at the top is ``""``.
+    ``"matrix[3][1]"``; a bare unusable number at the top is ``""``.  One pass
+    (:func:`json_shape`); the path is built only for the number found.
     """
-    stack: list[tuple[str, Any]] = [("", document)]
-    while stack:
-        path, value = stack.pop()
-        if isinstance(value, UnusableNumber):
-            return path, value
-        if isinstance(value, dict):
-            items = [(f"{path}.{k}" if path else str(k), v) for k, v in value.items()]
-        elif isinstance(value, list):
-            items = [(f"{path}[{i}]", v) for i, v in enumerate(value)]
-        else:
-            continue
-        stack.extend(reversed(items))
-    return None
+    return json_shape(document).bad
 
 
 def unknown_key_message(unknown: Iterable[str], known: Iterable[str], what: str = "field") -> str:

@@ -9,7 +9,7 @@ import math
 import os
 from typing import Any, Mapping
 
-from .documents import read_json_file
+from .documents import MAX_VISUAL_JSON_BYTES, read_json_file
 from .errors import ProfileError
 from .fields import is_finite_number, is_number, short_repr
 from .layout import LKG_CELL_PATTERNS, MAX_CELLS
@@ -143,7 +143,8 @@ def read_visual_json(path: str | os.PathLike) -> dict[str, Any]:
     pitch <= 0, slope == 0 or a screen size that is not a positive whole number.
     """
     src = str(path)
-    raw = read_json_file(path, "visual.json", "give the path of the Looking Glass visual.json", ProfileError)
+    raw = read_json_file(path, "visual.json", "give the path of the Looking Glass visual.json", ProfileError,
+                         MAX_VISUAL_JSON_BYTES)
     return normalize_visual(raw, src)
 
 

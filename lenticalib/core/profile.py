@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .atomic import write_text_atomic
-from .documents import FORMATS, check_envelope, read_json_file
+from .documents import FORMATS, MAX_PROFILE_BYTES, check_envelope, read_json_file
 from .errors import ProfileError
 from .fields import is_finite_number, is_number, short_repr, unknown_key_message
 from .layout import SubpixelLayout, layout_from_dict
@@ -322,7 +322,7 @@ def load_profile(path: str | os.PathLike, argument: str | None = None) -> PanelP
     the hint for a missing file; without it the hint speaks of "the profile path".
     """
     hint = f"check the path given as {argument}" if argument else "check the profile path"
-    data = read_json_file(path, "profile", hint, ProfileError)
+    data = read_json_file(path, "profile", hint, ProfileError, MAX_PROFILE_BYTES)
     return profile_from_dict(data, source=str(path))
 
 

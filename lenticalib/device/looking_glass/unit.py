@@ -18,7 +18,7 @@ import hashlib
 import os
 from typing import Any, Mapping
 
-from ...core.documents import json_from_bytes
+from ...core.documents import MAX_VISUAL_JSON_BYTES, json_from_bytes
 from ...core.errors import DeviceDisconnectedError, DeviceProtocolError, InputError, \
     LenticalibError
 from ...core.lkg import normalize_visual, profile_from_visual
@@ -28,7 +28,7 @@ from ..url import DeviceURL
 
 # The calibration text a unit may hold, in bytes: a visual.json is a few hundred bytes (a
 # few thousand with subpixel cells); more than this is a damaged length field or a foreign file.
-MAX_CALIBRATION_BYTES = 65536
+MAX_CALIBRATION_BYTES = MAX_VISUAL_JSON_BYTES  # 65536, the one cap of a visual.json (docs/input-limits.md)
 FAMILY = "lkg"  # the family column of ``device list``
 
 
@@ -149,7 +149,7 @@ def parse_calibration(raw: bytes, source: str, hint: str) -> dict[str, Any]:
         raise DeviceProtocolError(f"the calibration is longer than a visual.json can be ({MAX_CALIBRATION_BYTES} "
                                   "bytes)", source=source, hint=hint)
     try:
-        visual = json_from_bytes(raw, source, "visual.json", hint, InputError)
+        visual = json_from_bytes(raw, source, "visual.json", hint, InputError, MAX_VISUAL_JSON_BYTES)
     except InputError as exc:
         text = exc.message if exc.message.startswith("field") else exc.message.removeprefix("is ")
         raise DeviceProtocolError(f"the calibration read is not a usable visual.json: {text}", source=source,
