@@ -13,18 +13,32 @@ coordinates are (x/z, y/z).
 
 from __future__ import annotations
 
+import base64
 import dataclasses
+import io
 import os
+import re
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from ..core.arrayfile import size_text
 from ..core.documents import read_json_file
 from ..core.errors import BackendUnavailableError, InputError
+from ..core.input_files import MIB, check_input, read_input
 
 MRCAL_INSTALL = "pip install --no-deps mrcal==2.5.2.post1 (see the README's set-up command)"
 HINT = ("give an mrcal .cameramodel ('lenticalib camera calibrate' writes one) or OpenCV YAML/JSON with "
         "camera_matrix and distortion")
+
+# LIMITS (docs/input-limits.md), checked before anything is parsed or inflated.  A .cameramodel
+# 'lenticalib camera calibrate' writes is some 100 KiB (a few hundred photos of a board: a few
+# MiB); mrcal decodes its base-85 optimization inputs in Python, about 9 bytes of memory per byte.
+MAX_CAMERAMODEL_BYTES = 16 * MIB  # a whole .cameramodel file
+MAX_MODEL_TEXT_BYTES = 1 * MIB  # its model besides optimization_inputs (a splined model: some 10 KiB)
+MAX_OPTIMIZATION_INPUTS_BYTES = 32 * MIB  # optimization_inputs' arrays inflated (1.4 M board corners)
+MAX_CAMERA_TEXT_BYTES = 1 * MIB  # an OpenCV YAML/XML or JSON camera model: a matrix and a few coefficients
 
 
 @dataclasses.dataclass
@@ -139,18 +153,23 @@ def load_camera_model(path: str | os.PathLike) -> CameraModel:
     ``.yaml/.yml/.xml`` by ``cv2.FileStorage``, anything else as JSON
     (``camera_matrix``, ``distortion``, optional ``image_size``).  Every failure is one
     InputError naming the file; a missing mrcal is a BackendUnavailableError saying how to install it.
+
+    Each is a regular file within its cap (:data:`MAX_CAMERAMODEL_BYTES`,
+    :data:`MAX_CAMERA_TEXT_BYTES`), checked before it is read; a ``.cameramodel``'s structure is
+    checked before mrcal parses it (:func:`check_cameramodel_text`).
     """
     path = Path(path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise InputError("camera model not found", source=str(path), hint="give an existing .cameramodel or .yaml")
     try:
         if path.suffix == ".cameramodel":
             return _from_mrcal(path)
         if path.suffix in (".yaml", ".yml", ".xml"):
+            check_input(path, "camera model", MAX_CAMERA_TEXT_BYTES, HINT)
             return _from_opencv_storage(path)
 
         try:
-            data = read_json_file(path, "camera model", HINT)
+            data = read_json_file(path, "camera model", HINT, max_bytes=MAX_CAMERA_TEXT_BYTES)
         except InputError as exc:
             raise InputError(f"cannot read the camera model ({exc.message})", source=str(path), hint=HINT) from None
         matrix = np.asarray(data["camera_matrix"], float).reshape(3, 3)
@@ -163,13 +182,53 @@ def load_camera_model(path: str | os.PathLike) -> CameraModel:
         raise InputError(f"cannot read the camera model ({reason})", source=str(path), hint=HINT) from None
 
 
+# mrcal writes the optimization inputs as one base-85 bytes literal (no quote or backslash inside)
+_OPTIMIZATION_INPUTS = re.compile(r"""(['"])optimization_inputs\1\s*:\s*b(['"])([^'"\\]*)\2""")
+
+
+def check_cameramodel_text(text: str, source: str) -> None:
+    """Refuse, before mrcal parses it, a ``.cameramodel`` text whose structure no calibration has.
+
+    The model without its ``optimization_inputs`` (a Python literal mrcal reads with
+    ``ast.literal_eval``) must fit :data:`MAX_MODEL_TEXT_BYTES`; ``optimization_inputs``, when
+    present, must be one base-85 bytes literal, and the zip archive it encodes must list members
+    whose uncompressed sizes (from its central directory: what inflating them produces at most)
+    add up to at most :data:`MAX_OPTIMIZATION_INPUTS_BYTES`.  Nothing is inflated here.
+    """
+    match = _OPTIMIZATION_INPUTS.search(text)
+    if match is None and "optimization_inputs" in text:
+        raise InputError("cannot read the camera model ('optimization_inputs' is not mrcal's base-85 bytes literal)",
+                         source=source, hint=HINT)
+    model_bytes = len(text) - (len(match[3]) if match else 0)
+    if model_bytes > MAX_MODEL_TEXT_BYTES:
+        raise InputError(f"cannot read the camera model (it holds {size_text(model_bytes)} of text besides "
+                         f"'optimization_inputs', more than any lens model needs: at most "
+                         f"{size_text(MAX_MODEL_TEXT_BYTES)})", source=source, hint=HINT)
+    if match is None:
+        return
+    try:
+        members = zipfile.ZipFile(io.BytesIO(base64.b85decode(match[3]))).infolist()
+    except (ValueError, zipfile.BadZipFile, EOFError, NotImplementedError) as exc:
+        reason = " ".join(str(exc).split())[:80] or type(exc).__name__
+        raise InputError(f"cannot read the camera model ('optimization_inputs' is not an archive mrcal wrote: "
+                         f"{reason})", source=source, hint=HINT) from None
+    total = sum(info.file_size for info in members)
+    if total > MAX_OPTIMIZATION_INPUTS_BYTES:
+        raise InputError(f"cannot read the camera model ('optimization_inputs' inflates to {size_text(total)}, more "
+                         f"than a calibration's observations hold: at most {size_text(MAX_OPTIMIZATION_INPUTS_BYTES)})",
+                         source=source, hint=HINT)
+
+
 def _from_mrcal(path: Path) -> CameraModel:
+    source = str(path)
+    text = read_input(path, "camera model", MAX_CAMERAMODEL_BYTES, HINT).decode("utf-8", errors="replace")
+    check_cameramodel_text(text, source)
     try:
         import mrcal
     except ImportError:
-        raise BackendUnavailableError("reading a .cameramodel needs mrcal, which is not installed", source=str(path),
+        raise BackendUnavailableError("reading a .cameramodel needs mrcal, which is not installed", source=source,
                                       hint=MRCAL_INSTALL) from None
-    model = mrcal.cameramodel(str(path))
+    model = mrcal.cameramodel(io.StringIO(text))  # the text checked, not the path read again
     lensmodel, intrinsics = model.intrinsics()
     size = model.imagersize()
     try:
@@ -179,8 +238,7 @@ def _from_mrcal(path: Path) -> CameraModel:
     from .intrinsics.crossval import read_scale
 
     return CameraModel(lensmodel, np.asarray(intrinsics, np.float64).copy(),
-                       None if size is None else (int(size[0]), int(size[1])), str(path), oi,
-                       read_scale(path.read_text(errors="replace")))
+                       None if size is None else (int(size[0]), int(size[1])), source, oi, read_scale(text))
 
 
 def _opencv_model(matrix: np.ndarray, dist: np.ndarray, size, path: Path) -> CameraModel:

@@ -18,6 +18,7 @@ mesh of another avatar (or in other units) is refused before anything is rendere
 
 from __future__ import annotations
 
+import array
 import dataclasses
 import os
 from pathlib import Path
@@ -25,12 +26,21 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.input_files import MIB, open_input
+from .ply import check_ply_counts
 
 # A mesh fits an avatar when the boxes around both overlap by at least this share of the smaller
 # box's volume and their diagonals differ by less than this factor (a mesh in millimetres for an
 # avatar in metres differs by 1000).
 MIN_BOX_OVERLAP = 0.5
 MAX_SIZE_RATIO = 2.0
+
+# LIMITS of a mesh file (docs/input-limits.md): a FLAME head has 5023 vertices and 9976 triangles,
+# a dense head scan some 10^5; the mesh only masks where the avatar's surface is.
+MAX_MESH_BYTES = 128 * MIB  # an OBJ of a million vertices and two million faces with normals and UVs
+MAX_MESH_VERTICES = 1_000_000
+MAX_MESH_TRIANGLES = 2_000_000  # after polygons are split into fans
+MAX_OBJ_LINE = 64 * 1024  # bytes of one OBJ line (a face of some 10 000 corners)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,7 +66,7 @@ def check_mesh(vertices, triangles, source: str) -> TriangleMesh:
     if t.ndim != 2 or t.shape[1] != 3 or t.dtype.kind not in "iu":
         raise InputError(f"mesh triangles have shape {t.shape} dtype {t.dtype}, expected (F, 3) integers",
                          source=source)
-    t = t.astype(np.int64)
+    t = t.astype(np.int64, copy=False)
     if t.min() < 0 or t.max() >= len(v):
         raise InputError(f"a triangle uses vertex {int(t.max() if t.max() >= len(v) else t.min())}, but the mesh "
                          f"has {len(v)} vertices", source=source)
@@ -66,61 +76,118 @@ def check_mesh(vertices, triangles, source: str) -> TriangleMesh:
 
 
 def load_mesh_file(path: str | os.PathLike) -> TriangleMesh:
-    """The triangles of an OBJ or PLY file (module docstring); one InputError naming the file."""
+    """The triangles of an OBJ or PLY file (module docstring); one InputError naming the file.
+
+    The file must be a regular file of at most :data:`MAX_MESH_BYTES` (checked before it is read);
+    its vertices and triangles are counted against :data:`MAX_MESH_VERTICES` and
+    :data:`MAX_MESH_TRIANGLES` before they are stored (a PLY's from its header, after its counts are
+    checked against the file's size; an OBJ's as its lines are read, each at most
+    :data:`MAX_OBJ_LINE` bytes), so a small file claiming millions of faces costs no memory.
+    """
     p = Path(path)
     source = str(p)
-    if not p.is_file():
-        raise InputError("no such mesh file" if not p.exists() else "is not a file", source=source,
-                         hint="give the avatar's mesh as an .obj or .ply file")
     suffix = p.suffix.lower()
-    if suffix == ".obj":
-        return _load_obj(p, source)
-    if suffix == ".ply":
-        return _load_ply(p, source)
-    raise InputError(f"mesh files must be .obj or .ply, not {suffix or 'no suffix'!r}", source=source)
+    hint = "give the avatar's mesh as an .obj or .ply file"
+    if suffix not in (".obj", ".ply"):
+        if not os.path.lexists(p):
+            raise InputError("no such mesh file", source=source, hint=hint)
+        raise InputError(f"mesh files must be .obj or .ply, not {suffix or 'no suffix'!r}", source=source)
+    if not os.path.lexists(p):
+        raise InputError("no such mesh file", source=source, hint=hint)
+    with open_input(p, "mesh", MAX_MESH_BYTES, hint) as fh:
+        try:
+            if suffix == ".obj":
+                return _load_obj(fh, source)
+            return _load_ply(fh, source)
+        except OSError as exc:
+            raise InputError(f"cannot read: {exc.strerror or exc}", source=source) from None
 
 
-def _load_obj(p: Path, source: str) -> TriangleMesh:
-    vertices: list[tuple[float, float, float]] = []
-    triangles: list[tuple[int, int, int]] = []
-    try:
-        with open(p, encoding="utf-8", errors="replace") as fh:
-            for number, line in enumerate(fh, 1):
-                parts = line.split()
-                if not parts:
-                    continue
-                if parts[0] == "v":
-                    try:
-                        vertices.append((float(parts[1]), float(parts[2]), float(parts[3])))
-                    except (IndexError, ValueError):
-                        raise InputError(f"line {number}: a vertex needs three numbers", source=source) from None
-                elif parts[0] == "f":
-                    try:
-                        corners = [int(c.split("/")[0]) for c in parts[1:]]
-                    except ValueError:
-                        raise InputError(f"line {number}: a face's vertex indices are not whole numbers",
-                                         source=source) from None
-                    if len(corners) < 3 or 0 in corners:
-                        raise InputError(f"line {number}: a face needs three or more vertex indices "
-                                         "(1-based, or negative from the end)", source=source)
-                    n = len(vertices)
-                    idx = [c - 1 if c > 0 else n + c for c in corners]
-                    triangles.extend((idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1))
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", source=source) from None
-    return check_mesh(np.array(vertices, dtype=np.float64).reshape(-1, 3),
-                      np.array(triangles, dtype=np.int64).reshape(-1, 3), source)
+def _too_many(count: int | None, limit: int, what: str, source: str) -> InputError:
+    """The error for a mesh of ``count`` (None: more than ``limit``, counted so far) ``what``."""
+    text = (f"the mesh has more than {limit} {what}, the most a diagnostic mesh may have" if count is None
+            else f"the mesh has {count} {what}, more than the {limit} a diagnostic mesh may have")
+    return InputError(text, source=source, hint="decimate the mesh; a FLAME head has 9976 triangles")
 
 
-def _load_ply(p: Path, source: str) -> TriangleMesh:
+def _load_obj(fh, source: str) -> TriangleMesh:
+    """An OBJ read line by line into flat arrays (8 bytes a number, not Python objects per value)."""
+    vertices = array.array("d")
+    triangles = array.array("q")
+    number = 0
+    while True:
+        raw = fh.readline(MAX_OBJ_LINE + 1)
+        if not raw:
+            break
+        number += 1
+        if len(raw) > MAX_OBJ_LINE:
+            raise InputError(f"line {number} is longer than {MAX_OBJ_LINE} bytes, longer than any OBJ line "
+                             "of a mesh (a face of thousands of corners?)", source=source)
+        parts = raw.split()
+        if not parts:
+            continue
+        if parts[0] == b"v":
+            if len(vertices) >= 3 * MAX_MESH_VERTICES:
+                raise _too_many(None, MAX_MESH_VERTICES, "vertices", source)
+            try:
+                vertices.extend((float(parts[1]), float(parts[2]), float(parts[3])))
+            except (IndexError, ValueError):
+                raise InputError(f"line {number}: a vertex needs three numbers", source=source) from None
+        elif parts[0] == b"f":
+            try:
+                corners = [int(c.split(b"/")[0]) for c in parts[1:]]
+            except ValueError:
+                raise InputError(f"line {number}: a face's vertex indices are not whole numbers",
+                                 source=source) from None
+            if len(corners) < 3 or 0 in corners:
+                raise InputError(f"line {number}: a face needs three or more vertex indices "
+                                 "(1-based, or negative from the end)", source=source)
+            if len(triangles) + 3 * (len(corners) - 2) > 3 * MAX_MESH_TRIANGLES:
+                raise _too_many(None, MAX_MESH_TRIANGLES, "triangles", source)
+            n = len(vertices) // 3
+            idx = [c - 1 if c > 0 else n + c for c in corners]
+            for k in range(1, len(idx) - 1):
+                triangles.extend((idx[0], idx[k], idx[k + 1]))
+    return check_mesh(np.frombuffer(vertices, dtype=np.float64).reshape(-1, 3),
+                      np.frombuffer(triangles, dtype=np.int64).reshape(-1, 3), source)
+
+
+def fan_triangles(corners: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """(F, 3) int64 triangles of polygons split into fans: ``corners`` (sum(lengths),) the vertex
+    indices of every polygon in turn, ``lengths`` (P,) each polygon's corner count (>= 3)."""
+    lengths = np.asarray(lengths, np.int64)
+    starts = np.cumsum(lengths) - lengths
+    fans = lengths - 2
+    polygon = np.repeat(np.arange(len(lengths)), fans)
+    k = np.arange(int(fans.sum())) - np.repeat(np.cumsum(fans) - fans, fans)  # 0 .. n-3 within each fan
+    first = starts[polygon]
+    corners = np.asarray(corners, np.int64)
+    return np.stack([corners[first], corners[first + k + 1], corners[first + k + 2]], axis=1)
+
+
+def _load_ply(fh, source: str) -> TriangleMesh:
     import plyfile
 
-    try:
-        ply = plyfile.PlyData.read(str(p))
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", source=source) from None
-    except Exception as exc:  # plyfile raises its own PlyParseError and ValueError/struct errors on bad data
-        raise InputError(f"not a readable PLY file ({exc})", source=source) from None
+    elements = check_ply_counts(fh, source, "PLY mesh")
+    counts = {e.name: e for e in elements or ()}
+    if "vertex" in counts and counts["vertex"].count > MAX_MESH_VERTICES:
+        raise _too_many(counts["vertex"].count, MAX_MESH_VERTICES, "vertices", source)
+    if "face" in counts and counts["face"].count > MAX_MESH_TRIANGLES:
+        raise _too_many(counts["face"].count, MAX_MESH_TRIANGLES, "faces", source)
+    # triangles as fixed-length lists are read as one array; any other face falls back to plyfile's rows
+    triangle_lists = {"face": {name: 3 for name in counts["face"].lists}} if "face" in counts else {}
+    ply = None
+    for known in (triangle_lists, {}) if triangle_lists else ({},):
+        fh.seek(0)
+        try:
+            ply = plyfile.PlyData.read(fh, mmap=bool(known), known_list_len=known)
+            break
+        except plyfile.PlyElementParseError as exc:
+            if known and "unexpected list length" in str(exc):
+                continue  # polygons, not triangles
+            raise InputError(f"not a readable PLY file ({' '.join(str(exc).split())})", source=source) from None
+        except Exception as exc:  # plyfile raises its own PlyParseError and ValueError/struct errors on bad data
+            raise InputError(f"not a readable PLY file ({' '.join(str(exc).split())})", source=source) from None
     names = [e.name for e in ply.elements]
     if "vertex" not in names:
         raise InputError("the PLY file has no 'vertex' element", source=source)
@@ -135,13 +202,15 @@ def _load_ply(p: Path, source: str) -> TriangleMesh:
     key = next((k for k in ("vertex_indices", "vertex_index") if k in face.dtype.names), None)
     if key is None:
         raise InputError("the PLY faces have no 'vertex_indices' list", source=source)
-    triangles = []
-    for corners in face[key]:
-        c = np.asarray(corners, dtype=np.int64)
-        if len(c) < 3:
-            raise InputError("a PLY face has fewer than three vertices", source=source)
-        triangles.extend((c[0], c[k], c[k + 1]) for k in range(1, len(c) - 1))
-    return check_mesh(vertices, np.array(triangles, dtype=np.int64).reshape(-1, 3), source)
+    lists = face[key]
+    if lists.dtype != object:  # read as one (F, 3) array
+        return check_mesh(vertices, np.asarray(lists, dtype=np.int64).reshape(-1, 3), source)
+    lengths = np.fromiter((len(c) for c in lists), dtype=np.int64, count=len(lists))
+    if (lengths < 3).any():
+        raise InputError("a PLY face has fewer than three vertices", source=source)
+    if int((lengths - 2).sum()) > MAX_MESH_TRIANGLES:
+        raise _too_many(int((lengths - 2).sum()), MAX_MESH_TRIANGLES, "triangles", source)
+    return check_mesh(vertices, fan_triangles(np.concatenate(list(lists)), lengths), source)
 
 
 def check_mesh_fits(mesh_box: tuple[np.ndarray, np.ndarray], avatar_box: tuple[np.ndarray, np.ndarray],

@@ -30,20 +30,23 @@ plyfile reads a byte of data, so a header claiming 10^13 vertices costs no memor
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 import re
 
 import numpy as np
 
-from ..core.arrayfile import size_text
+from ..core.arrayfile import GIB, size_text
 from ..core.atomic import write_bytes_atomic
 from ..core.errors import BackendUnavailableError, InputError
+from ..core.input_files import open_input
 from .gaussians import Gaussians
 
 _TYPE_BYTES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
                "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
 _MAX_HEADER = 1 << 16  # bytes searched for end_header
+MAX_AVATAR_PLY_BYTES = 4 * GIB  # an avatar PLY: 16 M Gaussians of degree-3 SH (the largest 3DGS scenes hold 6 M)
 _REST_COUNTS = {0: 1, 9: 4, 24: 9, 45: 16}  # number of f_rest_* -> K
 _LAYOUT_HINT = "expected the standard 3DGS layout: x y z f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3"
 
@@ -57,40 +60,57 @@ def _plyfile():
     return plyfile
 
 
-def _check_counts(fh, source: str) -> None:
-    """Refuse a PLY header whose element counts need more data than the file has after the header.
+@dataclasses.dataclass(frozen=True)
+class PlyElementCount:
+    """One element of a PLY header: ``name``, ``count`` (rows claimed), ``properties`` (names, in
+    order) and ``lists`` (the names of its list properties)."""
+
+    name: str
+    count: int
+    properties: tuple[str, ...]
+    lists: tuple[str, ...]
+
+
+def check_ply_counts(fh, source: str, what: str = "PLY file") -> list[PlyElementCount] | None:
+    """Refuse a PLY header whose element counts need more data than the file has after the header;
+    the elements it declares, or None for a header this cannot parse (left to plyfile, which
+    reports it).  The one check of PLY counts against the file size (avatars and meshes).
 
     Each row needs at least its scalar properties' bytes plus each list's count (binary), or one
-    character and a separator per property (ASCII).  A header this cannot parse is left to
-    plyfile, which reports it.  Leaves ``fh`` at an unspecified position.
+    character and a separator per property (ASCII).  Reads at most the first 64 KiB of ``fh``
+    (an open binary file) and leaves it at an unspecified position.
     """
     head = fh.read(_MAX_HEADER)
     end = head.find(b"end_header")
     stop = head.find(b"\n", end) if end >= 0 else -1
     if not head.startswith(b"ply") or stop < 0:
-        return
+        return None
     data_bytes = os.fstat(fh.fileno()).st_size - (stop + 1)
-    ascii_format, elements = False, []  # [name, count, bytes per row, properties per row]
+    ascii_format, elements = False, []  # [name, count, bytes per row, properties per row, names, lists]
     for line in head[:end].decode("ascii", "replace").splitlines():
         words = line.split()
         if len(words) >= 2 and words[0] == "format":
             ascii_format = words[1] == "ascii"
         elif len(words) == 3 and words[0] == "element":
             if not words[2].isdigit():
-                return
-            elements.append([words[1], int(words[2]), 0, 0])
+                return None
+            elements.append([words[1], int(words[2]), 0, 0, [], []])
         elif len(words) >= 3 and words[0] == "property" and elements:
             size = _TYPE_BYTES.get(words[2] if words[1] == "list" else words[1])
             if size is None:
-                return
+                return None
             elements[-1][2] += size
             elements[-1][3] += 1
-    need = [count * (2 * props if ascii_format else row) for _, count, row, props in elements]
+            elements[-1][4].append(words[-1])
+            if words[1] == "list":
+                elements[-1][5].append(words[-1])
+    need = [count * (2 * props if ascii_format else row) for _, count, row, props, _, _ in elements]
     if sum(need) > data_bytes:
         name, count = elements[need.index(max(need))][:2]
-        raise InputError(f"not a readable PLY file: the header claims {count} '{name}' rows ({size_text(sum(need))} at least), but the "
-                         f"file holds {size_text(data_bytes)} after the header (truncated or corrupt)",
+        raise InputError(f"not a readable {what}: the header claims {count} '{name}' rows ({size_text(sum(need))} at "
+                         f"least), but the file holds {size_text(data_bytes)} after the header (truncated or corrupt)",
                          source=source)
+    return [PlyElementCount(e[0], e[1], tuple(e[4]), tuple(e[5])) for e in elements]
 
 
 def _column(vertex, name: str, source: str) -> np.ndarray:
@@ -147,19 +167,15 @@ def load_ply(path: str | os.PathLike) -> Gaussians:
     plyfile = _plyfile()
     source = os.fspath(path)
     try:
-        with open(path, "rb") as fh:
+        with open_input(path, "PLY avatar", MAX_AVATAR_PLY_BYTES) as fh:  # a regular file (no FIFO) within the cap
             if not fh.read(4):
                 raise InputError("empty file, not a PLY", source=source)
             fh.seek(0)
-            _check_counts(fh, source)
+            check_ply_counts(fh, source)
             fh.seek(0)
             ply = plyfile.PlyData.read(fh, mmap=False)
     except InputError:
         raise
-    except FileNotFoundError:
-        raise InputError("no such file", source=source) from None
-    except IsADirectoryError:
-        raise InputError("is a folder, expected a .ply file", source=source) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", source=source) from None
     except plyfile.PlyParseError as exc:
