@@ -123,7 +123,7 @@ def test_profile_show_escapes_the_files_words(tmp_path, cli):
     assert code == 0 and raw_controls(out + err) == []
 
 
-@pytest.mark.parametrize("case", ["pitch string", "unknown field", "subpixel order"])
+@pytest.mark.parametrize("case", ["pitch string", "period string", "unknown field", "subpixel order"])
 def test_error_lines_quoting_a_file_are_escaped_and_short(case, tmp_path, cli):
     if case == "pitch string":  # a 60 KB pitch string read from a unit's drive
         drive = make_drive(tmp_path / "LKG", visual_bytes(dict(STRIPE, pitch={"value": TITLE + "5" * 60_000})))
@@ -136,6 +136,8 @@ def test_error_lines_quoting_a_file_are_escaped_and_short(case, tmp_path, cli):
         document = profile_b().to_dict()
         if case == "unknown field":  # the message quotes the key as written
             document[CLEAR + TITLE * 10_000] = 1
+        elif case == "period string":  # 200 KB
+            document["period"] = TITLE + "5" * 200_000
         else:
             document["subpixel_order"] = ("RGB" + CLIPBOARD) * 10_000
         path = tmp_path / "p.json"
