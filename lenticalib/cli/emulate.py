@@ -118,20 +118,12 @@ def run(args: argparse.Namespace) -> int:
 def run_looking_glass(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..core.errors import InputError
+    from ..core.input_files import read_input
     from ..device.emulator.looking_glass import create_unit
     from ..device.looking_glass.unit import MAX_CALIBRATION_BYTES
 
     source = Path(args.looking_glass)
-    try:
-        text = source.read_bytes()
-    except IsADirectoryError:
-        raise InputError("is a folder, not a visual.json", source=str(source)) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", source=str(source),
-                         hint="give the path of a Looking Glass visual.json") from None
-    if len(text) > MAX_CALIBRATION_BYTES:
-        raise InputError(f"is {len(text)} bytes; a unit's EEPROM holds at most {MAX_CALIBRATION_BYTES}",
-                         source=str(source))
+    # a regular file (a FIFO or /dev/zero is refused at once) of at most what a unit's EEPROM holds
+    text = read_input(source, "visual.json", MAX_CALIBRATION_BYTES, "give the path of a Looking Glass visual.json")
     print(create_unit("lkg" if args.name is None else args.name, text), flush=True)
     return 0

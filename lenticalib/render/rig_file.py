@@ -54,7 +54,7 @@ import numpy as np
 
 from ..core.arrayfile import GIB, load_npz
 from ..core.atomic import write_bytes_atomic
-from ..core.documents import FORMATS, OLD_VERSION_KEY, VERSION_KEY, check_envelope
+from ..core.documents import FORMATS, OLD_VERSION_KEY, VERSION_KEY, check_envelope, json_from_text
 from ..core.errors import InputError
 from .gaussians import Gaussians
 from .rig_mesh import MESH_ARRAYS, MESH_BLEND_ARRAYS, mesh_from_arrays
@@ -246,10 +246,9 @@ def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "
     pose_pivot = floats("pose_pivot", (3,))
     pose_controls = ints("pose_controls", (2,), -1, D - 3, "first-control indices")
     prov = need("provenance")
-    try:
-        provenance = json.loads(str(prov)) if prov.shape == () and prov.dtype.kind == "U" else None
-    except json.JSONDecodeError:
-        provenance = None
+    # the one JSON reader: depth, value count and numbers bounded (a provenance nested 100000 deep is one line)
+    provenance = (json_from_text(str(prov), f"{source}: array 'provenance'")
+                  if prov.shape == () and prov.dtype.kind == "U" else None)
     if not isinstance(provenance, dict):
         raise InputError("array 'provenance' is not a JSON object string", source=source)
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from ...core.errors import InputError
 from ...core.imageio import IMAGE_SUFFIXES, read_image
+from ...core.video import open_video
 from ..views import natural_key
 
 FOLDER_FPS = 30.0  # a folder of images is taken as frames at this rate
@@ -45,7 +46,7 @@ class FrameSource:
             return
         import cv2
 
-        cap = cv2.VideoCapture(self.source)
+        cap = open_video(self.source)
         try:
             k = 0
             while True:
@@ -70,13 +71,13 @@ def open_frames(spec: str | os.PathLike) -> FrameSource:
                              hint=f"give a video or a folder of frames ({', '.join(sorted(IMAGE_SUFFIXES))})")
         first = read_image(files[0])
         return FrameSource(source, files, FOLDER_FPS, len(files), (first.shape[1], first.shape[0]))
-    if not p.exists():
+    if not os.path.lexists(p):
         raise InputError("no such video or folder of frames", source=source)
     import cv2
 
-    cap = cv2.VideoCapture(source)
+    cap = open_video(p)  # a regular file within the caps; its stated frame size and count checked before a read
     try:
-        ok, bgr = cap.read() if cap.isOpened() else (False, None)
+        ok, bgr = cap.read()
         if not ok:
             raise InputError("OpenCV cannot open or decode this video", source=source,
                              hint="convert it (e.g. to H.264 .mp4 or MJPEG .avi), or give a folder of frames")
@@ -105,7 +106,7 @@ class CameraFrames:
         import cv2
 
         self.spec = spec
-        self._cap = cv2.VideoCapture(spec)
+        self._cap = open_video(spec) if isinstance(spec, str) else cv2.VideoCapture(spec)
         self.is_video = isinstance(spec, str)
         self._loop = loop and self.is_video
         self._fps = self._cap.get(cv2.CAP_PROP_FPS) if self.is_video else 0.0
