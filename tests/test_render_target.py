@@ -78,8 +78,8 @@ def test_the_cameras_aim_at_the_robust_centre_diagnose_uses():
     cams = make_cameras("arc", g, 4, view_size=(64, 36))
     np.testing.assert_allclose(cams.params["c0"], (lo + hi) / 2, atol=1e-12)
     assert np.abs(cams.params["c0"]).max() < 0.05 and cams.params["h"] < 0.11  # the far Gaussian pulls neither
-    np.testing.assert_allclose(cams.params["c"], [*cams.params["c0"][:1], cams.params["c0"][1] + 0.08 * cams.params["h"],
-                                                  cams.params["c0"][2]], atol=1e-12)
+    c0, h = np.array(cams.params["c0"]), cams.params["h"]
+    np.testing.assert_allclose(cams.params["c"], c0 + [0.0, 0.08 * h, 0.0], atol=1e-12)  # lifted to eye level
     aimed = make_cameras("arc", g, 4, view_size=(64, 36), target=(FAR_X, 0.0, 0.0))
     assert aimed.params["c"] == [FAR_X, 0.0, 0.0]  # the look-at point itself, no lift
 
@@ -129,6 +129,7 @@ def test_empty_views_from_the_projected_centres_and_their_footprints():
     point = m[:3, :3].T @ (np.linalg.inv(k) @ pixel - m[:3, 3])
     assert 2 in empty_views(cams, point[None])
     assert 2 not in empty_views(cams, point[None], [5.0 * depth / k[0, 0]])
+    assert empty_views(cams, np.zeros((0, 3))) == [0, 1, 2, 3, 4]
     assert view_list([0, 1, 2, 5]) == "views 0-2, 5" and view_list([4]) == "view 4"
 
 

@@ -44,9 +44,9 @@ import numpy as np
 
 from ..core.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
+from .renderers.common import NEAR_PLANE
 
 DOCUMENT = FORMATS["lenticalib.cameras"]
-NEAR = 0.01  # camera-frame z, world units: nearer Gaussians are culled (the renderers' near plane)
 ALPHA_MIN = 1.0 / 255.0  # a Gaussian of lower opacity draws nothing (the renderers' cut-off)
 FOOTPRINT_SIGMAS = 3.33  # a splat reaches at most this many standard deviations (the renderers' box)
 
@@ -176,24 +176,25 @@ def empty_views(cameras: ViewCameras, points: Any, reach: Any = None) -> list[in
 
     ``points`` (P, 3) world; ``reach`` (P,) world units, the radius of each point's footprint (a
     Gaussian's: :data:`FOOTPRINT_SIGMAS` times its largest standard deviation), None for 0.  A
-    point shows in view i when it lies at least :data:`NEAR` in front of camera i and the disc of
-    radius ``f reach / z`` pixels around its projection (f the larger focal length) meets the
-    view's pixels, [-0.5, W - 0.5] x [-0.5, H - 0.5].  In chunks of 8192 points, a view at a time,
-    stopping at the first that shows: a view with the avatar in it costs one chunk (the demo
-    avatar's 32 views: 25 ms), an empty one every point (13 ms per 100 000 points, 2 cores).
+    point shows in view i when it lies at least the renderers' ``NEAR_PLANE`` (0.01) in front of
+    camera i and the disc of radius ``f reach / z`` pixels around its projection (f the larger
+    focal length) meets the view's pixels, [-0.5, W - 0.5] x [-0.5, H - 0.5].  In chunks of 8192
+    points, a view at a time, stopping at the first that shows: a view with the avatar in it
+    costs one chunk (the demo avatar's 32 views: 25 ms), an empty one every point (13 ms per
+    100 000 points, 2 cores).
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     rad = np.zeros(len(pts)) if reach is None else np.asarray(reach, dtype=np.float64).reshape(-1)
     # points in a spread order (every 997th first), so a view that shows the avatar is told by the first chunk
     order = np.argsort(np.arange(len(pts)) % 997, kind="stable")
-    return [i for i in range(cameras.n_views)
-            if not any(_shows(cameras, i, pts[part], rad[part]) for part in np.array_split(order, -(-len(pts) // 8192)))]
+    chunks = np.array_split(order, max(1, -(-len(pts) // 8192)))
+    return [i for i in range(cameras.n_views) if not any(_shows(cameras, i, pts[c], rad[c]) for c in chunks)]
 
 
 def _shows(cameras: ViewCameras, i: int, pts: np.ndarray, rad: np.ndarray) -> bool:
     """Whether any of ``pts`` (P, 3) with footprint radii ``rad`` (P,) shows in view ``i`` (:func:`empty_views`)."""
     cam = pts @ cameras.viewmats[i, :3, :3].T + cameras.viewmats[i, :3, 3]
-    ahead = cam[:, 2] >= NEAR
+    ahead = cam[:, 2] >= NEAR_PLANE
     z = cam[ahead, 2]
     k = cameras.K[i]
     u = k[0, 0] * cam[ahead, 0] / z + k[0, 2]
