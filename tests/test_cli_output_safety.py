@@ -74,6 +74,7 @@ def inputs(tmp_path_factory):
     save_rig(folder / "demo.npz", make_demo_avatar(seed=1, count=2000))
     export_visual_json(load_profile(PROFILE), folder / "visual.json", dpi=280.0)
     (folder / "small.json").write_text(json.dumps(SMALL_PROFILE))
+    (folder / "board.jpg").write_bytes(b"a photo of a board")  # found by name; refused before it is read
     return folder
 
 
@@ -88,7 +89,8 @@ FILE_COMMANDS = {
     "render -o PNG": (["render", "IN/demo.npz", "--profile", PROFILE, "-o", "OUT"], "frame.png"),
     "render -o MKV": (["render", "IN/demo.npz", "--profile", PROFILE, "-o", "OUT"], "video.mkv"),
     "crosstalk measure": (["crosstalk", "measure", "IN", "-o", "OUT"], "crosstalk.json"),
-    "camera calibrate": (["camera", "calibrate", "IN", "-o", "OUT"], "camera.cameramodel"),
+    "camera calibrate": (["camera", "calibrate", "IN/board.jpg", "--board", "9x6", "--square", 20, "-o", "OUT"],
+                         "camera.cameramodel"),
     "emulate --flash": (["emulate", "--flash", "OUT"], "panel.flash"),
     "patterns --direction": (["patterns", "--direction", "--profile", "IN/small.json", "-o", "DIR"], "direction.png"),
 }
@@ -160,7 +162,8 @@ REPLACED_FOLDERS = {  # folders written whole: an existing one with foreign file
                                       "--views-out", "DIR"],
     "fit --report": ["fit", FIXTURE, "-o", "TMP/p.json", "--report", "DIR"],
     "crosstalk measure --report": ["crosstalk", "measure", "IN", "-o", "TMP/c.json", "--report", "DIR"],
-    "camera calibrate --report": ["camera", "calibrate", "IN", "-o", "TMP/c.cameramodel", "--report", "DIR"],
+    "camera calibrate --report": ["camera", "calibrate", "IN/board.jpg", "--board", "9x6", "--square", "20",
+                                  "-o", "TMP/c.cameramodel", "--report", "DIR"],
     "camera patterns": ["camera", "patterns", "-o", "DIR", "--panel", "640x360", "--pixel-pitch", "0.3"],
     "camera patterns (deep)": ["camera", "patterns", "-o", "DIR", "--panel", "640x360", "--pixel-pitch", "0.3"],
     "camera simulate": ["camera", "simulate", "DIR", "--photos", 3, "--resolution", "640x480"],

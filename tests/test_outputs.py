@@ -19,8 +19,8 @@ def _tree(folder: Path) -> dict[str, bytes | None]:
 
 def test_output_file_checks(tmp_path, read_only):
     (tmp_path / "old.json").write_text("{}")
-    assert check_output_file(tmp_path / "old.json", "profile") == tmp_path / "old.json"  # replaced later
-    assert check_output_file(tmp_path / "new.json", "profile") == tmp_path / "new.json"
+    assert check_output_file(tmp_path / "old.json", "profile", inputs=()) == tmp_path / "old.json"  # replaced later
+    assert check_output_file(tmp_path / "new.json", "profile", inputs=()) == tmp_path / "new.json"
     cases = {
         tmp_path: "is a folder",
         tmp_path / "missing" / "deeper" / "p.json": "does not exist",
@@ -29,7 +29,7 @@ def test_output_file_checks(tmp_path, read_only):
     }
     for path, fragment in cases.items():
         with pytest.raises(InputError) as info:
-            check_output_file(path, "profile")
+            check_output_file(path, "profile", inputs=())
         assert fragment in str(info.value) and "profile" in str(info.value), str(info.value)
     assert not (tmp_path / "missing").exists()  # a missing parent is never created
 
@@ -40,8 +40,8 @@ def test_output_folder_checks(tmp_path, read_only):
     report = tmp_path / "report"
     report.mkdir()
     (report / "panel.png").write_bytes(b"png")
-    assert check_output_folder(report, "report", contents={"panel.png"}) == report
-    assert check_output_folder(tmp_path / "new", "report") == tmp_path / "new"
+    assert check_output_folder(report, "report", contents={"panel.png"}, inputs=()) == report
+    assert check_output_folder(tmp_path / "new", "report", inputs=()) == tmp_path / "new"
     (report / "thesis.tex").write_text("my work")
     cases = {
         tmp_path / "file": "is a file, not a folder",
@@ -52,27 +52,27 @@ def test_output_folder_checks(tmp_path, read_only):
     }
     for path, fragment in cases.items():
         with pytest.raises(InputError) as info:
-            check_output_folder(path, "report")
+            check_output_folder(path, "report", inputs=())
         assert fragment in str(info.value), str(info.value)
     with pytest.raises(InputError) as info:
-        check_output_folder(report, "report", contents={"panel.png"})
+        check_output_folder(report, "report", contents={"panel.png"}, inputs=())
     assert str(info.value).startswith(f"{report}: holds 'thesis.tex'"), str(info.value)
 
 
 def test_staged_folder_replaces_only_when_complete(tmp_path):
     target = tmp_path / "report"
-    with staged_folder(target, "report", ("a.txt", "b.txt")) as stage:
+    with staged_folder(target, "report", ("a.txt", "b.txt"), inputs=()) as stage:
         assert stage.parent == tmp_path and stage.name.startswith(".report.") and not target.exists()
         (stage / "a.txt").write_text("first")
     assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}
 
     with pytest.raises(RuntimeError):
-        with staged_folder(target, "report", ("a.txt", "b.txt")) as stage:
+        with staged_folder(target, "report", ("a.txt", "b.txt"), inputs=()) as stage:
             (stage / "a.txt").write_text("half")
             raise RuntimeError("the work failed")
     assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}  # old intact, nothing hidden left
 
-    with staged_folder(target, "report", ("a.txt", "b.txt")) as stage:
+    with staged_folder(target, "report", ("a.txt", "b.txt"), inputs=()) as stage:
         (stage / "b.txt").write_text("second")
     assert _tree(tmp_path) == {"report": None, "report/b.txt": b"second"}
 
@@ -80,12 +80,12 @@ def test_staged_folder_replaces_only_when_complete(tmp_path):
 def test_staged_folder_refuses_before_the_work(tmp_path):
     ran = []
     with pytest.raises(InputError):
-        with staged_folder(tmp_path / "missing" / "report", "report", ()):
+        with staged_folder(tmp_path / "missing" / "report", "report", (), inputs=()):
             ran.append(True)
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     with pytest.raises(InputError):
-        with staged_folder(tmp_path / "mine", "report", contents={"panel.png"}):
+        with staged_folder(tmp_path / "mine", "report", contents={"panel.png"}, inputs=()):
             ran.append(True)
     assert ran == [] and _tree(tmp_path) == {"mine": None, "mine/notes.txt": b"keep"}
 
@@ -162,7 +162,7 @@ def test_outputs_never_replace_fifos_devices_folders_or_links_to_them(tmp_path):
     before = {name: _identity(path) for name, path in nodes.items()}
     for name, path in nodes.items():
         with pytest.raises(InputError) as info:  # before the work
-            check_output_file(path, "profile")
+            check_output_file(path, "profile", inputs=())
         assert str(info.value).startswith(f"{path}: "), (name, str(info.value))
         assert "folder" in str(info.value) or "regular file" in str(info.value) or "does not exist" in str(info.value)
         with pytest.raises(InputError):  # and the write itself, whatever was checked before
@@ -198,7 +198,7 @@ def test_a_link_to_a_regular_file_is_followed_and_set_id_bits_are_dropped(tmp_pa
     real.chmod(0o4755)
     link = tmp_path / "links" / "tool.json"
     link.symlink_to(real)
-    assert check_output_file(link, "profile") == link
+    assert check_output_file(link, "profile", inputs=()) == link
     write_bytes_atomic(link, b"new")
     assert link.is_symlink() and os.readlink(link) == str(real)  # the link stays, its target is replaced
     assert real.read_bytes() == b"new" and real.stat().st_mode & 0o7777 == 0o755
@@ -238,7 +238,7 @@ def test_a_folder_that_takes_no_files_is_named_not_writable(tmp_path):
     """/proc exists and passes os.access for root, but no file can be made there."""
     from lenticalib.core.atomic import write_bytes_atomic
 
-    for call in (lambda: check_output_file("/proc/lenticalib-test.json", "profile"),
+    for call in (lambda: check_output_file("/proc/lenticalib-test.json", "profile", inputs=()),
                  lambda: write_bytes_atomic("/proc/lenticalib-test.json", b"{}")):
         with pytest.raises(InputError) as info:
             call()
@@ -257,7 +257,7 @@ def test_staged_folder_refuses_foreign_files_at_any_depth_and_follows_a_link(tmp
     (views / "frame-00000" / "thesis.tex").write_text("my work")
     before = _tree(tmp_path)
     with pytest.raises(InputError) as info:
-        with staged_folder(views, "views folder", contents):
+        with staged_folder(views, "views folder", contents, inputs=()):
             pytest.fail("the work started")
     assert str(info.value).startswith(f"{views}: holds 'frame-00000/thesis.tex'"), str(info.value)
     assert _tree(tmp_path) == before
@@ -266,13 +266,13 @@ def test_staged_folder_refuses_foreign_files_at_any_depth_and_follows_a_link(tmp
     link = tmp_path / "link"
     link.symlink_to(views)
     with pytest.raises(InputError, match="holds 'late.txt'"):  # checked again when the folder is replaced
-        with staged_folder(link, "views folder", contents) as stage:
+        with staged_folder(link, "views folder", contents, inputs=()) as stage:
             (stage / "cameras.json").write_text("{}")
             (tmp_path / "views" / "late.txt").write_text("put there while the work ran")
     assert link.is_symlink() and _tree(views) == {"frame-00000": None, "frame-00000/view-00.png": b"png",
                                                   "late.txt": b"put there while the work ran"}
     (views / "late.txt").unlink()
-    with staged_folder(link, "views folder", contents) as stage:
+    with staged_folder(link, "views folder", contents, inputs=()) as stage:
         (stage / "cameras.json").write_text("{}")
     assert link.is_symlink() and _tree(views) == {"cameras.json": b"{}"}
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
@@ -294,7 +294,7 @@ _KILLED_WRITER = """
 import sys, time
 from lenticalib.core.atomic import PendingFile
 from lenticalib.core.outputs import staged_folder
-with staged_folder(sys.argv[1], "frames folder", ("frame-*.png",)) as stage:
+with staged_folder(sys.argv[1], "frames folder", ("frame-*.png",), inputs=()) as stage:
     (stage / "frame-00000.png").write_bytes(b"half")
     video = PendingFile(sys.argv[2], "video", suffix=".mkv")
     video.write(b"half a video")
@@ -331,7 +331,7 @@ def test_what_a_killed_run_left_is_removed_by_the_next_run_of_the_same_output(tm
     left = [p.name for p in tmp_path.iterdir() if p.name not in decoys and p.name != ".frames.abcd1234.old"]
     assert len(left) == 2 and any(n.endswith(".partial") for n in left) and any(n.endswith(".tmp.mkv") for n in left)
 
-    with staged_folder(frames, "frames folder", ("frame-*.png",)) as stage:
+    with staged_folder(frames, "frames folder", ("frame-*.png",), inputs=()) as stage:
         (stage / "frame-00000.png").write_bytes(b"whole")
     write_bytes_atomic(video, b"a whole video")
     assert _tree(tmp_path) == {**decoys, ".frames.abcd1234.old": None, "frames": None,
@@ -343,7 +343,7 @@ def test_a_failed_swap_puts_the_earlier_folder_back(tmp_path, monkeypatch):
     import os
 
     target = tmp_path / "report"
-    with staged_folder(target, "report", ("a.txt",)) as stage:
+    with staged_folder(target, "report", ("a.txt",), inputs=()) as stage:
         (stage / "a.txt").write_text("first")
     real_replace = os.replace
 
@@ -354,7 +354,7 @@ def test_a_failed_swap_puts_the_earlier_folder_back(tmp_path, monkeypatch):
 
     monkeypatch.setattr(os, "replace", replace)
     with pytest.raises(InputError, match="No space left"):
-        with staged_folder(target, "report", ("a.txt",)) as stage:
+        with staged_folder(target, "report", ("a.txt",), inputs=()) as stage:
             (stage / "a.txt").write_text("second")
     assert _tree(tmp_path) == {"report": None, "report/a.txt": b"first"}
 

@@ -30,7 +30,8 @@ from pathlib import Path
 from typing import Callable
 
 from ..core.errors import InputError
-from ..core.outputs import check_output_file, check_output_folder, staged_folder
+from ..core.outputs import Inputs, check_output_file, check_output_folder, staged_folder
+from ..core.pattern_sets import MANIFEST_NAME
 from ..core.physical import LIMITS
 from ..core.profile import MAX_VIEWS, PanelProfile, save_profile
 from . import fit as fit_module
@@ -38,6 +39,7 @@ from .camera_file import CameraModel, load_camera_model
 from .captures import open_capture_set
 
 ProgressFn = Callable[[str], None]
+CAPTURE_FOLDER = "captures"  # DIR/captures: the photos (:mod:`.captures`)
 
 SECOND_DISTANCE_HOW = ("photograph the patterns again from another distance, into a copy of the pattern folder")
 MOVED_RIGHT_HOW = ("photograph the patterns again after moving the camera a few centimetres to the right, into a "
@@ -125,22 +127,23 @@ def check_second_set(capture_dir, other, field: str, how: str) -> None:
                          hint="photograph the same patterns from both camera positions")
 
 
-def check_fit_outputs(output: str | os.PathLike | None,
-                      report_dir: str | os.PathLike | None) -> tuple[Path | None, Path | None]:
+def check_fit_outputs(output: str | os.PathLike | None, report_dir: str | os.PathLike | None, *,
+                      inputs: Inputs) -> tuple[Path | None, Path | None]:
     """(profile path, report folder) once both can be written (:mod:`lenticalib.core.outputs`: no
     missing folder is created, a folder is not a profile path, a folder holding anything but a
-    report is not replaced); the report defaults to ``NAME-report/`` beside the profile."""
+    report is not replaced, neither is nor holds one of the ``inputs``); the report defaults to
+    ``NAME-report/`` beside the profile."""
     from .report import REPORT_FILES
 
-    output = None if output is None else check_output_file(output, "profile", example="profile.json")
+    output = None if output is None else check_output_file(output, "profile", example="profile.json", inputs=inputs)
     if report_dir is not None:
-        report = check_output_folder(report_dir, "report", contents=REPORT_FILES)
+        report = check_output_folder(report_dir, "report", contents=REPORT_FILES, inputs=inputs)
     elif output is not None:
         report = output.with_name(output.stem + "-report")
         if report.exists() and not report.is_dir():
             raise InputError("is a file, not a folder for the report", source=str(report),
                              hint="remove it, or choose another report_dir")
-        check_output_folder(report, "report", contents=REPORT_FILES)
+        check_output_folder(report, "report", contents=REPORT_FILES, inputs=inputs)
     else:
         report = None
     if report is not None and output is not None and os.path.abspath(report) == os.path.abspath(output):
@@ -176,7 +179,11 @@ def fit_capture_sets(capture_dir: str | os.PathLike, *, output: str | os.PathLik
     if views is not None and not 2 <= views <= MAX_VIEWS:
         raise InputError(f"{views} views is out of range", source="views",
                          hint=f"use 2..{MAX_VIEWS}, or leave it out to use the pattern set's")
-    output, report = check_fit_outputs(output, report_dir)
+    given = physical or PhysicalOptions()
+    sets = [Path(d) for d in (capture_dir, moved_right, given.second_distance) if d is not None]
+    inputs = (*(d / MANIFEST_NAME for d in sets), *(d / CAPTURE_FOLDER for d in sets),  # the photos: all of captures/
+              None if isinstance(given.camera_model, CameraModel) else given.camera_model)
+    output, report = check_fit_outputs(output, report_dir, inputs=inputs)
     if moved_right is not None:
         check_second_set(capture_dir, moved_right, "moved_right", MOVED_RIGHT_HOW)
     physical = (physical or PhysicalOptions()).checked(capture_dir)
@@ -199,7 +206,7 @@ def fit_capture_sets(capture_dir: str | os.PathLike, *, output: str | os.PathLik
     write_profile = output is not None and (result.trusted or force)
     summary = fit_summary(result, capture_dir, report=report, output=output if write_profile else None)
     if report is not None:
-        with staged_folder(report, "report", contents=REPORT_FILES) as stage:
+        with staged_folder(report, "report", contents=REPORT_FILES, inputs=inputs) as stage:
             write_report(result, stage, capture_dir, summary)
             if write_profile:
                 save_profile(result.profile, output)

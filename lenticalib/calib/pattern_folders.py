@@ -21,7 +21,7 @@ import numpy as np
 from ..core import pattern_sets
 from ..core.errors import InputError
 from ..core.imageio import check_image_output, write_image
-from ..core.outputs import check_output_folder, restored_on_failure
+from ..core.outputs import Inputs, check_output_folder, restored_on_failure
 from ..core.profile import MAX_VIEWS, PanelProfile
 from ..core.sizes import MAX_SIDE, MIN_PANEL_SIDE
 from . import patterns as patterns_module
@@ -59,7 +59,7 @@ def write_calibration_patterns(output: str | os.PathLike, width: int = 3840, hei
                              hint=f"give the panel raster size in pixels, {MIN_PANEL_SIDE}..{MAX_SIDE}")
     if not 2 <= views <= MAX_VIEWS:
         raise InputError(f"{views} views is out of range", source="views", hint=f"use 2..{MAX_VIEWS}")
-    folder = check_output_folder(output, "patterns")
+    folder = check_output_folder(output, "patterns", inputs=())  # drawn from the arguments alone
     pattern_set = patterns_module.design_patterns(width, height, views, cells=cells)
     _write(folder, pattern_set, progress, progress_total)
     return pattern_set
@@ -67,32 +67,34 @@ def write_calibration_patterns(output: str | os.PathLike, width: int = 3840, hei
 
 def write_crosstalk_pattern_folder(profile: PanelProfile, output: str | os.PathLike, sweep: float | None = None,
                                    progress: Callable[..., None] | None = None,
-                                   progress_total: Callable[[int], None] | None = None):
+                                   progress_total: Callable[[int], None] | None = None, *, inputs: Inputs):
     """Write the crosstalk patterns of ``profile`` (band sweeps over ``sweep`` columns, default
     :func:`~.crosstalk.patterns.default_sweep`) into the folder ``output``; returns the
-    :class:`~.crosstalk.patterns.CrosstalkPatternSet`."""
+    :class:`~.crosstalk.patterns.CrosstalkPatternSet`.  ``inputs``: the files the caller read
+    (the profile's file), never written over (:mod:`lenticalib.core.outputs`)."""
     from .crosstalk.patterns import default_sweep, design_crosstalk_patterns
 
     if sweep is not None and not (math.isfinite(sweep) and 4 * profile.views <= sweep <= 4 * profile.width):
         raise InputError(f"sweep {sweep} pixels is out of range", source="sweep",
                          hint=f"use {4 * profile.views}..{4 * profile.width} pixels (default {default_sweep(profile):g})")
-    folder = check_output_folder(output, "crosstalk patterns")
+    folder = check_output_folder(output, "crosstalk patterns", inputs=inputs)
     pattern_set = design_crosstalk_patterns(profile, sweep)
     _write(folder, pattern_set, progress, progress_total)
     return pattern_set
 
 
-def write_direction_pattern(profile: PanelProfile, output: str | os.PathLike, encode: Callable[..., np.ndarray]) -> Path:
+def write_direction_pattern(profile: PanelProfile, output: str | os.PathLike, encode: Callable[..., np.ndarray], *,
+                            inputs: Inputs) -> Path:
     """Write the LEFT/RIGHT check raster of ``profile`` (:func:`~.direction.direction_raster`, drawn
     with the encoder entry point ``encode`` the caller passes: the calibration layer does not import
     the render layer) as ``output/direction.png``; a new folder is made only once the raster is
-    ready.  Returns its path."""
+    ready.  ``inputs``: the files the caller read (the profile's file), never written over.  Returns its path."""
     from .direction import DIRECTION_PATTERN_NAME, direction_raster
 
-    folder = check_output_folder(output, "direction pattern")
+    folder = check_output_folder(output, "direction pattern", inputs=inputs)
     target = folder / DIRECTION_PATTERN_NAME
     if folder.exists():
-        check_image_output(target, what="direction pattern")
+        check_image_output(target, what="direction pattern", inputs=inputs)
     raster = direction_raster(profile, encode)
     folder.mkdir(exist_ok=True)
     write_image(target, raster)

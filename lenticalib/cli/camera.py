@@ -129,7 +129,7 @@ def run_patterns(args: argparse.Namespace) -> int:
         board, sheet = write_board_folder(args.output, width, height, pitch, squares=squares,
                                           lens_pitch_mm=args.lens_pitch, lens_pitch_px=lens_px,
                                           print_square_mm=args.print_square, paper=args.paper,
-                                          pattern=args.pattern, dictionary=args.dictionary)
+                                          pattern=args.pattern, dictionary=args.dictionary, inputs=[args.profile])
     out = Path(args.output)
     markers = (f", {board.dictionary} markers of {board.marker_px} px = {board.marker_mm:.4f} mm"
                if board.charuco else "")

@@ -93,7 +93,7 @@ def run_patterns(args: argparse.Namespace) -> int:
     profile = load_profile(args.profile, "--profile")
     with progress_bar(0, "writing patterns") as bar, flag_names({"sweep": "--sweep"}):
         pattern_set = write_crosstalk_pattern_folder(profile, args.output, args.sweep, progress=bar.update,
-                                                     progress_total=bar.set_total)
+                                                     progress_total=bar.set_total, inputs=[args.profile])
     folder = Path(args.output)
     print(f"wrote {len(pattern_set.patterns)} crosstalk patterns and {folder / MANIFEST_NAME} (set {pattern_set.set_id})")
     print(f"next: photograph them from the fit's camera position, without moving the camera "

@@ -71,6 +71,29 @@ def _looking_glass(url: str) -> bool:
     return is_looking_glass(url)
 
 
+def _url_file(url: str) -> str | None:
+    """The file behind a device URL that a command reads from (an emulator's image, a drive's
+    visual.json), for the output check; None for a port or a URL that does not parse (refused when opened)."""
+    from ..core.errors import LenticalibError
+    from ..device.emulator.controller import default_image_dir
+    from ..device.emulator.looking_glass import unit_image
+    from ..device.looking_glass.drive import calibration_file
+    from ..device.url import parse_device_url
+
+    try:
+        parsed = parse_device_url(url)
+    except LenticalibError:
+        return None
+    if parsed.scheme == "emu":
+        return str(default_image_dir() / f"{parsed.target}.flash")
+    if parsed.scheme == "lkg-emu":
+        return str(unit_image(parsed.target))
+    if parsed.scheme == "lkg-drive":
+        found = calibration_file(parsed.target)
+        return str(found) if found is not None else parsed.target
+    return None
+
+
 def _refuse_looking_glass(url: str, message: str, then: str = "") -> None:
     """One line: a Looking Glass unit is read-only to lenticalib."""
     from ..core.errors import InputError
@@ -162,7 +185,7 @@ def run_read_looking_glass(args) -> int:
                                                 f"{args.output} --views 45'; 48 on a Portrait")
     if not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be 2..{MAX_VIEWS}, got {args.views}", source="--views")
-    check_output_file(args.output, "profile")  # before talking to the device
+    check_output_file(args.output, "profile", inputs=[_url_file(args.url)])  # before talking to the device
     calibration = read_calibration(args.url)
     profile = calibration.to_profile(args.views)
     for note in (profile.provenance or {}).get("assumptions", []):
@@ -185,7 +208,7 @@ def run_read(args) -> int:
     if args.views is not None:
         raise InputError("applies to Looking Glass units only; a controller's record holds its view count",
                          source="--views", hint=f"leave it out: 'lenticalib device read {args.url} -o {args.output}'")
-    check_output_file(args.output, "profile")  # before talking to the device
+    check_output_file(args.output, "profile", inputs=[_url_file(args.url)])  # before talking to the device
     with PanelController.open(args.url) as panel:
         profile = panel.read_profile()
     save_profile(profile, args.output)

@@ -98,8 +98,9 @@ def run(args: argparse.Namespace) -> int:
     if args.flash:
         image = Path(args.flash)
         # a regular file (or a link to one) or a new name: a missing folder is refused, never created, and a
-        # folder, FIFO or device node is never written into
-        check_output_file(image, "flash image")
+        # folder, FIFO or device node is never written into; the image is the emulator's own state, read and
+        # written in place by design, so it is no input of another output
+        check_output_file(image, "flash image", inputs=())
     else:
         image = default_image_dir() / "default.flash"
         image.parent.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder
@@ -116,14 +117,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_looking_glass(args: argparse.Namespace) -> int:
+    import re
     from pathlib import Path
 
     from ..core.input_files import read_input
-    from ..device.emulator.looking_glass import create_unit
+    from ..core.outputs import check_output_file
+    from ..device.emulator.looking_glass import create_unit, unit_image
     from ..device.looking_glass.unit import MAX_CALIBRATION_BYTES
 
     source = Path(args.looking_glass)
+    name = "lkg" if args.name is None else args.name
+    if re.fullmatch(r"[A-Za-z0-9_.-]+", name):  # a bad name is refused by create_unit
+        image = unit_image(name)
+        image.parent.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder, as create_unit makes it
+        check_output_file(image, "Looking Glass EEPROM image", inputs=[source])
     # a regular file (a FIFO or /dev/zero is refused at once) of at most what a unit's EEPROM holds
     text = read_input(source, "visual.json", MAX_CALIBRATION_BYTES, "give the path of a Looking Glass visual.json")
-    print(create_unit("lkg" if args.name is None else args.name, text), flush=True)
+    print(create_unit(name, text), flush=True)
     return 0

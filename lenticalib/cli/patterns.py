@@ -93,7 +93,7 @@ def run_direction(args: argparse.Namespace) -> int:
     from ..core.view_direction import describe_direction
 
     profile = load_profile(args.profile, "--profile")
-    target = write_direction_pattern(profile, args.output, encode)
+    target = write_direction_pattern(profile, args.output, encode, inputs=[args.profile])
     last_left = (profile.views - 1) // 2
     print(f"wrote {target} ({profile.width}x{profile.height}, {profile.views} views: views 0..{last_left} "
           f"say LEFT, the others RIGHT; the profile's view_direction is {describe_direction(profile.view_direction)})")

@@ -142,7 +142,7 @@ def run_import(args) -> int:
 
     if not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be between 2 and {MAX_VIEWS}, got {args.views}", source="--views")
-    check_output_file(args.output, "profile")
+    check_output_file(args.output, "profile", inputs=[args.visual])
     profile = import_visual_json(args.visual, args.views)
     save_profile(profile, args.output)
     for note in (profile.provenance or {}).get("assumptions", []):
@@ -162,7 +162,7 @@ def run_export(args) -> int:
     from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
-    check_output_file(args.output, "visual.json")
+    check_output_file(args.output, "visual.json", inputs=[args.profile])
     export_visual_json(profile, args.output, dpi=args.dpi)
     if profile.view_direction is None:
         print(f"lenticalib: warning: {args.profile}: view_direction is unknown; the visual.json says invView = 1 "
@@ -242,7 +242,7 @@ def run_retarget(args) -> int:
     from ..core.retarget import Eye, calibration_eye, retarget_profile, routing_difference
 
     eye = Eye.parse((args.lateral, args.vertical, args.distance), "--distance")
-    output = check_output_file(args.output, "profile", example="profile-900mm.json")
+    output = check_output_file(args.output, "profile", example="profile-900mm.json", inputs=[args.profile])
     profile = load_profile(args.profile, "PROFILE")
     new = retarget_profile(profile, eye, source=args.profile)
     save_profile(new, output)

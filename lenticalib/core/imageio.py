@@ -27,7 +27,7 @@ import numpy as np
 
 from .atomic import write_bytes_atomic
 from .errors import ImageError, InputError
-from .outputs import check_output_file
+from .outputs import Inputs, check_output_file
 from .sizes import MAX_SIDE, check_raster_size
 
 MAX_IMAGE_PIXELS = MAX_SIDE * MAX_SIDE  # module docstring; the largest raster of :mod:`.sizes`
@@ -133,14 +133,14 @@ def _check_header(p: Path, camera_orientation: bool, expected_size: tuple[int, i
         check_raster_size(size, expected_size, str(p), what, hint)
 
 
-def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image") -> Path:
+def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image", *, inputs: Inputs) -> Path:
     """Refuse, before any work, an image path that :func:`write_image` could not write.
 
     Checks the path itself (:func:`lenticalib.core.outputs.check_output_file`: not a folder, parent
-    folder existing and writable), the suffix (``.png``, ``.tif``, ``.tiff``, ``.npy``) and that
-    ``dtype`` (when given) fits that format.  Returns the path.
+    folder existing and writable, not one of the command's ``inputs``), the suffix (``.png``,
+    ``.tif``, ``.tiff``, ``.npy``) and that ``dtype`` (when given) fits that format.  Returns the path.
     """
-    p = check_output_file(path, what)
+    p = check_output_file(path, what, inputs=inputs)
     suffix = p.suffix.lower()
     if suffix not in WRITE_FORMATS:
         raise ImageError(f"cannot write {suffix or 'files without a suffix'}", source=str(p),
@@ -225,7 +225,7 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False,
 def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
     """Write ``(H, W, 3)`` RGB atomically; the format follows the suffix (.png, .tif, .npy)."""
     cv2 = cv2_quiet()
-    p = check_image_output(path, image.dtype)
+    p = check_image_output(path, image.dtype, inputs=())  # the command checked its inputs before the work
     suffix = p.suffix.lower()
     if suffix == ".npy":
         buf = io.BytesIO()

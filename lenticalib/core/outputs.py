@@ -3,6 +3,10 @@
 One rule for every command that writes: nothing the command did not write is ever deleted or
 replaced.
 
+- inputs are never outputs: every helper here takes the command's ``inputs`` (a required
+  keyword) and refuses an output that is one of them after symbolic links, or the same file by
+  device and inode (a hard link), or, for a folder that is replaced, one that holds an input
+  (:func:`check_not_an_input`);
 - a command creates its own output file or folder, never a missing parent folder (a typo in a
   path must not grow a tree of folders); the parent must exist and be writable (tried, not
   guessed from permission bits: a read-only mount or ``/proc`` is refused as not writable);
@@ -44,6 +48,37 @@ from .atomic import current_umask, hold, kind_of, output_target, remove_leftover
 from .errors import InputError
 
 
+Inputs = Iterable[str | os.PathLike | None]
+"""What a command reads, as the output helpers take it (``inputs=``): files, and folders read whole;
+None entries (an optional input not given) are skipped."""
+
+
+def _identity(path: str | os.PathLike) -> tuple[str, tuple[int, int] | None]:
+    """(the path after symbolic links, (st_dev, st_ino) of what it names or None when nothing)."""
+    real = os.path.realpath(path)
+    try:
+        st = os.stat(real)
+    except OSError:
+        return real, None
+    return real, (st.st_dev, st.st_ino)
+
+
+def _inside(path: str, folder: str) -> bool:
+    """Whether the resolved ``path`` lies strictly inside the resolved ``folder``."""
+    return path != folder and os.path.commonpath([path, folder]) == folder
+
+
+def _same_file_below(folder: str, key: tuple[int, int]) -> str | None:
+    """A path under ``folder`` (any depth, links not followed) that is the file ``key``, or None."""
+    for root, _dirs, files in os.walk(folder):
+        for name in files:
+            with contextlib.suppress(OSError):
+                st = os.lstat(os.path.join(root, name))
+                if (st.st_dev, st.st_ino) == key:
+                    return os.path.join(root, name)
+    return None
+
+
 def _check_parent(target: Path, what: str) -> None:
     parent = target.parent if str(target.parent) else Path(".")
     if not parent.exists():
@@ -65,8 +100,12 @@ def _check_parent(target: Path, what: str) -> None:
         os.unlink(probe)
 
 
-def check_output_file(path: str | os.PathLike, what: str = "output file", example: str = "out") -> Path:
+def check_output_file(path: str | os.PathLike, what: str = "output file", example: str = "out", *,
+                      inputs: Inputs) -> Path:
     """Refuse, before any work, an output file path that cannot be written; return it as a Path.
+
+    ``inputs``: everything the command reads (:data:`Inputs`, ``()`` for nothing); an output that
+    is one of them is refused first (:func:`check_not_an_input`).
 
     A new name or an existing regular file is fine (it is replaced atomically at the end), as is
     a symbolic link to a regular file (the target is replaced); a folder, a FIFO, a device node,
@@ -74,6 +113,7 @@ def check_output_file(path: str | os.PathLike, what: str = "output file", exampl
     link target's folder for a link) is not (module docstring).  ``example``: a file name the
     hint suggests inside a folder given by mistake.
     """
+    check_not_an_input(path, inputs, what, example)
     target = Path(path)
     if target.is_dir():
         raise InputError(f"is a folder, not a file name for the {what}", source=str(target),
@@ -86,21 +126,51 @@ def check_output_file(path: str | os.PathLike, what: str = "output file", exampl
     return target
 
 
-def check_not_an_input(path: str | os.PathLike, inputs: Iterable[str | os.PathLike | None], what: str,
-                       example: str = "out") -> None:
-    """Refuse, before any work, an output file path that is one of the command's own ``inputs``
-    (after symbolic links; None entries are skipped): writing it would destroy what the command
-    reads (a photo, the pattern manifest, the profile).  ``example``: a file name the hint suggests."""
-    real = os.path.realpath(path)
+def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, example: str = "out", *,
+                       folder: bool = False, replaced: bool = True) -> None:
+    """Refuse, before any work, an output ``path`` that would replace or delete one of the
+    command's own ``inputs`` (:data:`Inputs`): writing it would destroy what the command reads.
+
+    The output is refused when it is an input after symbolic links, or the same file by
+    (st_dev, st_ino) (a hard link, a bind mount), or it exists inside an input folder (a folder
+    input is read whole).  An output *folder* (``folder``) that is ``replaced`` as a whole
+    (:func:`staged_folder`) is also refused when an input lies inside it, at any depth (by path
+    or, for a hard-linked input, by inode); one written in place at fixed names
+    (:func:`restored_on_failure`) only when it is an input.  The output helpers
+    (:func:`check_output_file`, :func:`check_output_folder`, :func:`staged_folder`,
+    :func:`lenticalib.core.imageio.check_image_output`) call this with their required
+    ``inputs``.  ``example``: a name the hint suggests.
+    """
+    real, key = _identity(path)
+    exists = key is not None
     for item in inputs:
-        if item is not None and os.path.realpath(item) == real:
-            raise InputError(f"is one of this command's inputs ({item}): the {what} would replace it",
+        if item is None:
+            continue
+        item_real, item_key = _identity(item)
+        named = "" if os.path.abspath(item) == os.path.abspath(path) else f" ({item})"
+        if item_real == real or (exists and item_key == key):
+            raise InputError(f"is one of this command's inputs{named}: the {what} would replace it",
                              source=str(path), hint=f"give the {what} a path of its own, e.g. {example}")
+        if exists and os.path.isdir(item_real) and (_inside(real, item_real) or (
+                not folder and os.stat(real).st_nlink > 1 and _same_file_below(item_real, key))):
+            raise InputError(f"lies in {item}, one of this command's inputs (read whole): the {what} would "
+                             "replace what is there", source=str(path), hint=f"give the {what} a path outside {item}")
+        if not (folder and replaced and exists):
+            continue
+        if _inside(item_real, real) or (item_key is not None and os.path.isfile(item_real)
+                                        and os.stat(item_real).st_nlink > 1 and _same_file_below(real, item_key)):
+            raise InputError(f"holds {item}, one of this command's inputs (or a hard link to it): replacing the "
+                             f"{what} would delete it", source=str(path),
+                             hint=f"give the {what} a folder of its own, e.g. {example}")
 
 
 def check_output_folder(path: str | os.PathLike, what: str = "output folder",
-                        contents: Iterable[str] | None = None) -> Path:
+                        contents: Iterable[str] | None = None, *, inputs: Inputs) -> Path:
     """Refuse, before any work, an output folder that cannot be written; return it as a Path.
+
+    ``inputs``: everything the command reads (:data:`Inputs`, ``()`` for nothing): the folder may
+    not be one of them, nor, when it is replaced as a whole (``contents`` given, as for
+    :func:`staged_folder`), hold one (:func:`check_not_an_input`).
 
     The folder may exist (it must then be a writable folder) or not (its parent must exist and
     be writable); a symbolic link to a folder is followed (the folder it names is returned), a
@@ -110,6 +180,7 @@ def check_output_folder(path: str | os.PathLike, what: str = "output folder",
     entries need patterns of their own); a folder holding anything else, at any depth, is
     refused, naming the first such entry.
     """
+    check_not_an_input(path, inputs, what, folder=True, replaced=contents is not None)
     target = Path(path)
     if target.is_symlink():
         real = Path(os.path.realpath(target))
@@ -154,8 +225,11 @@ def _refuse_foreign(folder: Path, what: str, contents: tuple[str, ...]) -> None:
 
 
 @contextlib.contextmanager
-def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -> Iterator[Path]:
+def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str], *, inputs: Inputs) -> Iterator[Path]:
     """Yield a fresh hidden sibling of ``path`` to write into; on success it replaces ``path``.
+
+    ``inputs``: everything the command reads (:data:`Inputs`): ``path`` may neither be nor hold
+    one of them (:func:`check_not_an_input`), checked before the body runs and before the swap.
 
     ``contents``: what the command writes into the folder (patterns, :func:`check_output_folder`);
     an existing ``path`` holding anything else is refused before the body runs, and again
@@ -167,8 +241,8 @@ def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -
     moment ``path`` is either the old folder or the complete new one (a crash between the two
     renames leaves the old folder under ``.NAME.*.old``, never a partial one at ``path``).
     """
-    contents = tuple(contents)
-    target = check_output_folder(path, what, contents)
+    contents, inputs = tuple(contents), tuple(inputs)
+    target = check_output_folder(path, what, contents, inputs=inputs)
     parent = target.parent if str(target.parent) else Path(".")
     remove_leftovers(target)
     stage = None
@@ -185,7 +259,7 @@ def staged_folder(path: str | os.PathLike, what: str, contents: Iterable[str]) -
         os.chmod(stage, 0o777 & ~current_umask())
         old = None
         if target.exists():
-            check_output_folder(target, what, contents)
+            check_output_folder(target, what, contents, inputs=inputs)
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
             os.rmdir(old)
             os.replace(target, old)

@@ -257,8 +257,9 @@ def diagnose_avatars(avatars: list[str | os.PathLike], *, mesh: str | os.PathLik
     renderer = o.renderer or "cpu"
     device = o.device or ("cuda" if renderer == "gsplat" else "cpu")
     render_fn = get_renderer(renderer, device=device)
+    inputs = (*avatars, mesh, None if o.controls in (None, "demo") else o.controls)  # what the report may not hold
     if report is not None:
-        check_output_folder(report, REPORT_WHAT, REPORT_CONTENTS)
+        check_output_folder(report, REPORT_WHAT, REPORT_CONTENTS, inputs=inputs)
     mesh_file = None
     if mesh is not None:
         mesh_file = load_mesh_file(mesh)
@@ -275,7 +276,7 @@ def diagnose_avatars(avatars: list[str | os.PathLike], *, mesh: str | os.PathLik
     if report is not None:
         from .diagnose_report import write_diagnose_report
 
-        write_diagnose_report(report, records, report_names([r["avatar"] for r in records]), o)
+        write_diagnose_report(report, records, report_names([r["avatar"] for r in records]), o, inputs=inputs)
     for r in records:
         r.pop("_maps")
     if len(records) == 1:

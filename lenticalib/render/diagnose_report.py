@@ -26,7 +26,7 @@ import numpy as np
 
 from ..core.documents import FORMATS, write_document
 from ..core.figures import write_figures
-from ..core.outputs import staged_folder
+from ..core.outputs import Inputs, staged_folder
 from ..core.profile import make_provenance
 from .side_metrics import (DILATION_PX, HIGHER_IS_BETTER, METRIC_MEANINGS, METRICS, NECK_REAR, Crop, alpha_boundary,
                            dilate)
@@ -38,19 +38,21 @@ UNITS = {"O_alpha": "share of the view's alpha", "G_m": "share of the view's alp
          "E_c": "|grad C|_1 per pixel (1/px)"}
 
 
-def write_diagnose_report(directory: str | os.PathLike, records: list[dict], names: list[str], options) -> Path:
-    """Write the report of ``records`` (with their ``_maps``) under ``names`` into ``directory``, staged."""
+def write_diagnose_report(directory: str | os.PathLike, records: list[dict], names: list[str], options, *,
+                          inputs: Inputs) -> Path:
+    """Write the report of ``records`` (with their ``_maps``) under ``names`` into ``directory``, staged
+    (``directory`` may neither be nor hold one of the ``inputs``, the files the diagnosis read)."""
     from .diagnose import REPORT_CONTENTS, REPORT_WHAT
 
-    with staged_folder(directory, REPORT_WHAT, REPORT_CONTENTS) as stage:
+    with staged_folder(directory, REPORT_WHAT, REPORT_CONTENTS, inputs=inputs) as stage:
         for record, name in zip(records, names):
             body = {k: v for k, v in record.items() if k != "_maps"}
-            inputs = [record["avatar"]]
+            read = [record["avatar"]]
             if record["mask_source"].startswith("mesh file "):
-                inputs.append(record["mask_source"][len("mesh file "):].split(" (")[0])
+                read.append(record["mask_source"][len("mesh file "):].split(" (")[0])
             if record["controls"] and record["controls"]["source"] != "demo":
-                inputs.append(record["controls"]["source"])
-            body["provenance"] = make_provenance("avatar diagnose", inputs=inputs, options=_options(options))
+                read.append(record["controls"]["source"])
+            body["provenance"] = make_provenance("avatar diagnose", inputs=read, options=_options(options))
             write_document(stage / f"{name}.json", DOCUMENT, body)
             write_figures(stage, [(f"{name}-metrics.png", _metrics_figure), (f"{name}-sides.png", _sides_figure)],
                           {f"{name}-metrics.png": FIGURE_SIZES["metrics"], f"{name}-sides.png": FIGURE_SIZES["sides"]},

@@ -110,11 +110,13 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
 
     if (views_dir is None) == (quilt is None):
         raise InputError("give the views one way", source="views_dir", hint="either views_dir or quilt")
+    compensation = compensation or CompensationOptions()
+    inputs = (None if isinstance(profile, PanelProfile) else profile, views_dir, quilt, compensation.crosstalk_file)
     if not isinstance(profile, PanelProfile):
         profile = load_profile(profile, "`profile`")
     get_encoder(encoder)  # an unknown encoder is refused before the views are read
-    compensator = (compensation or CompensationOptions()).compensator(profile)
-    check_image_output(output, what="panel raster")  # a wrong output path costs nothing
+    check_image_output(output, what="panel raster", inputs=inputs)  # a wrong output path costs nothing
+    compensator = compensation.compensator(profile)
     if quilt is not None:
         views, found = load_quilt(quilt, profile.views, grid)
         panel_aspect = profile.width / profile.height
@@ -124,7 +126,7 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
                              hint="use the profile of the panel the quilt was made for, or allow_stretch")
     else:
         views = load_view_folder(views_dir, profile.views)
-    check_image_output(output, views.dtype, what="panel raster")  # e.g. float views into a .png
+    check_image_output(output, views.dtype, what="panel raster", inputs=inputs)  # e.g. float views into a .png
     compensate_seconds = None
     on_device = False
     if compensator is not None:

@@ -27,7 +27,7 @@ from pathlib import Path
 from ..core.atomic import PendingFile
 from ..core.errors import InputError
 from ..core.imageio import IMAGE_SUFFIXES, WRITE_FORMATS, cv2_quiet, write_image
-from ..core.outputs import check_output_file, check_output_folder, staged_folder
+from ..core.outputs import Inputs, check_output_file, check_output_folder, staged_folder
 from ..core.profile import PanelProfile
 from .session import AvatarOptions, AvatarSession, open_avatar_session
 
@@ -51,9 +51,30 @@ class RenderRun:
     times: object
 
 
-def check_render_outputs(output: str | os.PathLike, frames: int, views_out: str | os.PathLike | None) -> str:
-    """Refuse, before any work, outputs that cannot or must not be written; return the kind of
-    output: 'image' (one raster file), 'video' (.mkv) or 'folder'."""
+def avatar_inputs(avatar: str | os.PathLike, profile: PanelProfile | str | os.PathLike,
+                  options: AvatarOptions | None) -> list:
+    """The files a render of ``avatar`` for ``profile`` with ``options`` reads: the avatar, the
+    profile's file, the controls file (or a ``student:`` source's student and video), the
+    background image, the crosstalk file; what the outputs may not be (:mod:`lenticalib.core.outputs`)."""
+    o = options or AvatarOptions()
+    files = [avatar, None if isinstance(profile, PanelProfile) else profile,
+             o.background if o.background and "," not in o.background else None,
+             o.compensation.crosstalk_file if o.compensation is not None else None]
+    if o.controls.startswith("student:"):
+        from .student.live import parse_student_spec
+
+        student, source = parse_student_spec(o.controls)
+        files += [student, source.get("video")]
+    elif o.controls not in ("demo", "-", "stdin") and not o.controls.startswith("udp://"):
+        files.append(o.controls)
+    return files
+
+
+def check_render_outputs(output: str | os.PathLike, frames: int, views_out: str | os.PathLike | None, *,
+                         inputs: Inputs) -> str:
+    """Refuse, before any work, outputs that cannot or must not be written (none of them one of the
+    ``inputs``, :func:`avatar_inputs`); return the kind of output: 'image' (one raster file), 'video'
+    (.mkv) or 'folder'."""
     output = str(output)
     suffix = os.path.splitext(output)[1].lower()
     single, video = suffix in WRITE_FORMATS, suffix == ".mkv"
@@ -65,11 +86,11 @@ def check_render_outputs(output: str | os.PathLike, frames: int, views_out: str 
         raise InputError(f"{frames} frames cannot go into one {suffix[1:].upper()}", source="output",
                          hint="give a folder for a sequence, or a .mkv video")
     if single or video:
-        check_output_file(output, "video" if video else "raster", "out.mkv" if video else "out.png")
+        check_output_file(output, "video" if video else "raster", "out.mkv" if video else "out.png", inputs=inputs)
     else:
-        check_output_folder(output, "frames folder", RASTER_CONTENTS)
+        check_output_folder(output, "frames folder", RASTER_CONTENTS, inputs=inputs)
     if views_out is not None:
-        check_output_folder(views_out, "views folder", VIEWS_CONTENTS)
+        check_output_folder(views_out, "views folder", VIEWS_CONTENTS, inputs=inputs)
         out, views = (os.path.realpath(p) for p in (output, views_out))
         if out == views or views.startswith(out + os.sep) or out.startswith(views + os.sep):
             raise InputError("is, or is inside, the `output` path", source=str(views_out),
@@ -89,7 +110,8 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
         raise InputError(f"{frames} frames", source="frames", hint="give at least 1")
     if not 0 < fps <= 1000:
         raise InputError(f"{fps} frames per second", source="fps", hint="use 0 < fps <= 1000")
-    kind = check_render_outputs(output, frames, views_out)
+    inputs = avatar_inputs(avatar, profile, options)
+    kind = check_render_outputs(output, frames, views_out, inputs=inputs)
     session = open_avatar_session(avatar, profile, options)
     times = StageTimes()
     targets = [("raster", output, "frames folder", RASTER_CONTENTS)] if kind == "folder" else []
@@ -97,7 +119,7 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
         targets.append(("views", views_out, "views folder", VIEWS_CONTENTS))
     writer = _VideoFile(str(output), fps) if kind == "video" else None
     try:
-        _render_frames(session, output, frames, fps, times, targets, writer, kind == "image")
+        _render_frames(session, output, frames, fps, times, targets, writer, kind == "image", inputs)
     except BaseException:
         if writer is not None:
             writer.discard()
@@ -108,12 +130,12 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
     return RenderRun(Path(output), None if views_out is None else Path(views_out), frames, kind, session, times)
 
 
-def _render_frames(session, output, frames, fps, times, targets, writer, single) -> None:
+def _render_frames(session, output, frames, fps, times, targets, writer, single, inputs) -> None:
     from .loop import views_on_host
 
     pipeline = session.pipeline
     with contextlib.ExitStack() as stack:
-        folders = {name: Path(stack.enter_context(staged_folder(path, what, contents)))
+        folders = {name: Path(stack.enter_context(staged_folder(path, what, contents, inputs=inputs)))
                    for name, path, what, contents in targets}
         for k in range(frames):
             raster, views, stages = pipeline.frame(session.controls_at(k / fps))

@@ -161,7 +161,7 @@ def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: in
     record = {"seed": int(seed), "room": int(room), "frames": int(frames), "fps": FPS, "size": [W, H], "face_box": box,
               "camera": {"fov_deg": FOV_DEG, "radius": float(cams.params["r"])},
               "made_by": "lenticalib.sim.driver_video.make_driver_video"}
-    with staged_folder(directory, "driver video", CONTENTS) as stage:
+    with staged_folder(directory, "driver video", CONTENTS, inputs=()) as stage:  # drawn from objects, no file read
         for k in range(frames):
             g = rig.deform(controls[k]).to_numpy()
             rgba = render(g, cams.viewmats, cams.K, W, H)[0]

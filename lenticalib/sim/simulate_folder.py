@@ -26,12 +26,12 @@ from pathlib import Path
 from typing import Callable
 
 from ..calib.captures import MIN_PHOTO_PIXELS
-from ..calib.intrinsics.board import PATTERNS, read_board
+from ..calib.intrinsics.board import MANIFEST_NAME as BOARD_MANIFEST, PANEL_IMAGE, PATTERNS, read_board
 from ..calib.intrinsics.report import REPORT_FILES
 from ..core.documents import read_json_file
 from ..core.errors import InputError
 from ..core.outputs import check_output_file, check_output_folder, restored_on_failure, staged_folder
-from ..core.pattern_sets import read_pattern_folder
+from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.sizes import MAX_SIDE, MIN_CAMERA_SIDE, check_sides
 
 MAX_PIXELS = 64_000_000  # camera pixels in all (the simulator holds several float images of this size)
@@ -191,15 +191,18 @@ def is_board_folder(directory: str | os.PathLike) -> bool:
     return (folder / "board.json").is_file() and not (folder / "patterns.json").exists()
 
 
-def _check_outputs(directory) -> list[Path]:
-    """The paths a pattern simulation writes, refused before any work when they cannot (or must not) be written."""
+def _check_outputs(directory, pattern_set, o: SimulationOptions) -> list[Path]:
+    """The paths a pattern simulation writes, refused before any work when they cannot (or must not) be
+    written: none of them may be what it reads (the manifest and the patterns of ``pattern_set``, the
+    scene and layout files of ``o``)."""
     from .capture import CAPTURE_FOLDER, CROSSTALK_TRUTH_NAME, SIMULATION_NAME, TRUTH_NAME
 
     folder = Path(directory)
-    captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos")
-    simulation = check_output_file(folder / SIMULATION_NAME, "simulation record")
-    truth = check_output_file(folder / TRUTH_NAME, "true profile")
-    crosstalk_truth = check_output_file(folder / CROSSTALK_TRUTH_NAME, "true crosstalk")
+    inputs = (folder / MANIFEST_NAME, *(folder / p.file for p in pattern_set.patterns), o.scene, o.layout)
+    captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos", inputs=inputs)
+    simulation = check_output_file(folder / SIMULATION_NAME, "simulation record", inputs=inputs)
+    truth = check_output_file(folder / TRUTH_NAME, "true profile", inputs=inputs)
+    crosstalk_truth = check_output_file(folder / CROSSTALK_TRUTH_NAME, "true crosstalk", inputs=inputs)
     # simulate_capture_set refuses this too; checked here so that real photos are never even copied
     if captures.is_dir() and any(captures.iterdir()) and not simulation.exists():
         raise InputError("holds files that the simulator did not write (real photos?)", source=str(captures),
@@ -223,7 +226,7 @@ def simulate_folder(directory: str | os.PathLike, options: SimulationOptions | N
         return _simulate_board(Path(directory), o, progress, progress_total)
     pattern_set = read_pattern_folder(directory)
     scene = build_scene(o, pattern_set)
-    written = _check_outputs(directory)
+    written = _check_outputs(directory, pattern_set, o)
     if progress_total is not None:
         progress_total(len(pattern_set.patterns))
 
@@ -259,9 +262,10 @@ def _simulate_board(folder: Path, o: SimulationOptions, progress, progress_total
                          hint="the board folder fixes the panel; the camera moves around it")
     check_board_photos(o.photos)
     resolution = o.resolution or BOARD_RESOLUTION
-    captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos")
-    written = [captures, check_output_file(folder / SIMULATION_NAME, "simulation record"),
-               check_output_file(folder / TRUTH_NAME, "true camera model")]
+    inputs = (folder / BOARD_MANIFEST, folder / PANEL_IMAGE)  # what the simulation reads
+    captures = check_output_folder(folder / CAPTURE_FOLDER, "simulated photos", inputs=inputs)
+    written = [captures, check_output_file(folder / SIMULATION_NAME, "simulation record", inputs=inputs),
+               check_output_file(folder / TRUTH_NAME, "true camera model", inputs=inputs)]
     if captures.is_dir() and any(captures.iterdir()) and not (folder / SIMULATION_NAME).exists():
         raise InputError("holds files that the simulator did not write (real photos?)", source=str(captures),
                          hint="simulate into a fresh 'camera patterns' folder")
@@ -301,10 +305,10 @@ def simulate_camera_set(directory: str | os.PathLike, *, kind: str = "panel", se
         raise InputError(f"unknown board pattern {pattern!r}", source="pattern", hint="use " + " or ".join(PATTERNS))
     contents = (CONTENTS + CAMERA_SET_EXTRA + (f"{CAPTURE_FOLDER}/board-[0-9][0-9]*.jpg",)
                 + tuple(f"report/{name}" for name in REPORT_FILES))
-    check_output_folder(directory, "camera simulation", contents)
+    check_output_folder(directory, "camera simulation", contents, inputs=())  # drawn from the arguments alone
     seed = seed if seed is not None else secrets.randbelow(2 ** 31)
     start = time.perf_counter()
-    with staged_folder(directory, "camera simulation", contents) as stage:
+    with staged_folder(directory, "camera simulation", contents, inputs=()) as stage:
         doc = simulate_board_set(stage, kind=kind, seed=seed, photos=photos, resolution=tuple(resolution),
                                  conditions=conditions, subsamples=subsamples, progress=progress, pattern=pattern)
     seconds = round(time.perf_counter() - start, 2)

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.outputs import check_not_an_input, check_output_file, check_output_folder, staged_folder
+from ...core.outputs import check_output_file, check_output_folder, staged_folder
 from ...core.pattern_sets import MANIFEST_NAME
 from ...core.profile import PanelProfile, load_profile, make_provenance
 
@@ -118,18 +118,16 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     from .report import REPORT_FILES, write_crosstalk_report
     from .result import crosstalk_document, write_crosstalk
 
-    output = check_output_file(output, "crosstalk file", example="crosstalk.json")
+    profile_file = None if profile is None or isinstance(profile, PanelProfile) else profile
+    inputs = (Path(directory) / MANIFEST_NAME, Path(directory) / "captures", profile_file)  # the photos: all of captures/
+    output = check_output_file(output, "crosstalk file", example="crosstalk.json", inputs=inputs)
     if report_dir is not None:
-        check_output_folder(report_dir, "crosstalk report", contents=REPORT_FILES)
+        check_output_folder(report_dir, "crosstalk report", contents=REPORT_FILES, inputs=inputs)
         if os.path.abspath(report_dir) == os.path.abspath(output):
             raise InputError("is also the crosstalk file path", source="report_dir", hint="give the report a folder")
-    profile_file = None
-    if profile is not None and not isinstance(profile, PanelProfile):
-        profile_file, profile = profile, load_profile(profile, "`profile`")
+    if profile_file is not None:
+        profile = load_profile(profile_file, "`profile`")
     pattern_set, capture = open_crosstalk_set(directory, profile, "profile")
-    check_not_an_input(output, [Path(directory) / MANIFEST_NAME, profile_file,
-                                *(capture.photo(name) for name in capture.patterns.names)],
-                       "crosstalk file", example="crosstalk.json")
     eye_views, eye_note = (eye or EyeSeparation()).resolve(pattern_set.views)
     if progress_total is not None:
         progress_total(len(pattern_set.patterns) + 3)
@@ -143,7 +141,7 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
         document["compensation_prediction"] = {k: (round(v, 5) if isinstance(v, float) else v)
                                                for k, v in study.items() if not isinstance(v, list)}
     if report_dir is not None:
-        with staged_folder(report_dir, "crosstalk report", contents=REPORT_FILES) as stage:
+        with staged_folder(report_dir, "crosstalk report", contents=REPORT_FILES, inputs=inputs) as stage:
             write_crosstalk_report(measurement, stage, document, compensation=study)
             write_crosstalk(output, document)
     else:

@@ -31,7 +31,7 @@ from typing import Callable
 
 from ...core.errors import ImageError, InputError
 from ...core.imageio import header_size, write_image
-from ...core.outputs import check_not_an_input, check_output_file, check_output_folder, staged_folder
+from ...core.outputs import Inputs, check_output_file, check_output_folder, staged_folder
 from .board import MANIFEST_NAME as BOARD_MANIFEST
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
@@ -186,13 +186,13 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         raise InputError(f"{jobs} jobs is out of range", source="jobs", hint=f"use 1..{MAX_JOBS} (the number of cores)")
     if lensmodel is not None:
         solve_module.check_lensmodel(lensmodel)
-    output = check_output_file(output, "camera model", example="camera.cameramodel")
-    if report_dir is not None:
-        check_output_folder(report_dir, REPORT_WHAT, REPORT_FILES)
-    photos = collect_photos(photos)
+    photos = collect_photos(photos)  # the photos and the board file first: the outputs may be neither
     board, manifest = photos_board(photos, board_corners, square_mm, board_squares=board_squares,
                                    marker_mm=marker_mm, dictionary=dictionary)
-    check_not_an_input(output, [*photos, manifest], "camera model", example="camera.cameramodel")
+    inputs = (*photos, manifest)
+    output = check_output_file(output, "camera model", example="camera.cameramodel", inputs=inputs)
+    if report_dir is not None:
+        check_output_folder(report_dir, REPORT_WHAT, REPORT_FILES, inputs=inputs)
     if len(photos) < MIN_VIEWS:
         raise InputError(f"only {len(photos)} photos given; at least {MIN_VIEWS} views of the board are needed",
                          source="photos", hint=TOO_FEW_HINT)
@@ -279,7 +279,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                                   manifest=manifest, seconds=time.perf_counter() - start, rectified=rectified)
     solve_module.write_cameramodel(model, output, note=summary["note"])
     if report_dir is not None:
-        with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES) as stage_dir:
+        with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES, inputs=inputs) as stage_dir:
             write_report(stage_dir, cal, qual, summary)
     return CameraCalibration(summary, output, None if report_dir is None else Path(report_dir), model, cal, qual)
 
@@ -287,7 +287,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
 def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel_pitch_mm: float, *,
                        squares: tuple[int, int] | None = None, lens_pitch_mm: float | None = None,
                        lens_pitch_px: float | None = None, print_square_mm: float = 20.0, paper: str = "A4",
-                       pattern: str = "chessboard", dictionary: str | None = None):
+                       pattern: str = "chessboard", dictionary: str | None = None, inputs: Inputs):
     """Write the calibration board (``pattern`` "chessboard" or "charuco", then with markers of
     ``dictionary``, default the smallest 4x4 dictionary that holds them) of a ``width`` x ``height``
     panel of ``pixel_pitch_mm`` into the folder ``output`` (staged, whole or not at all):
@@ -295,7 +295,8 @@ def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel
     squares on ``paper``, PDF and PNG, with its own ``board.json``).  ``squares``: inner corners (columns, rows) of the panel board
     (default: 9 squares down the short side); the lens pitch (``lens_pitch_mm`` from a data sheet,
     or ``lens_pitch_px`` panel pixels from a profile) widens the squares' soft edges to span at
-    least two lenses.  Returns (panel board, printed board); InputError naming the argument first.
+    least two lenses.  ``inputs``: the files the caller read (a profile), never written over.  Returns
+    (panel board, printed board); InputError naming the argument first.
     """
     from .board import (MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, panel_board, print_board,
                         write_manifest)
@@ -315,8 +316,8 @@ def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel
     sheet = print_board(print_square_mm, paper, pattern=pattern, dictionary=dictionary)
     contents = (PANEL_IMAGE, MANIFEST_NAME, PRINT_FOLDER,
                 *(f"{PRINT_FOLDER}/{name}" for name in (PRINT_PDF, PRINT_PNG, MANIFEST_NAME)))
-    check_output_folder(output, "camera board folder", contents)
-    with staged_folder(output, "camera board folder", contents) as stage:
+    check_output_folder(output, "camera board folder", contents, inputs=inputs)
+    with staged_folder(output, "camera board folder", contents, inputs=inputs) as stage:
         write_image(stage / PANEL_IMAGE, panel_raster(board))
         write_manifest(board, stage)
         (stage / PRINT_FOLDER).mkdir()

@@ -56,7 +56,7 @@ def predict_controls(student: str | os.PathLike, frames: str | os.PathLike, outp
     """Predict every frame of ``frames`` with the student in ``student`` and write ``output`` (CSV);
     returns {"frames", "output", "ms_per_frame" (median), "seconds"}."""
     start = time.perf_counter()
-    output = check_output_file(output, "control file", example="controls.csv")
+    output = check_output_file(output, "control file", example="controls.csv", inputs=(student, frames))
     if not str(output).lower().endswith(".csv"):
         raise InputError("the predicted controls are written as CSV", source=str(output), hint="name it *.csv")
     loaded = load_student(student)
