@@ -21,6 +21,7 @@ Errors and user input
     sizes               the one ``WxH`` parser, the size limits and the raster-size check
 
 Files and documents
+    input_files         every input file opened bounded: a regular file (no FIFO, device) within a size cap
     atomic              atomic file output: a reader sees the old file or the new one
     outputs             output files and folders checked before the work, folders staged whole
     documents           the one document envelope (format, version), its table and its reader
@@ -29,6 +30,7 @@ Files and documents
     pattern_sets        pattern-set folders: the PNGs and their manifest ``patterns.json``
     arrayfile           ``.npy`` and ``.npz`` files read with every header checked first
     imageio             images as RGB numpy arrays ``(H, W, 3)``: read and written (atomically)
+    video               video files opened through OpenCV, their stated frame size and count checked first
     colour              the sRGB transfer curve (IEC 61966-2-1) and its 8-bit form
     figures             report figures: one style, one atomic PNG writer, the record of what they say
 
