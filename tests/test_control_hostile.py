@@ -3,7 +3,8 @@
 Every hostile line -- nested too deep, integers beyond Python's digit limit or float32, float64
 values that float32 cannot hold, NaN/Infinity tokens, wrong types and shapes, non-UTF-8 bytes,
 lines over the length limit -- is counted bad, and the valid line sent after them is delivered:
-the reader thread stays alive.  A reader that dies anyway shows in ``stats["failed"]``.
+the reader thread stays alive.  A reader that dies anyway shows in ``stats["failed"]``.  A port
+open to the network (``udp://0.0.0.0``) is a warning naming the exposure, printed by ``play``.
 """
 
 from __future__ import annotations
@@ -203,3 +204,37 @@ def test_a_reader_that_dies_does_not_look_healthy(caplog):
                         "last valid line"]  # once, not every frame
     assert "the reader stopped" in src.summary()
     src.close()
+
+
+def test_a_udp_port_open_to_the_network_says_so():
+    """UDP has no sender check: a port bound to every interface (or a network address) is a warning
+    naming the exposure; a loopback port is not."""
+    from lenticalib.render.control_streams import exposure_warning
+
+    with open_udp("udp://0.0.0.0:0", L) as src:
+        port = src.address[1]
+        told = src.take_warnings()
+        assert told == [f"udp://0.0.0.0:{port} listens on every network interface (0.0.0.0): any sender on the "
+                        f"network can drive the avatar, unchecked (listen on udp://127.0.0.1:{port} to take this "
+                        "machine's senders only)"]
+        assert src.take_warnings() == []  # said once
+    with open_udp("udp://127.0.0.1:0", L) as src:
+        assert src.take_warnings() == []
+    assert "every network interface (::)" in exposure_warning("::", 9000)
+    assert "the network address 192.168.1.5" in exposure_warning("192.168.1.5", 9000)
+    assert exposure_warning("::1", 9000) is None and exposure_warning("::ffff:127.0.0.1", 9000) is None
+
+
+def test_play_prints_the_exposure_of_a_udp_port(cli, tmp_path):
+    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.rig_file import save_rig
+
+    from .cli_support import REPO
+
+    save_rig(tmp_path / "demo.npz", make_demo_avatar(seed=2, count=2000))
+    code, out, err = cli("play", tmp_path / "demo.npz", "--profile", REPO / "fixtures" / "panel-4k-32.json",
+                         "--headless", "--frames", "1", "--view-size", "96x54", "--controls", "udp://0.0.0.0:0")
+    assert code == 0, err
+    told = [line for line in err.splitlines() if "udp://" in line]
+    assert len(told) == 1 and told[0].startswith("lenticalib: warning: udp://0.0.0.0:"), err
+    assert "listens on every network interface" in told[0] and "any sender on the network can drive" in told[0]

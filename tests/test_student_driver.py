@@ -7,6 +7,7 @@ refusals, not the accuracy (``tools/bench_driver.py`` measures that on the full 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 
@@ -179,7 +180,10 @@ def test_distil_and_predict_on_the_demo_video(video, student, tmp_path):
     assert np.all(track.controls[:, DEFAULT_LAYOUT.slice("neck")] == s.mean[DEFAULT_LAYOUT.slice("neck")])
 
 
-def test_bad_input_is_one_line_before_training(video, tmp_path):
+def test_bad_input_is_one_line_before_training(video, tmp_path, monkeypatch):
+    """Every refusal comes before the work: the crops (the first step of training) are never read."""
+    from lenticalib.render.student import distill as distill_module
+
     root, record = video
     crop = ",".join(map(str, record["face_box"]))
     (tmp_path / "empty").mkdir()
@@ -193,10 +197,26 @@ def test_bad_input_is_one_line_before_training(video, tmp_path):
     cases.append((dict(frames=root / "train", controls=tmp_path / "short.csv"), "covering"))
     (tmp_path / "other.csv").write_text("t,mouth.0\n0,0\n")    # controls of another layout
     cases.append((dict(frames=root / "train", controls=tmp_path / "other.csv"), "unknown control column"))
+    cases.append((dict(frames=root / "train", controls=root / "train" / "controls.csv",
+                       options=dataclasses.replace(FAST, input_size=200000)), "input_size 200000 is out of range"))
+    reached = []
+
+    class Reached(Exception):
+        pass
+
+    def training(*args, **kwargs):  # the first step of the work: reading every frame's crop
+        reached.append(1)
+        raise Reached
+
+    monkeypatch.setattr(distill_module, "_read_crops", training)
     for kwargs, message in cases:
         with pytest.raises(InputError, match=message):
-            distill_student(output=tmp_path / "s.pt", crop=crop, options=FAST, **kwargs)
-        assert not (tmp_path / "s.pt").exists()
+            distill_student(output=tmp_path / "s.pt", crop=crop, **{"options": FAST, **kwargs})
+        assert not reached and not (tmp_path / "s.pt").exists()
+    # the same call with good inputs does reach the work: the check above can fail
+    with pytest.raises(Reached):
+        distill_student(root / "train", root / "train" / "controls.csv", tmp_path / "s.pt", crop=crop, options=FAST)
+    assert reached == [1]
 
 
 def test_a_student_for_another_layout_is_refused(student):

@@ -34,7 +34,8 @@ def run(args: argparse.Namespace) -> int:
         done = render_avatar(args.avatar, args.profile, args.output, options=avatar_options(args), frames=args.frames,
                              fps=args.fps, views_out=args.views_out)
     pipeline = done.session.pipeline
-    for warning in ([pipeline.warning] if pipeline.warning else []) + pipeline.notes:  # empty views among them
+    told = getattr(done.session.controls, "take_warnings", lambda: [])()  # a UDP port open to the network
+    for warning in ([pipeline.warning] if pipeline.warning else []) + pipeline.notes + told:  # empty views among them
         print(f"lenticalib: warning: {warning_line(warning)}", file=sys.stderr)
     what = args.output if done.kind == "image" else f"{args.frames} frame(s) in {args.output}"
     if done.kind == "video":

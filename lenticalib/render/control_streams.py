@@ -16,6 +16,12 @@ and the rest discarded) are counted, the first ones logged, and the last error k
 (:attr:`StreamControls.stats`); they never stop the stream or the loop.  Should the reader thread
 die of an unexpected error anyway, ``stats["failed"]`` says so and the next ``latest()`` logs a
 warning.  Before the first valid line ``latest()`` returns ``(None, zeros)``, the neutral pose.
+
+EXPOSURE.  UDP has no sender check: whoever can reach the port drives the avatar.  A stream bound
+to a loopback address (``udp://127.0.0.1:PORT``) takes only this machine's senders; one bound to
+every interface (``0.0.0.0``, ``::``) or to a network address takes any sender on that network,
+and says so in a warning (:meth:`StreamControls.take_warnings`, which ``play`` prints as
+``lenticalib: warning: ...``), naming the address.
 """
 
 from __future__ import annotations
@@ -141,6 +147,13 @@ class StreamControls:
         self._t0 = time.monotonic()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._warnings: list[str] = []
+
+    def take_warnings(self) -> list[str]:
+        """The warnings not yet taken (the exposure of a UDP port, :func:`exposure_warning`), once each."""
+        with self._lock:
+            out, self._warnings = self._warnings, []
+        return out
 
     # called by the reader thread (or a test)
     def feed(self, line: str | bytes) -> None:
@@ -254,6 +267,9 @@ class _UdpControls(StreamControls):
         self._sock.settimeout(0.1)
         self.address = self._sock.getsockname()[:2]
         self.name = f"udp://{self.address[0]}:{self.address[1]}"
+        warning = exposure_warning(self.address[0], self.address[1])
+        if warning:
+            self._warnings.append(warning)
         self._start(self._run)
 
     def _run(self) -> None:
@@ -300,6 +316,23 @@ class _TextControls(StreamControls):
             self._count_bad(f"{self.name}: read failed: {exc}")
         with self._lock:
             self._ended = True
+
+
+def exposure_warning(host: str, port: int) -> str | None:
+    """The warning for a UDP control port bound to ``host`` (numeric, as bound), or None for a
+    loopback address, which only this machine can reach (module docstring)."""
+    import ipaddress
+
+    try:
+        ip = ipaddress.ip_address(host.split("%")[0])
+    except ValueError:
+        ip = None
+    if ip is not None and (ip.is_loopback or getattr(ip, "ipv4_mapped", None) and ip.ipv4_mapped.is_loopback):
+        return None
+    where = (f"every network interface ({host})" if ip is not None and ip.is_unspecified
+             else f"the network address {host}")
+    return (f"udp://{host}:{port} listens on {where}: any sender on the network can drive the avatar, "
+            f"unchecked (listen on udp://127.0.0.1:{port} to take this machine's senders only)")
 
 
 def open_udp(address: str, layout: ControlLayout = DEFAULT_LAYOUT) -> StreamControls:

@@ -40,7 +40,8 @@ one InputError naming the file and the array.  Rigs written before the envelope 
 (``format`` "lenticalib-rig", ``version`` instead of ``format_version``) still read.  The names,
 shapes and dtypes are checked from the headers before any data is inflated
 (:mod:`lenticalib.core.arrayfile`): arrays claiming more than :data:`MAX_RIG_BYTES` (2 GiB) in
-all, or more than the file holds, are refused unread.
+all, or more than the file holds, are refused unread, and so are zip members whose uncompressed
+sizes in the central directory add up to more (a few megabytes deflated from gigabytes of zeros).
 """
 
 from __future__ import annotations
@@ -273,18 +274,12 @@ def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "
 def load_rig(path: str | os.PathLike, device: str = "cpu") -> Rig:
     """Read and validate a rig ``.npz`` (module docstring) onto ``device``; one InputError naming the file."""
     source = str(path)
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
-    except FileNotFoundError:
-        raise InputError("no such rig file", source=source, hint="make one with tools/make_demo_avatar.py") from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a rig file", source=source) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", source=source) from None
-    if magic != b"PK\x03\x04":
-        raise InputError("not a readable .npz file (not a zip archive)", source=source,
-                         hint="a rig file is a numpy .npz, see lenticalib/render/rig_file.py")
+    if not os.path.lexists(path):
+        raise InputError("no such rig file", source=source, hint="make one with tools/make_demo_avatar.py")
+    if os.path.isdir(path):
+        raise InputError("is a folder, not a rig file", source=source)
+    # load_npz opens it (a regular file only) and checks the zip's central directory: every member's
+    # uncompressed size against MAX_RIG_BYTES, before anything is inflated
     arrays = load_npz(path, wanted=_REQUIRED + _OPTIONAL, required=_REQUIRED, max_bytes=MAX_RIG_BYTES,
                       source=source, hint="a rig file holds: " + " ".join(_REQUIRED))
     return rig_from_arrays(arrays, source=source, device=device)

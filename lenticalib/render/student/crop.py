@@ -28,6 +28,8 @@ import re
 import numpy as np
 
 from ...core.errors import InputError
+from ...core.fields import is_finite_number, short_repr
+from ...core.sizes import MAX_SIDE
 
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
 IMAGENET_STD = np.array([0.229, 0.224, 0.225], dtype=np.float32)
@@ -51,6 +53,46 @@ def parse_crop(text: str | None, frame_size: tuple[int, int]) -> dict:
         raise InputError(f"crop box {x},{y},{w},{h} does not fit a {W}x{H} frame with at least 16 px a side",
                          source="crop", hint=f"give x,y,w,h with x + w <= {W} and y + h <= {H}")
     return {"kind": "box", "box": [x, y, w, h]}
+
+
+AUTO_SCALE = (1.0, 4.0)       # the face box grown 1 to 4 times (AUTO_RULE: 1.9)
+AUTO_SMOOTHING = (0.0, 0.99)  # the previous box's weight (AUTO_RULE: 0.7; 1 would never move)
+MIN_BOX_SIDE = 16             # pixels, as parse_crop asks
+
+
+def check_crop_rule(rule, source: str, field: str = "crop") -> dict:
+    """A crop rule read from a file (module docstring), every entry checked; one InputError naming
+    ``source`` and ``field`` otherwise.  A box: four finite numbers, its corner within +-MAX_SIDE
+    pixels and its sides MIN_BOX_SIDE..MAX_SIDE (:mod:`lenticalib.core.sizes`); "auto": the Haar
+    detector, ``scale`` in AUTO_SCALE and ``smoothing`` in AUTO_SMOOTHING, finite."""
+    def bad(message: str):
+        return InputError(f"field '{field}' {message}", source=source,
+                          hint="make the student again with 'lenticalib driver distill'")
+
+    if not isinstance(rule, dict) or rule.get("kind") not in ("box", "auto"):
+        kind = rule.get("kind") if isinstance(rule, dict) else rule
+        raise bad(f"is not a crop rule (kind {short_repr(kind)}; expected 'box' or 'auto')")
+    keys = {"kind", "box"} if rule["kind"] == "box" else set(AUTO_RULE)
+    if set(rule) != keys:
+        raise bad(f"has the entries {sorted(map(str, rule))}, expected {sorted(keys)}")
+    if rule["kind"] == "box":
+        box = rule["box"]
+        if not isinstance(box, (list, tuple)) or len(box) != 4 or not all(is_finite_number(v) for v in box):
+            raise bad(f"box {short_repr(box, 60)} is not four finite numbers x, y, w, h")
+        x, y, w, h = (float(v) for v in box)
+        if not (abs(x) <= MAX_SIDE and abs(y) <= MAX_SIDE and MIN_BOX_SIDE <= w <= MAX_SIDE
+                and MIN_BOX_SIDE <= h <= MAX_SIDE):
+            raise bad(f"box {x:g},{y:g},{w:g},{h:g} is out of range (corner within +-{MAX_SIDE} px, sides "
+                      f"{MIN_BOX_SIDE}..{MAX_SIDE} px)")
+        return {"kind": "box", "box": [x, y, w, h]}
+    if rule["detector"] != AUTO_RULE["detector"]:
+        raise bad(f"detector {short_repr(rule['detector'])} is not {AUTO_RULE['detector']!r}")
+    for name, (lo, hi) in (("scale", AUTO_SCALE), ("smoothing", AUTO_SMOOTHING)):
+        value = rule[name]
+        if not is_finite_number(value) or not lo <= value <= hi:
+            raise bad(f"{name} {short_repr(value)} is not a number in {lo:g}..{hi:g}")
+    return {"kind": "auto", "detector": AUTO_RULE["detector"], "scale": float(rule["scale"]),
+            "smoothing": float(rule["smoothing"])}
 
 
 def cascade_path() -> str:

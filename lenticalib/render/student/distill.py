@@ -50,6 +50,7 @@ from ..controls import load_controls
 from ..rig import DEFAULT_LAYOUT
 from .crop import CropTracker, IMAGENET_MEAN, IMAGENET_STD, cut, parse_crop
 from .frames import open_frames
+from .model import MAX_CONTROLS, MAX_INPUT_SIZE, MIN_INPUT_SIZE
 
 JITTER = 0.05
 SIZE_JITTER = 0.02  # training crops' side: S (1 - SIZE_JITTER) .. S (1 + SIZE_JITTER)
@@ -223,16 +224,16 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
 
     o = options or DistillOptions()
     start = time.perf_counter()
-    for name, value, lo in (("epochs", o.epochs, 1), ("batch", o.batch, 2), ("input_size", o.input_size, 32),
-                            ("patience", o.patience, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < lo:
-            raise InputError(f"{name} {value!r} is out of range", source=name, hint=f"use a whole number >= {lo}")
+    for name, value, lo, hi in (("epochs", o.epochs, 1, None), ("batch", o.batch, 2, None),
+                                ("input_size", o.input_size, MIN_INPUT_SIZE, MAX_INPUT_SIZE), ("patience", o.patience, 1, None)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < lo or (hi is not None and value > hi):
+            raise InputError(f"{name} {value!r} is out of range", source=name,
+                             hint=f"use a whole number >= {lo}" if hi is None else f"use a whole number {lo}..{hi}")
     if o.minutes is not None and (isinstance(o.minutes, bool) or not isinstance(o.minutes, (int, float))
                                   or not 0 < o.minutes <= MAX_MINUTES):
         raise InputError(f"minutes {o.minutes!r} is out of range", source="minutes",
                          hint=f"give a time budget in minutes, more than 0 and at most {MAX_MINUTES}")
-    output = check_output_file(output, "student driver", example="student.pt",
-                               inputs=(frames, controls, rig, backbone_weights))
+    output = check_output_file(output, "student driver", example="student.pt")
     if rig is not None:
         from ..rig_file import load_rig
 
@@ -240,6 +241,9 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
         layout, names = loaded.layout, loaded.control_names
     else:
         layout, names = DEFAULT_LAYOUT, None
+    if layout.dim > MAX_CONTROLS:
+        raise InputError(f"the rig has {layout.dim} controls, more than a student predicts ({MAX_CONTROLS})",
+                         source=str(rig))
     source = open_frames(frames)
     if len(source) < MIN_FRAMES:
         raise InputError(f"only {len(source)} frames; at least {MIN_FRAMES} are needed", source=str(frames),

@@ -4,12 +4,15 @@ Every frame is RGB uint8 (H, W, 3) with its time in seconds: a video's own times
 frame rate), a folder's images at :data:`FOLDER_FPS` in natural name order (``frame-2.png``
 before ``frame-10.png``), a camera's wall-clock time.  :func:`open_frames` checks its input in
 full before anything else runs: a missing path, a folder without images, a video OpenCV cannot
-open or decode, a camera that does not deliver a frame, each one InputError naming it.
+open or decode, a camera that does not deliver a frame, each one InputError naming it.  A video
+must be a regular file (a FIFO, device or socket is refused: OpenCV would wait on it for ever),
+and a camera an index 0..:data:`MAX_CAMERA_INDEX`, checked before OpenCV sees either.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import time
 from pathlib import Path
 from typing import Iterator
@@ -23,6 +26,29 @@ from ..views import natural_key
 
 FOLDER_FPS = 30.0  # a folder of images is taken as frames at this rate
 CAMERA_OPEN_S = 5.0  # a camera must deliver its first frame within this time
+# OpenCV's camera indices: 100 and above choose a backend (CAP_V4L2 + K = 200 + K), negative ones
+# "any camera"; some backends crash on such an index, so only 0..99 ever reach it
+MAX_CAMERA_INDEX = 99
+
+
+def check_video_file(path: str | os.PathLike) -> str:
+    """``path`` as a string once it names a regular file; InputError naming it otherwise."""
+    source = str(path)
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        raise InputError("no such video or folder of frames", source=source) from None
+    if not stat.S_ISREG(mode):
+        raise InputError("is not a regular file (a FIFO, device or socket), not a video", source=source,
+                         hint="give a video file or a folder of frames")
+    return source
+
+
+def check_camera_index(index) -> int:
+    """``index`` once it is a whole number 0..MAX_CAMERA_INDEX; InputError naming ``camera`` otherwise."""
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index <= MAX_CAMERA_INDEX:
+        raise InputError(f"camera {index!r} is not a camera index 0..{MAX_CAMERA_INDEX}", source="camera")
+    return index
 
 
 class FrameSource:
@@ -105,9 +131,9 @@ class CameraFrames:
 
         import cv2
 
-        self.spec = spec
-        self._cap = open_video(spec) if isinstance(spec, str) else cv2.VideoCapture(spec)
         self.is_video = isinstance(spec, str)
+        self.spec = check_video_file(spec) if self.is_video else check_camera_index(spec)
+        self._cap = open_video(spec) if self.is_video else cv2.VideoCapture(spec)
         self._loop = loop and self.is_video
         self._fps = self._cap.get(cv2.CAP_PROP_FPS) if self.is_video else 0.0
         self._lock = threading.Lock()

@@ -1,8 +1,16 @@
 """The ``student:`` control source: a student driver predicting the avatar's controls live.
 
-    student:PATH?camera=K          frames of camera K (OpenCV index), the newest one each time
+    student:PATH?camera=K          frames of camera K (OpenCV index 0..MAX_CAMERA_INDEX), the newest one each time
     student:PATH?video=FILE        a video played in real time (looping), as if it were a camera
     ...&device=cuda                the network on a GPU (default cpu)
+
+The spec is split, not URL-decoded: PATH is everything before the first ``?``, options are
+separated by ``&`` and each is ``NAME=VALUE`` taken literally (``video=clip+1.avi`` opens
+``clip+1.avi``; ``%20`` is three characters), so a video whose path holds ``&`` cannot be named
+here (link it under another name).  An option given twice, an unknown one or an empty value is
+refused.  The camera index is ASCII digits, 0..:data:`MAX_CAMERA_INDEX` (99): OpenCV reads an
+index of 100 or more as a backend choice (200 + K: camera K through V4L2) and a negative one as
+"any camera", and some of its backends crash on such indices, so they never reach it.
 
 :meth:`StudentControls.latest` predicts from the newest frame the grabbing thread delivered, so
 its time is the student's (crop and network): the live loop counts it in its drive stage.  When
@@ -15,12 +23,11 @@ spec, the student file, its layout, the camera or the video is one InputError na
 
 from __future__ import annotations
 
-from urllib.parse import parse_qs
-
 import numpy as np
 
 from ...core.errors import InputError
-from .frames import CameraFrames
+from ...core.fields import short_repr
+from .frames import MAX_CAMERA_INDEX, CameraFrames
 from .predict import StudentPredictor
 from .student_file import load_student
 
@@ -29,21 +36,30 @@ HINT = "use student:student.pt?camera=0 or student:student.pt?video=FILE"
 
 
 def parse_student_spec(spec: str) -> tuple[str, dict]:
-    """(student path, {"camera": int} or {"video": path}, plus "device") from a ``student:`` spec."""
+    """(student path, {"camera": int} or {"video": path}, plus "device") from a ``student:`` spec
+    (module docstring: split at the first '?', then at '&' and '=', nothing decoded)."""
     body = spec[len(PREFIX):]
     path, _, query = body.partition("?")
-    params = {k: v[-1] for k, v in parse_qs(query, keep_blank_values=True).items()}
-    unknown = sorted(set(params) - {"camera", "video", "device"})
-    if not path or unknown or ("camera" in params) == ("video" in params):
-        raise InputError(f"bad student source {spec!r}" + (f" (unknown {', '.join(unknown)})" if unknown else ""),
-                         source="controls", hint=HINT)
+    params: dict[str, str] = {}
+    for item in query.split("&") if query else ():
+        name, equals, value = item.partition("=")
+        if name not in ("camera", "video", "device"):
+            raise InputError(f"bad student source: unknown option {short_repr(name)}", source="controls", hint=HINT)
+        if not equals or not value:
+            raise InputError(f"bad student source: option {name!r} has no value", source="controls", hint=HINT)
+        if name in params:
+            raise InputError(f"bad student source: option {name!r} is given twice", source="controls", hint=HINT)
+        params[name] = value
+    if not path or ("camera" in params) == ("video" in params):
+        raise InputError(f"bad student source {short_repr(spec, 60)}: give the student file and one of camera= "
+                         "and video=", source="controls", hint=HINT)
     out = {"device": params.get("device", "cpu")}
     if "camera" in params:
-        try:
-            out["camera"] = int(params["camera"])
-        except ValueError:
-            raise InputError(f"camera {params['camera']!r} is not a camera index", source="controls",
-                             hint=HINT) from None
+        text = params["camera"]
+        if not (text.isascii() and text.isdigit() and len(text) <= len(str(MAX_CAMERA_INDEX)) and int(text) <= MAX_CAMERA_INDEX):
+            raise InputError(f"camera {short_repr(text)} is not a camera index 0..{MAX_CAMERA_INDEX}",
+                             source="controls", hint=HINT)
+        out["camera"] = int(text)
     else:
         out["video"] = params["video"]
     return path, out
