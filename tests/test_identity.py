@@ -71,7 +71,7 @@ def test_encode_refuses_a_compensation_of_another_panel_and_force_says_so(encode
     assert record["profile_id"] == other
     assert record["compensation"] == {"crosstalk_file": str(crosstalk), "made_for": panel, "used_with": other,
                                       "match": False, "forced": True}
-    assert "because of --force" in err  # a warning line too
+    assert f"{crosstalk} was made for panel {panel}, used with panel {other} as forced" in err  # and a warning
 
     code, out, err = run_main(*encode, "--profile", tmp_path / "panel.json", "-o", tmp_path / "b.png", "--json")
     assert code == 0 and not err, err
@@ -83,6 +83,23 @@ def test_render_refuses_a_compensation_of_another_panel_before_the_avatar(encode
     line = refused("render", tmp_path / "no-avatar.ply", "--profile", tmp_path / "other.json", "--compensate",
                    crosstalk, "-o", tmp_path / "frame.png", source=crosstalk)
     assert "was measured for panel" in line
+
+
+def test_render_with_force_warns_that_the_compensation_is_of_another_panel(encode_files):
+    from lenticalib.render.gaussians import Gaussians
+    from lenticalib.render.ply import save_ply
+
+    tmp_path, _, crosstalk = encode_files
+    rng = np.random.default_rng(2)
+    n = 40
+    save_ply(tmp_path / "blob.ply", Gaussians(
+        means=rng.normal(0.0, 0.3, (n, 3)).astype(np.float32), quats=np.tile([1.0, 0, 0, 0], (n, 1)).astype(np.float32),
+        scales=np.full((n, 3), 0.1, np.float32), opacities=np.full(n, 0.9, np.float32),
+        sh=rng.normal(0.0, 0.5, (n, 1, 3)).astype(np.float32)))
+    code, _, err = run_main("render", tmp_path / "blob.ply", "--profile", tmp_path / "other.json", "--compensate",
+                            crosstalk, "--force", "--view-size", "48x27", "-o", tmp_path / "frame.png")
+    assert code == 0, err
+    assert f"{crosstalk} was made for panel" in err and "as forced" in err
 
 
 def test_an_edited_crosstalk_identity_is_refused(encode_files):

@@ -91,8 +91,7 @@ def forced_note(record: Mapping[str, Any], source: str) -> str | None:
     """One line for a result combined by force (:func:`check_same_panel`'s record), else None."""
     if not record.get("forced"):
         return None
-    return (f"{source} was made for panel {record['made_for']}, used with panel {record['used_with']} "
-            "because of --force")
+    return f"{source} was made for panel {record['made_for']}, used with panel {record['used_with']} as forced"
 
 
 def virtual_panel_record(directory: str | os.PathLike) -> dict[str, Any] | None:

@@ -193,7 +193,7 @@ class SimCamera(CaptureCamera):
         if recorded is not None and drawn != recorded:
             raise InputError(f"seed {panel.seed} now draws a virtual panel of truth {drawn}, the profile was fitted "
                              f"on truth {recorded}", source=source,
-                             hint="photograph with the calibration capture's layout (drop or match --layout)")
+                             hint="photograph with the calibration capture's layout: leave out `layout` or give the same")
         self.seed, self.panel, self.scene = panel.seed, panel, scene
         self.directory, self.pattern_set = directory, pattern_set
         self._records = self._earlier_records()
