@@ -68,13 +68,14 @@ def build_student(outputs: int, backbone_weights: str | os.PathLike | None = Non
     return net
 
 
-def load_weights(path: str | os.PathLike, what: str):
+def load_weights(path: str | os.PathLike, what: str,
+                 hint: str = "save torchvision's mobilenet_v3_small weights with torch.save(model.state_dict())"):
     """What ``torch.load(path, weights_only=True)`` gives (no pickled code), the file first checked
-    as a zip within :data:`WEIGHTS_ZIP`; one InputError naming ``path`` (``what``: the kind of file)."""
+    as a zip within :data:`WEIGHTS_ZIP`; one InputError naming ``path`` (``what``: the kind of file,
+    ``hint``: what to give instead)."""
     import torch
 
     source = str(path)
-    hint = "save it with torch.save (a zip file of at most a few MB)"
     with open_zip(path, WEIGHTS_ZIP, what=what, source=source, hint=hint) as fh:
         try:
             return torch.load(fh, map_location="cpu", weights_only=True)

@@ -188,7 +188,7 @@ def load_student(path: str | os.PathLike) -> Student:
     source = str(path)
     if not os.path.lexists(path):
         raise InputError("no such student file", source=source, hint=HINT)
-    record = load_weights(path, "student file")
+    record = load_weights(path, "student file", HINT)
     check_envelope(record, DOCUMENT, source)
     missing = [k for k in REQUIRED if k not in record]
     if missing:
