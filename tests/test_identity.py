@@ -167,6 +167,25 @@ def test_capture_sim_photographs_the_virtual_panel_the_profile_was_fitted_on(fit
     assert profile_identity(load_profile(xt / TRUTH_NAME)) == profile_identity(truth)  # the same panel photographed
 
 
+def test_fit_refuses_a_moved_right_set_of_another_virtual_panel(tmp_path):
+    """``fit cal --moved-right cal2``: the two sets must show the same panel; photos that the
+    virtual camera took of two different panels (seeds 3 and 4) are refused before any fit."""
+    patterns = design_patterns(W, H, VIEWS)
+    grey = np.full((900, 1200, 3), 90, np.uint8)
+    for name, seed in (("cal", 3), ("cal2", 4)):
+        folder = tmp_path / name
+        write_patterns(folder, patterns)
+        (folder / "captures").mkdir()
+        for pattern in patterns.patterns:
+            write_image(folder / "captures" / f"{pattern.name}.png", grey)
+        scene = random_scene(seed, width=W, height=H, resolution=(1200, 900), subsamples=1)
+        _, constants = write_truth(folder, scene, patterns)
+        write_simulation_record(folder, scene, patterns, "complete", [], {"file": TRUTH_NAME, **constants})
+    line = refused("fit", tmp_path / "cal", "--moved-right", tmp_path / "cal2", "-o", tmp_path / "p.json",
+                   source=tmp_path / "cal2")
+    assert "holds photos of virtual panel seed 4" in line and "another panel" in line
+
+
 def test_capture_sim_refuses_a_profile_that_names_no_virtual_panel(fitted_on_seed_3):
     tmp_path, truth = fitted_on_seed_3
     save_profile(truth.replace(provenance=None), tmp_path / "plain.json")  # a real panel's, as far as it says

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..core.errors import InputError
+from ..core.identity import check_same_virtual_panel
 from ..core.outputs import Inputs, check_output_file, check_output_folder, staged_folder
 from ..core.pattern_sets import MANIFEST_NAME
 from ..core.physical import LIMITS
@@ -125,6 +126,7 @@ def check_second_set(capture_dir, other, field: str, how: str) -> None:
         raise InputError(f"holds photos of pattern set {second.patterns.set_id}, {capture_dir} of set "
                          f"{first.patterns.set_id}", source=str(other),
                          hint="photograph the same patterns from both camera positions")
+    check_same_virtual_panel(capture_dir, other, str(other), "photograph the same panel from both camera positions")
 
 
 def check_fit_outputs(output: str | os.PathLike | None, report_dir: str | os.PathLike | None, *,

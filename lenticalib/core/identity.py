@@ -101,8 +101,9 @@ def virtual_panel_record(directory: str | os.PathLike) -> dict[str, Any] | None:
 
     RETURNED VALUE
     dict: ``seed`` (int), ``truth_id`` (identity of the ideal profile, ``truth.json``), ``truth``
-    (its constants as recorded), ``capture_folder`` (absolute path).  Enough to photograph the
-    same virtual panel again (:mod:`lenticalib.sim.capture_camera`)."""
+    (its constants as recorded), ``capture_folder`` (absolute path), ``optics_digest`` (16 hex
+    digits of the SHA-256 of the scene's panel optics: the panel whatever the camera position).
+    Enough to photograph the same virtual panel again (:mod:`lenticalib.sim.capture_camera`)."""
     from .documents import FORMATS, read_document
 
     path = Path(directory) / SIMULATION_RECORD
@@ -120,8 +121,21 @@ def virtual_panel_record(directory: str | os.PathLike) -> dict[str, Any] | None:
     except (KeyError, TypeError, ValueError):
         return None
     constants = {k: v for k, v in truth.items() if k != "file"}
+    optics = record.get("scene", {}).get("optics") if isinstance(record.get("scene"), dict) else None
+    digest = hashlib.sha256(json.dumps(optics, sort_keys=True).encode()).hexdigest()[:16]
     return {"seed": seed, "truth_id": truth_id, "truth": constants,
-            "capture_folder": str(Path(directory).resolve())}
+            "capture_folder": str(Path(directory).resolve()), "optics_digest": digest}
+
+
+def check_same_virtual_panel(first: str | os.PathLike, second: str | os.PathLike, source: str,
+                             hint: str) -> None:
+    """Refuse two capture folders that photographed different virtual panels (their
+    ``simulation.json`` records different panel optics); photos of a real panel (no record) and
+    the same panel from another camera position pass.  InputError naming ``source`` (``second``)."""
+    a, b = virtual_panel_record(first), virtual_panel_record(second)
+    if a is not None and b is not None and a["optics_digest"] != b["optics_digest"]:
+        raise InputError(f"holds photos of virtual panel seed {b['seed']}, {first} of virtual panel seed {a['seed']}: "
+                         "another panel", source=source, hint=hint)
 
 
 def recorded_virtual_panel(provenance: Any, source: str) -> dict[str, Any] | None:
