@@ -168,9 +168,8 @@ def check_zip(fh: IO[bytes], limits: ZipLimits, *, what: str, source: str,
     """The members of the zip archive in ``fh`` (seekable, binary), once its structure and every
     member's uncompressed size are within ``limits`` (module docstring); one InputError naming
     ``source`` otherwise.  ``what`` names the format ("student driver").  Nothing is inflated."""
-    size = os.fstat(fh.fileno()).st_size if hasattr(fh, "fileno") else fh.seek(0, os.SEEK_END)
     try:
-        found = _directory(fh, size)
+        found = _directory(fh, fh.seek(0, os.SEEK_END))
     except (OSError, struct.error):
         found = None
     if found is None:
