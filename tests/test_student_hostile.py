@@ -313,3 +313,11 @@ def test_predict_refuses_a_fifo_for_frames(record, tmp_path):
     line = refused("driver", "predict", path, "--frames", tmp_path / "frames.avi", "-o", tmp_path / "p.csv",
                    source=tmp_path / "frames.avi")
     assert "is not a regular file (a FIFO, device or socket)" in line
+
+
+def test_a_device_other_than_cpu_or_cuda_is_refused_before_the_first_frame(record, tmp_path):
+    path = _save(tmp_path / "s.pt", record)
+    for device in ("meta", "mps", "cpu:1", "cuda:99999999999999999999"):
+        with pytest.raises(InputError, match="cpu, cuda") as err:
+            open_controls(f"student:{path}?video=x.avi&device={device}", DEFAULT_LAYOUT)
+        assert err.value.source == "controls" and "device" in str(err.value)

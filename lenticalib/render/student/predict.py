@@ -10,11 +10,13 @@ the controls as a CSV that ``--controls`` reads (:func:`~lenticalib.render.contr
 from __future__ import annotations
 
 import os
+import re
 import time
 
 import numpy as np
 
 from ...core.errors import InputError
+from ...core.fields import short_repr
 from ...core.outputs import check_output_file
 from ..controls import write_controls_csv
 from .crop import CropTracker, to_input
@@ -30,6 +32,10 @@ class StudentPredictor:
 
         from ..torch_devices import device_unavailable
 
+        # a student runs on the CPU or a CUDA GPU: 'meta', 'mps' or 'cpu:1' would fail at the first frame
+        if not re.fullmatch(r"cpu|cuda(:[0-9]{1,2})?", str(device)):
+            raise InputError(f"{short_repr(device)} is not cpu, cuda or cuda:K", source="device",
+                             hint="use cpu, or a CUDA device torch can see")
         why = device_unavailable(device)
         if why:
             raise InputError(why, source="device", hint="use cpu, or a CUDA device torch can see")
