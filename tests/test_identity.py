@@ -194,3 +194,21 @@ def test_capture_sim_refuses_a_profile_that_names_no_virtual_panel(fitted_on_see
     code, out, err = run_main("capture", xt, "--camera", "sim", "--display", "none", "--resolution", "1200x900")
     assert code == 2, (out, err)
     assert "cannot tell which panel to photograph" in one_error_line(err, xt / "patterns.json")
+
+
+def test_capture_sim_resumes_a_calibration_folder_on_its_own_virtual_panel(tmp_path):
+    """``capture cal --camera sim`` (no seed) in a folder the virtual camera photographed with seed 3
+    names and photographs panel 3 again, not the default seed 1."""
+    cal = tmp_path / "cal"
+    patterns = design_patterns(W, H, VIEWS)
+    write_patterns(cal, patterns)
+    scene = random_scene(SEED, width=W, height=H, resolution=(1200, 900), subsamples=1)
+    _, constants = write_truth(cal, scene, patterns)
+    write_simulation_record(cal, scene, patterns, "in progress", [], {"file": TRUTH_NAME, **constants})
+    from lenticalib.calib.cameras import make_camera
+
+    camera = make_camera("sim", folder=cal, resolution=(1200, 900), subsamples=1)
+    camera.open()
+    assert camera.seed == SEED and camera.settings()[0].startswith(
+        "virtual panel: seed 3 (the panel of this folder's earlier photos")
+    assert make_camera("sim:5", folder=cal, resolution=(1200, 900)).seed == 5  # a seed given is a seed given

@@ -13,7 +13,8 @@ named by :meth:`settings` when the camera opens, before any pattern is shown).  
 accepted like every kind's and has nothing to bound: the virtual camera never waits.
 
 Which virtual panel (:func:`choose_virtual_panel`, ``docs/identity.md``): for calibration patterns,
-the seed's.  For patterns drawn from a profile (crosstalk patterns), the virtual panel that profile
+the seed given, else that of the folder's earlier photos (its ``simulation.json``, with their
+layout: an interrupted ``sim:3`` capture resumes on panel 3), else seed 1.  For patterns drawn from a profile (crosstalk patterns), the virtual panel that profile
 was fitted on, as its fit recorded it (the calibration folder's ``simulation.json``, carried in the
 profile's provenance and the patterns' manifest): ``sim`` photographs that panel, with its subpixel
 layout, and checks that it is the one the fit photographed (the same truth); ``sim:SEED`` of another
@@ -72,13 +73,17 @@ class VirtualPanel:
     record: dict | None = None
 
 
-def choose_virtual_panel(pattern_set, seed: int | None, source: str) -> VirtualPanel:
+def choose_virtual_panel(pattern_set, seed: int | None, source: str, earlier: dict | None = None) -> VirtualPanel:
     """The virtual panel to photograph ``pattern_set`` on (module docstring); ``seed``: the one the
-    spec or options give, or None.  InputError naming ``source`` (the manifest) when the seed
-    contradicts the panel the patterns' profile was fitted on, or when none is given and the profile
-    names none."""
+    spec or options give, or None; ``earlier``: the folder's own ``simulation.json`` of this pattern
+    set (an earlier or interrupted capture), or None.  InputError naming ``source`` (the manifest)
+    when the seed contradicts the panel the patterns' profile was fitted on, or when none is given
+    and the profile names none."""
     profile = getattr(pattern_set, "profile", None)
-    if profile is None:  # calibration patterns: the folder's own fit does not exist yet
+    if profile is None:  # calibration patterns: the folder's own panel, if it has photos of one
+        if seed is None and earlier is not None:
+            return VirtualPanel(earlier["seed"], "the panel of this folder's earlier photos, its simulation.json",
+                                {"seed": earlier["seed"], "truth": earlier.get("truth")})
         return VirtualPanel(DEFAULT_SEED if seed is None else seed, "the default" if seed is None else "as given")
     record = recorded_virtual_panel(profile.provenance, source)
     if record is None:
@@ -177,7 +182,7 @@ class SimCamera(CaptureCamera):
 
         source = str(directory / MANIFEST_NAME)
         pattern_set = read_pattern_folder(directory)
-        panel = choose_virtual_panel(pattern_set, self.given_seed, source)
+        panel = choose_virtual_panel(pattern_set, self.given_seed, source, self._folder_record(directory, pattern_set))
         order, layout = self.order, self.layout
         truth = (panel.record or {}).get("truth")
         if self.layout_spec is None and isinstance(truth, dict):  # the fitted panel's own layout
@@ -204,6 +209,20 @@ class SimCamera(CaptureCamera):
         check_raster(shown, pattern_set.width, pattern_set.height, str(directory / MANIFEST_NAME),
                      "the pattern set's panel", hint="show the patterns of this folder")
         self._prepare(directory)
+
+    @staticmethod
+    def _folder_record(directory: Path, pattern_set) -> dict | None:
+        """``DIR/simulation.json`` when it records a seed for this very pattern set, else None."""
+        from .capture import SIMULATION_NAME
+
+        try:
+            record = read_document(directory / SIMULATION_NAME, FORMATS["lenticalib.simulation-run"])
+        except (OSError, InputError):
+            return None
+        same = isinstance(record.get("pattern_set"), dict) and record["pattern_set"].get("set_id") == pattern_set.set_id
+        seed = record.get("seed")
+        ok = same and isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed < 2 ** 63
+        return record if ok and isinstance(record.get("truth"), (dict, type(None))) else None
 
     def _earlier_records(self) -> dict[str, dict]:
         """The entries of an existing ``simulation.json`` of this very scene and pattern set whose
