@@ -5,8 +5,9 @@ what that command imports (numpy, and torch, mrcal, OpenCV or plyfile where the 
 them), then limits its own address space to what it has mapped at that moment plus
 :data:`HEADROOM` (500 MB, ``RLIMIT_AS``), then runs ``lenticalib.cli.main``.  A reader that
 allocated what a bomb claims would die of a MemoryError (a traceback, not one line).  The
-child also reports the growth of its peak resident memory (``ru_maxrss``) past that point, which
-must stay under 500 MB too.  Every case ends in exit 2 and one error line naming the file, and
+child also reports the growth of its peak resident memory (``VmHWM``, its own high-water mark;
+``ru_maxrss`` would count the parent's memory at the fork) past that point, which must stay
+under 500 MB too.  Every case ends in exit 2 and one error line naming the file, and
 leaves its input byte-identical.  FIFOs and devices are refused at once (a child that waited
 on one would run into the timeout).  Fixed seeds; nothing random.
 """
@@ -37,15 +38,18 @@ _CHILD = textwrap.dedent("""
     for name in filter(None, modules.split(",")):
         importlib.import_module(name)
     from lenticalib.cli import main
-    with open("/proc/self/status") as fh:
-        mapped = next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmSize:"))
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    resource.setrlimit(resource.RLIMIT_AS, (mapped + {headroom}, resource.getrlimit(resource.RLIMIT_AS)[1]))
+
+    def status(key):  # bytes; VmHWM is this process's own peak (ru_maxrss would include the parent's at fork)
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) * 1024 for line in fh if line.startswith(key + ":"))
+
+    base = status("VmHWM")
+    resource.setrlimit(resource.RLIMIT_AS, (status("VmSize") + {headroom}, resource.getrlimit(resource.RLIMIT_AS)[1]))
     try:
         code = main(argv)
     except SystemExit as exc:
         code = exc.code
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    peak = status("VmHWM")
     with open(stats, "w") as fh:
         json.dump({{"code": code, "grown": peak - base, "peak": peak}}, fh)
 """).format(headroom=HEADROOM)
@@ -66,7 +70,8 @@ def bounded(tmp_path, *argv, inputs=(), modules: str = "numpy", timeout: float =
     before = {str(p): _digest(p) for p in inputs}
     stats = tmp_path / "stats.json"
     stats.unlink(missing_ok=True)
-    env = {**os.environ, "MALLOC_ARENA_MAX": "2", "OMP_NUM_THREADS": "1"}
+    env = {**os.environ, "MALLOC_ARENA_MAX": "2", "OMP_NUM_THREADS": "1",
+           "LENTICALIB_EMULATOR_DIR": str(tmp_path / "emulators")}  # an emulated unit made by mistake stays here
     run = subprocess.run([sys.executable, "-c", _CHILD, str(stats), modules, *map(str, argv)], cwd=REPO, env=env,
                          capture_output=True, text=True, timeout=timeout)
     assert stats.exists(), f"the child died (exit {run.returncode}): {run.stderr[-2000:]}"
@@ -299,10 +304,33 @@ def fifo(tmp_path):
     return path
 
 
-@pytest.mark.parametrize("case", ["emulate", "profile", "mesh", "cameramodel", "frames"])
-def test_fifos_are_refused_at_once_wherever_a_file_is_read(tmp_path, fifo, case, avatar):
-    link = tmp_path / {"mesh": "m.obj", "cameramodel": "c.cameramodel", "frames": "v.avi"}.get(case, "v.json")
+@pytest.fixture(scope="module")
+def student(tmp_path_factory):
+    """An untrained student driver, saved as 'driver distill' saves one (no distillation)."""
+    torch = pytest.importorskip("torch")
+    from lenticalib.render.rig import DEFAULT_LAYOUT
+    from lenticalib.render.student.model import build_student
+    from lenticalib.render.student.student_file import save_student
+
+    torch.manual_seed(0)
+    d = DEFAULT_LAYOUT.dim
+    path = tmp_path_factory.mktemp("student") / "s.pt"
+    save_student(path, {"layout": [[g, n] for g, n in DEFAULT_LAYOUT.groups],
+                        "control_names": list(DEFAULT_LAYOUT.default_names()),
+                        "crop": {"kind": "box", "box": [8, 8, 48, 48]}, "input_size": 64, "mean": torch.zeros(d),
+                        "std": torch.ones(d), "active": torch.ones(d, dtype=torch.bool), "group_weights": {"jaw": 1.0},
+                        "state_dict": build_student(d).state_dict(), "validation": {},
+                        "provenance": {"command": "test"}})
+    return path
+
+
+@pytest.mark.parametrize("case", ["emulate", "profile", "mesh", "cameramodel", "frames", "predict", "image"])
+def test_fifos_are_refused_at_once_wherever_a_file_is_read(tmp_path, fifo, case, avatar, request):
+    names = {"mesh": "m.obj", "cameramodel": "c.cameramodel", "frames": "v.avi", "predict": "v.avi",
+             "image": "q_qs8x4a1.7778.png"}
+    link = tmp_path / names.get(case, "v.json")
     link.symlink_to(fifo)
+    student = request.getfixturevalue("student") if case == "predict" else None
     argv, modules = {
         "emulate": (["emulate", "--looking-glass", link, "--name", "bombtest"], "numpy"),
         "profile": (["profile", "show", link], "numpy"),
@@ -311,6 +339,9 @@ def test_fifos_are_refused_at_once_wherever_a_file_is_read(tmp_path, fifo, case,
                         "numpy,mrcal"),
         "frames": (["driver", "distill", "--frames", link, "--controls", tmp_path / "c.csv", "-o", tmp_path / "s.pt"],
                    "numpy,torch,cv2"),
+        "predict": (["driver", "predict", student, "--frames", link, "-o", tmp_path / "c.csv"], "numpy,torch,cv2"),
+        "image": (["encode", "--profile", REPO / "fixtures" / "panel-4k-32.json", "--quilt", link,
+                   "-o", tmp_path / "out.png"], "numpy,cv2"),
     }[case]
     line = bounded(tmp_path, *argv, modules=modules, timeout=60)
     assert str(link) in line and "is not a regular file (a FIFO, device or socket)" in line

@@ -27,10 +27,12 @@ import numpy as np
 
 from .atomic import write_bytes_atomic
 from .errors import ImageError, InputError
+from .input_files import check_input, open_input
 from .outputs import Inputs, check_output_file
 from .sizes import MAX_SIDE, check_raster_size
 
 MAX_IMAGE_PIXELS = MAX_SIDE * MAX_SIDE  # module docstring; the largest raster of :mod:`.sizes`
+MAX_IMAGE_FILE_BYTES = 4 << 30  # an image file: 16384 x 16384 RGB float32 uncompressed is 3 GiB
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".npy")
 WRITE_FORMATS = {".png": (np.uint8, np.uint16), ".tif": (np.uint8, np.uint16, np.float32),
                  ".tiff": (np.uint8, np.uint16, np.float32), ".npy": None}
@@ -60,7 +62,7 @@ def open_image_header(path: str | os.PathLike):
     """
     from PIL import Image
 
-    with open(path, "rb") as fh:
+    with open_input(path, "image", MAX_IMAGE_FILE_BYTES, "give an image file", ImageError) as fh:  # no FIFO
         prefix = fh.read(16)
     Image.init()
     for fmt in Image.ID:  # Image.open's loop, without the bomb check
@@ -172,6 +174,7 @@ def read_image(path: str | os.PathLike, *, camera_orientation: bool = False,
         raise ImageError("no such file", source=str(p), hint="check the path")
     if p.is_dir():
         raise ImageError("is a folder, not an image", source=str(p), hint="give an image file")
+    check_input(p, "image", MAX_IMAGE_FILE_BYTES, "give an image file", ImageError)  # a FIFO or device: at once
     if p.suffix.lower() == ".npy":
         from .arrayfile import load_npy
 

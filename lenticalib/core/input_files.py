@@ -32,8 +32,10 @@ MIB = 1 << 20
 
 
 def file_noun(what: str) -> str:
-    """``what`` as a kind of file: "profile" -> "profile file", "crosstalk file" and "visual.json" as they are."""
-    return what if what.endswith((" file", ".json")) else f"{what} file"
+    """``what`` as a kind of file with its article: "profile" -> "a profile file", "image" -> "an
+    image file", "crosstalk file" and "visual.json" kept ("a crosstalk file", "a visual.json")."""
+    noun = what if what.endswith((" file", ".json")) else f"{what} file"
+    return f"{'an' if noun[0] in 'aeiou' else 'a'} {noun}"
 
 
 def open_input(path: str | os.PathLike, what: str, max_bytes: int, hint: str | None = None,
@@ -48,24 +50,24 @@ def open_input(path: str | os.PathLike, what: str, max_bytes: int, hint: str | N
     except FileNotFoundError:
         raise error("no such file", source=source, hint=hint) from None
     except IsADirectoryError:
-        raise error(f"is a folder, not a {noun}", source=source, hint=hint) from None
+        raise error(f"is a folder, not {noun}", source=source, hint=hint) from None
     except OSError as exc:  # a socket (ENXIO), no permission, a loop of links ...
         try:
             mode = os.stat(path).st_mode
         except OSError:
             mode = 0
         if stat.S_ISSOCK(mode):
-            raise error(f"is not a regular file (a FIFO, device or socket), not a {noun}", source=source,
+            raise error(f"is not a regular file (a FIFO, device or socket), not {noun}", source=source,
                         hint=hint) from None
         raise error(f"cannot read: {exc.strerror or exc}", source=source, hint=hint) from None
     try:
         info = os.fstat(fd)
         if stat.S_ISDIR(info.st_mode):
-            raise error(f"is a folder, not a {noun}", source=source, hint=hint)
+            raise error(f"is a folder, not {noun}", source=source, hint=hint)
         if not stat.S_ISREG(info.st_mode):
-            raise error(f"is not a regular file (a FIFO, device or socket), not a {noun}", source=source, hint=hint)
+            raise error(f"is not a regular file (a FIFO, device or socket), not {noun}", source=source, hint=hint)
         if info.st_size > max_bytes:
-            raise error(f"is {size_text(info.st_size)}, more than a {noun} can sensibly hold (at most "
+            raise error(f"is {size_text(info.st_size)}, more than {noun} can sensibly hold (at most "
                         f"{size_text(max_bytes)})", source=source, hint=hint)
         os.set_blocking(fd, True)
         return os.fdopen(fd, "rb")
@@ -92,6 +94,6 @@ def read_input(path: str | os.PathLike, what: str, max_bytes: int, hint: str | N
         except OSError as exc:
             raise error(f"cannot read: {exc.strerror or exc}", source=os.fspath(path), hint=hint) from None
     if len(raw) > max_bytes:
-        raise error(f"grew beyond {size_text(max_bytes)} while it was read, more than a {file_noun(what)} can "
+        raise error(f"grew beyond {size_text(max_bytes)} while it was read, more than {file_noun(what)} can "
                     "sensibly hold", source=os.fspath(path), hint=hint)
     return raw
