@@ -12,7 +12,6 @@ and a camera an index 0..:data:`MAX_CAMERA_INDEX`, checked before OpenCV sees ei
 from __future__ import annotations
 
 import os
-import stat
 import time
 from pathlib import Path
 from typing import Iterator
@@ -29,19 +28,6 @@ CAMERA_OPEN_S = 5.0  # a camera must deliver its first frame within this time
 # OpenCV's camera indices: 100 and above choose a backend (CAP_V4L2 + K = 200 + K), negative ones
 # "any camera"; some backends crash on such an index, so only 0..99 ever reach it
 MAX_CAMERA_INDEX = 99
-
-
-def check_video_file(path: str | os.PathLike) -> str:
-    """``path`` as a string once it names a regular file; InputError naming it otherwise."""
-    source = str(path)
-    try:
-        mode = os.stat(path).st_mode
-    except OSError:
-        raise InputError("no such video or folder of frames", source=source) from None
-    if not stat.S_ISREG(mode):
-        raise InputError("is not a regular file (a FIFO, device or socket), not a video", source=source,
-                         hint="give a video file or a folder of frames")
-    return source
 
 
 def check_camera_index(index) -> int:
@@ -132,7 +118,7 @@ class CameraFrames:
         import cv2
 
         self.is_video = isinstance(spec, str)
-        self.spec = check_video_file(spec) if self.is_video else check_camera_index(spec)
+        self.spec = spec if self.is_video else check_camera_index(spec)  # a video: open_video checks it
         self._cap = open_video(spec) if self.is_video else cv2.VideoCapture(spec)
         self._loop = loop and self.is_video
         self._fps = self._cap.get(cv2.CAP_PROP_FPS) if self.is_video else 0.0
