@@ -33,7 +33,8 @@ def add_compensation_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --compensate: projected-gradient steps of the bounded solve (default 2)")
     parser.add_argument("--force", action="store_true",
                         help="with --compensate: use a crosstalk file measured for another panel (or another fit "
-                             "of this one) anyway; the output's provenance says so (docs/identity.md)")
+                             "of this one) anyway, and say so: a warning, and encode --json's provenance "
+                             "(docs/identity.md)")
 
 
 COMPENSATION_FLAGS = {"crosstalk_file": "--compensate crosstalk.json", "black_lift": "--black-lift",
