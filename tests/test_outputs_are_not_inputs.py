@@ -42,11 +42,14 @@ WRITE_NOTHING = {
     "device info": "prints a unit's identity",
     "device verify": "compares a unit's record with a profile",
 }
-# commands whose output is, by design, what they are given
-IN_PLACE = {
+# commands whose output is, by design, what they are given (so is emulate's --flash image, its own state)
+BY_DESIGN = {
     "profile set-direction": "edits the profile it is given, atomically",
     "profile set-physical": "edits the profile it is given, atomically",
     "device flash": "writes the unit's record (an emulator's image); the profile is only read",
+}
+# commands that take no output path that could name an input
+NO_OUTPUT_PATH = {
     "capture": "writes photos only under new names in DIR/captures (an existing one is kept, or moved to "
                "rejected/ with --restart); the patterns beside them are read",
     "camera simulate": "reads no file: the whole folder is its own output, staged",
@@ -329,7 +332,7 @@ CASE_IDS = [(command, case) for command, cases in CASES.items() for case in case
 
 def test_every_subcommand_is_accounted_for():
     commands = set(_subcommands(build_parser()))
-    listed = [set(CASES), set(WRITE_NOTHING), set(IN_PLACE)]
+    listed = [set(CASES), set(WRITE_NOTHING), set(BY_DESIGN), set(NO_OUTPUT_PATH)]
     assert not any(a & b for i, a in enumerate(listed) for b in listed[i + 1:]), "a command listed twice"
     assert commands == set().union(*listed), (
         f"not covered: {sorted(commands - set().union(*listed))}; gone: {sorted(set().union(*listed) - commands)}")
