@@ -348,3 +348,23 @@ def test_an_output_never_replaces_an_input(command, case, made, tmp_path, monkey
     line = refused(*argv)
     assert PHRASE in line, line
     assert _tree(tmp_path) == before  # every input byte-identical, nothing written, nothing left
+
+
+def test_hard_links_across_folders_are_the_same_file(tmp_path):
+    """The two branches no command above reaches: an output file that is a hard link to a file of an
+    input folder read whole, and a folder to be replaced that holds a hard link to an input file."""
+    from lenticalib.core.errors import InputError
+    from lenticalib.core.outputs import check_output_file, check_output_folder
+
+    (tmp_path / "views").mkdir()
+    (tmp_path / "views" / "view-00.png").write_bytes(b"a view")
+    os.link(tmp_path / "views" / "view-00.png", tmp_path / "raster.png")
+    with pytest.raises(InputError, match=PHRASE):
+        check_output_file(tmp_path / "raster.png", "raster", inputs=[tmp_path / "views"])
+    (tmp_path / "report").mkdir()
+    (tmp_path / "p.json").write_text("a profile")
+    os.link(tmp_path / "p.json", tmp_path / "report" / "p.json")
+    with pytest.raises(InputError, match=PHRASE):
+        check_output_folder(tmp_path / "report", "report", ("*.json",), inputs=[tmp_path / "p.json"])
+    check_output_folder(tmp_path / "report", "report", inputs=[tmp_path / "p.json"])  # written in place: kept
+    assert (tmp_path / "raster.png").read_bytes() == b"a view" and (tmp_path / "p.json").read_text() == "a profile"

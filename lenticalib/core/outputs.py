@@ -152,7 +152,8 @@ def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, examp
             raise InputError(f"is one of this command's inputs{named}: the {what} would replace it",
                              source=str(path), hint=f"give the {what} a path of its own, e.g. {example}")
         if exists and os.path.isdir(item_real) and (_inside(real, item_real) or (
-                not folder and os.stat(real).st_nlink > 1 and _same_file_below(item_real, key))):
+                not folder and os.path.isfile(real) and os.stat(real).st_nlink > 1
+                and _same_file_below(item_real, key))):
             raise InputError(f"is one of this command's inputs (in {item}, which it reads whole): the {what} would "
                              "replace it", source=str(path), hint=f"give the {what} a path outside {item}")
         if not (folder and replaced and exists):
