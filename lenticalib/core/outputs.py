@@ -143,6 +143,7 @@ def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, examp
     """
     real, key = _identity(path)
     exists = key is not None
+    own = f"give the {what} a path of its own" + ("" if example == "out" else f", e.g. {example}")
     for item in inputs:
         if item is None:
             continue
@@ -150,7 +151,7 @@ def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, examp
         named = "" if os.path.abspath(item) == os.path.abspath(path) else f" ({item})"
         if item_real == real or (exists and item_key == key):
             raise InputError(f"is one of this command's inputs{named}: the {what} would replace it",
-                             source=str(path), hint=f"give the {what} a path of its own, e.g. {example}")
+                             source=str(path), hint=own)
         if exists and os.path.isdir(item_real) and (_inside(real, item_real) or (
                 not folder and os.path.isfile(real) and os.stat(real).st_nlink > 1
                 and _same_file_below(item_real, key))):
@@ -162,7 +163,7 @@ def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, examp
                                         and os.stat(item_real).st_nlink > 1 and _same_file_below(real, item_key)):
             raise InputError(f"holds {item}, one of this command's inputs (or a hard link to it): replacing the "
                              f"{what} would delete it", source=str(path),
-                             hint=f"give the {what} a folder of its own, e.g. {example}")
+                             hint=f"give the {what} a folder of its own" + ("" if example == "out" else f", e.g. {example}"))
 
 
 def check_output_folder(path: str | os.PathLike, what: str = "output folder",
