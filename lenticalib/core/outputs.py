@@ -143,7 +143,8 @@ def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, examp
     """
     real, key = _identity(path)
     exists = key is not None
-    own = f"give the {what} a path of its own" + ("" if example == "out" else f", e.g. {example}")
+    suggested = "" if example == "out" else f", e.g. {example}"  # no placeholder name in a hint
+    own = f"give the {what} a path of its own{suggested}"
     for item in inputs:
         if item is None:
             continue
@@ -163,7 +164,7 @@ def check_not_an_input(path: str | os.PathLike, inputs: Inputs, what: str, examp
                                         and os.stat(item_real).st_nlink > 1 and _same_file_below(real, item_key)):
             raise InputError(f"holds {item}, one of this command's inputs (or a hard link to it): replacing the "
                              f"{what} would delete it", source=str(path),
-                             hint=f"give the {what} a folder of its own" + ("" if example == "out" else f", e.g. {example}"))
+                             hint=f"give the {what} a folder of its own{suggested}")
 
 
 def check_output_folder(path: str | os.PathLike, what: str = "output folder",

@@ -119,7 +119,8 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     from .result import crosstalk_document, write_crosstalk
 
     profile_file = None if profile is None or isinstance(profile, PanelProfile) else profile
-    inputs = (Path(directory) / MANIFEST_NAME, Path(directory) / "captures", profile_file)  # the photos: all of captures/
+    # the manifest, the photos (all of captures/) and the profile's file: what the outputs may not be
+    inputs = (Path(directory) / MANIFEST_NAME, Path(directory) / "captures", profile_file)
     output = check_output_file(output, "crosstalk file", example="crosstalk.json", inputs=inputs)
     if report_dir is not None:
         check_output_folder(report_dir, "crosstalk report", contents=REPORT_FILES, inputs=inputs)
