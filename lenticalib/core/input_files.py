@@ -29,6 +29,7 @@ from .errors import InputError
 
 KIB = 1 << 10
 MIB = 1 << 20
+UNBOUNDED = 1 << 62  # for a caller that only needs the kind check (it bounds what it reads itself)
 
 
 def file_noun(what: str) -> str:

@@ -43,7 +43,8 @@ from typing import Any, Mapping
 
 from .atomic import write_text_atomic
 from .documents import FORMATS, MAX_PROFILE_BYTES, check_envelope, read_json_file
-from .errors import ProfileError
+from .errors import InputError, ProfileError
+from .input_files import UNBOUNDED, open_input
 from .fields import is_finite_number, is_number, short_repr, unknown_key_message
 from .layout import SubpixelLayout, layout_from_dict
 from .sizes import MAX_SIDE
@@ -383,8 +384,12 @@ def make_provenance(method: str, inputs: list[str | os.PathLike] = (), **extra) 
 def describe_input(path) -> dict[str, Any]:
     p = Path(path)
     entry: dict[str, Any] = {"path": str(p)}
-    try:
-        entry["sha256"] = hashlib.sha256(p.read_bytes()).hexdigest()
-    except OSError:
+    try:  # streamed: a 4 GiB avatar is hashed in 1 MiB pieces; a FIFO or folder gets no digest
+        with open_input(p, "input", UNBOUNDED) as fh:
+            digest = hashlib.sha256()
+            for piece in iter(lambda: fh.read(1 << 20), b""):
+                digest.update(piece)
+        entry["sha256"] = digest.hexdigest()
+    except (OSError, InputError):
         pass
     return entry

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from ..core.documents import FORMATS, check_envelope
 from ..core.errors import InputError
+from ..core.input_files import KIB, read_input
 from .protocol import PanelGeometry
 
 DOCUMENT = FORMATS["lenticalib.driver"]
@@ -67,13 +68,16 @@ def search_path() -> list[Path]:
     return paths
 
 
+MAX_DRIVER_BYTES = 256 * KIB  # a controller description (drivers/lc32.toml is some 2 KiB)
+
+
 def load_family(path: str | os.PathLike) -> ControllerFamily:
     """Parse one family file; raises InputError naming the file and field."""
     path = Path(path)
     source = str(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        data = tomllib.loads(read_input(path, "controller description", MAX_DRIVER_BYTES).decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(f"cannot read controller description: {exc}", source=source) from None
 
     def field(table: dict, key: str, kind, where: str):

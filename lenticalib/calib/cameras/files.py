@@ -15,6 +15,8 @@ from pathlib import Path
 
 from ...core.atomic import output_target, write_bytes_atomic
 from ...core.errors import CameraError, InputError
+from ...core.imageio import MAX_IMAGE_FILE_BYTES
+from ...core.input_files import read_input
 from ..captures import PHOTO_SUFFIXES
 
 __all__ = ["PHOTO_SUFFIXES", "copy_photo", "existing_photos", "photo_path", "place_photo", "write_photo"]
@@ -72,8 +74,8 @@ def write_photo(data: bytes, destination: Path, suffix: str) -> Path:
 def copy_photo(source: Path, destination: Path) -> Path:
     """Copy ``source`` (left where it is) to ``destination`` + its own suffix atomically; returns the path."""
     try:
-        data = Path(source).read_bytes()
-    except OSError as exc:
-        raise CameraError(f"cannot read the photo: {exc.strerror}", source=str(source),
+        data = read_input(source, "photo", MAX_IMAGE_FILE_BYTES, "check that the file is readable")
+    except InputError as exc:  # a FIFO or device is refused at once
+        raise CameraError(f"cannot read the photo: {exc.message}", source=str(source),
                           hint="check that the file is readable") from None
     return write_photo(data, destination, Path(source).suffix)

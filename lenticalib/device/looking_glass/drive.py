@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Iterable
 
 from ...core.errors import DeviceNotFoundError, InputError, LenticalibError
+from ...core.input_files import UNBOUNDED, open_input
 from ..transports.base import FoundDevice
 from ..url import parse_device_url
 from .unit import FAMILY, MAX_CALIBRATION_BYTES, LookingGlassUnit
@@ -143,5 +144,6 @@ class DriveUnit(LookingGlassUnit):
         self.file = None
 
     def _read_text(self) -> tuple[bytes, Path]:
-        with open(self.file, "rb") as fh:
+        # a regular file (a FIFO in its place is refused at once); its length is judged by the unit
+        with open_input(self.file, "visual.json", UNBOUNDED) as fh:
             return fh.read(MAX_CALIBRATION_BYTES + 1), self.file  # one byte more: too long is refused
