@@ -89,9 +89,9 @@ def write_patterns(directory: str | os.PathLike, pattern_set, progress: Iterable
 
 def _old_manifest(path: Path) -> dict:
     """The JSON object in the manifest ``path`` as it is; {} where there is none or it is not one."""
-    try:
-        old = json.loads(path.read_text())
-    except (OSError, ValueError):
+    try:  # the one bounded JSON reader: a FIFO, a huge or deeply nested file is "none" too
+        old = read_json_file(path, "pattern manifest", "")
+    except InputError:
         return {}
     return old if isinstance(old, dict) else {}
 
