@@ -223,7 +223,7 @@ def test_cameramodel_size_and_model_text_are_capped(tmp_path):
         load_camera_model(big)
     huge = tmp_path / "huge.cameramodel"
     huge.write_bytes(b"#" * (MAX_CAMERAMODEL_BYTES + 1))
-    with pytest.raises(InputError, match=r"more than a camera model file can sensibly hold \(at most 16.0 MiB\)"):
+    with pytest.raises(InputError, match=r"more than a camera model file can sensibly hold \(at most 8.0 MiB\)"):
         load_camera_model(huge)
 
 

@@ -32,12 +32,13 @@ MRCAL_INSTALL = "pip install --no-deps mrcal==2.5.2.post1 (see the README's set-
 HINT = ("give an mrcal .cameramodel ('lenticalib camera calibrate' writes one) or OpenCV YAML/JSON with "
         "camera_matrix and distortion")
 
-# LIMITS (docs/input-limits.md), checked before anything is parsed or inflated.  A .cameramodel
-# 'lenticalib camera calibrate' writes is some 100 KiB (a few hundred photos of a board: a few
-# MiB); mrcal decodes its base-85 optimization inputs in Python, about 9 bytes of memory per byte.
-MAX_CAMERAMODEL_BYTES = 16 * MIB  # a whole .cameramodel file
-MAX_MODEL_TEXT_BYTES = 1 * MIB  # its model besides optimization_inputs (a splined model: some 10 KiB)
-MAX_OPTIMIZATION_INPUTS_BYTES = 32 * MIB  # optimization_inputs' arrays inflated (1.4 M board corners)
+# LIMITS (docs/input-limits.md), checked before anything is parsed or inflated.  A calibration of
+# 30 photos of a 12 x 9 board is a 70 KiB .cameramodel (some 22 bytes a corner, 25 inflated, and
+# 1.3 KiB of model); mrcal decodes its base-85 optimization inputs in Python, about 9 bytes of
+# memory per byte of text.
+MAX_CAMERAMODEL_BYTES = 8 * MIB  # a whole .cameramodel file: some 350 000 board corners, read in ~220 MB
+MAX_MODEL_TEXT_BYTES = 1 * MIB  # its model besides optimization_inputs
+MAX_OPTIMIZATION_INPUTS_BYTES = 32 * MIB  # optimization_inputs' arrays inflated: some 1.3 M board corners
 MAX_CAMERA_TEXT_BYTES = 1 * MIB  # an OpenCV YAML/XML or JSON camera model: a matrix and a few coefficients
 
 
