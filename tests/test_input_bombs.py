@@ -277,6 +277,29 @@ def test_mesh_polygons_are_split_into_fans_in_one_pass():
     assert tris.tolist() == [[0, 1, 2], [3, 4, 5], [3, 5, 6], [3, 6, 7], [3, 7, 8]]
 
 
+def test_ply_faces_of_one_size_are_read_as_one_array_and_row_by_row_reading_is_capped(tmp_path, monkeypatch):
+    import plyfile
+
+    from lenticalib.core.errors import InputError
+    from lenticalib.render import mesh
+
+    vert = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    quads = np.array([([0, 1, 2, 3],)], dtype=[("vertex_indices", "i4", (4,))])
+    mixed = np.empty(2, dtype=[("vertex_indices", "O")])
+    mixed["vertex_indices"][0], mixed["vertex_indices"][1] = np.array([0, 1, 2], "i4"), np.array([0, 1, 2, 3], "i4")
+    for name, faces, text in (("quads.ply", quads, False), ("mixed.ply", mixed, False), ("ascii.ply", quads, True)):
+        plyfile.PlyData([plyfile.PlyElement.describe(vert, "vertex"), plyfile.PlyElement.describe(faces, "face")],
+                        text=text).write(str(tmp_path / name))
+    assert mesh.load_mesh_file(tmp_path / "quads.ply").triangles.tolist() == [[0, 1, 2], [0, 2, 3]]
+    assert mesh.load_mesh_file(tmp_path / "mixed.ply").triangles.tolist() == [[0, 1, 2], [0, 1, 2], [0, 2, 3]]
+    monkeypatch.setattr(mesh, "MAX_POLYGON_ROWS", 0)
+    assert len(mesh.load_mesh_file(tmp_path / "quads.ply").triangles) == 2  # one array: no row limit
+    with pytest.raises(InputError, match="the mesh has 2 faces of mixed sizes, more than the 0 read that way"):
+        mesh.load_mesh_file(tmp_path / "mixed.ply")
+    with pytest.raises(InputError, match="the mesh has 1 faces in ASCII, more than the 0 read that way"):
+        mesh.load_mesh_file(tmp_path / "ascii.ply")
+
+
 # ------------------------------------------------------------------ videos
 
 def test_a_video_whose_frames_are_wider_than_any_raster_is_refused_before_a_frame_is_read(tmp_path):

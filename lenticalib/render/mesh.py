@@ -41,6 +41,7 @@ MAX_MESH_BYTES = 128 * MIB  # an OBJ of a million vertices and two million faces
 MAX_MESH_VERTICES = 1_000_000
 MAX_MESH_TRIANGLES = 2_000_000  # after polygons are split into fans
 MAX_OBJ_LINE = 64 * 1024  # bytes of one OBJ line (a face of some 10 000 corners)
+MAX_POLYGON_ROWS = 500_000  # PLY faces read one by one (mixed sizes, ASCII): some 450 bytes each
 
 
 @dataclasses.dataclass(frozen=True)
@@ -165,29 +166,48 @@ def fan_triangles(corners: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     return np.stack([corners[first], corners[first + k + 1], corners[first + k + 2]], axis=1)
 
 
-def _load_ply(fh, source: str) -> TriangleMesh:
+def _read_ply(fh, source: str, known_list_len: dict):
+    """plyfile's reading of ``fh``: with ``known_list_len`` (lists of one length, memory-mapped), None
+    when that fails (a face of another length: the caller reads row by row, which names any damage);
+    without, one InputError for anything unreadable."""
     import plyfile
 
+    fh.seek(0)
+    try:
+        return plyfile.PlyData.read(fh, mmap=bool(known_list_len), known_list_len=known_list_len)
+    except Exception as exc:  # plyfile raises its own PlyParseError and ValueError/struct errors on bad data
+        if known_list_len:  # lists of other lengths ("unexpected list length", "early end-of-file")
+            return None
+        raise InputError(f"not a readable PLY file ({' '.join(str(exc).split())})", source=source) from None
+
+
+def _load_ply(fh, source: str) -> TriangleMesh:
     elements = check_ply_counts(fh, source, "PLY mesh")
-    counts = {e.name: e for e in elements or ()}
+    if elements is None:
+        raise InputError("not a readable PLY mesh (no 'ply' header ending in 'end_header' with element counts "
+                         "and known property types)", source=source)
+    counts = {e.name: e for e in elements}
     if "vertex" in counts and counts["vertex"].count > MAX_MESH_VERTICES:
         raise _too_many(counts["vertex"].count, MAX_MESH_VERTICES, "vertices", source)
-    if "face" in counts and counts["face"].count > MAX_MESH_TRIANGLES:
-        raise _too_many(counts["face"].count, MAX_MESH_TRIANGLES, "faces", source)
-    # triangles as fixed-length lists are read as one array; any other face falls back to plyfile's rows
-    triangle_lists = {"face": {name: 3 for name in counts["face"].lists}} if "face" in counts else {}
+    faces = counts["face"].count if "face" in counts else 0
+    if faces > MAX_MESH_TRIANGLES:
+        raise _too_many(faces, MAX_MESH_TRIANGLES, "faces", source)
+    fh.seek(0)
+    ascii_ply = b"format ascii" in fh.read(4096).split(b"end_header")[0]
+    # faces of one size (triangles, quads) in a binary file are read as one array mapped from the file;
+    # faces of mixed sizes and ASCII files as plyfile's rows, some 450 bytes a face, so fewer of them
+    lists = counts["face"].lists if "face" in counts else ()
     ply = None
-    for known in (triangle_lists, {}) if triangle_lists else ({},):
-        fh.seek(0)
-        try:
-            ply = plyfile.PlyData.read(fh, mmap=bool(known), known_list_len=known)
+    for size in () if ascii_ply or not lists else (3, 4):
+        ply = _read_ply(fh, source, {"face": {name: size for name in lists}})
+        if ply is not None:
             break
-        except plyfile.PlyElementParseError as exc:
-            if known and "unexpected list length" in str(exc):
-                continue  # polygons, not triangles
-            raise InputError(f"not a readable PLY file ({' '.join(str(exc).split())})", source=source) from None
-        except Exception as exc:  # plyfile raises its own PlyParseError and ValueError/struct errors on bad data
-            raise InputError(f"not a readable PLY file ({' '.join(str(exc).split())})", source=source) from None
+    if ply is None:
+        if faces > MAX_POLYGON_ROWS:
+            raise InputError(f"the mesh has {faces} faces {'in ASCII' if ascii_ply else 'of mixed sizes'}, more than "
+                             f"the {MAX_POLYGON_ROWS} read that way", source=source,
+                             hint="save it as binary PLY of triangles (or OBJ), or decimate it")
+        ply = _read_ply(fh, source, {})
     names = [e.name for e in ply.elements]
     if "vertex" not in names:
         raise InputError("the PLY file has no 'vertex' element", source=source)
@@ -203,8 +223,11 @@ def _load_ply(fh, source: str) -> TriangleMesh:
     if key is None:
         raise InputError("the PLY faces have no 'vertex_indices' list", source=source)
     lists = face[key]
-    if lists.dtype != object:  # read as one (F, 3) array
-        return check_mesh(vertices, np.asarray(lists, dtype=np.int64).reshape(-1, 3), source)
+    if lists.dtype != object:  # read as one (F, n) array: triangles, or quads split in two
+        corners = np.asarray(lists, dtype=np.int64)
+        if corners.shape[1] == 3:
+            return check_mesh(vertices, corners, source)
+        return check_mesh(vertices, fan_triangles(corners.ravel(), np.full(len(corners), corners.shape[1])), source)
     lengths = np.fromiter((len(c) for c in lists), dtype=np.int64, count=len(lists))
     if (lengths < 3).any():
         raise InputError("a PLY face has fewer than three vertices", source=source)
