@@ -48,6 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     m.add_argument("--photos", choices=("srgb", "linear"), default="srgb",
                    help="how the photos encode light: srgb (camera JPEGs, their tone curve measured from the "
                         "photos; default) or linear (16-bit from RAW)")
+    m.add_argument("--force", action="store_true", help="measure photos that do not follow the profile's routing "
+                   "(another panel photographed, or a wrong profile) anyway, instead of refusing them; the file's "
+                   "provenance then says so, and why")
     m.add_argument("--json", action="store_true", help="print the crosstalk document")
     m.set_defaults(run=run_measure)
     c = sub.add_parser("check", help="pass/fail a crosstalk measurement against limits",
@@ -121,7 +124,7 @@ def run_measure(args: argparse.Namespace) -> int:
     with progress_bar(0, "measuring") as bar, flag_names(MEASURE_FLAGS):
         run = measure_crosstalk_set(args.directory, args.output, profile=args.profile, report_dir=args.report,
                                     eye=eye, photos=args.photos, predict=predict_compensation,
-                                    progress=bar.update, progress_total=bar.set_total)
+                                    progress=bar.update, progress_total=bar.set_total, force=args.force)
     measurement, document, output, eye = run.measurement, run.document, run.output, run.eye_separation
     for warning in measurement.warnings:
         print(f"lenticalib: warning: {safe_line(warning)}", file=sys.stderr)

@@ -11,7 +11,7 @@ uses them:
     dark         dark pixels clipped at zero: their bias, measured on the black photo and undone
     photometry   the camera's veiling glare, from the photos
     ratios       the band photos over white (relinearised for the tone curve's uncertainty, glare removed)
-    checks       duplicate photos and band photos that do not fit the others
+    checks       duplicate photos, band photos that do not fit the others, photos of another panel
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps
     measure      the measurement: the mixing matrix and the view cone from the photos
     result       ``crosstalk.json``: the mixing matrix, derived figures, writing, reading, checking

@@ -1,4 +1,7 @@
-"""Checks of the band photos: duplicates, and a photo whose band is not where the others put it.
+"""Checks of the band photos: duplicates, a photo whose band is not where the others put it, and a set
+that does not follow the routing of the profile the patterns were drawn from (:func:`check_routing`:
+another panel photographed, or a wrong profile; judged on the whole panel's cone fit, limits in
+:data:`ROUTING_LIMITS`, measured in docs/crosstalk.md, "Photos that do not follow the profile").
 
 How well a photo agrees with the view-cone model is judged on a scale the photos themselves set
 (:func:`photo_disagreement`): the photo's misfit to the model beyond its own noise, over the
@@ -145,4 +148,103 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) 
                        f"{disagreement[worst]:.2f}; right photos show below {MAX_DISAGREEMENT}, a photo of another band "
                        "about 1)", source=str(capture.directory / "captures"),
                        hint="photograph every pattern of this folder from one camera position, with the exposure "
-                            "locked; they may be photos of another pattern set")
+                            "locked; they may be photos of another pattern set, or of another panel than the "
+                            "profile's (docs/crosstalk.md, 'Photos that do not follow the profile')")
+
+
+def sweep_geometry(fit, box, views: int, width: int, sweep: float, edge: float = 0.05) -> dict[str, float]:
+    """Where the photos put the bands against where the profile drew them (views).
+
+    ``fit``: the whole panel's :class:`.cone.ConeFit`; ``box``: (r0, r1, c0, c1) the panel's outline in
+    working pixels (:func:`.ratios.bounding_box`); ``width``: the panel in pixels; ``sweep``: the
+    patterns' sweep (pixels).  The patterns put the band ``N x / sweep`` views from the fit's camera
+    at panel column ``x``, the same at every row, so on photos of the panel the profile was fitted
+    to the sweep ``delta`` changes by ``N W / sweep`` views from the left edge to the right and by 0
+    from top to bottom.  Returned, each the mean over 5 rows or columns of the middle, ``edge`` of
+    the outline in from its edges:
+
+    sweep_drift_views   the change across the width less what was drawn (a period not the panel's)
+    sweep_rate_error    that over what was drawn there (a fraction; the period's relative error
+                        times ``3 sweep / period``)
+    sweep_tilt_views    the change from top to bottom (a slant not the panel's: ``3 H N / period``
+                        views per unit of slant)
+    sweep_centre_views  delta at the outline's centre less what was drawn there, modulo N into
+                        -N/2..N/2 (an offset not the panel's; the photo's perspective moves it too)
+    """
+    r0, r1, c0, c1 = box
+    middle = np.linspace(0.3, 0.7, 5)
+    rows, cols = r0 + middle * (r1 - r0), c0 + middle * (c1 - c0)
+    ones = np.ones_like(middle)
+    across = fit.delta(rows, (c1 - edge * (c1 - c0)) * ones) - fit.delta(rows, (c0 + edge * (c1 - c0)) * ones)
+    down = fit.delta((r1 - edge * (r1 - r0)) * ones, cols) - fit.delta((r0 + edge * (r1 - r0)) * ones, cols)
+    centre = float(fit.delta(np.array([(r0 + r1) / 2.0]), np.array([(c0 + c1) / 2.0]))[0])
+    drawn = views * width * (1 - 2 * edge) / sweep
+    drift = float(np.mean(across)) - drawn
+    return {"sweep_drift_views": drift, "sweep_rate_error": drift / drawn, "sweep_tilt_views": float(np.mean(down)),
+            "sweep_centre_views": (centre - views * (width / 2.0) / sweep + views / 2.0) % views - views / 2.0}
+
+
+
+# Photos that do not follow the profile's routing (docs/crosstalk.md, "Photos that do not follow the
+# profile"): diagnostic -> (warn above, refuse above) on its absolute value, measured on right sets and
+# on sets photographed through the profile of another panel or a wrong one
+ROUTING_LIMITS = {
+    "cone_residual_relative": (0.35, 0.7),  # the cone fit's residual over the cone's contrast
+    "sweep_rate_error": (0.12, 0.2),  # sweep_geometry: the bands' drift across the width over what was drawn
+    "sweep_tilt_views": (0.8, 2.0),  # sweep_geometry: the bands' drift from top to bottom, views
+}
+
+
+def _routing_reason(key: str, d: dict, warn: float, refuse: float) -> str:
+    if key == "cone_residual_relative":
+        return (f"the view-cone model leaves {d[key]:.2f} of the cone's contrast unexplained, the bands do not "
+                f"sweep smoothly (warned above {warn:g}, refused above {refuse:g})")
+    if key == "sweep_rate_error":
+        return (f"the bands drift {d['sweep_drift_views']:+.1f} views across the panel from where the profile puts "
+                f"them, {100 * d[key]:+.0f}% of the sweep drawn: a period not the panel's (warned above "
+                f"{100 * warn:g}%, refused above {100 * refuse:g}%)")
+    return (f"the bands drift {d[key]:+.1f} views from the panel's top to its bottom: a slant not the panel's "
+            f"(warned above {warn:g}, refused above {refuse:g})")
+
+
+def routing_verdict(diagnostics: dict) -> tuple[str, list[str]]:
+    """("ok" | "warn" | "refuse", one reason per diagnostic past its warning limit) for a
+    measurement's ``diagnostics`` (``cone_residual_relative`` and :func:`sweep_geometry`'s) against
+    :data:`ROUTING_LIMITS`; a diagnostic that is not a number (a fit that found no cone) refuses."""
+    verdict, reasons = "ok", []
+    for key, (warn, refuse) in ROUTING_LIMITS.items():
+        value = abs(float(diagnostics[key]))
+        if value <= warn:
+            continue
+        reasons.append(_routing_reason(key, diagnostics, warn, refuse))
+        verdict = "refuse" if not value <= refuse or verdict == "refuse" else "warn"
+    return verdict, reasons
+
+
+def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bool = False) -> dict:
+    """Do the photos follow the routing of the profile the patterns were drawn from?  Judged on the
+    whole panel's cone fit ``fit`` (:func:`routing_verdict`), right after it (before the centre
+    region's fits and the uncertainties).  Refused: CaptureError naming the capture folder, unless
+    ``force``; warned of (and when forced): a line added to ``warnings``.
+
+    RETURNED VALUE
+    the diagnostics: ``cone_contrast`` (share of white), ``cone_residual_relative``,
+    :func:`sweep_geometry`'s, and ``routing_check``: {"verdict", "reasons", "forced"} (forced: a
+    refusal overridden by ``force``)."""
+    contrast = float(fit.profile.max() - fit.profile.min())
+    found = {"cone_contrast": contrast, "cone_residual_relative": fit.rms / contrast if contrast > 0 else math.inf,
+             **sweep_geometry(fit, box, pattern_set.views, pattern_set.width, pattern_set.sweep)}
+    verdict, reasons = routing_verdict(found)
+    if verdict == "refuse" and not force:
+        raise CaptureError("the photos do not follow the routing of the profile the patterns were drawn from: "
+                           + "; ".join(reasons), source=str(capture.directory),
+                           hint="they show another panel than the profile's, or the profile is wrong: photograph "
+                                "the panel the profile was fitted to from the fit's camera position, or fit this "
+                                "panel and draw the crosstalk patterns from its profile; --force measures anyway")
+    if reasons:
+        warnings.append(("measured anyway (forced): " if verdict == "refuse" else "")
+                        + "the photos may not follow the routing of the profile the patterns were drawn from: "
+                        + "; ".join(reasons))
+    found["routing_check"] = {"verdict": verdict, "reasons": reasons, "forced": verdict == "refuse"}
+    return found
+

@@ -39,7 +39,7 @@ from ...core.errors import CaptureError, InputError
 from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
-from .checks import check_band_photos, check_distinct
+from .checks import check_band_photos, check_distinct, check_routing
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from .patterns import CrosstalkPatternSet
 from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
@@ -133,13 +133,15 @@ def _row_from(fit, ratios, rows, cols, shifts, views) -> tuple[np.ndarray, np.nd
 
 def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None = None, *,
                       photos: str = "srgb", profile_source: str = "profile",
-                      progress: Callable[[str], None] | None = None) -> Measurement:
+                      progress: Callable[[str], None] | None = None, force: bool = False) -> Measurement:
     """Measure the crosstalk of the panel from the photos in ``DIR/captures``.
 
     ARGUMENTS
     directory   folder from ``lenticalib crosstalk patterns`` with ``captures/``
     profile     optional: must be the profile the patterns were drawn from
     photos      "srgb" (JPEG or 8/16-bit sRGB-encoded) or "linear" (16-bit linear from RAW)
+    force       measure photos that do not follow the profile's routing (:func:`.checks.check_routing`)
+                anyway, with a warning, instead of refusing them
 
     Raises InputError / CaptureError (one line, naming the file) for every problem with the
     inputs, before the long work where possible.
@@ -150,17 +152,19 @@ def measure_crosstalk(directory: str | os.PathLike, profile: PanelProfile | None
     pattern_set, capture = open_crosstalk_set(directory, profile, profile_source)
     warnings: list[str] = []
     curve = measure_tone(capture, warnings) if photos == "srgb" else None
-    measured = _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start)
+    measured = _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start, force)
     undecided = 0.0 if curve is None else curve.undecided()
     if curve is not None and curve.alternative is not None and (curve.alternative_weight > 0 or undecided > 0):
         # between the tone models (tone_choice): the other one measured too, the two blended, and
         # half their difference in the uncertainty where the photos leave the choice open
-        other = _measure_linearised(capture, pattern_set, profile, photos, curve.alternative, [], progress, start)
+        other = _measure_linearised(capture, pattern_set, profile, photos, curve.alternative, [], progress, start,
+                                    force=True)  # judged on the main pass
         measured = _blend(measured, other, curve.alternative_weight, undecided)
     return measured
 
 
-def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start) -> Measurement:
+def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, progress, start,
+                        force=False) -> Measurement:
     """Steps 1-4 of the module docstring with the photos linearised through ``curve`` (None: plain
     sRGB decoding, or linear photos)."""
     from ..patterns import FRAME_FRACTION
@@ -181,7 +185,7 @@ def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, 
     if progress:
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
-                    curve, photos, factor, start, progress, column_average, noise)
+                    curve, photos, factor, start, progress, column_average, noise, force)
 
 
 def _blend(main: Measurement, other: Measurement, weight: float, undecided: float = 0.0) -> Measurement:
@@ -235,7 +239,7 @@ def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
 
 
 def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve, photos,
-             factor, start, progress, column_average, noise=None) -> Measurement:
+             factor, start, progress, column_average, noise=None, force=False) -> Measurement:
     import cv2
 
     n = pattern_set.views
@@ -246,9 +250,11 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     bands = pattern_set.bands
     band_shifts = np.array([p.shift for p in bands])
     panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
+    r0, r1, c0, c1 = bounding_box(mask)
+    # photos of another panel, or through a wrong profile: refused (or warned of) before the rest
+    routing = check_routing(panel_fit, (r0, r1, c0, c1), pattern_set, capture, warnings, force)
     if progress:
         progress("view cone")
-    r0, r1, c0, c1 = bounding_box(mask)
     height, width = r1 - r0, c1 - c0
     lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
     centre = ((rows >= r0 + lo * height) & (rows <= r0 + hi * height)
@@ -364,7 +370,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                    "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
                    "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
-                   "sweep_smear_views": math.sqrt(eps2)}
+                   "sweep_smear_views": math.sqrt(eps2),
+                   "sweep_model_offset_rms": float(np.sqrt(np.mean(offsets ** 2))) if offsets.size else 0.0, **routing}
     delta = np.full(mask.shape, np.nan)
     delta[rows, cols] = panel_fit.delta(rows, cols)
     images = {"white": white, "delta": delta, "mask": mask,

@@ -94,7 +94,8 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
                           report_dir: str | os.PathLike | None = None, eye: EyeSeparation | None = None,
                           photos: str = "srgb", predict: Callable[[np.ndarray], dict] | None = None,
                           progress: Callable[[str], None] | None = None,
-                          progress_total: Callable[[int], None] | None = None) -> CrosstalkRun:
+                          progress_total: Callable[[int], None] | None = None,
+                          force: bool = False) -> CrosstalkRun:
     """Measure the crosstalk from ``directory/captures`` and write ``output`` (and the report).
 
     ARGUMENTS
@@ -109,6 +110,8 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
                     (:func:`lenticalib.render.compensation.predict_compensation`): its numbers go
                     into the document as ``compensation_prediction``, its figure into the report
     progress        called once per step; ``progress_total`` once before, with the number of steps
+    force           measure photos that do not follow the profile's routing anyway
+                    (:func:`.checks.check_routing`); the document's provenance then says so, and why
 
     RETURNED VALUE
     :class:`CrosstalkRun`.  Every InputError about the arguments and outputs comes before the
@@ -132,10 +135,14 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     eye_views, eye_note = (eye or EyeSeparation()).resolve(pattern_set.views)
     if progress_total is not None:
         progress_total(len(pattern_set.patterns) + 3)
-    measurement = measure_crosstalk(directory, profile, photos=photos, profile_source="profile", progress=progress)
+    measurement = measure_crosstalk(directory, profile, photos=photos, profile_source="profile", progress=progress,
+                                    force=force)
+    routing = measurement.diagnostics["routing_check"]  # a refusal overridden by force: the file says so, and why
+    forced = ({"forced": "measured with force (--force) although the photos do not follow the routing of the profile "
+                         "the patterns were drawn from: " + "; ".join(routing["reasons"])} if routing["forced"] else {})
     provenance = make_provenance("crosstalk measurement", inputs=measurement.inputs,
                                  **({"profile_file": str(profile_file)} if profile_file is not None else {}),
-                                 pattern_set=pattern_set.set_id, seconds=round(measurement.seconds, 2))
+                                 pattern_set=pattern_set.set_id, seconds=round(measurement.seconds, 2), **forced)
     document = crosstalk_document(measurement, eye_views, eye_note, provenance)
     study = predict(measurement.matrix) if predict is not None else None
     if study is not None:
