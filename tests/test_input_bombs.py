@@ -121,6 +121,14 @@ def test_a_visual_json_field_nested_1000_deep_is_one_line_at_read_time(tmp_path)
     line = bounded(tmp_path, "profile", "import-lkg", visual, "--views", 48, "-o", out, inputs=[visual])
     assert str(visual) in line and "nested more than 64 levels deep" in line
     assert not out.exists()
+    # the same calibration in a unit (the emulator stores it as given): read from the unit, the same line
+    made = subprocess.run([sys.executable, "-m", "lenticalib", "emulate", "--looking-glass", visual, "--name", "deep"],
+                          cwd=REPO, env={**os.environ, "LENTICALIB_EMULATOR_DIR": str(tmp_path / "emulators")},
+                          capture_output=True, text=True, timeout=120)
+    assert made.returncode == 0, made.stderr
+    line = bounded(tmp_path, "device", "read", "lkg-emu://deep", "--views", 48, "-o", out)
+    assert "lkg-emu://deep" in line and "nested more than 64 levels deep" in line
+    assert not out.exists()
 
 
 def test_a_15_mib_document_of_small_values_is_parsed_within_the_limits_or_refused_before_parsing(tmp_path):
