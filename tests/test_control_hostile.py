@@ -18,6 +18,7 @@ import socket
 import time
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -238,3 +239,45 @@ def test_play_prints_the_exposure_of_a_udp_port(cli, tmp_path):
     told = [line for line in err.splitlines() if "udp://" in line]
     assert len(told) == 1 and told[0].startswith("lenticalib: warning: udp://0.0.0.0:"), err
     assert "listens on every network interface" in told[0] and "any sender on the network can drive" in told[0]
+
+
+# ------------------------------------------------------------------ control files: bounded reading
+
+def test_a_control_file_past_the_track_cap_is_refused_as_it_is_read(tmp_path, monkeypatch):
+    """Rows are stored as float32 as they are read and counted against MAX_TRACK_BYTES (256 MiB,
+    made small here), in every format; the line that passes it is named."""
+    from lenticalib.core.errors import InputError
+    from lenticalib.render import controls
+
+    monkeypatch.setattr(controls, "MAX_TRACK_BYTES", 64 * 1024)
+    most = 64 * 1024 // (8 + 4 * D + 4)  # 224 samples of the 70 default controls
+    (tmp_path / "ok.csv").write_text("t,jaw.0\n" + "".join(f"{k / 30},0.5\n" for k in range(most)))
+    track = controls.load_controls(tmp_path / "ok.csv")
+    assert len(track) == most and track.controls.dtype == np.float32 and track.controls[-1, JAW] == 0.5
+    (tmp_path / "long.csv").write_text("t,jaw.0\n" + "".join(f"{k / 30},0\n" for k in range(most + 1)))
+    (tmp_path / "long.jsonl").write_text("".join(f'{{"t": {k / 30}, "jaw": [0, 0, 0]}}\n' for k in range(most + 1)))
+    for name, line in (("long.csv", most + 2), ("long.jsonl", most + 1)):
+        with pytest.raises(InputError) as err:
+            controls.load_controls(tmp_path / name)
+        assert str(err.value).startswith(f"{tmp_path / name}:{line}: holds more than {most} samples of {D} controls")
+    np.savez(tmp_path / "long.npz", t=np.arange(2.0 * most), controls=np.zeros((2 * most, D), np.float32))
+    with pytest.raises(InputError, match="exceed the limit of 64.0 KiB|more than a .npz file can sensibly hold"):
+        controls.load_controls(tmp_path / "long.npz")
+
+
+def test_overlong_lines_and_huge_text_control_files_are_one_line(tmp_path):
+    from lenticalib.core.errors import InputError
+    from lenticalib.render.controls import MAX_TEXT_BYTES, MAX_TEXT_LINE, load_controls
+
+    (tmp_path / "wide.csv").write_text("t,jaw.0\n0," + "7" * (MAX_TEXT_LINE + 10) + "\n")
+    (tmp_path / "wide.jsonl").write_text('{"t": 0, "jaw": [' + " " * (MAX_TEXT_LINE + 10) + "0, 0, 0]}\n")
+    (tmp_path / "field.csv").write_text("t,jaw.0\n0," + "7" * 200_000 + "\n")  # over csv's field limit
+    for name, words in (("wide.csv", ":2: a line of more than 1.0 MiB"), ("wide.jsonl", ":1: a line of more than"),
+                        ("field.csv", ":2: is not a CSV row (field larger than field limit")):
+        with pytest.raises(InputError) as err:
+            load_controls(tmp_path / name)
+        assert words in str(err.value) and "\n" not in str(err.value), str(err.value)[:200]
+    with open(tmp_path / "huge.csv", "wb") as fh:  # sparse: no disk taken
+        fh.truncate(MAX_TEXT_BYTES + 1)
+    with pytest.raises(InputError, match="more than a control file can sensibly hold"):
+        load_controls(tmp_path / "huge.csv")

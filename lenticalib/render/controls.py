@@ -37,6 +37,13 @@ range, |v| <= 3.4e38, checked when the file is read):
 
 In files every error is one InputError naming the file and line (CSV and JSON lines count from 1,
 the CSV header being line 1) or the array, with the expected dimension and layout.
+
+LIMITS.  A track holds at most :data:`MAX_TRACK_BYTES` (256 MiB of times and controls, some 16
+hours of 70 controls at 30 fps): an ``.npz`` is refused from its zip directory and array
+headers, a text file when its rows pass it, before more is read, so a file's memory is bounded by
+the cap whatever it claims (rows are stored as float32 as they are read, never as Python objects).
+A CSV or JSON lines file is at most :data:`MAX_TEXT_BYTES` (1 GiB) and a line at most
+:data:`MAX_TEXT_LINE` (1 MiB); a FIFO, device or socket is not a control file.
 """
 
 from __future__ import annotations
@@ -48,7 +55,7 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from ..core.arrayfile import GIB, load_npz
+from ..core.arrayfile import GIB, MIB, load_npz, size_text
 from ..core.atomic import write_text_atomic
 from ..core.errors import InputError
 from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
@@ -57,6 +64,10 @@ from .control_streams import StreamControls  # noqa: F401  (public API: the sour
 from .rig import DEFAULT_LAYOUT, ControlLayout
 
 _JSONL_SUFFIXES = (".jsonl", ".ndjson", ".json")
+MAX_TRACK_BYTES = 256 * MIB  # a track in memory: t (T,) float64 and controls (T, D) float32 (module docstring)
+MAX_TEXT_BYTES = 1 * GIB  # a CSV or JSON lines control file
+MAX_TEXT_LINE = 1 * MIB  # one line of it: 4096 controls of 15 characters each are 60 KiB
+_CHECK_ROWS = 65536  # rows of an .npz's controls checked at a time (no float64 copy of the whole track)
 
 
 # ------------------------------------------------------------------ files
@@ -126,6 +137,9 @@ def load_controls(path: str | os.PathLike, layout: ControlLayout = DEFAULT_LAYOU
     if not p.is_file():
         raise InputError("no such control file" if not p.exists() else "not a file", source=source)
     suffix = p.suffix.lower()
+    if suffix in (".csv",) + _JSONL_SUFFIXES and p.stat().st_size > MAX_TEXT_BYTES:
+        raise InputError(f"is {size_text(p.stat().st_size)}, more than a control file can sensibly hold (at most "
+                         f"{size_text(MAX_TEXT_BYTES)})", source=source, hint="split it, or store it as .npz")
     if suffix == ".npz":
         return _load_npz(p, layout)
     if suffix == ".csv":
@@ -139,8 +153,8 @@ def load_controls(path: str | os.PathLike, layout: ControlLayout = DEFAULT_LAYOU
 def _load_npz(p: Path, layout: ControlLayout) -> ControlTrack:
     source = str(p)
 
-    # Headers first: names, shapes, and at most 1 GiB of arrays (an hour of 70 controls at 1 kHz).
-    arrays = load_npz(p, wanted=("t", "controls"), required=("t", "controls"), max_bytes=GIB,
+    # Headers first (and the zip's directory): names, shapes, and at most MAX_TRACK_BYTES of arrays.
+    arrays = load_npz(p, wanted=("t", "controls"), required=("t", "controls"), max_bytes=MAX_TRACK_BYTES,
                       source=source, hint="a control .npz holds t (T,) and controls (T, D)")
     t, c = arrays["t"], arrays["controls"]
     if t.ndim != 1 or len(t) < 1 or t.dtype.kind not in "fiu":
@@ -151,13 +165,69 @@ def _load_npz(p: Path, layout: ControlLayout) -> ControlTrack:
                          hint=f"layout: {layout.describe()}")
     t = t.astype(np.float64)
     _check_times(t, lambda i: f"{source} row {i}")
-    wide = c.astype(np.float64)
-    with np.errstate(invalid="ignore"):
-        bad = ~(np.abs(wide) <= FLOAT32_MAX)  # NaN, inf and what float32 cannot hold
-    if bad.any():
-        i, j = (int(v) for v in np.argwhere(bad)[0])
-        raise InputError(number_problem(f"controls[{j}]", float(wide[i, j])), source=f"{source} row {i}")
-    return ControlTrack(t, c.astype(np.float32), layout, source)
+    for start in range(0, len(c), _CHECK_ROWS):  # a block at a time: no float64 copy of the whole track
+        block = c[start:start + _CHECK_ROWS]
+        with np.errstate(invalid="ignore", over="ignore"):
+            bad = ~(np.abs(block.astype(np.float64)) <= FLOAT32_MAX)  # NaN, inf and what float32 cannot hold
+        if bad.any():
+            i, j = (int(v) for v in np.argwhere(bad)[0])
+            raise InputError(number_problem(f"controls[{j}]", float(block[i, j])), source=f"{source} row {start + i}")
+    return ControlTrack(t, c.astype(np.float32, copy=False), layout, source)
+
+
+class _Rows:
+    """Rows of a text control file stored as they are read: t float64, controls float32 (D,), in
+    arrays that grow by half (never a Python object per value); refused past MAX_TRACK_BYTES."""
+
+    def __init__(self, dim: int, source: str):
+        self.dim, self.source, self.n = dim, source, 0
+        self.most = max(1, MAX_TRACK_BYTES // (8 + 4 * dim + 4))  # t, the controls, the line number
+        self.t = np.empty(1024, np.float64)
+        self.c = np.zeros((1024, dim), np.float32)
+        self.lines = np.empty(1024, np.int32)
+
+    def add(self, t: float, where: str, line_no: int) -> np.ndarray:
+        """Room for one more row (its time ``t``): the row's (D,) float32 view, zeros, to fill."""
+        if self.n >= self.most:
+            raise InputError(f"holds more than {self.most} samples of {self.dim} controls, more than a control track "
+                             f"can sensibly hold ({size_text(MAX_TRACK_BYTES)})", source=where,
+                             hint="split it, or sample it less often")
+        if self.n == len(self.t):
+            grow = min(self.most, len(self.t) + len(self.t) // 2)
+            self.t, self.lines = np.resize(self.t, grow), np.resize(self.lines, grow)
+            c = np.zeros((grow, self.dim), np.float32)
+            c[:self.n] = self.c[:self.n]
+            self.c = c
+        self.t[self.n] = t
+        self.lines[self.n] = line_no
+        self.n += 1
+        return self.c[self.n - 1]
+
+    def track(self, layout: ControlLayout, empty: str, hint: str | None = None) -> ControlTrack:
+        if not self.n:
+            raise InputError(empty, source=self.source, hint=hint)
+        t = self.t[:self.n]
+        _check_times(t, lambda i: f"{self.source}:{self.lines[i]}")
+        return ControlTrack(t, self.c[:self.n], layout, self.source)  # views: no second copy of the track
+
+
+def _text_lines(p: Path):
+    """(line number, line) of a UTF-8 text file, each line read bounded (at most MAX_TEXT_LINE)."""
+    source = str(p)
+    try:
+        with open(p, encoding="utf-8", newline="") as fh:
+            line_no = 0
+            while True:
+                line = fh.readline(MAX_TEXT_LINE + 1)
+                if not line:
+                    return
+                line_no += 1
+                if len(line) > MAX_TEXT_LINE:
+                    raise InputError(f"a line of more than {size_text(MAX_TEXT_LINE)}", source=f"{source}:{line_no}",
+                                     hint="one sample a line")
+                yield line_no, line
+    except UnicodeDecodeError:
+        raise InputError("is not UTF-8 text", source=source) from None
 
 
 def _column_index(name: str, layout: ControlLayout, names: Sequence[str] | None) -> int | None:
@@ -171,14 +241,11 @@ def _column_index(name: str, layout: ControlLayout, names: Sequence[str] | None)
 
 def _load_csv(p: Path, layout: ControlLayout, names: Sequence[str] | None) -> ControlTrack:
     source = str(p)
-    try:
-        with open(p, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except UnicodeDecodeError:
-        raise InputError("is not UTF-8 text", source=source) from None
-    if not rows or not rows[0]:
+    lines = _text_lines(p)
+    first = next(lines, (1, ""))[1]
+    header = [h.strip() for h in _csv_row(first, f"{source}:1")]
+    if not header or not any(header):
         raise InputError("no header row", source=f"{source}:1", hint="the first row names the columns: t, jaw.0, ...")
-    header = [h.strip() for h in rows[0]]
     if header[0] != "t":
         raise InputError(f"first column is {header[0]!r}, expected 't'", source=f"{source}:1")
     columns = []
@@ -190,12 +257,13 @@ def _load_csv(p: Path, layout: ControlLayout, names: Sequence[str] | None) -> Co
         if k in columns:
             raise InputError(f"column {name!r} repeats control {k}", source=f"{source}:1")
         columns.append(k)
-    t, c, lines = [], [], []
+    rows = _Rows(layout.dim, source)
     limits = [FLOAT64_MAX] + [FLOAT32_MAX] * len(columns)  # t is float64, the controls float32
-    for line_no, row in enumerate(rows[1:], start=2):
+    for line_no, line in lines:
+        where = f"{source}:{line_no}"
+        row = _csv_row(line, where)
         if not row or all(not f.strip() for f in row):
             continue
-        where = f"{source}:{line_no}"
         if len(row) != len(header):
             raise InputError(f"{len(row)} fields, expected {len(header)} (t and {len(header) - 1} controls)",
                              source=where)
@@ -208,16 +276,16 @@ def _load_csv(p: Path, layout: ControlLayout, names: Sequence[str] | None) -> Co
         if out:
             col = out[0]
             raise InputError(number_problem(f"column {header[col]!r}", values[col], limits[col]), source=where)
-        vec = np.zeros(layout.dim, dtype=np.float32)
-        vec[columns] = values[1:]
-        t.append(values[0])
-        c.append(vec)
-        lines.append(line_no)
-    if not t:
-        raise InputError("no rows after the header", source=source)
-    t = np.asarray(t, dtype=np.float64)
-    _check_times(t, lambda i: f"{source}:{lines[i]}")
-    return ControlTrack(t, np.stack(c), layout, source)
+        rows.add(values[0], where, line_no)[columns] = values[1:]
+    return rows.track(layout, "no rows after the header")
+
+
+def _csv_row(line: str, where: str) -> list[str]:
+    """The fields of one CSV line (numbers and names: no quoted line breaks in a control file)."""
+    try:
+        return next(csv.reader([line]), [])
+    except csv.Error as exc:
+        raise InputError(f"is not a CSV row ({exc})", source=where) from None
 
 
 def _is_float(text: str) -> bool:
@@ -230,24 +298,14 @@ def _is_float(text: str) -> bool:
 
 def _load_jsonl(p: Path, layout: ControlLayout) -> ControlTrack:
     source = str(p)
-    t, c, lines = [], [], []
-    try:
-        with open(p, encoding="utf-8") as fh:
-            for line_no, line in enumerate(fh, start=1):
-                if not line.strip():
-                    continue
-                ti, vec = parse_control_line(line, layout, f"{source}:{line_no}", require_t=True)
-                t.append(ti)
-                c.append(vec)
-                lines.append(line_no)
-    except UnicodeDecodeError:
-        raise InputError("is not UTF-8 text", source=source) from None
-    if not t:
-        raise InputError("no control lines", source=source,
-                         hint='one JSON object a line: {"t": 0.0, "controls": [...]}')
-    t = np.asarray(t, dtype=np.float64)
-    _check_times(t, lambda i: f"{source}:{lines[i]}")
-    return ControlTrack(t, np.stack(c), layout, source)
+    rows = _Rows(layout.dim, source)
+    for line_no, line in _text_lines(p):
+        if not line.strip():
+            continue
+        where = f"{source}:{line_no}"
+        ti, vec = parse_control_line(line, layout, where, require_t=True)
+        rows.add(ti, where, line_no)[:] = vec
+    return rows.track(layout, "no control lines", hint='one JSON object a line: {"t": 0.0, "controls": [...]}')
 
 
 # ------------------------------------------------------------------ the file source
