@@ -19,6 +19,7 @@ Errors and user input
     errors              the one exception tree (``LenticalibError``, ``InputError`` ...)
     fields              checks every document reader shares: finite numbers, known key names
     sizes               the one ``WxH`` parser, the size limits and the raster-size check
+    terminal_text       text from outside made safe for a terminal: controls escaped, long values cut
 
 Files and documents
     input_files         every input file opened bounded: a regular file (no FIFO, device) within a size cap
