@@ -23,10 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.arrayfile import size_text
 from ..core.documents import read_json_file
 from ..core.errors import BackendUnavailableError, InputError
-from ..core.input_files import MIB, check_input, read_input
+from ..core.input_files import MIB, check_input, read_input, size_text
 
 MRCAL_INSTALL = "pip install --no-deps mrcal==2.5.2.post1 (see the README's set-up command)"
 HINT = ("give an mrcal .cameramodel ('lenticalib camera calibrate' writes one) or OpenCV YAML/JSON with "

@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import stat
 import struct
 import zipfile
 import zlib
@@ -39,6 +38,7 @@ import numpy as np
 from numpy.lib import format as npformat
 
 from .errors import InputError
+from .input_files import UNBOUNDED, open_input, size_text
 
 GIB = 1 << 30
 MIB = 1 << 20
@@ -56,16 +56,6 @@ class ArrayHeader:
     dtype: np.dtype
     nbytes: int
     stored: int
-
-
-def size_text(nbytes: int) -> str:
-    """Bytes for people: ``"2.0 GiB"``, ``"3.5 MiB"``, ``"120 bytes"``; absurd sizes in powers of ten."""
-    if nbytes >= 1 << 50:
-        return f"{nbytes:.3g} bytes"
-    for unit, size in (("GiB", GIB), ("MiB", 1 << 20), ("KiB", 1 << 10)):
-        if nbytes >= size:
-            return f"{nbytes / size:.1f} {unit}"
-    return f"{nbytes} bytes"
 
 
 def _what(name: str) -> str:
@@ -210,22 +200,7 @@ def open_zip(path: str | os.PathLike, limits: ZipLimits, *, what: str, source: s
     FIFO, device or socket is refused without waiting for a writer), a zip within ``limits``.
     The caller reads it (``zipfile.ZipFile(fh)``, ``torch.load(fh)``) and closes it (``with``)."""
     source = source or str(path)
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-    except OSError as exc:
-        raise _open_error(exc, source, what) from None
-    try:
-        mode = os.fstat(fd).st_mode
-        if stat.S_ISDIR(mode):
-            raise InputError(f"is a folder, not a {what}", source=source, hint=hint)
-        if not stat.S_ISREG(mode):
-            raise InputError(f"is not a regular file (a FIFO, device or socket), not a {what}", source=source,
-                             hint=hint)
-        os.set_blocking(fd, True)
-        fh = os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
+    fh = open_input(path, what, UNBOUNDED, hint, source=source)  # the zip's own limits come next
     try:
         check_zip(fh, limits, what=what, source=source, hint=hint)
     except BaseException:
@@ -294,7 +269,7 @@ def load_npy(path: str | os.PathLike, *, max_bytes: int | None = None,
     """The array of the ``.npy`` at ``path``, its header checked first (see :func:`load_npz`)."""
     source = source or str(path)
     try:
-        with open(path, "rb") as fp:
+        with open_input(path, "numpy file", UNBOUNDED, source=source) as fp:  # a FIFO: refused at once
             size = os.fstat(fp.fileno()).st_size
             header = _read_header(fp, "", size, source)
             _check_headers([header], source, max_bytes, check)

@@ -32,11 +32,10 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
-from .arrayfile import size_text
 from .atomic import write_text_atomic
 from .errors import InputError
 from .fields import json_shape, parse_json, short_repr
-from .input_files import KIB, MIB, read_input
+from .input_files import KIB, MIB, read_input, size_text
 
 FORMAT_KEY = "format"
 VERSION_KEY = "format_version"

@@ -12,7 +12,8 @@ opens the path itself), so that
   reader's own; docs/input-limits.md lists them) is refused from its size, before a byte is read,
   and :func:`read_input` never reads more than ``max_bytes + 1`` bytes even if the file grows.
 
-Every failure is one ``error`` (an :class:`~.errors.InputError` class) naming the file:
+:func:`size_text` writes sizes for people.  Every failure is one ``error`` (an
+:class:`~.errors.InputError` class) naming the file:
 ``no such file``, ``is a folder, not a profile file``, ``is not a regular file (a FIFO, device or
 socket), not a mesh file``, ``is 20.0 MiB, more than a profile file holds (at most 1.0 MiB)``.
 Sizes are bytes.
@@ -24,12 +25,22 @@ import os
 import stat
 from typing import BinaryIO
 
-from .arrayfile import size_text
 from .errors import InputError
 
 KIB = 1 << 10
 MIB = 1 << 20
+GIB = 1 << 30
 UNBOUNDED = 1 << 62  # for a caller that only needs the kind check (it bounds what it reads itself)
+
+
+def size_text(nbytes: int) -> str:
+    """Bytes for people: ``"2.0 GiB"``, ``"3.5 MiB"``, ``"120 bytes"``; absurd sizes in powers of ten."""
+    if nbytes >= 1 << 50:
+        return f"{nbytes:.3g} bytes"
+    for unit, size in (("GiB", GIB), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if nbytes >= size:
+            return f"{nbytes / size:.1f} {unit}"
+    return f"{nbytes} bytes"
 
 
 def file_noun(what: str) -> str:
@@ -40,11 +51,12 @@ def file_noun(what: str) -> str:
 
 
 def open_input(path: str | os.PathLike, what: str, max_bytes: int, hint: str | None = None,
-               error: type[InputError] = InputError) -> BinaryIO:
+               error: type[InputError] = InputError, *, source: str | None = None) -> BinaryIO:
     """``path`` opened for binary reading, once it is known to be a regular file of at most
     ``max_bytes`` bytes (module docstring); ``what`` names the kind of file in messages
-    ("profile"), ``hint`` says what to give instead.  The caller closes it (``with``)."""
-    source = os.fspath(path)
+    ("profile"), ``hint`` says what to give instead, ``source`` names the file (default: ``path``).
+    The caller closes it (``with``)."""
+    source = os.fspath(path) if source is None else source
     noun = file_noun(what)
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))

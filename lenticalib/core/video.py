@@ -16,8 +16,7 @@ import os
 
 from .errors import InputError
 from .imageio import check_image_pixels, cv2_quiet
-from .arrayfile import GIB
-from .input_files import check_input
+from .input_files import GIB, check_input
 from .sizes import MAX_SIDE
 
 MAX_VIDEO_BYTES = 64 * GIB  # a video file: two hours of 4K at 60 Mbit/s is some 55 GiB

@@ -37,10 +37,9 @@ import re
 
 import numpy as np
 
-from ..core.arrayfile import GIB, size_text
 from ..core.atomic import write_bytes_atomic
 from ..core.errors import BackendUnavailableError, InputError
-from ..core.input_files import open_input
+from ..core.input_files import GIB, open_input, size_text
 from .gaussians import Gaussians
 
 _TYPE_BYTES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
