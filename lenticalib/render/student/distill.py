@@ -233,7 +233,8 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
                                   or not 0 < o.minutes <= MAX_MINUTES):
         raise InputError(f"minutes {o.minutes!r} is out of range", source="minutes",
                          hint=f"give a time budget in minutes, more than 0 and at most {MAX_MINUTES}")
-    output = check_output_file(output, "student driver", example="student.pt")
+    output = check_output_file(output, "student driver", example="student.pt",
+                               inputs=(frames, controls, rig, backbone_weights))
     if rig is not None:
         from ..rig_file import load_rig
 
