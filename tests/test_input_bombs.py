@@ -194,7 +194,8 @@ def _zip_of_zeros(name: str, size: int) -> bytes:
 def _cameramodel(optimization_inputs: bytes | None) -> str:
     import base64
 
-    text = ("{\n    'lensmodel': 'LENSMODEL_OPENCV4',\n    'intrinsics': [1500.0, 1500.0, 799.5, 599.5, 0.0, 0.0, 0.0, 0.0],\n"
+    text = ("{\n    'lensmodel': 'LENSMODEL_OPENCV4',\n"
+            "    'intrinsics': [1500.0, 1500.0, 799.5, 599.5, 0.0, 0.0, 0.0, 0.0],\n"
             "    'rt_cam_ref': [0, 0, 0, 0, 0, 0],\n    'imagersize': [1600, 1200],\n")
     if optimization_inputs is not None:
         text += f"    'icam_intrinsics': 0,\n    'optimization_inputs': {base64.b85encode(optimization_inputs)!r},\n"
@@ -390,7 +391,7 @@ def test_the_input_helper_never_reads_more_than_its_cap(tmp_path):
     path = tmp_path / "f.bin"
     path.write_bytes(b"x" * 100)
     assert read_input(path, "thing", 100) == b"x" * 100 and check_input(path, "thing", 100) == 100
-    with pytest.raises(InputError, match=r"is 100 bytes, more than a thing file can sensibly hold \(at most 99 bytes\)"):
+    with pytest.raises(InputError, match=r"is 100 bytes, more than a thing file can sensibly hold \(at most 99 "):
         read_input(path, "thing", 99)
     with pytest.raises(InputError, match="is a folder, not a thing file"):
         read_input(tmp_path, "thing", 99)

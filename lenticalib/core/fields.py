@@ -6,8 +6,9 @@ NUMBERS.  A number in a JSON document is usable when it is finite and fits a flo
 finds the first marker with the path of the field that holds it (``slant``,
 ``physical.eye_mm[2]``), so a reader refuses it in one line naming file and field, before any
 arithmetic on it can overflow.  :func:`json_shape` is that search and the document's depth and
-value count in one pass, building a path only for the number it reports.  :func:`is_number` / :func:`is_finite_number` are the type tests
-for one value (a bool is not a number; a huge int is not finite).
+value count in one pass, building a path only for the number it reports.  :func:`is_number` /
+:func:`is_finite_number` are the type tests for one value (a bool is not a number; a huge int is
+not finite).
 
 KEY NAMES.  :func:`unknown_key_message` names an unknown key and the known key it is most likely a
 misspelling of: ``unknown field 'slnat' (did you mean 'slant'?)``.

@@ -25,7 +25,10 @@ InputError naming the file and the property at fault: not a PLY / a truncated fi
 element or no rows, a missing property, ``f_rest_*`` of a count other than 0, 9, 24 or 45 or not
 numbered 0..M-1, a list property where a scalar is expected, a non-finite value, a zero-length
 quaternion, a header whose element counts need more bytes than the file holds (checked before
-plyfile reads a byte of data, so a header claiming 10^13 vertices costs no memory).  Compressed PLYs (SuperSplat's ``packed_position`` chunks) are not this layout.
+plyfile reads a byte of data, so a header claiming 10^13 vertices costs no memory;
+:func:`check_ply_counts`, which mesh PLYs share), and a FIFO, device or a file over
+:data:`MAX_AVATAR_PLY_BYTES` (refused before it is read).  Compressed PLYs (SuperSplat's
+``packed_position`` chunks) are not this layout.
 """
 
 from __future__ import annotations
