@@ -106,7 +106,7 @@ def _exposure_ok(a) -> np.ndarray:
     return (np.asarray(a) > EXPOSURE_RANGE[0]) & (np.asarray(a) < EXPOSURE_RANGE[1])
 
 
-def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) -> None:
+def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape, judge=None) -> None:
     """Each band photo must show its band where the others put it.  When one does not, each photo is
     judged against a fit of the others (a wrong photo pulls a fit that includes it towards itself):
     the one that disagrees while all the others then agree is named.
@@ -116,13 +116,21 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) 
     seed by :func:`sample_pairs` (with the pixels below them, for the noise), so a wrong photo is
     named in seconds.  ``ratios`` float (n, K), ``rows``/``cols`` int (n,), ``shifts`` float (K,)
     views, ``shape`` (h, w) of the working image.  Only this fit is judged: the measurement's fit of the whole panel is not
-    checked again (its residual is reported in the diagnostics, ``cone_residual_rms``)."""
+    checked again (its residual is reported in the diagnostics, ``cone_residual_rms``).
+
+    ``judge`` (:func:`check_routing`) is called once, with the fit the verdict rests on, before a
+    refusal: the fit of all photos when they agree or none can be named, the fit of the others
+    when one is named (a wrong photo pulls the fit of all; a set that does not follow the
+    profile's routing still shows it without that photo, and is refused as a set, not by the photo
+    it throws furthest)."""
     pick, partner = sample_pairs(rows, cols, CHECK_SAMPLES)
     below = (ratios[partner], rows[partner], cols[partner])
     ratios, rows, cols = ratios[pick], rows[pick], cols[pick]
+    judge = judge or (lambda fit: None)
     fit = cone.fit_cone(ratios, rows, cols, shifts, views, shape)
     disagreement, _, _ = photo_disagreement(fit, ratios, rows, cols, shifts, below)
     if disagreement.max() <= MAX_DISAGREEMENT and np.all(_exposure_ok(fit.gains)):
+        judge(fit)
         return
     best = None
     for j in range(len(bands)):
@@ -134,15 +142,17 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape) 
                                          (below[0][:, [j]], below[1], below[2]), scale)
         if rest.max() <= MAX_DISAGREEMENT and (alone[0] > MAX_DISAGREEMENT or not _exposure_ok(a)[0]):
             if best is None or alone[0] > best[1]:
-                best = (j, float(alone[0]), float(a[0]))
+                best = (j, float(alone[0]), float(a[0]), others)
     if best is not None:
-        j, alone, a = best
+        j, alone, a, others = best
+        judge(others)
         raise CaptureError(f"does not show pattern {bands[j].name} where the other band photos say it should be "
                            f"(disagreement {alone:.2f}, exposure {a:.2f} of the others'; right photos show below "
                            f"{MAX_DISAGREEMENT}, a photo of another band about 1)",
                            source=str(capture.photo(bands[j].name)),
                            hint=f"show {bands[j].file} of this folder full screen and photograph it again from "
                                 "the same place")
+    judge(fit)
     worst = int(np.argmax(disagreement))
     raise CaptureError(f"the band photos do not agree with each other (worst: {bands[worst].name}, disagreement "
                        f"{disagreement[worst]:.2f}; right photos show below {MAX_DISAGREEMENT}, a photo of another band "
@@ -197,8 +207,8 @@ ROUTING_LIMITS = {
 
 def _routing_reason(key: str, d: dict, warn: float, refuse: float) -> str:
     if key == "cone_residual_relative":
-        return (f"the view-cone model leaves {d[key]:.2f} of the cone's contrast unexplained, the bands do not "
-                f"sweep smoothly (warned above {warn:g}, refused above {refuse:g})")
+        return (f"the bands do not sweep across the panel as drawn: the view-cone model leaves {d[key]:.2f} times "
+                f"the cone's contrast unexplained (warned above {warn:g}, refused above {refuse:g})")
     if key == "sweep_rate_error":
         return (f"the bands drift {d['sweep_drift_views']:+.1f} views across the panel from where the profile puts "
                 f"them, {100 * d[key]:+.0f}% of the sweep drawn: a period not the panel's (warned above "
@@ -210,9 +220,15 @@ def _routing_reason(key: str, d: dict, warn: float, refuse: float) -> str:
 def routing_verdict(diagnostics: dict) -> tuple[str, list[str]]:
     """("ok" | "warn" | "refuse", one reason per diagnostic past its warning limit) for a
     measurement's ``diagnostics`` (``cone_residual_relative`` and :func:`sweep_geometry`'s) against
-    :data:`ROUTING_LIMITS`; a diagnostic that is not a number (a fit that found no cone) refuses."""
+    :data:`ROUTING_LIMITS`; a diagnostic that is not a number (a fit that found no cone) refuses.
+    Where the cone model does not hold (the residual past its refusal limit) the sweep's geometry
+    means nothing and is not quoted."""
     verdict, reasons = "ok", []
+    residual = abs(float(diagnostics["cone_residual_relative"]))
+    chaotic = not residual <= ROUTING_LIMITS["cone_residual_relative"][1]
     for key, (warn, refuse) in ROUTING_LIMITS.items():
+        if chaotic and key != "cone_residual_relative":
+            continue
         value = abs(float(diagnostics[key]))
         if value <= warn:
             continue
@@ -221,19 +237,28 @@ def routing_verdict(diagnostics: dict) -> tuple[str, list[str]]:
     return verdict, reasons
 
 
+def routing_diagnostics(fit, box, pattern_set) -> dict[str, float]:
+    """What :func:`routing_verdict` judges, from a whole-panel cone fit ``fit``: ``cone_contrast``
+    (the cone's peak to peak, share of white), ``cone_residual_relative`` (the fit's residual over
+    it) and :func:`sweep_geometry`'s (``box``: the panel's outline in working pixels)."""
+    contrast = float(fit.profile.max() - fit.profile.min())
+    return {"cone_contrast": contrast, "cone_residual_relative": fit.rms / contrast if contrast > 0 else math.inf,
+            **sweep_geometry(fit, box, pattern_set.views, pattern_set.width, pattern_set.sweep)}
+
+
 def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bool = False) -> dict:
-    """Do the photos follow the routing of the profile the patterns were drawn from?  Judged on the
-    whole panel's cone fit ``fit`` (:func:`routing_verdict`), right after it (before the centre
-    region's fits and the uncertainties).  Refused: CaptureError naming the capture folder, unless
-    ``force``; warned of (and when forced): a line added to ``warnings``.
+    """Do the photos follow the routing of the profile the patterns were drawn from?  Judged
+    (:func:`routing_verdict`) on the band-photo check's quick fit of the whole panel (``fit``, see
+    :func:`check_band_photos`: the fit of all photos, or of the others where one is out of place),
+    before that check refuses anything and before the measurement's own work.
+    Refused: CaptureError naming the capture folder, unless ``force``; warned of (and when forced):
+    a line added to ``warnings``.
 
     RETURNED VALUE
-    the diagnostics: ``cone_contrast`` (share of white), ``cone_residual_relative``,
-    :func:`sweep_geometry`'s, and ``routing_check``: {"verdict", "reasons", "forced"} (forced: a
-    refusal overridden by ``force``)."""
-    contrast = float(fit.profile.max() - fit.profile.min())
-    found = {"cone_contrast": contrast, "cone_residual_relative": fit.rms / contrast if contrast > 0 else math.inf,
-             **sweep_geometry(fit, box, pattern_set.views, pattern_set.width, pattern_set.sweep)}
+    {"verdict": "ok" | "warn" | "refuse", "reasons": [...], "forced": a refusal overridden by
+    ``force``, "judged": :func:`routing_diagnostics` of ``fit``} (``routing_check`` in the
+    measurement's diagnostics)."""
+    found = routing_diagnostics(fit, box, pattern_set)
     verdict, reasons = routing_verdict(found)
     if verdict == "refuse" and not force:
         raise CaptureError("the photos do not follow the routing of the profile the patterns were drawn from: "
@@ -245,6 +270,5 @@ def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bo
         warnings.append(("measured anyway (forced): " if verdict == "refuse" else "")
                         + "the photos may not follow the routing of the profile the patterns were drawn from: "
                         + "; ".join(reasons))
-    found["routing_check"] = {"verdict": verdict, "reasons": reasons, "forced": verdict == "refuse"}
-    return found
-
+    return {"verdict": verdict, "reasons": reasons, "forced": verdict == "refuse",
+            "judged": {key: round(float(value), 4) for key, value in found.items()}}

@@ -39,7 +39,7 @@ from ...core.errors import CaptureError, InputError
 from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
-from .checks import check_band_photos, check_distinct, check_routing
+from .checks import check_band_photos, check_distinct, check_routing, routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from .patterns import CrosstalkPatternSet
 from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
@@ -179,13 +179,13 @@ def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, 
         raise CaptureError(f"is overexposed: {100 * clip_fraction:.0f}% of the panel is clipped", source=str(white_path),
                            hint="lower the exposure until white is not pure white, lock it, and retake every photo")
     shifts = register_photos(luma, pattern_set.names, capture.photos, lit0, FRAME_FRACTION, warnings)
-    column_average = _check_bands(luma, mask, pattern_set, capture, warnings)
+    column_average, routing = _check_bands(luma, mask, pattern_set, capture, warnings, force)
     if progress:
         progress("band photos checked")
     if progress:
         progress("photometry")
     return _analyse(luma, mask, pattern_set, capture, profile or pattern_set.profile, warnings, shifts,
-                    curve, photos, factor, start, progress, column_average, noise, force)
+                    curve, photos, factor, start, progress, column_average, noise, routing)
 
 
 def _blend(main: Measurement, other: Measurement, weight: float, undecided: float = 0.0) -> Measurement:
@@ -208,10 +208,12 @@ def _blend(main: Measurement, other: Measurement, weight: float, undecided: floa
     return dataclasses.replace(main, **mixed, **sigmas, samples=samples, diagnostics=diagnostics, seconds=other.seconds)
 
 
-def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
+def _check_bands(luma, mask, pattern_set, capture, warnings, force=False) -> tuple[float, dict]:
     """The band photos' checks (:mod:`.checks`), right after the photos are read and registered and
-    before any of the measurement's own work (glare, cone fits, uncertainties): the column average
-    to measure with (0 or ``COLUMN_AVERAGE``), or CaptureError naming the photo (or the set).
+    before any of the measurement's own work (glare, cone fits, uncertainties): (the column average
+    to measure with (0 or ``COLUMN_AVERAGE``), the routing check's record
+    (:func:`.checks.check_routing`, on the first check's fit; ``force``: a refusal overridden)), or
+    CaptureError naming the photo (or the set).
 
     The checks judge the ratios without the glare correction: the glare adds a smooth floor the
     cone model holds, and its fit and removal would take as long as the checks."""
@@ -220,10 +222,17 @@ def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
     no_glare = photometry.Glare(0.0, 0.0, math.nan)
     ratios, rows, cols, _ = band_ratios(luma, mask, pattern_set, no_glare, column_average=0.0)
     check_distinct(ratios, bands, capture)
+    routing: dict = {}
+
+    def judge(fit):
+        routing.update(check_routing(fit, bounding_box(mask), pattern_set, capture, warnings, force))
+
     try:
-        check_band_photos(ratios, rows, cols, shifts, bands, capture, pattern_set.views, mask.shape)
-        return 0.0
+        check_band_photos(ratios, rows, cols, shifts, bands, capture, pattern_set.views, mask.shape, judge)
+        return 0.0, routing
     except CaptureError as refusal:
+        if not routing:  # refused by the routing check (judge), which runs before the band check refuses
+            raise
         # a close camera may resolve the moire of a one-view band (which subpixel each lens shows):
         # the same photos averaged along the panel's columns, where the sweep stays put, must then
         # agree.  If they do not either, a photo the first check named stays named; otherwise the
@@ -235,11 +244,11 @@ def _check_bands(luma, mask, pattern_set, capture, warnings) -> float:
             raise (second if refusal.source == str(capture.directory / "captures") else refusal) from None
     warnings.append("the band photos show a moire of the lit subpixels (a close camera): they were averaged "
                     f"along the panel's columns (sigma {COLUMN_AVERAGE:.3f} of the panel's height)")
-    return COLUMN_AVERAGE
+    return COLUMN_AVERAGE, routing
 
 
 def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve, photos,
-             factor, start, progress, column_average, noise=None, force=False) -> Measurement:
+             factor, start, progress, column_average, noise=None, routing=None) -> Measurement:
     import cv2
 
     n = pattern_set.views
@@ -251,8 +260,6 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     band_shifts = np.array([p.shift for p in bands])
     panel_fit = cone.fit_cone(ratios, rows, cols, band_shifts, n, mask.shape)
     r0, r1, c0, c1 = bounding_box(mask)
-    # photos of another panel, or through a wrong profile: refused (or warned of) before the rest
-    routing = check_routing(panel_fit, (r0, r1, c0, c1), pattern_set, capture, warnings, force)
     if progress:
         progress("view cone")
     height, width = r1 - r0, c1 - c0
@@ -371,7 +378,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                    "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2),
-                   "sweep_model_offset_rms": float(np.sqrt(np.mean(offsets ** 2))) if offsets.size else 0.0, **routing}
+                   "sweep_model_offset_rms": float(np.sqrt(np.mean(offsets ** 2))) if offsets.size else 0.0,
+                   **routing_diagnostics(panel_fit, (r0, r1, c0, c1), pattern_set), "routing_check": routing}
     delta = np.full(mask.shape, np.nan)
     delta[rows, cols] = panel_fit.delta(rows, cols)
     images = {"white": white, "delta": delta, "mask": mask,
