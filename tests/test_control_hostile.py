@@ -272,7 +272,7 @@ def test_overlong_lines_and_huge_text_control_files_are_one_line(tmp_path):
     (tmp_path / "wide.csv").write_text("t,jaw.0\n0," + "7" * (MAX_TEXT_LINE + 10) + "\n")
     (tmp_path / "wide.jsonl").write_text('{"t": 0, "jaw": [' + " " * (MAX_TEXT_LINE + 10) + "0, 0, 0]}\n")
     (tmp_path / "field.csv").write_text("t,jaw.0\n0," + "7" * 200_000 + "\n")  # over csv's field limit
-    for name, words in (("wide.csv", ":2: a line of more than 1.0 MiB"), ("wide.jsonl", ":1: a line of more than"),
+    for name, words in (("wide.csv", ": line 2 is longer than 1.0 MiB"), ("wide.jsonl", ": line 1 is longer than"),
                         ("field.csv", ":2: is not a CSV row (field larger than field limit")):
         with pytest.raises(InputError) as err:
             load_controls(tmp_path / name)

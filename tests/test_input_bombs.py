@@ -271,7 +271,7 @@ def test_a_10_mb_obj_fan_is_refused_by_its_line_and_its_triangle_count(tmp_path,
     assert fan.stat().st_size > 10 * MB
     line = bounded(tmp_path, "avatar", "diagnose", avatar, "--mesh", fan, inputs=[avatar, fan],
                    modules="numpy,torch,plyfile")
-    assert str(fan) in line and "line 4 is longer than 65536 bytes" in line
+    assert str(fan) in line and "line 4 is longer than 64.0 KiB" in line
     fan.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n" + ("f " + " ".join(["1 2 3"] * 2000) + "\n") * 800)
     assert fan.stat().st_size > 9 * MB
     line = bounded(tmp_path, "avatar", "diagnose", avatar, "--mesh", fan, inputs=[avatar, fan],

@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import os
 import stat
-from typing import BinaryIO
+from collections.abc import Iterator
+from typing import IO, AnyStr, BinaryIO
 
 from .errors import InputError
 
@@ -110,3 +111,21 @@ def read_input(path: str | os.PathLike, what: str, max_bytes: int, hint: str | N
         raise error(f"grew beyond {size_text(max_bytes)} while it was read, more than {file_noun(what)} can "
                     "sensibly hold", source=os.fspath(path), hint=hint)
     return raw
+
+
+def bounded_lines(fh: IO[AnyStr], limit: int, source: str, why: str = "",
+                  hint: str | None = None) -> Iterator[tuple[int, AnyStr]]:
+    """``(line number, line)`` of the open text or binary file ``fh``, numbered from 1, each line
+    read with at most ``limit + 1`` characters (bytes for a binary file), so one endless line costs
+    no memory; a longer line is one InputError naming ``source``, the line and the limit (``why``
+    says what such a line would be, ``hint`` what to do)."""
+    number = 0
+    while True:
+        line = fh.readline(limit + 1)
+        if not line:
+            return
+        number += 1
+        if len(line) > limit:
+            raise InputError(f"line {number} is longer than {size_text(limit)}" + (f", {why}" if why else ""),
+                             source=source, hint=hint)
+        yield number, line

@@ -56,6 +56,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from ..core.arrayfile import GIB, MIB, load_npz, size_text
+from ..core.input_files import bounded_lines
 from ..core.atomic import write_text_atomic
 from ..core.errors import InputError
 from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
@@ -216,16 +217,7 @@ def _text_lines(p: Path):
     source = str(p)
     try:
         with open(p, encoding="utf-8", newline="") as fh:
-            line_no = 0
-            while True:
-                line = fh.readline(MAX_TEXT_LINE + 1)
-                if not line:
-                    return
-                line_no += 1
-                if len(line) > MAX_TEXT_LINE:
-                    raise InputError(f"a line of more than {size_text(MAX_TEXT_LINE)}", source=f"{source}:{line_no}",
-                                     hint="one sample a line")
-                yield line_no, line
+            yield from bounded_lines(fh, MAX_TEXT_LINE, source, hint="one sample a line")
     except UnicodeDecodeError:
         raise InputError("is not UTF-8 text", source=source) from None
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.input_files import MIB, open_input
+from ..core.input_files import MIB, bounded_lines, open_input
 from .ply import check_ply_counts
 
 # A mesh fits an avatar when the boxes around both overlap by at least this share of the smaller
@@ -115,15 +115,8 @@ def _load_obj(fh, source: str) -> TriangleMesh:
     """An OBJ read line by line into flat arrays (8 bytes a number, not Python objects per value)."""
     vertices = array.array("d")
     triangles = array.array("q")
-    number = 0
-    while True:
-        raw = fh.readline(MAX_OBJ_LINE + 1)
-        if not raw:
-            break
-        number += 1
-        if len(raw) > MAX_OBJ_LINE:
-            raise InputError(f"line {number} is longer than {MAX_OBJ_LINE} bytes, longer than any OBJ line "
-                             "of a mesh (a face of thousands of corners?)", source=source)
+    for number, raw in bounded_lines(fh, MAX_OBJ_LINE, source, why="longer than any OBJ line of a mesh (a face "
+                                     "of thousands of corners?)"):
         parts = raw.split()
         if not parts:
             continue
