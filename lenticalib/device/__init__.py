@@ -15,6 +15,8 @@ device imports only core (and itself).  Modules:
     record      the calibration record: a panel profile's binary form in the controller's flash
     client      the host's protocol engine (``PanelController``): retries, stale-reply rejection,
                 flash with read-back
+    deadline    one deadline over a whole conversation with a device (the client's operations, a
+                Looking Glass unit's page read)
     discovery   ``device list``: asks every transport and Looking Glass reader that can list its devices
     transports  serial, HID, USB and emulated byte pipes, behind a registry of URL schemes
     looking_glass  Looking Glass units (read-only): the EEPROM over HID, the USB drive's

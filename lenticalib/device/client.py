@@ -39,6 +39,7 @@ from .record import (LAST_SEQUENCE, LAYOUT_VERSION, LEGACY_CRC_RESIDUE, RECORD_S
                      check_storable, decode_record, encode_record, next_sequence, record_crc, record_from_profile,
                      unstorable_field, wire_crc)
 from .transports import open_transport
+from .deadline import Deadline
 from .transports.base import Transport
 
 Progress = Callable[[int, int], None]
@@ -53,13 +54,10 @@ def conversation(method):
 
     @functools.wraps(method)
     def run(self, *args, **kwargs):
-        if self._deadline is not None:
+        if self.deadline.ends is None:
+            self._operation = method.__name__
+        with self.deadline.running(self.conversation_s()):
             return method(self, *args, **kwargs)
-        self._deadline, self._operation = time.monotonic() + self.conversation_s(), method.__name__
-        try:
-            return method(self, *args, **kwargs)
-        finally:
-            self._deadline = None
 
     return run
 
@@ -105,8 +103,8 @@ class PanelController:
         self.flash_timeout = family.flash_timeout_s
         self._parser = FrameParser()
         self._seq = random.randrange(256)  # a fresh session never matches an old session's replies
-        self._deadline: float | None = None  # time.monotonic() when the operation in progress must end
-        self._operation = ""
+        self.deadline = Deadline()  # of the operation in progress
+        self._operation = ""  # its name, for the timeout's message
         self.resends = 0       # requests sent again after a timeout or a corrupt/stale reply
         self.discarded = 0     # frames thrown away (wrong SEQ/command, or corrupt)
 
@@ -133,7 +131,7 @@ class PanelController:
         return CONVERSATION_TIMEOUTS * (self.retries + 1) * self.command_timeout + 2 * self.flash_timeout
 
     def _check_deadline(self, command: Command) -> None:
-        if self._deadline is None or time.monotonic() < self._deadline:
+        if not self.deadline.passed():
             return
         raise DeviceTimeoutError(f"{self._operation} did not finish within {self.conversation_s():g} s "
                                  f"({CONVERSATION_TIMEOUTS} x {self.retries + 1} attempts x the "
@@ -164,9 +162,7 @@ class PanelController:
             if attempt:
                 self.resends += 1
             self.transport.write(frame)
-            deadline = time.monotonic() + timeout
-            if self._deadline is not None:
-                deadline = min(deadline, self._deadline)
+            deadline = self.deadline.wait_end(timeout)
             while True:
                 left = deadline - time.monotonic()
                 if left <= 0:

@@ -33,6 +33,7 @@ import time
 from typing import Callable
 
 from ...core.errors import DeviceProtocolError, DeviceTimeoutError, InputError
+from ..deadline import Deadline
 from ..transports.base import FoundDevice
 from ..transports.hid import open_hid_device
 from .unit import FAMILY, MAX_CALIBRATION_BYTES, LookingGlassUnit
@@ -102,7 +103,7 @@ class HidUnit(LookingGlassUnit):
         self._ids = ids
         self.timeout = page_timeout(url, more_options)
         self.deadline_s = CONVERSATION_TIMEOUTS * self.timeout  # the whole read, seconds
-        self._deadline: float | None = None  # time.monotonic() when the read in progress must end
+        self.deadline = Deadline()  # of the read in progress
         self._pages: tuple[int, int | None] = (0, None)  # (pages read, pages to read or None) of that read
         self.retries = retries
         self.device = None
@@ -152,11 +153,9 @@ class HidUnit(LookingGlassUnit):
         self.device.close()
 
     def _read_text(self) -> tuple[bytes, None]:
-        self._deadline, self._pages = time.monotonic() + self.deadline_s, (0, None)
-        try:
+        self._pages = (0, None)
+        with self.deadline.running(self.deadline_s):
             return self._read_pages()
-        finally:
-            self._deadline = None
 
     def _read_pages(self) -> tuple[bytes, None]:
         first = self.read_page(0)
@@ -190,9 +189,7 @@ class HidUnit(LookingGlassUnit):
             self._check_deadline()
             if self.device.send_feature_report(request) < 0:
                 raise OSError(f"sending the request for page {page} failed (unit gone?)")
-            deadline = time.monotonic() + self.timeout
-            if self._deadline is not None:
-                deadline = min(deadline, self._deadline)
+            deadline = self.deadline.wait_end(self.timeout)
             while (left := deadline - time.monotonic()) > 0:
                 report = bytes(self.device.read(REPORT_SIZE, max(1, int(round(left * 1000)))))
                 if not report:
@@ -225,7 +222,7 @@ class HidUnit(LookingGlassUnit):
     def _check_deadline(self) -> None:
         """DeviceTimeoutError when the read in progress has passed its deadline (one line: how long,
         the page timeout it is a multiple of, how far the read came)."""
-        if self._deadline is None or time.monotonic() < self._deadline:
+        if not self.deadline.passed():
             return
         done, total = self._pages
         came = f"{done} of {total} pages" if total is not None else "the length page not yet"
