@@ -107,7 +107,7 @@ def run_patterns(args: argparse.Namespace) -> int:
 
 MEASURE_FLAGS = {"profile": "--profile", "report_dir": "--report DIR", "photos": "--photos",
                  "eye_separation_views": "--eye-separation VIEWS", "eye_separation_mm": "--eye-separation-mm MM",
-                 "distance_mm": "--distance MM", "cone_angle_deg": "--cone-angle DEG"}  # library names -> flags
+                 "distance_mm": "--distance MM", "cone_angle_deg": "--cone-angle DEG", "force": "--force"}  # library names -> flags
 
 
 def run_measure(args: argparse.Namespace) -> int:

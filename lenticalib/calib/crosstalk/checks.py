@@ -265,7 +265,7 @@ def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bo
                            + "; ".join(reasons), source=str(capture.directory),
                            hint="they show another panel than the profile's, or the profile is wrong: photograph "
                                 "the panel the profile was fitted to from the fit's camera position, or fit this "
-                                "panel and draw the crosstalk patterns from its profile; --force measures anyway")
+                                "panel and draw the crosstalk patterns from its profile; `force` measures anyway")
     if reasons:
         warnings.append(("measured anyway (forced): " if verdict == "refuse" else "")
                         + "the photos may not follow the routing of the profile the patterns were drawn from: "
