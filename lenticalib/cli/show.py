@@ -1,7 +1,9 @@
-"""``lenticalib show``: put an image, a pattern set or a folder of rasters on the panel, pixel-exact.
+"""``lenticalib show``: put an image, a pattern set or a folder of rasters on the panel, pixel-exact;
+with ``--profile``, play quilt images, quilt videos and folders of them on the unit.
 
-Everything is checked before a window opens: the path, the rasters' size, the display and
-the monitor (whose current mode must be the rasters' size: nothing is ever scaled).
+Everything is checked before a window opens: the path, the rasters' size (or the quilts' grids
+and the profile), the display and the monitor (whose current mode must be the rasters' size:
+nothing is ever scaled).  Quilt playback: :mod:`lenticalib.render.quilt_player`.
 """
 
 from __future__ import annotations
@@ -22,7 +24,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="advance every S seconds (keys still work); default: wait for a key")
     parser.add_argument("--loop", action="store_true", help="start again after the last image")
     parser.add_argument("--no-vsync", action="store_true", help="do not wait for the display's refresh")
-    parser.set_defaults(run=run, flags={"display": "--display"})  # the library's argument names, as flags
+    quilts = parser.add_argument_group("quilts (with --profile: FILE|DIR are quilt images or videos, or a folder)")
+    quilts.add_argument("--profile", metavar="P", help="play quilts encoded for this panel profile (JSON)")
+    quilts.add_argument("--quilt-cols", type=int, metavar="C", help="quilt columns (default: the _qsCxRaA name)")
+    quilts.add_argument("--quilt-rows", type=int, metavar="R", help="quilt rows (with --quilt-cols)")
+    quilts.add_argument("--quilt-aspect", type=float, metavar="A", help="the aspect the quilt was made for")
+    quilts.add_argument("--stretch", action="store_true", help="play quilts made for another aspect ratio")
+    quilts.add_argument("--encoder", default="gl", help="gl (default: on the GPU, CPU fallback) or a CPU encoder")
+    quilts.add_argument("--fps", type=float, metavar="F", help="video frame rate (default: the video's)")
+    quilts.add_argument("--json", action="store_true", help="print the playback summary as JSON")
+    parser.set_defaults(run=run, flags=FLAGS)  # the library's argument names, as flags
+
+
+FLAGS = {"display": "--display", "profile": "--profile", "allow_stretch": "--stretch",
+         "grid": "--quilt-cols C --quilt-rows R"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,6 +57,13 @@ def run(args: argparse.Namespace) -> int:
     if args.interval is not None and not 0.0 < args.interval <= 86400:
         raise InputError(f"{args.interval} seconds is out of range", source="--interval", hint="use 0 < S <= 86400")
     offscreen = bool(args.display) and args.display.split(":")[0] in ("offscreen", "none")
+    if args.profile is not None:
+        return run_quilts(args, offscreen)
+    for flag, value in (("--quilt-cols", args.quilt_cols), ("--quilt-rows", args.quilt_rows),
+                        ("--quilt-aspect", args.quilt_aspect), ("--fps", args.fps), ("--json", args.json or None),
+                        ("--stretch", args.stretch or None)):
+        if value is not None:
+            raise InputError("is for quilts", source=flag, hint="add --profile P to play quilts")
     if offscreen and args.interval is None:
         raise InputError("an offscreen show has no keys to step with", source="--display",
                          hint="add --interval S")
@@ -55,4 +77,64 @@ def run(args: argparse.Namespace) -> int:
         present = statistics.median(t.present_ms for t in timings)
         print(f"showed {shown} raster(s) of {size[0]}x{size[1]}; median upload {upload:.1f} ms, "
               f"present {present:.1f} ms")
+    return 0
+
+
+def _quilt_grid(args: argparse.Namespace):
+    """The QuiltGrid the options give (None: from the names), refused in one line when partial."""
+    from ..core.errors import InputError
+    from ..core.profile import MAX_VIEWS
+    from ..render.views import QuiltGrid
+
+    if (args.quilt_cols is None) != (args.quilt_rows is None):
+        raise InputError("gives half a grid", source="--quilt-cols" if args.quilt_rows is None else "--quilt-rows",
+                         hint="give both --quilt-cols and --quilt-rows")
+    for flag, value in (("--quilt-cols", args.quilt_cols), ("--quilt-rows", args.quilt_rows)):
+        if value is not None and not 1 <= value <= MAX_VIEWS:
+            raise InputError(f"{value} tiles is out of range", source=flag, hint=f"use 1..{MAX_VIEWS}")
+    if args.quilt_aspect is not None and not 0.01 <= args.quilt_aspect <= 100:
+        raise InputError(f"{args.quilt_aspect} is out of range", source="--quilt-aspect", hint="e.g. 0.75 or 1.7778")
+    if args.quilt_cols is None:
+        return None
+    return QuiltGrid(args.quilt_cols, args.quilt_rows, args.quilt_aspect)
+
+
+def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
+    """``show --profile P QUILT|VIDEO|DIR``: everything checked, then played (module docstring)."""
+    import json
+
+    from ..core.errors import InputError
+    from ..core.profile import load_profile
+    from ..render.encoders import get_encoder
+    from ..render.present import open_presenter
+    from ..render.quilt_player import play_quilts
+    from ..render.quilt_sources import QuiltMapping, check_video, quilt_items
+
+    if args.fps is not None and not 0.1 <= args.fps <= 1000:
+        raise InputError(f"{args.fps} frames a second is out of range", source="--fps", hint="use 0.1 .. 1000")
+    if offscreen and args.loop:
+        raise InputError("an offscreen show with --loop never ends", source="--display", hint="drop --loop")
+    grid = _quilt_grid(args)
+    profile = load_profile(args.profile, "`profile`")
+    if args.encoder != "gl":
+        get_encoder(args.encoder)  # an unknown encoder is refused before anything opens
+    items = quilt_items(args.path, grid, args.quilt_aspect)
+    for item in items:  # the grids' aspects and the videos' frame sizes, before a window opens
+        mapping = QuiltMapping(profile, item.grid, args.stretch)
+        mapping.check_aspect(None, item.source)
+        if item.video:
+            check_video(item, mapping)
+    if offscreen and args.interval is None and not all(item.video for item in items):
+        raise InputError("an offscreen show has no keys to step with", source="--display", hint="add --interval S")
+    presenter = open_presenter(args.display, (profile.width, profile.height), vsync=not args.no_vsync)
+    with presenter:
+        report = play_quilts(presenter, items, profile, encoder=args.encoder, allow_stretch=args.stretch,
+                             fps="video" if args.fps is None else args.fps, interval=args.interval, loop=args.loop)
+    if args.json:
+        print(json.dumps(report.summary()))
+        return 0
+    for note in report.notes:
+        print(safe_line(f"note: {note}"))
+    print(f"played {report.items} item(s) on {profile.width}x{profile.height} ({report.encoder} encoder): "
+          f"{report.presented} frame(s) presented, {report.dropped} dropped, {report.fps:.1f} fps")
     return 0

@@ -39,6 +39,8 @@ Presenting and the pipeline
     present_offscreen   presenters with no window: an offscreen framebuffer, or no graphics
     cuda_gl             CUDA-OpenGL interop: a raster made on a CUDA GPU copied into the presenter on the GPU
     monitors            the monitors a raster can be shown on (glfw), and choosing one
+    quilt_sources       quilt images and videos to play: grids, the quilt -> views mapping, a bounded frame reader
+    quilt_player        quilt playback on the panel (GL encoder into the presenter, CPU fallback), paced, with keys
     loop                the avatar pipeline frame by frame: drive -> render -> encode -> present
     session             the pipeline set up from plain options: what ``play`` and ``render`` run
     live                ``play_avatar``: the live loop, with per-stage timings

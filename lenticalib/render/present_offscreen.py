@@ -21,15 +21,31 @@ from .present import FrameTiming, Presenter, check_raster
 
 class OffscreenPresenter(Presenter):
     """A framebuffer object in a context with no window (EGL on a headless GPU, or GLX/WGL
-    standalone): for benchmarks and the virtual panel.  ``size``: (width, height)."""
+    standalone): for benchmarks and the virtual panel.  ``size``: (width, height).  ``keep``:
+    every frame presented is read back into :attr:`presented` (tests: what reached the panel)."""
 
     kind = "offscreen"
 
-    def __init__(self, size: tuple[int, int], backend: str | None = None, vsync: bool = False):
+    def __init__(self, size: tuple[int, int], backend: str | None = None, vsync: bool = False, keep: bool = False):
         super().__init__(vsync)
         self.size = (int(size[0]), int(size[1]))
         self.backend = backend
         self._fbo = None
+        self.presented: list[np.ndarray] | None = [] if keep else None  # with keep: (H, W, 3) uint8 per frame
+
+    def show(self, raster: np.ndarray, source: str | None = None) -> FrameTiming:
+        timing = super().show(raster, source)
+        self._keep()
+        return timing
+
+    def show_drawn(self, draw) -> FrameTiming:
+        timing = super().show_drawn(draw)
+        self._keep()
+        return timing
+
+    def _keep(self) -> None:
+        if self.presented is not None:
+            self.presented.append(self.read_back())
 
     def open(self) -> None:
         self.ctx = offscreen_context(self.backend, hint="or use `display` none")
