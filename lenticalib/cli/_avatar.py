@@ -26,13 +26,17 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
                              "plug-in's model")
     parser.add_argument("--radius", type=float, help="camera distance from the look-at point (avatar units)")
     parser.add_argument("--fov", type=float, default=20.0, help="vertical field of view, degrees (default 20)")
-    parser.add_argument("--yaw-range", type=float, default=50.0, help="yaw range of the N cameras, degrees "
-                        "(default 50: -25..+25)")
+    parser.add_argument("--yaw-range", type=float, default=None, help="yaw range of the N cameras, degrees "
+                        "(default: the Looking Glass calibration's viewCone, else the profile's physical "
+                        "view_cone_deg, else 50: -25..+25)")
     parser.add_argument("--target", metavar="X,Y,Z", help="the point the cameras look at, in the avatar's frame "
                         "and units (metres for the demo avatar and most 3DGS captures; write --target=-1,0,0 when X "
                         "is negative); default: the centre of the avatar's robust box (1st-99th percentile of the "
                         "Gaussians, so strays far away do not pull it), lifted to eye level")
-    parser.add_argument("--view-size", default="960x540", metavar="WxH", help="view size (default 960x540)")
+    parser.add_argument("--view-size", default=None, metavar="WxH",
+                        help="view size, at the panel's aspect (default: as tall as a tile of the quilt Looking "
+                             "Glass renders for the unit's model, 420x560 on a Portrait; else about 960x540 at the "
+                             "panel's aspect, 960x540 on a 16:9 panel)")
     parser.add_argument("--background", metavar="R,G,B|IMAGE", help="background colour (0..1 or 0..255) or an "
                         "image (resized to the view size; the same behind every view); default black")
     from .encode import add_compensation_arguments
@@ -100,7 +104,7 @@ def flags():
     return {**FLAGS, **COMPENSATION_FLAGS}
 
 
-def _size(text: str) -> tuple[int, int]:
+def _size(text: str | None) -> tuple[int, int] | None:
     from ..core.sizes import parse_size
 
-    return parse_size(text, "--view-size", example="960x540")
+    return None if text is None else parse_size(text, "--view-size", example="960x540")

@@ -14,6 +14,8 @@ The panel profile and its routing
     lkg                 Looking Glass ``visual.json``: import to and export from panel profiles
     lkg_file            reading a ``visual.json``: unwrapped and every field validated
     lkg_rule            our port of the Looking Glass lenticular rule, the oracle for ``lkg``
+    lkg_models          Looking Glass models by serial prefix and the quilt each renders (vendor's table)
+    view_defaults       a render's defaults for a panel: view size, view count, camera arc
 
 Errors and user input
     errors              the one exception tree (``LenticalibError``, ``InputError`` ...)

@@ -74,7 +74,7 @@ class StageTimes:
             p95 = float(np.percentile(values, 95))
             lines.append(f"{name:<10}{statistics.median(values):>11.2f}{statistics.fmean(values):>10.2f}{p95:>9.2f}")
         if self.totals:
-            lines.append(f"{'fps':<10}{1e3 / statistics.median(self.totals):>11.2f}   ({self.frames} frames, "
+            lines.append(f"{'fps':<10}{1e3 / statistics.median(self.totals):>11.2f}   ({self.frames} frame{'' if self.frames == 1 else 's'}, "
                          "from the median total)")
         return "\n".join(lines)
 
@@ -184,6 +184,7 @@ class AvatarPipeline:
     def __init__(self, avatar, profile: PanelProfile, cameras: ViewCameras, *, renderer: str = "cpu",
                  encoder: str = "fast", device: str = "cpu", background: np.ndarray | None = None,
                  edge_desaturation: float = 0.0, compensator=None):
+        from ..core.view_defaults import view_size_hint
         from .encoders import get_encoder
         from .encoders.common import ASPECT_TOLERANCE
         from .renderers import get_renderer
@@ -210,7 +211,7 @@ class AvatarPipeline:
         if abs(view_aspect / panel_aspect - 1.0) > ASPECT_TOLERANCE:  # checked now, not after the first render
             raise InputError(f"views of {cameras.width}x{cameras.height} (aspect {view_aspect:.3f}) do not fit the "
                              f"{profile.width}x{profile.height} panel (aspect {panel_aspect:.3f})", source="view_size",
-                             hint="render at the panel's aspect ratio, e.g. 960x540 for a 16:9 panel")
+                             hint=view_size_hint(profile, (cameras.width, cameras.height)))
         if self.on_gpu and encoder != "torch":
             raise InputError("the gsplat renderer keeps the views on the GPU: use the torch encoder",
                              source="encoder", hint="`encoder` torch")

@@ -17,6 +17,7 @@ import os
 from ..core.errors import InputError
 from ..core.identity import forced_note
 from ..core.profile import PanelProfile, load_profile
+from ..core.view_defaults import default_camera_arc, default_view_size, view_size_hint
 from .encode_file import CompensationOptions
 
 
@@ -32,6 +33,11 @@ class AvatarOptions:
     units, metres for the demo avatar; None: the centre of the avatar's robust box, lifted to eye level,
     :mod:`.camera_models`); ``view_size`` (W, H) pixels; ``background``: 'R,G,B' or an
     image file; ``compensation``; ``edge_desaturation`` 0..1.
+
+    ``view_size`` and ``yaw_range_deg`` left None follow the panel
+    (:mod:`lenticalib.core.view_defaults`): views as tall as a tile of the quilt Looking Glass
+    renders for the unit's model (420x560 on a Portrait), else about 960x540 at the panel's
+    aspect; the arc the calibration's ``viewCone`` (or the physical block's cone), else 50 degrees.
     """
 
     controls: str = "demo"
@@ -42,8 +48,8 @@ class AvatarOptions:
     camera_model: str = "arc"
     radius: float | None = None
     fov_deg: float = 20.0
-    yaw_range_deg: float = 50.0
-    view_size: tuple[int, int] = (960, 540)
+    yaw_range_deg: float | None = None
+    view_size: tuple[int, int] | None = None
     background: str | None = None
     compensation: CompensationOptions | None = None
     edge_desaturation: float = 0.0
@@ -93,12 +99,15 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     CAMERA_MODELS.load(o.camera_model, "camera_model")
     if not isinstance(profile, PanelProfile):
         profile = load_profile(profile, "`profile`")
-    size = o.view_size if isinstance(o.view_size, (tuple, list)) and len(o.view_size) == 2 else (0, 0)
+    view_size = default_view_size(profile) if o.view_size is None else o.view_size
+    yaw_range_deg = default_camera_arc(profile) if o.yaw_range_deg is None else o.yaw_range_deg
+    size = view_size if isinstance(view_size, (tuple, list)) and len(view_size) == 2 else (0, 0)
     check_view_memory(profile.views, *size)  # before anything of that size is made
+    check_view_aspect(profile, size)  # before the avatar is read
     if not 0.0 <= o.edge_desaturation <= 1.0:
         raise InputError(f"{o.edge_desaturation} is out of range", source="edge_desaturation", hint="use 0..1")
     compensator = (o.compensation or CompensationOptions()).compensator(profile)
-    background = parse_background(o.background, o.view_size)
+    background = parse_background(o.background, view_size)
     loaded = load_avatar(avatar, o.driver)
     controls = None
     if loaded.kind == "animated":
@@ -106,7 +115,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     elif o.controls != "demo":
         raise InputError("a static avatar (.ply) takes no controls", source="controls",
                          hint="leave the controls out, or give an animated avatar (a rig .npz)")
-    camera_options = {"fov_deg": o.fov_deg, "yaw_range_deg": o.yaw_range_deg, "view_size": o.view_size}
+    camera_options = {"fov_deg": o.fov_deg, "yaw_range_deg": yaw_range_deg, "view_size": view_size}
     if o.radius is not None:
         camera_options["radius"] = o.radius
     cameras = make_cameras(o.camera_model, loaded.pose(None), profile.views, target=o.target, **camera_options)
@@ -116,3 +125,16 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
     if compensator is not None and compensator.origin.get("forced"):
         pipeline.notes.append(forced_note(compensator.origin, compensator.origin["crosstalk_file"]))
     return AvatarSession(pipeline, controls, loaded)
+
+
+def check_view_aspect(profile: PanelProfile, view_size) -> None:
+    """One InputError naming ``view_size`` when views of that (W, H) are not at the panel's aspect
+    (the encoders' 1 %); its hint names sizes that fit this panel (:func:`view_size_hint`)."""
+    from .encoders.common import ASPECT_TOLERANCE
+
+    w, h = view_size
+    if w < 1 or h < 1 or abs((w / h) / (profile.width / profile.height) - 1.0) <= ASPECT_TOLERANCE:
+        return  # (a size that is no size is the cameras' to refuse)
+    raise InputError(f"views of {w}x{h} (aspect {w / h:.3f}) do not fit the {profile.width}x{profile.height} "
+                     f"panel (aspect {profile.width / profile.height:.3f})", source="view_size",
+                     hint=view_size_hint(profile, (w, h)))
