@@ -26,8 +26,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     read.add_argument("url", metavar="URL")
     read.add_argument("-o", "--output", required=True, metavar="PROFILE")
     read.add_argument("--views", type=int, metavar="N",
-                      help="number of quilt views (required for a Looking Glass unit, e.g. 45 or 48 on a Portrait; "
-                           "a controller's record holds its own)")
+                      help="number of quilt views of a Looking Glass unit (default: the views of the quilt Looking "
+                           "Glass renders for its model, from the serial: 48 on a Portrait; a controller's record "
+                           "holds its own)")
     read.set_defaults(run=run_read, flags={"views": "--views N"})
     flash = sub.add_parser("flash", help="write a profile into the controller (verified by read-back)")
     flash.add_argument("url", metavar="URL")
@@ -177,17 +178,20 @@ def run_read_looking_glass(args) -> int:
     from ..core.errors import InputError
     from ..core.outputs import check_output_file
     from ..core.profile import MAX_VIEWS, save_profile
+    from ..core.view_defaults import default_views
     from ..device.looking_glass import read_calibration
 
-    if args.views is None:
-        raise InputError("a Looking Glass unit's calibration does not say how many views the quilts have",
-                         source="--views", hint=f"give it, e.g. 'lenticalib device read {args.url} -o "
-                                                f"{args.output} --views 45'; 48 on a Portrait")
-    if not 2 <= args.views <= MAX_VIEWS:
+    if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be 2..{MAX_VIEWS}, got {args.views}", source="--views")
     check_output_file(args.output, "profile", inputs=[_url_file(args.url)])  # before talking to the device
     calibration = read_calibration(args.url)
-    profile = calibration.to_profile(args.views)
+    views = args.views if args.views is not None else default_views({"serial": calibration.serial})
+    if views is None:
+        raise InputError(f"a Looking Glass unit's calibration does not say how many views the quilts have, and its "
+                         f"serial {shown(calibration.serial or '?')} names no model whose quilt lenticalib knows",
+                         source="--views", hint=f"give it, e.g. 'lenticalib device read {args.url} -o "
+                                                f"{args.output} --views 45'; 48 on a Portrait")
+    profile = calibration.to_profile(views)
     for note in (profile.provenance or {}).get("assumptions", []):
         _warn(f"{args.url}: {note}")
     save_profile(profile, args.output)

@@ -22,8 +22,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     validate.set_defaults(run=run_validate)
     imp = sub.add_parser("import-lkg", help="convert a Looking Glass visual.json into a profile")
     imp.add_argument("visual", metavar="VISUAL_JSON")
-    imp.add_argument("--views", type=int, required=True, metavar="N",
-                     help="number of views (a visual.json does not record it)")
+    imp.add_argument("--views", type=int, metavar="N",
+                     help="number of views (a visual.json does not record it; default: the views of the quilt "
+                          "Looking Glass renders for the model its serial names, 48 on a Portrait)")
     imp.add_argument("-o", "--output", required=True, metavar="PROFILE")
     imp.add_argument("--json", action="store_true", help="print a JSON summary instead of the constants")
     imp.set_defaults(run=run_import)
@@ -136,14 +137,19 @@ def run_validate(args) -> int:
 
 def run_import(args) -> int:
     from ..core.errors import InputError
-    from ..core.lkg import import_visual_json
+    from ..core.lkg import import_visual_json, read_visual_json
     from ..core.outputs import check_output_file
     from ..core.profile import MAX_VIEWS, save_profile
+    from ..core.view_defaults import default_views
 
-    if not 2 <= args.views <= MAX_VIEWS:
+    if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be between 2 and {MAX_VIEWS}, got {args.views}", source="--views")
     check_output_file(args.output, "profile", inputs=[args.visual])
-    profile = import_visual_json(args.visual, args.views)
+    views = args.views if args.views is not None else default_views(read_visual_json(args.visual))
+    if views is None:
+        raise InputError(f"{args.visual} does not say how many views the quilts have, and its serial names no "
+                         "model whose quilt lenticalib knows", source="--views", hint="give it, e.g. --views 45")
+    profile = import_visual_json(args.visual, views)
     save_profile(profile, args.output)
     for note in (profile.provenance or {}).get("assumptions", []):
         print(f"lenticalib: warning: {safe_line(f'{args.visual}: {note}')}", file=sys.stderr)
@@ -151,7 +157,7 @@ def run_import(args) -> int:
         print(json.dumps({"output": args.output, "period": profile.period, "slant": profile.slant,
                           "offset": profile.offset, "reference_view": profile.reference_view}))
         return 0
-    print(f"wrote {args.output} from {args.visual} ({args.views} views):")
+    print(f"wrote {args.output} from {args.visual} ({views} views):")
     _print_profile(profile)
     return 0
 
