@@ -185,10 +185,11 @@ def run_read_looking_glass(args) -> int:
         raise InputError(f"must be 2..{MAX_VIEWS}, got {args.views}", source="--views")
     check_output_file(args.output, "profile", inputs=[_url_file(args.url)])  # before talking to the device
     calibration = read_calibration(args.url)
-    views = args.views if args.views is not None else default_views({"serial": calibration.serial})
+    serial = calibration.field("serial")  # the calibration's own, as Looking Glass reads it (not the USB serial)
+    views = args.views if args.views is not None else default_views({"serial": serial})
     if views is None:
         raise InputError(f"a Looking Glass unit's calibration does not say how many views the quilts have, and its "
-                         f"serial {shown(calibration.serial or '?')} names no model whose quilt lenticalib knows",
+                         f"serial {shown(str(serial or '?'))} names no model whose quilt lenticalib knows",
                          source="--views", hint=f"give it, e.g. 'lenticalib device read {args.url} -o "
                                                 f"{args.output} --views 45'; 48 on a Portrait")
     profile = calibration.to_profile(views)
