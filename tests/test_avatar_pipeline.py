@@ -35,12 +35,12 @@ def demo(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def directed(tmp_path_factory):
-    """The bundled profile with view_direction +1 and with -1."""
+    """The bundled profile with view_direction +1, with -1 and unknown (None)."""
     folder = tmp_path_factory.mktemp("profiles")
     base = load_profile(PROFILE)
     out = {}
-    for sign in (1, -1):
-        out[sign] = folder / f"p{sign:+d}.json"
+    for sign in (1, -1, None):
+        out[sign] = folder / ("unknown.json" if sign is None else f"p{sign:+d}.json")
         save_profile(base.replace(view_direction=sign), out[sign])
     return out
 
@@ -105,7 +105,7 @@ def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, dir
                               for i in range(32)])
     assert np.array_equal(out[1], out[-1][::-1])
     assert not np.array_equal(out[1][0], out[1][31])
-    r = cli_process("render", demo, "--profile", PROFILE, "-o", tmp_path / "u.png", "--view-size", SMALL_VIEWS)
+    r = cli_process("render", demo, "--profile", directed[None], "-o", tmp_path / "u.png", "--view-size", SMALL_VIEWS)
     assert r.returncode == 0, r.stderr
     assert "does not say which way its views run" in r.stderr
 
@@ -156,7 +156,7 @@ def test_play_headless_runs_frames_and_prints_the_stage_table(demo, directed, cl
     result = cli_process("play", demo, "--profile", directed[1], "--headless", "--frames", "1",
                          "--view-size", SMALL_VIEWS)
     assert result.returncode == 0, result.stderr
-    assert "(1 frames" in result.stdout
+    assert "(1 frame," in result.stdout
     rows = _table(result.stdout)
     assert rows["present"] == ["-", "-", "-"], result.stdout  # headless presents nothing
     assert rows["total"][0] == pytest.approx(sum(rows[s][0] for s in ("drive", "render", "compose")), abs=0.02)

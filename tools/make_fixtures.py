@@ -18,7 +18,11 @@ import numpy as np
 
 from lenticalib.core.imageio import write_image
 from lenticalib.core.profile import PanelProfile, make_provenance, save_profile
+from lenticalib.core.view_direction import with_direction
 from lenticalib.render.views import QuiltGrid, make_quilt
+
+DIRECTION_WHY = ("the demo panel is the modelled panel of docs/simulator.md (raster x along world x, lenses "
+                 "focused on the pixel plane), whose truth_view_direction is always +1")
 
 N, TILE_W, TILE_H = 32, 480, 270
 
@@ -48,6 +52,8 @@ def main() -> None:
     profile = PanelProfile(views=N, slant=0.1835, period=19.47, offset=7.3, reference_view=16.0, width=3840,
                            height=2160, subpixel_order="RGB", name="example 4K 32-view panel",
                            provenance=make_provenance("example values for the demo; not a measured panel"))
+    # the demo panel is the virtual panel of docs/simulator.md, whose view index always grows to the right
+    profile = with_direction(profile, 1, "the virtual panel's truth", why=DIRECTION_WHY)
     save_profile(profile, out / "panel-4k-32.json")
     views = np.stack([render_view(i) for i in range(N)])
     write_image(out / "demo_qs8x4a1.7778.png", make_quilt(views, QuiltGrid(8, 4)))

@@ -51,13 +51,16 @@ def run_list(args) -> int:
     import dataclasses
 
     from ..device.discovery import list_devices
+    from ..device.looking_glass.unit import FAMILY as LOOKING_GLASS_FAMILY
 
     found, notes = list_devices()
     if args.json:
         print(json.dumps({"devices": [dataclasses.asdict(d) for d in found], "notes": notes}, indent=2))
         return 0
     for d in found:
-        serial = f"  serial {shown(d.serial)}" if d.serial else ""
+        # a Looking Glass unit's USB serial is not its calibration's serial ('device info' shows both)
+        label = "USB serial" if d.family == LOOKING_GLASS_FAMILY else "serial"
+        serial = f"  {label} {shown(d.serial)}" if d.serial else ""
         print(f"{shown(d.url):<40} {shown(d.family):<6} {shown(d.description)}{serial}")
     if not found:
         print("no controllers or Looking Glass units found (start an emulated one with 'lenticalib emulate')")
@@ -183,7 +186,8 @@ def run_read_looking_glass(args) -> int:
 
     if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be 2..{MAX_VIEWS}, got {args.views}", source="--views")
-    check_output_file(args.output, "profile", inputs=[_url_file(args.url)])  # before talking to the device
+    # before talking to the device
+    check_output_file(args.output, "profile", example="profile.json", inputs=[_url_file(args.url)])
     calibration = read_calibration(args.url)
     serial = calibration.field("serial")  # the calibration's own, as Looking Glass reads it (not the USB serial)
     views = args.views if args.views is not None else default_views({"serial": serial})
@@ -213,7 +217,8 @@ def run_read(args) -> int:
     if args.views is not None:
         raise InputError("applies to Looking Glass units only; a controller's record holds its view count",
                          source="--views", hint=f"leave it out: 'lenticalib device read {args.url} -o {args.output}'")
-    check_output_file(args.output, "profile", inputs=[_url_file(args.url)])  # before talking to the device
+    # before talking to the device
+    check_output_file(args.output, "profile", example="profile.json", inputs=[_url_file(args.url)])
     with PanelController.open(args.url) as panel:
         profile = panel.read_profile()
     save_profile(profile, args.output)

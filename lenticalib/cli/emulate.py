@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         # a regular file (or a link to one) or a new name: a missing folder is refused, never created, and a
         # folder, FIFO or device node is never written into; the image is the emulator's own state, read and
         # written in place by design, so it is no input of another output
-        check_output_file(image, "flash image", inputs=())
+        check_output_file(image, "flash image", example="panel.flash", inputs=())
     else:
         image = default_image_dir() / "default.flash"
         image.parent.mkdir(parents=True, exist_ok=True)  # the emulators' own state folder

@@ -144,7 +144,7 @@ def run_import(args) -> int:
 
     if args.views is not None and not 2 <= args.views <= MAX_VIEWS:
         raise InputError(f"must be between 2 and {MAX_VIEWS}, got {args.views}", source="--views")
-    check_output_file(args.output, "profile", inputs=[args.visual])
+    check_output_file(args.output, "profile", example="profile.json", inputs=[args.visual])
     views = args.views if args.views is not None else default_views(read_visual_json(args.visual))
     if views is None:
         raise InputError(f"{args.visual} does not say how many views the quilts have, and its serial names no "
@@ -168,7 +168,7 @@ def run_export(args) -> int:
     from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
-    check_output_file(args.output, "visual.json", inputs=[args.profile])
+    check_output_file(args.output, "visual.json", example="visual.json", inputs=[args.profile])
     export_visual_json(profile, args.output, dpi=args.dpi)
     if profile.view_direction is None:
         print(f"lenticalib: warning: {args.profile}: view_direction is unknown; the visual.json says invView = 1 "
@@ -246,11 +246,14 @@ def run_retarget(args) -> int:
     from ..core.outputs import check_output_file
     from ..core.profile import format_constant, load_profile, save_profile
     from ..core.retarget import Eye, calibration_eye, retarget_profile, routing_difference
+    from ._flags import flag_names
 
     eye = Eye.parse((args.lateral, args.vertical, args.distance), "--distance")
     output = check_output_file(args.output, "profile", example="profile-900mm.json", inputs=[args.profile])
     profile = load_profile(args.profile, "PROFILE")
-    new = retarget_profile(profile, eye, source=args.profile)
+    fix = {"design_distance_mm": f"'lenticalib profile set-physical {args.profile} --design-distance MM'"}
+    with flag_names(fix):  # the library names with_data_sheet's argument; set-physical sets it
+        new = retarget_profile(profile, eye, source=args.profile)
     save_profile(new, output)
     if args.json:
         print(new.to_json(), end="")

@@ -208,7 +208,7 @@ def json_from_bytes(raw: bytes, source: str, what: str, hint_missing: str,
                     f"{size_text(max_bytes)})", source=src)
     if not raw.strip():
         raise error(f"is empty, not a JSON {what}", source=src, hint=hint_missing)
-    kind = _binary_kind(raw)
+    kind = binary_kind(raw)
     if kind:
         raise error(f"is {kind}, not a JSON {what}", source=src, hint=hint_missing)
     try:
@@ -260,8 +260,9 @@ _MAGIC = ((b"\x89PNG\r\n\x1a\n", "a PNG image"), (b"\xff\xd8\xff", "a JPEG image
           (b"\x93NUMPY", "a numpy array"), (b"PK\x03\x04", "a ZIP archive"))
 
 
-def _binary_kind(raw: bytes) -> str | None:
-    """What a file that cannot be JSON text looks like: a known image/array signature or binary."""
+def binary_kind(raw: bytes) -> str | None:
+    """What a file that cannot be text of the expected format looks like, from its first bytes
+    ``raw``: a known image/array/archive signature ("a PNG image"), "a binary file", or None."""
     for magic, kind in _MAGIC:
         if raw.startswith(magic):
             return kind

@@ -135,14 +135,16 @@ def _check_header(p: Path, camera_orientation: bool, expected_size: tuple[int, i
         check_raster_size(size, expected_size, str(p), what, hint)
 
 
-def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image", *, inputs: Inputs) -> Path:
+def check_image_output(path: str | os.PathLike, dtype=None, what: str = "output image", *, inputs: Inputs,
+                       example: str = "image.png") -> Path:
     """Refuse, before any work, an image path that :func:`write_image` could not write.
 
     Checks the path itself (:func:`lenticalib.core.outputs.check_output_file`: not a folder, parent
     folder existing and writable, not one of the command's ``inputs``), the suffix (``.png``,
     ``.tif``, ``.tiff``, ``.npy``) and that ``dtype`` (when given) fits that format.  Returns the path.
+    ``example``: the file name (with a suffix it takes) a hint suggests inside a folder given by mistake.
     """
-    p = check_output_file(path, what, inputs=inputs)
+    p = check_output_file(path, what, example, inputs=inputs)
     suffix = p.suffix.lower()
     if suffix not in WRITE_FORMATS:
         raise ImageError(f"cannot write {suffix or 'files without a suffix'}", source=str(p),

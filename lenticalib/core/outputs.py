@@ -111,13 +111,15 @@ def check_output_file(path: str | os.PathLike, what: str = "output file", exampl
     a symbolic link to a regular file (the target is replaced); a folder, a FIFO, a device node,
     a socket, a dangling link, a read-only file or a missing or unwritable parent folder (the
     link target's folder for a link) is not (module docstring).  ``example``: a file name the
-    hint suggests inside a folder given by mistake.
+    hint suggests inside a folder given by mistake, with a suffix the command takes (the default,
+    ``"out"``, suggests none).
     """
     check_not_an_input(path, inputs, what, example)
     target = Path(path)
     if target.is_dir():
         raise InputError(f"is a folder, not a file name for the {what}", source=str(target),
-                         hint=f"give a file name for the {what}, e.g. {target / example}")
+                         hint=f"give a file name for the {what}"
+                         + ("" if example == "out" else f", e.g. {target / example}"))
     real = output_target(target, what)
     if real.exists() and not os.access(real, os.W_OK):
         raise InputError(f"exists and is read-only, so the {what} cannot replace it", source=str(target),
@@ -195,7 +197,7 @@ def check_output_folder(path: str | os.PathLike, what: str = "output folder",
         if not target.is_dir():
             kind = kind_of(target)
             raise InputError(f"is {kind}, not a folder for the {what}", source=str(target),
-                             hint=f"choose a folder path for the {what}" + (", or remove the file" if kind == "a file" else ""))
+                             hint=f"choose a folder path for the {what}: a new name or an existing folder")
         if not os.access(target, os.W_OK | os.X_OK):
             raise InputError(f"is not writable, so the {what} cannot be written", source=str(target),
                              hint=f"choose a writable folder for the {what}")

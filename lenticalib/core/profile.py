@@ -355,7 +355,9 @@ def describe_provenance(prov: Mapping[str, Any]) -> list[str]:
     when the record was written; such a profile also names the device, panel serial, record
     number and when it was read.
     """
-    lines = [f"{prov.get('method') or 'unknown method'} on {prov.get('created') or 'an unknown date'}"
+    when = prov.get("created") or (f"{prov['read']} (when read; the calibration itself is undated)"
+                                   if prov.get("read") else "an unknown date")
+    lines = [f"{prov.get('method') or 'unknown method'} on {when}"
              f" (lenticalib {prov.get('lenticalib_version') or 'version unknown'})"]
     if prov.get("device_url") or prov.get("panel_serial"):
         parts = [f"device {prov['device_url']}" if prov.get("device_url") else None,

@@ -84,8 +84,9 @@ def calibration_eye(profile: PanelProfile, source: str = "profile") -> Eye:
     if physical.get("design_distance_mm"):
         return Eye(0.0, 0.0, float(physical["design_distance_mm"]))
     raise ProfileError("the profile does not say which eye position its constants are for", source=source,
-                       hint="fit it with a camera model ('lenticalib fit DIR --camera camera.cameramodel') or add "
-                            "physical.eye_mm [x, y, D] or physical.design_distance_mm")
+                       hint="fit it with a camera model ('lenticalib fit DIR --camera camera.cameramodel') or set "
+                            "the viewing distance its constants are for (a centred viewer; physical.eye_mm holds "
+                            "any eye): `design_distance_mm`")
 
 
 def _needs(profile: PanelProfile, source: str) -> tuple[float, float]:

@@ -152,7 +152,8 @@ def _cell(value: float) -> str:
 
 def diagnose_table(result: dict) -> list[str]:
     """The printed table of :func:`.diagnose.diagnose_avatars`' result: for one avatar its side
-    views, their mean and the worst view of the cone per metric; for several, one row per avatar
+    views, their mean and the worst view of the cone per metric (its yaw "-" where every view has the
+    same value); for several, one row per avatar
     (the mean over the two side views, as the paper's Table 1) with the best marked ``*`` and the
     second best ``+``."""
     width = 10
@@ -167,7 +168,10 @@ def diagnose_table(result: dict) -> list[str]:
             lines.append(f"{s['yaw_deg']:+.1f} deg".ljust(14) + "".join(f"{_cell(s[m]):>{width}}" for m in METRICS))
         lines.append("mean +-25".ljust(14) + "".join(f"{_cell(r['side']['mean'][m]):>{width}}" for m in METRICS))
         lines.append("worst view".ljust(14) + "".join(f"{_cell(r['worst'][m]['value']):>{width}}" for m in METRICS))
-        lines.append("  at yaw".ljust(14) + "".join(f"{r['worst'][m]['yaw_deg']:>{width}.1f}" for m in METRICS))
+        # a metric equal in every view has no worst view: its yaw is "-", not the first view's
+        lines.append("  at yaw".ljust(14) + "".join(
+            f"{'-':>{width}}" if len({v[m] for v in r["views"]}) == 1 else f"{r['worst'][m]['yaw_deg']:>{width}.1f}"
+            for m in METRICS))
         lines.append("lower is better, except E_c (contour sharpness: higher is better); yaw in degrees")
         return lines
     records, best = result["avatars"], result["best"]

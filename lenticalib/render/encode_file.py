@@ -115,7 +115,8 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
     if not isinstance(profile, PanelProfile):
         profile = load_profile(profile, "`profile`")
     get_encoder(encoder)  # an unknown encoder is refused before the views are read
-    check_image_output(output, what="panel raster", inputs=inputs)  # a wrong output path costs nothing
+    # a wrong output path costs nothing
+    check_image_output(output, what="panel raster", example="raster.png", inputs=inputs)
     compensator = compensation.compensator(profile)
     if quilt is not None:
         views, found = load_quilt(quilt, profile.views, grid)
@@ -126,7 +127,8 @@ def encode_to_file(profile: PanelProfile | str | os.PathLike, output: str | os.P
                              hint="use the profile of the panel the quilt was made for, or allow_stretch")
     else:
         views = load_view_folder(views_dir, profile.views)
-    check_image_output(output, views.dtype, what="panel raster", inputs=inputs)  # e.g. float views into a .png
+    # e.g. float views into a .png
+    check_image_output(output, views.dtype, what="panel raster", example="raster.png", inputs=inputs)
     compensate_seconds = None
     on_device = False
     if compensator is not None:

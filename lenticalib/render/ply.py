@@ -41,6 +41,7 @@ import re
 import numpy as np
 
 from ..core.atomic import write_bytes_atomic
+from ..core.documents import binary_kind
 from ..core.errors import BackendUnavailableError, InputError
 from ..core.input_files import GIB, open_input, size_text
 from .gaussians import Gaussians
@@ -170,8 +171,12 @@ def load_ply(path: str | os.PathLike) -> Gaussians:
     source = os.fspath(path)
     try:
         with open_input(path, "PLY avatar", MAX_AVATAR_PLY_BYTES) as fh:  # a regular file (no FIFO) within the cap
-            if not fh.read(4):
+            head = fh.read(16)
+            if not head:
                 raise InputError("empty file, not a PLY", source=source)
+            kind = None if head.startswith(b"ply") else binary_kind(head)
+            if kind is not None and kind != "a binary file":  # a binary PLY may hold zeros: only a known signature
+                raise InputError(f"is {kind}, not a PLY file", source=source, hint="give the avatar's 3DGS .ply file")
             fh.seek(0)
             check_ply_counts(fh, source)
             fh.seek(0)

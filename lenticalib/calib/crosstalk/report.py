@@ -203,12 +203,14 @@ def _compensation(fig, study: dict) -> dict:
     ax.bar(offsets[other] - 0.2, without[other], width=0.4, color="tab:gray", label="without compensation")
     ax.bar(offsets[other] + 0.2, with_[other], width=0.4, color="tab:green", label="with pre-compensation")
     ax.axhline(0, color="black", lw=0.8)
-    reach = min(n / 2, 8)
-    ax.set_xlim(-reach - 0.5, reach + 0.5)
+    # offsets run -N/2..N/2-1: the axis ends at the last bar on each side (no empty tick), at most 8 away
+    low, high = max(int(offsets.min()), -8), min(int(offsets.max()), 8)
+    ax.set_xlim(low - 0.5, high + 0.5)
     ax.set_title(f"Light each other view leaks into a view (signed; own view = 100 %):\nsystem crosstalk, the sum "
                  f"of the magnitudes over all {n - 1} other views, {100 * sys_without:.1f}% → {100 * sys_with:.1f}%",
                  fontsize=12)
-    ax.set_xlabel("offset of the leaking view (views" + (f"; up to ±{reach:g} shown)" if reach < n / 2 else ")"))
+    cut = low > offsets.min() or high < offsets.max()
+    ax.set_xlabel("offset of the leaking view (views" + (f"; {low:+d} to {high:+d} shown)" if cut else ")"))
     ax.set_ylabel("light over the view's own light (%)")
     ax.legend(loc="upper right")
     ax.grid(alpha=0.3, axis="y")

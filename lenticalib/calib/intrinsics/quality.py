@@ -100,17 +100,27 @@ def _at_points(stdev: np.ndarray) -> dict:
     return out
 
 
-def weak_corners(uncertainty: dict, limit: float = WEAK_CORNER_PX) -> list[str]:
-    """One line of advice per image corner whose 1-sigma uncertainty (``quality``'s ``uncertainty``:
-    the worse of the working distance and infinity) exceeds ``limit`` px, worst first: the model
-    there is an extrapolation the photos barely constrain."""
-    weak = []
-    for key, name in IMAGE_CORNERS.items():
-        sigma = max(uncertainty["at_working_distance"][key], uncertainty["at_infinity"][key])
-        if sigma > limit:
-            weak.append((sigma, f"the {name} corner of the image is known to {sigma:.2f} px (1 sigma): add photos "
-                                f"with the board reaching into it, tilted, to pin the lens there"))
-    return [line for _, line in sorted(weak, reverse=True)]
+def weak_corner_keys(uncertainty: dict, limit: float = WEAK_CORNER_PX) -> list[str]:
+    """The keys of :data:`IMAGE_CORNERS` whose 1-sigma uncertainty (``quality``'s ``uncertainty``:
+    the worse of the working distance and infinity) exceeds ``limit`` px, worst first."""
+    sigma = {key: max(uncertainty["at_working_distance"][key], uncertainty["at_infinity"][key])
+             for key in IMAGE_CORNERS}
+    return sorted((key for key in IMAGE_CORNERS if sigma[key] > limit), key=lambda k: -sigma[k])
+
+
+def weak_corners(uncertainty: dict, limit: float = WEAK_CORNER_PX, distance_mm: float | None = None) -> list[str]:
+    """One line of advice per image corner of :func:`weak_corner_keys`, worst first: the model there
+    is an extrapolation the photos barely constrain.  Each line gives the corner's 1-sigma at both
+    distances, labelled (``distance_mm``: the working distance, mm; None says "the working
+    distance"), as the summary line above it does."""
+    near_name = "the working distance" if distance_mm is None else f"{distance_mm:.0f} mm"
+    lines = []
+    for key in weak_corner_keys(uncertainty, limit):
+        near, far = uncertainty["at_working_distance"][key], uncertainty["at_infinity"][key]
+        lines.append(f"the {IMAGE_CORNERS[key]} corner of the image is known to {near:.2f} px at {near_name} and "
+                     f"{far:.2f} px at infinity (1 sigma): add photos with the board reaching into it, tilted, "
+                     f"to pin the lens there")
+    return lines
 
 
 def quality(model, solve: Solve, photos: list[str] | None = None, cross_validation: dict | None = None) -> dict:

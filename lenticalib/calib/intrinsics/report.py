@@ -4,7 +4,8 @@
                       outliers; right: every residual as an arrow at its corner over the image
                       frame, lengthened by a stated factor, coloured by length (px)
     coverage.png      every observed corner over the image frame (colour: the photo it is in),
-                      outliers marked: where the data constrain the lens
+                      outliers marked, cells with no corner shaded and the image corners the
+                      advice names outlined: where the data constrain the lens
     uncertainty.png   the worst-direction projection uncertainty (px, 1 sigma) over the image, at
                       the working distance and at infinity, with labelled contours and the
                       observed corners
@@ -28,7 +29,7 @@ from ...core.profile import make_provenance
 from ..report import write_figures
 from .crossval import note_line
 from .solve import COVERAGE_GRID, covered_cells
-from .quality import weak_corners
+from .quality import IMAGE_CORNERS, weak_corner_keys, weak_corners
 
 FIGURE_SIZES = {"residuals.png": (1800, 1200), "coverage.png": (1800, 1200), "uncertainty.png": (1800, 860)}
 REPORT_FILES = tuple(FIGURE_SIZES) + ("summary.json",)
@@ -106,7 +107,7 @@ def calibration_summary(cal, qual: dict, board, found: list, photos: list, *, ou
                "residuals": res, "coverage": qual["coverage"], "working_distance_mm": qual["working_distance_mm"],
                "uncertainty": unc, "cross_validation": qual.get("cross_validation"),
                "provenance": make_provenance("camera calibrate (mrcal)", inputs),
-               "advice": weak_corners(unc), "seconds": round(float(seconds), 2)}
+               "advice": weak_corners(unc, distance_mm=qual["working_distance_mm"]), "seconds": round(float(seconds), 2)}
     summary["note"] = (f"lenticalib camera calibrate: {summary['provenance']['command'] or 'library call'}\n"
                        f"{len(used)} of {len(photos)} photos of a {board.describe()}; {lens} ({cal.choice})\n"
                        f"RMS {res['rms_px']:.4f} px, {res['outliers']} outliers of {res['corners']} corners; "
@@ -121,7 +122,8 @@ def summary_lines(summary: dict) -> list[str]:
     """The short human summary ``lenticalib camera calibrate`` prints."""
     i, res, unc = summary["intrinsics"], summary["residuals"], summary["uncertainty"]
     near, far = unc["at_working_distance"], unc["at_infinity"]
-    corners = [near[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right")]
+    corners = [near[k] for k in IMAGE_CORNERS]
+    far_corners = [far[k] for k in IMAGE_CORNERS]
     lines = [f"wrote {summary['output']} ({summary['lensmodel']})",
              f"lens model: {summary['lensmodel_choice']}",
              f"photos: {summary['photos']['used']} of {summary['photos']['given']} with the board"
@@ -135,7 +137,8 @@ def summary_lines(summary: dict) -> list[str]:
              f"uncertainty (1 sigma, worst direction) at {summary['working_distance_mm']:.0f} mm: "
              f"{near['centre']:.3f} px "
              f"at the centre, {min(corners):.3f}-{max(corners):.3f} px at the image corners; at infinity "
-             f"{far['centre']:.3f} px / {far['worst']:.3f} px worst"]
+             f"{far['centre']:.3f} px at the centre, {min(far_corners):.3f}-{max(far_corners):.3f} px at the image "
+             f"corners, {far['worst']:.3f} px worst"]
     lines[3:3] = [f"  not used: {Path(r['photo']).name}: {r['reason']}" for r in summary["photos"]["rejected"]]
     cv = summary.get("cross_validation") or {}
     loc = cv.get("corner_locator") or {}
@@ -226,6 +229,12 @@ def _coverage_figure(fig, subject) -> None:
         ax.add_patch(patches.Rectangle((i * w / nx, j * h / ny), w / nx, h / ny, facecolor="tab:red", alpha=0.15,
                                        hatch="//", edgecolor="tab:red", lw=0,
                                        label="cell with no corner" if k == 0 else None))
+    # the image corners the advice asks photos for (summary "advice"): their corner cells outlined
+    weak = weak_corner_keys(qual["uncertainty"])
+    for k, key in enumerate(weak):
+        i, j = (0 if "left" in key else nx - 1), (0 if key.startswith("top") else ny - 1)
+        ax.add_patch(patches.Rectangle((i * w / nx, j * h / ny), w / nx, h / ny, fill=False, edgecolor="tab:orange",
+                                       lw=3, label="image corner the advice asks photos for" if k == 0 else None))
     for i in range(1, nx):
         ax.axvline(i * w / nx, color="0.75", lw=0.8, zorder=0)
     for j in range(1, ny):
@@ -239,9 +248,10 @@ def _coverage_figure(fig, subject) -> None:
     if rejected.any():
         ax.plot(obs[..., 0][rejected], obs[..., 1][rejected], "x", color="black", ms=6, label="outliers")
     _outline(ax, w, h)
-    ax.legend(loc="lower right", framealpha=0.85, markerscale=2)
+    ax.legend(loc="lower center", framealpha=0.85, markerscale=2)  # clear of the image corners
     ax.set_title(f"Observed corners of {n} photos over the {w}x{h} image: {100 * qual['coverage']:.0f}% of the "
-                 f"{nx}x{ny} grid of cells covered\n(the lens is known only where corners are: fill the shaded cells)")
+                 f"{nx}x{ny} grid of cells covered\n(the lens is known only where corners are: fill the shaded cells"
+                 + ("; reach the outlined image corners, as the advice says" if weak else "") + ")")
     bar = _colorbar(fig, ax, sc, "photo (frame number)")
     if n <= 20:
         bar.set_ticks(range(1, n + 1))
