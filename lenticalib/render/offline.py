@@ -139,8 +139,7 @@ def _render_frames(session, output, frames, fps, times, targets, writer, single,
                    for name, path, what, contents in targets}
         for k in range(frames):
             raster, views, stages = pipeline.frame(session.controls_at(k / fps))
-            stages["present"] = 0.0
-            times.add(**stages)
+            times.add(**stages)  # nothing presented: the table's present row reads "-", as play --headless
             if single:
                 write_image(output, raster)
             elif writer is not None:
