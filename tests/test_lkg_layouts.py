@@ -6,8 +6,9 @@ shader (nearest view), evaluated per colour of every pixel.  lenticalib imports 
 value ``v``: every colour of the raster then names the view it shows, and it must be the view
 their rule gives, on every colour but exact ties (their ``phase * N`` within 1e-6 of an integer).
 The calibrations are composed for every flip and every documented cell pattern (CellPatternMode
-0 to 4), with cell offsets modelled on real gen3 units (R and G on one row, B on the other,
-mirrored between columns).
+0 to 4, numbered as Looking Glass's shaders number them), with cell offsets modelled on real gen3
+units (R and G on one row, B on the other, mirrored between columns).  tests/test_lkg_vendor_rule.py
+holds lkg_rule itself against a separate transcription of the vendor's shader, on real calibrations.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def calibration(mode=None, *, slope=-7.24467, inv_view=1.0, flip_x=0.0, flip_y=0
                   flipImageY={"value": flip_y}, flipSubp={"value": flip_subp}, **extra)
     if mode is not None:
         visual["CellPatternMode"] = {"value": float(mode)}
-        visual["subpixelCells"] = FOUR_CELLS if mode in (2, 3) else GEN3_CELLS
+        visual["subpixelCells"] = FOUR_CELLS if mode == 3 else GEN3_CELLS
     return visual
 
 
@@ -111,10 +112,12 @@ def test_cell_layout_in_the_profile():
     profile = lkg.profile_from_visual(calibration(4), N)
     layout = profile.subpixel_layout
     assert profile.subpixel_order == "RGB" and profile.rho == (0, 1, 2)
-    assert layout.pattern == ((0, 1),)
+    # mode 4 alternates rows, counted by the vendor from the bottom: the top row of this 52-row panel is odd
+    assert layout.pattern == ((1,), (0,))
     assert layout.cells[0][0] == (-0.25, 0.31)  # y up in the file, y down in the profile
+    assert lkg.profile_from_visual(calibration(2), N).subpixel_layout.pattern == ((0, 1),)  # alternating columns
     # a 4-row pattern is re-indexed from their bottom-up rows to lenticalib's top-down rows
-    four = lkg.profile_from_visual(calibration(2), N)
+    four = lkg.profile_from_visual(calibration(3), N)
     h = four.height
     assert [four.subpixel_layout.cell_of(0, y) for y in range(h)] == [(h - 1 - y) % 4 for y in range(h)]
 

@@ -43,14 +43,15 @@ MAX_OFFSET = 1.5  # pixels: a subpixel centre more than 1.5 pixels from its pixe
 PATTERN_ROWS = (1, 2, 4)
 PATTERN_COLUMNS = (1, 2)
 
-# The cell patterns Looking Glass calibrations name by ``CellPatternMode`` (their GL rows count
-# from the bottom; these tables are in their row order, see :func:`pattern_for_mode`).
+# The cell patterns Looking Glass calibrations name by ``CellPatternMode``, as Looking Glass's own
+# shaders number them (``GetCellForPixel``, docs/looking-glass.md); their GL rows count from the
+# bottom and these tables are in their row order, see :func:`pattern_for_mode`.
 LKG_CELL_PATTERNS: dict[int, tuple[tuple[int, ...], ...]] = {
     0: ((0,),),                          # one cell everywhere
     1: ((0, 1), (1, 0)),                 # checkerboard
-    2: ((0,), (1,), (2,), (3,)),         # cell = row % 4
+    2: ((0, 1),),                        # cell = column % 2 (alternating columns)
     3: ((0, 2), (1, 3), (2, 0), (3, 1)),  # cell = (row + 2 (column % 2)) % 4
-    4: ((0, 1),),                        # cell = column % 2 (alternating columns)
+    4: ((0,), (1,)),                     # cell = row % 2 (alternating rows)
 }
 
 

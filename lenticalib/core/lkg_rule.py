@@ -1,9 +1,10 @@
 """Our port of the Looking Glass lenticular rule (nearest view): the oracle for :mod:`lenticalib.core.lkg`.
 
-Written from the public shader sources (Looking Glass Bridge's lenticular shader as the Unity and
-WebXR packages carry it, and the older HoloPlay shader for ``invView`` and ``flipSubp``), in
-float64, pixel by pixel and independently of lenticalib's routing, so that import + encode can be
-checked against it (docs/looking-glass.md).
+Written from Looking Glass's own public shader sources (Bridge's ``Lenticular_RGBA_With_Aspect``
+as their Unity plugin and Looking-Glass/looking-glass-webxr carry it, and the older HoloPlay shader
+for ``invView`` and ``flipSubp``; files and lines in docs/looking-glass.md), in float64, pixel by
+pixel and independently of lenticalib's routing, so that import + encode can be checked against it.
+tests/test_lkg_vendor_rule.py holds a second transcription, written apart from this one.
 
 Per pixel: ``uv = ((x + 0.5) / W, (y_gl + 0.5) / H)`` with ``y_gl = H - 1 - y`` (GL rows from
 the bottom), ``P = pitch W / DPI cos(atan(1 / slope))`` lenticules across the width,
@@ -13,7 +14,9 @@ the bottom), ``P = pitch W / DPI cos(atan(1 / slope))`` lenticules across the wi
   reads position ``ri`` (2 when ``flipSubp`` else 0), green 1, blue ``bi`` (0 when ``flipSubp``
   else 2);
 * cells: ``cell = pattern(x, y_gl) % cells`` (``CellPatternMode``: 0 one cell, 1 checkerboard,
-  2 ``y_gl % 4``, 3 ``(y_gl + 2 (x % 2)) % 4``, 4 ``x % 2``) and colour ``k`` has
+  2 ``x % 2`` (alternating columns), 3 ``(y_gl + 2 (x % 2)) % 4``, 4 ``y_gl % 2`` (alternating
+  rows); a third-party fork numbers 2 as ``y_gl % 4`` and 4 as ``x % 2``, Looking Glass does not)
+  and colour ``k`` has
   ``p_k = uv.x + kOffsetX / W + (uv.y + kOffsetY / H) tilt``.
 
 Then ``phase = p P - center`` and the colour shows view ``floor(z N)`` with
@@ -33,15 +36,15 @@ from .lkg_file import DEFAULT_SOURCE, _normalize
 
 
 def _cell_index(mode: int, x: np.ndarray, y_gl: np.ndarray) -> np.ndarray:
-    """Their ``GetCellForPixel`` before the modulo by the number of cells."""
+    """Their ``GetCellForPixel`` before the modulo by the number of cells (``xPos = x``, ``yPos = y_gl``)."""
     if mode == 1:
         return np.where((y_gl % 2) == (x % 2), 0, 1)
     if mode == 2:
-        return y_gl % 4
+        return x % 2 + 0 * y_gl
     if mode == 3:
         return (y_gl + (x % 2) * 2) % 4
     if mode == 4:
-        return x % 2 + 0 * y_gl
+        return y_gl % 2 + 0 * x
     return 0 * x + 0 * y_gl
 
 
