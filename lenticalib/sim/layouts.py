@@ -7,12 +7,12 @@ channel's centre ``(dx, dy)`` in pixels from the pixel centre (y down), and the 
 NAMED LAYOUTS (modelled on Looking Glass gen3 calibrations, ``subpixelCells`` with their y axis
 turned down): R and G share one half of the pixel, one above the other, and B takes the other half.
 
-    lkg-columns   two cells alternating by column (CellPatternMode 4):
+    lkg-columns   two cells alternating by column (CellPatternMode 2):
                   cell 0  R (-0.25, +0.31)  G (-0.25, -0.28)  B (+0.25, 0)
                   cell 1  R (+0.25, +0.31)  G (+0.25, -0.28)  B (-0.25, 0)
     lkg-checker   the same two cells on a checkerboard (CellPatternMode 1)
-    lkg-rows4     four cells by row (CellPatternMode 2): lkg-columns' two cells, each followed
-                  by a copy with R and G swapped vertically
+    lkg-rows4     four cells by row (``y % 4``; no CellPatternMode of Looking Glass's draws it):
+                  lkg-columns' two cells, each followed by a copy with R and G swapped vertically
 """
 
 from __future__ import annotations
