@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=run, flags=FLAGS)  # the library's argument names, as flags
 
 
-FLAGS = {"display": "--display", "profile": "--profile", "allow_stretch": "--stretch",
+FLAGS = {"display": "--display", "profile": "--profile", "allow_stretch": "--stretch", "encoder": "--encoder",
          "grid": "--quilt-cols C --quilt-rows R"}
 
 
@@ -80,6 +80,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def with_flags_text(text: str) -> str:
+    """A library note in the command line's words (```encoder``` -> ``--encoder``)."""
+    return text.replace("`encoder` ", "--encoder ")
+
+
 def _quilt_grid(args: argparse.Namespace):
     """The QuiltGrid the options give (None: from the names), refused in one line when partial."""
     from ..core.errors import InputError
@@ -105,10 +110,12 @@ def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
 
     from ..core.errors import InputError
     from ..core.profile import load_profile
+    from ..core.view_defaults import quilt_model
     from ..render.encoders import get_encoder
     from ..render.present import open_presenter
     from ..render.quilt_player import play_quilts
     from ..render.quilt_sources import QuiltMapping, check_video, quilt_items
+    from ..render.views import QuiltGrid
 
     if args.fps is not None and not 0.1 <= args.fps <= 1000:
         raise InputError(f"{args.fps} frames a second is out of range", source="--fps", hint="use 0.1 .. 1000")
@@ -118,7 +125,9 @@ def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
     profile = load_profile(args.profile, "`profile`")
     if args.encoder != "gl":
         get_encoder(args.encoder)  # an unknown encoder is refused before anything opens
-    items = quilt_items(args.path, grid, args.quilt_aspect)
+    model = quilt_model(profile)  # a quilt named without _qs: the one Looking Glass renders for the model
+    default = None if model is None else QuiltGrid(model.columns, model.rows, profile.width / profile.height)
+    items = quilt_items(args.path, grid, args.quilt_aspect, default=None)
     for item in items:  # the grids' aspects and the videos' frame sizes, before a window opens
         mapping = QuiltMapping(profile, item.grid, args.stretch)
         mapping.check_aspect(None, item.source)
@@ -134,7 +143,7 @@ def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
         print(json.dumps(report.summary()))
         return 0
     for note in report.notes:
-        print(safe_line(f"note: {note}"))
+        print(safe_line(f"note: {with_flags_text(note)}"))
     print(f"played {report.items} item(s) on {profile.width}x{profile.height} ({report.encoder} encoder): "
           f"{report.presented} frame(s) presented, {report.dropped} dropped, {report.fps:.1f} fps")
     return 0

@@ -34,6 +34,7 @@ from .gl_context import VIEWPORT_TRIANGLE, load_llvm_users_first, versions_to_tr
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
 
 GL_DITHER = 0x0BD0
+MAX_TIMINGS = 100_000  # frame timings a presenter keeps (the latest; half an hour at 60 fps)
 GL_FRAMEBUFFER_SRGB = 0x8DB9
 
 _FRAGMENT = """
@@ -90,7 +91,7 @@ class Presenter:
     """Shows rasters pixel-exact; use as a context manager.  Subclasses make the GL context.
 
     ``size``: (width, height) of the framebuffer in pixels; ``timings``: one
-    :class:`FrameTiming` per shown frame; ``bits``: bits per channel of the framebuffer.
+    :class:`FrameTiming` per shown frame (the latest :data:`MAX_TIMINGS`); ``bits``: bits per channel of the framebuffer.
     """
 
     kind = "abstract"
@@ -99,7 +100,7 @@ class Presenter:
         self.vsync = vsync
         self.size: tuple[int, int] = (0, 0)
         self.bits = 8
-        self.timings: list[FrameTiming] = []
+        self.timings: deque[FrameTiming] = deque(maxlen=MAX_TIMINGS)  # the latest: a show may run for days
         self.ctx = None
         self._textures: dict = {}
         self._buffers: list = []

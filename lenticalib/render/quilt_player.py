@@ -24,6 +24,7 @@ video too; q or escape quit.  Images advance after ``interval`` seconds (None: o
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import queue
 import time
@@ -34,12 +35,14 @@ import numpy as np
 from ..core.errors import DisplayError
 from ..core.profile import PanelProfile
 from ..core.slides import QUIT_KEYS
+from .present import MAX_TIMINGS
 from .quilt_sources import FrameReader, QuiltItem, QuiltMapping, read_quilt_image
 
 PAUSE_KEYS = {"space"}
 SEEK_KEYS = {"right": 1, "left": -1}  # in a video: seek by SEEK_SECONDS; on an image: next / previous
 ITEM_KEYS = {"down": 1, "page_down": 1, "enter": 1, "up": -1, "page_up": -1, "backspace": -1}
 SEEK_SECONDS = 5.0
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software")  # GL_RENDERER names of CPU rendering
 DEFAULT_FPS = 30.0  # a video whose file states no frame rate
 
 
@@ -47,7 +50,8 @@ DEFAULT_FPS = 30.0  # a video whose file states no frame rate
 class PlaybackReport:
     """What :func:`play_quilts` did: ``items`` shown, frames ``presented``, ``dropped`` (due but not
     shown in time), ``decoded`` (video frames), ``seconds`` of playback, the ``encoder`` ("gl" or
-    the CPU one), ``present_ms`` (one per presented frame: encode + present) and ``notes``."""
+    the CPU one), ``present_ms`` (encode + present, one per frame: the latest
+    :data:`~.present.MAX_TIMINGS`) and ``notes``."""
 
     items: int = 0
     presented: int = 0
@@ -55,7 +59,7 @@ class PlaybackReport:
     decoded: int = 0
     seconds: float = 0.0
     encoder: str = "gl"
-    present_ms: list = dataclasses.field(default_factory=list)
+    present_ms: collections.deque = dataclasses.field(default_factory=lambda: collections.deque(maxlen=MAX_TIMINGS))
     notes: list = dataclasses.field(default_factory=list)
 
     @property
@@ -65,7 +69,7 @@ class PlaybackReport:
 
     def summary(self) -> dict:
         """The JSON summary ``lenticalib show --profile ... --json`` prints."""
-        median = float(np.median(self.present_ms)) if self.present_ms else None
+        median = float(np.median(list(self.present_ms))) if self.present_ms else None
         return {"items": self.items, "presented": self.presented, "dropped": self.dropped, "decoded": self.decoded,
                 "seconds": round(self.seconds, 3), "fps": round(self.fps, 2), "encoder": self.encoder,
                 "median_frame_ms": None if median is None else round(median, 2), "notes": list(self.notes)}
@@ -81,6 +85,10 @@ class _Drawer:
         self.report.encoder = encoder
         if self.use_gl and getattr(presenter, "ctx", None) is None:
             self._fall_back(f"the {presenter.kind} display has no OpenGL context")
+        elif self.use_gl and any(name in str(presenter.ctx.info.get("GL_RENDERER", "")).lower()
+                                 for name in SOFTWARE_RENDERERS):
+            self.report.notes.append("OpenGL renders on the CPU here (Mesa's software renderer): the fast encoder "
+                                     "plays faster on this machine (`encoder` fast)")
         self._encoders: dict = {}
 
     def _fall_back(self, why: str) -> None:
@@ -97,6 +105,8 @@ class _Drawer:
             size = views.shape[1:3]
             encoder = self._encoders.get(size)
             if encoder is None:
+                while len(self._encoders) >= 2:  # quilts of many tile sizes: the panel tables are 4 bytes a subpixel
+                    self._encoders.pop(next(iter(self._encoders))).release()
                 try:
                     encoder = self._encoders[size] = GLEncoder(self.profile, size, ctx=self.presenter.ctx)
                 except DisplayError as exc:
