@@ -110,6 +110,13 @@ def test_readme_commands_play_render_show_on_a_portrait(portrait, tmp_path):
     code, out, err = run_main("show", tmp_path / "enc.png", "--display", "offscreen", "--interval", 0.01)
     assert code == 0, err
     assert "showed 1 raster(s) of 1536x2048" in out
+    # show --profile plays the quilt itself; one named without _qs is the model's quilt (8x6 on a Portrait)
+    plain = tmp_path / "quilt.png"
+    plain.write_bytes(quilt.read_bytes())
+    for path in (quilt, plain):
+        code, out, err = run_main("show", path, "--profile", lkg, "--display", "offscreen", "--interval", 0.01)
+        assert code == 0, err
+        assert "1 frame(s) presented, 0 dropped" in out
 
 
 def test_a_4k_profile_keeps_960x540(portrait, tmp_path):

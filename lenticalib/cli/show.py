@@ -127,7 +127,7 @@ def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
         get_encoder(args.encoder)  # an unknown encoder is refused before anything opens
     model = quilt_model(profile)  # a quilt named without _qs: the one Looking Glass renders for the model
     default = None if model is None else QuiltGrid(model.columns, model.rows, profile.width / profile.height)
-    items = quilt_items(args.path, grid, args.quilt_aspect, default=None)
+    items = quilt_items(args.path, grid, args.quilt_aspect, default=default)
     for item in items:  # the grids' aspects and the videos' frame sizes, before a window opens
         mapping = QuiltMapping(profile, item.grid, args.stretch)
         mapping.check_aspect(None, item.source)

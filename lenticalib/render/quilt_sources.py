@@ -85,18 +85,21 @@ class QuiltMapping:
         return tiles[tile_for_views(self.grid.tiles, self.profile.views)]
 
 
-def grid_for(path: str | os.PathLike, grid: QuiltGrid | None = None, aspect: float | None = None) -> QuiltGrid:
-    """The grid of the quilt file ``path``: ``grid`` (cols, rows) if given, else its name's; its
-    aspect ``aspect`` if given, else ``grid``'s, else its name's.  ImageError when neither says."""
+def grid_for(path: str | os.PathLike, grid: QuiltGrid | None = None, aspect: float | None = None,
+             default: QuiltGrid | None = None) -> QuiltGrid:
+    """The grid of the quilt file ``path``: ``grid`` (cols, rows) if given, else its name's, else
+    ``default`` (the quilt of the panel's Looking Glass model); its aspect ``aspect`` if given, else
+    the chosen grid's, else its name's.  ImageError when none says."""
     named = parse_quilt_name(os.fspath(path))
-    chosen = grid or named
+    chosen = grid or named or default
     if chosen is None:
         raise ImageError("quilt grid unknown", source=os.fspath(path), hint=GRID_HINT)
     aspect = aspect or chosen.aspect or (named.aspect if named is not None else None)
     return QuiltGrid(chosen.cols, chosen.rows, aspect)
 
 
-def quilt_items(path: str | os.PathLike, grid: QuiltGrid | None = None, aspect: float | None = None) -> list[QuiltItem]:
+def quilt_items(path: str | os.PathLike, grid: QuiltGrid | None = None, aspect: float | None = None,
+                default: QuiltGrid | None = None) -> list[QuiltItem]:
     """The quilt images and videos of ``path`` (one file, or a folder's, in natural name order),
     each with its grid (:func:`grid_for`); ImageError naming the path for anything else."""
     p = Path(path)
@@ -114,7 +117,7 @@ def quilt_items(path: str | os.PathLike, grid: QuiltGrid | None = None, aspect: 
             raise ImageError(f"is not a quilt image or video ({p.suffix or 'no suffix'})", source=str(p),
                              hint=f"give a {', '.join(suffixes)} file")
         files = [p]
-    return [QuiltItem(f, f.suffix.lower() in VIDEO_SUFFIXES, grid_for(f, grid, aspect)) for f in files]
+    return [QuiltItem(f, f.suffix.lower() in VIDEO_SUFFIXES, grid_for(f, grid, aspect, default)) for f in files]
 
 
 def check_video(item: QuiltItem, mapping: QuiltMapping) -> None:
