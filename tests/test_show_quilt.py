@@ -169,3 +169,39 @@ def test_bad_quilts_and_options_end_in_one_line_before_anything_opens(tmp_path, 
     code, out, _ = cli("show", tmp_path / "tall_qs4x2a0.75.png", "--profile", panel, "--stretch",
                        "--display", "none", "--interval", "0.01")
     assert code == 0 and "1 frame(s) presented, 0 dropped" in out
+
+
+def test_a_quilt_video_and_image_play_in_a_window_with_real_keys(xvfb, tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    from .display_support import SCREEN
+
+    width, height = SCREEN  # the monitor's mode: the panel's size
+    (tmp_path / "panel.json").write_text(json.dumps({**PROFILE, "width": width, "height": height}))
+    rng = np.random.default_rng(9)
+    views = rng.integers(0, 256, (8, height // 4, width // 4, 3), dtype=np.uint8)
+    folder = tmp_path / "show"
+    folder.mkdir()
+    _write_video(folder / "a_qs4x2a1.7778.avi", [make_quilt(views, QuiltGrid(4, 2))] * 3, fps=30)
+    write_image(folder / "b_qs4x2a1.7778.png", make_quilt(views[::-1].copy(), QuiltGrid(4, 2)))
+    profile = PanelProfile(**{**PROFILE, "width": width, "height": height})
+    image_raster = encode(views[::-1].copy(), profile, "reference").astype(np.int32)
+    process = subprocess.Popen([sys.executable, "-m", "lenticalib", "show", str(folder), "--profile",
+                                str(tmp_path / "panel.json"), "--json"], env=xvfb.env(),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline, seen = time.monotonic() + 30, False
+        while time.monotonic() < deadline and not seen:  # the video plays, then the image stays
+            seen = np.abs(xvfb.screenshot().astype(np.int32) - image_raster).max() <= 1
+            time.sleep(0.1)
+        assert seen, "the quilt image never reached the screen"
+        xvfb.key("q")
+        out, err = process.communicate(timeout=20)
+    finally:
+        process.kill()
+    assert process.returncode == 0, err
+    summary = json.loads(out)
+    assert summary["encoder"] == "gl" and summary["items"] == 2
+    assert summary["presented"] + summary["dropped"] == 4 and summary["decoded"] == 3
