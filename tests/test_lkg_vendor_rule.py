@@ -215,3 +215,51 @@ def test_the_fork_numbering_is_not_the_vendors():
     theirs, tie = vendor_views(cal, N, slice(0, 64))
     ours = lenticalib_views(profile, slice(0, 64))
     assert ((ours % N != theirs % N) & ~tie).mean() > 0.2
+
+
+# --------------------------------------------------------------------------------------------
+# profile compare: a unit's visual.json against a measured layout, in one line
+
+
+def _small_unit():
+    """LKG-J00332 on a 384 x 216 crop of its raster (same lens, same cells): quick to compare."""
+    cal = copy.deepcopy(REAL["LKG-J00332"])
+    cal["screenW"], cal["screenH"] = {"value": 384.0}, {"value": 216.0}
+    return cal
+
+
+def test_compare_says_whether_a_visual_json_and_a_measured_layout_agree(tmp_path):
+    from .cli_support import run_main
+
+    from lenticalib.calib.compare import AGREE_FRACTION, compare_profiles
+    from lenticalib.core.profile import save_profile
+
+    cal = _small_unit()
+    visual = tmp_path / "visual.json"
+    visual.write_text(json.dumps(cal))
+    truth = lkg.profile_from_visual(cal, N)
+    measured = save_profile(truth.replace(offset=truth.offset + 0.02), tmp_path / "measured.json")  # a fit's error
+    other_rule = save_profile(lkg.profile_from_visual(with_mode(cal, 4), N), tmp_path / "rows.json")
+
+    code, out, err = run_main("profile", "compare", visual, measured)
+    assert code == 0, err
+    line = [ln for ln in out.splitlines() if "same view" in ln]
+    assert len(line) == 1 and "they agree" in line[0]
+    near = compare_profiles(truth, lkg.profile_from_visual(cal, N).replace(offset=truth.offset + 0.02))
+    assert AGREE_FRACTION <= near.same_view < 1.0 and near.agree
+
+    code, out, err = run_main("profile", "compare", other_rule, visual, "--json")
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["agree"] is False and 0.6 < report["same_view"] < AGREE_FRACTION
+    code, out, _ = run_main("profile", "compare", visual, other_rule)
+    assert "they DISAGREE" in [ln for ln in out.splitlines() if "same view" in ln][0]
+
+
+def test_compare_refuses_two_visual_jsons_in_one_line(tmp_path):
+    from .cli_support import refused
+
+    visual = tmp_path / "visual.json"
+    visual.write_text(json.dumps(_small_unit()))
+    line = refused("profile", "compare", visual, visual, source=visual)
+    assert "number of views" in line

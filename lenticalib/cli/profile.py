@@ -33,9 +33,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument("--dpi", type=float, help="panel pixels per inch (if the profile does not record it)")
     exp.add_argument("-o", "--output", required=True, metavar="VISUAL_JSON")
     exp.set_defaults(run=run_export, flags={"dpi": "--dpi"})  # the library's names
-    cmp_ = sub.add_parser("compare", help="how far profile A is from profile B, in views, over every subpixel")
-    cmp_.add_argument("profile", metavar="A")
-    cmp_.add_argument("reference", metavar="B", help="the reference (e.g. a simulation's truth.json)")
+    cmp_ = sub.add_parser("compare", help="how far profile A is from profile B, in views, over every subpixel",
+                          description="How far profile A is from profile B, in views, over every subpixel, and "
+                                      "whether they agree (the same view on at least 90%% of the subpixels). "
+                                      "Either may be a Looking Glass visual.json (with the other's number of "
+                                      "views): a unit's calibration against the layout 'fit --cells' measured.")
+    cmp_.add_argument("profile", metavar="A", help="a profile, or a Looking Glass visual.json")
+    cmp_.add_argument("reference", metavar="B", help="the reference (e.g. a simulation's truth.json, or a fitted "
+                                                     "profile), or a Looking Glass visual.json")
     cmp_.add_argument("--json", action="store_true", help="print JSON")
     cmp_.set_defaults(run=run_compare)
     direction = sub.add_parser("set-direction", help="record which way the profile's views run (+1, -1 or unknown)",
@@ -178,22 +183,25 @@ def run_export(args) -> int:
 
 
 def run_compare(args) -> int:
-    from ..calib.compare import compare_profiles
-    from ..core.profile import load_profile
+    from ..calib.compare import AGREE_FRACTION, compare_profiles, load_pair
 
-    a, b = load_profile(args.profile, "A"), load_profile(args.reference, "B")
+    a, b = load_pair(args.profile, args.reference)
     diff = compare_profiles(a, b)
     # True/False when both profiles know their direction, None when either does not
     direction_match = (None if a.view_direction is None or b.view_direction is None
                        else a.view_direction == b.view_direction)
     if args.json:
         out = diff.to_dict()
-        out.update({"period_error": a.period - b.period, "slant_error": a.slant - b.slant,
+        out.update({"agree": diff.agree, "period_error": a.period - b.period, "slant_error": a.slant - b.slant,
                     "view_direction": [a.view_direction, b.view_direction],
                     "view_direction_match": direction_match})
         print(json.dumps(out))
         return 0
     print(f"{shown(args.profile)} against {shown(args.reference)}, w - w_ref over {diff.subpixels} subpixels:")
+    verdict = ("they agree" if diff.agree else
+               f"they DISAGREE (another rule or calibration; one panel's descriptions agree on at least "
+               f"{AGREE_FRACTION:.0%})")
+    print(f"  same view       {diff.same_view:.2%} of the subpixels: {verdict}")
     print(f"  non-uniformity  {diff.rms:.4f} views RMS, {diff.worst:.4f} views worst")
     print(f"  centring        {diff.centring:+.4f} views")
     print(f"  period          {a.period:.6f} vs {b.period:.6f} subpixels ({a.period - b.period:+.2e})")
