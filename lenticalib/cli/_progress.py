@@ -1,4 +1,9 @@
-"""Progress display for long CLI steps: tqdm on stderr when it is installed and stderr is a terminal."""
+"""Progress display for long CLI steps: tqdm on stderr when it is installed and stderr is a terminal.
+
+:func:`progress_bar` (one bar), :func:`staged_bars` (one bar per stage of a library call) and
+:func:`compile_notice` (one line when numba compiles a kernel: a first run's silent half minute);
+all of them show nothing when stderr is not a terminal.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,7 @@ import sys
 
 
 class _Bar:
-    def __init__(self, total: int, desc: str):
+    def __init__(self, total: int, desc: str, unit: str = "step"):
         self._bar = None
         if sys.stderr.isatty():
             try:
@@ -15,7 +20,7 @@ class _Bar:
             except ImportError:  # tqdm is a declared dependency; degrade quietly if absent
                 tqdm = None
             if tqdm is not None:
-                self._bar = tqdm(total=total, desc=desc, unit="step", leave=False, file=sys.stderr)
+                self._bar = tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr)
 
     def wrap(self, items):
         for item in items:
@@ -39,8 +44,8 @@ class _Bar:
 
 
 @contextlib.contextmanager
-def progress_bar(total: int, desc: str):
-    bar = _Bar(total, desc)
+def progress_bar(total: int, desc: str, unit: str = "step"):
+    bar = _Bar(total, desc, unit)
     try:
         yield bar
     finally:
@@ -64,3 +69,40 @@ def staged_bars():
     finally:
         for bar in bars:
             bar.close()
+
+
+def _say(message: str) -> None:
+    """One line on stderr, above any progress bar."""
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        print(message, file=sys.stderr, flush=True)
+    else:
+        tqdm.write(message, file=sys.stderr)
+
+
+@contextlib.contextmanager
+def compile_notice(message: str):
+    """Print ``message`` once on stderr (a terminal only) when numba starts compiling a kernel
+    inside the block; kernels loaded from numba's disk cache (``cache=True``) compile nothing,
+    so a later run says nothing."""
+    try:
+        from numba.core import event
+    except ImportError:  # numba is a declared dependency; nothing to announce without it
+        event = None
+    if event is None or not sys.stderr.isatty():
+        yield
+        return
+    said: list[bool] = []
+
+    class Notice(event.Listener):
+        def on_start(self, ev) -> None:
+            if not said:
+                said.append(True)
+                _say(message)
+
+        def on_end(self, ev) -> None:
+            pass
+
+    with event.install_listener("numba:compile", Notice()):
+        yield

@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import argparse
 
+COMPILING = ("lenticalib: compiling the render kernels (a first run only, about half a minute; "
+             "they are kept on disk for the next runs)")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ._avatar import add_avatar_arguments
@@ -29,10 +32,12 @@ def run(args: argparse.Namespace) -> int:
     from ..render.offline import render_avatar
     from ._avatar import avatar_options, flags, warning_line
     from ._flags import flag_names
+    from ._progress import compile_notice, progress_bar
 
-    with flag_names(flags()):
+    # on a terminal: a bar over the frames, and one line when the kernels compile (a first run only)
+    with flag_names(flags()), compile_notice(COMPILING), progress_bar(args.frames, "rendering", "frame") as bar:
         done = render_avatar(args.avatar, args.profile, args.output, options=avatar_options(args), frames=args.frames,
-                             fps=args.fps, views_out=args.views_out)
+                             fps=args.fps, views_out=args.views_out, step=bar.update)
     pipeline = done.session.pipeline
     told = getattr(done.session.controls, "take_warnings", lambda: [])()  # a UDP port open to the network
     for warning in ([pipeline.warning] if pipeline.warning else []) + pipeline.notes + told:  # empty views among them

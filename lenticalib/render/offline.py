@@ -22,6 +22,7 @@ import contextlib
 import dataclasses
 import os
 from pathlib import Path
+from typing import Callable
 
 
 from ..core.atomic import PendingFile
@@ -100,10 +101,11 @@ def check_render_outputs(output: str | os.PathLike, frames: int, views_out: str 
 
 def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.PathLike, output: str | os.PathLike,
                   *, options: AvatarOptions | None = None, frames: int = 1, fps: float = 30.0,
-                  views_out: str | os.PathLike | None = None) -> RenderRun:
+                  views_out: str | os.PathLike | None = None, step: Callable[[], None] | None = None) -> RenderRun:
     """Render ``frames`` frames of ``avatar`` for ``profile`` into ``output`` (module docstring),
-    the controls sampled every 1/``fps`` seconds; the views too into ``views_out``.  Returns
-    :class:`RenderRun`; every user error comes before the avatar is loaded or the first frame."""
+    the controls sampled every 1/``fps`` seconds; the views too into ``views_out``; ``step()``
+    called after each frame is written (a progress display).  Returns :class:`RenderRun`; every
+    user error comes before the avatar is loaded or the first frame."""
     from .loop import StageTimes
 
     if frames < 1:
@@ -119,7 +121,7 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
         targets.append(("views", views_out, "views folder", VIEWS_CONTENTS))
     writer = _VideoFile(str(output), fps) if kind == "video" else None
     try:
-        _render_frames(session, output, frames, fps, times, targets, writer, kind == "image", inputs)
+        _render_frames(session, output, frames, fps, times, targets, writer, kind == "image", inputs, step)
     except BaseException:
         if writer is not None:
             writer.discard()
@@ -130,7 +132,7 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
     return RenderRun(Path(output), None if views_out is None else Path(views_out), frames, kind, session, times)
 
 
-def _render_frames(session, output, frames, fps, times, targets, writer, single, inputs) -> None:
+def _render_frames(session, output, frames, fps, times, targets, writer, single, inputs, step) -> None:
     from .loop import views_on_host
 
     pipeline = session.pipeline
@@ -152,6 +154,8 @@ def _render_frames(session, output, frames, fps, times, targets, writer, single,
                 frame_dir.mkdir()
                 for i, view in enumerate(views):
                     write_image(frame_dir / f"view-{i:02d}.png", view)
+            if step is not None:
+                step()
         if "views" in folders:
             pipeline.cameras.write_json(folders["views"] / "cameras.json")
         if writer is not None:
