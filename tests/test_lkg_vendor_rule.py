@@ -4,7 +4,7 @@ THE REFERENCE.  ``vendor_views`` below is a line-by-line transcription, in the s
 of Looking Glass's lenticular shader as their WebXR library generates it:
 Looking-Glass/looking-glass-webxr, ``dist/bundle/webxr.js`` at b44ed27fea197f28fbe4cb669bc350d141a9f8b1
 (the merge of ``feat/spatial-display-support``): ``GetCellForPixel`` lines 6792-6826,
-``GetSubpixelViews`` lines 6855-6892, ``GetViewsColors`` line 6901, and the getters ``tilt``,
+``GetSubpixelViews`` lines 6855-6891, ``GetViewsColors`` line 6901, and the getters ``tilt``,
 ``subp``, ``pitch`` lines 7413-7421.  The same cell table is in the Unity plugin's
 ``LookingGlass/Lenticular`` shader, whose header says it was converted by hand from Bridge's
 ``Lenticular_RGBA_With_Aspect``.  ``invView`` and ``flipSubp`` (which the newer shaders no longer
