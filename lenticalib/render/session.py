@@ -2,8 +2,10 @@
 
 :func:`open_avatar_session` checks everything a user can get wrong before the first frame, in
 this order: the renderer, encoder and camera model (a name that is unknown or a backend that
-cannot run on this machine is refused before anything is loaded), the profile, the pre-compensation, the
-background, the avatar file and its driver, the controls (files are read in full), the cameras.
+cannot run on this machine is refused before anything is loaded), the profile, the view size (given, or
+the panel's default, :mod:`lenticalib.core.view_defaults`: its memory and its aspect against the panel's),
+the pre-compensation, the background, the avatar file and its driver, the controls (files are read in
+full), the cameras.
 
 Errors name the argument at fault by its parameter name (``source="edge_desaturation"``,
 ``"controls"`` ...); a command-line front end maps them to its flags.
