@@ -142,3 +142,30 @@ def test_a_compile_is_said_once_on_a_terminal():
     with contextlib.redirect_stderr(io.StringIO()) as piped, compile_notice("compiling the kernels"):
         assert twice(2.5) == 5.0  # a new compile, not on a terminal
     assert piped.getvalue() == ""
+
+
+def _demo_tool():
+    import importlib.util
+
+    from .cli_support import REPO
+
+    spec = importlib.util.spec_from_file_location("make_driver_demo", REPO / "tools" / "make_driver_demo.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool
+
+
+def test_make_driver_demo_describes_every_option_and_reports_progress(capsys):
+    tool = _demo_tool()
+    with pytest.raises(SystemExit) as done:
+        tool.parse_args(["--help"])
+    assert done.value.code == 0 and "DIR/train/" in capsys.readouterr().out
+    actions = [a for a in tool.build_parser()._actions if a.dest != "help"]
+    assert {a.dest for a in actions} == {"directory", "frames", "test_frames", "seed", "room", "size"}
+    assert all(a.help and len(a.help) > 20 for a in actions), [(a.dest, a.help) for a in actions]
+    progress = tool.Progress(20, "train")  # stderr is not a terminal here: a line every 10 %
+    for _ in range(20):
+        progress.step()
+    progress.close()
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 10 and lines[-1].strip().startswith("train: 20/20 frames")
