@@ -15,8 +15,9 @@ vendor's code, not against itself.
 
 THE CALIBRATIONS (fixtures/lkg/README.md): real units (a gen3 16" landscape with two cells and no
 ``invView``, a first-generation 8.9") and every device template of Looking Glass's LKG-Toolkit,
-every subpixel of each; then each with ``invView`` 0 and with the slope's sign turned, and the
-two-cell calibrations under every ``CellPatternMode``, on their first and last 64 rows.  Every
+every subpixel of each; then each with ``invView`` 0 and with the slope's sign turned, the real
+units and the gen3 templates with ``flipImageX``, ``flipImageY`` and (stripes) ``flipSubp`` set,
+and the two-cell calibrations under every ``CellPatternMode``, on their first and last 64 rows.  Every
 colour must show the view the vendor's rule gives it (ties excepted: ``phase * N`` within 1e-6 of
 an integer).
 """
@@ -148,6 +149,21 @@ def variants(cal):
     return {"as is": cal, "invView 0": inv, "slope sign turned": positive}
 
 
+def flipped(cal):
+    """The calibration with each flag the shader reads set: flipImageX, flipImageY, and on a stripe
+    panel flipSubp (alone and with flipImageX; with cells it is refused, docs/looking-glass.md)."""
+    out = {}
+    for label, flags in [("flipImageX 1", {"flipImageX": 1.0}), ("flipImageY 1", {"flipImageY": 1.0}),
+                         ("flipSubp 1", {"flipSubp": 1.0}), ("flipImageX 1 flipSubp 1", {"flipImageX": 1.0,
+                                                                                        "flipSubp": 1.0})]:
+        if "flipSubp" in flags and cal.get("subpixelCells"):
+            continue
+        visual = copy.deepcopy(cal)
+        visual.update({key: {"value": value} for key, value in flags.items()})
+        out[label] = visual
+    return out
+
+
 def with_mode(cal, mode):
     out = copy.deepcopy(cal)
     out["CellPatternMode"] = {"value": float(mode)}
@@ -165,6 +181,10 @@ FULL += [pytest.param(name, cal, id=name, marks=[pytest.mark.slow] if _large(cal
 # variants and every CellPatternMode of the two-cell calibrations: the first and last 64 rows
 BANDS = [(f"{name} {label}", visual) for name, cal in {**REAL, **TEMPLATES}.items()
          for label, visual in variants(cal).items() if label != "as is"]
+BANDS += [(f"{name} {label}", visual) for name, cal in
+          [*REAL.items()] + [(key, TEMPLATES[key]) for key in ("_8_9inGen1", "_16inPortraitGen3",
+                                                               "_16inLandscapeGen3", "_32inPortraitGen3")]
+          for label, visual in flipped(cal).items()]
 BANDS += [(f"{name} CellPatternMode {mode}", with_mode(cal, mode)) for name, cal in
           [("LKG-J00332", REAL["LKG-J00332"]), ("_16inPortraitGen3", TEMPLATES["_16inPortraitGen3"]),
            ("_32inPortraitGen3", TEMPLATES["_32inPortraitGen3"])] for mode in range(5)]
@@ -192,6 +212,9 @@ def test_the_fixtures_cover_every_model_and_mode():
     modes = {int(_value(c, "CellPatternMode", 0)) for _, c in CASES}
     assert modes == {0, 1, 2, 3, 4}
     assert any(_value(c, "invView", 1.0) == 0 for _, c in CASES) and any(_value(c, "slope", 0) > 0 for _, c in CASES)
+    for flag in ("flipImageX", "flipImageY", "flipSubp"):
+        assert any(_value(c, flag, 0.0) == 1 for _, c in CASES), flag
+    assert any(_value(c, "flipImageX", 0.0) == 1 and c.get("subpixelCells") for _, c in CASES)
 
 
 @pytest.mark.parametrize("method", ["tables"])
