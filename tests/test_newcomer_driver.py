@@ -169,3 +169,24 @@ def test_make_driver_demo_describes_every_option_and_reports_progress(capsys):
     progress.close()
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 10 and lines[-1].strip().startswith("train: 20/20 frames")
+
+
+def test_kernels_are_cached_on_disk_and_compile_without_a_writable_folder(monkeypatch):
+    import numba
+    from numba.core import caching
+
+    from lenticalib.core.jit import cached_njit
+    from lenticalib.render.encoders import fast
+    from lenticalib.render.renderers import cpu_project
+
+    assert fast._encode_scalar._cache.__class__.__name__ == "FunctionCache"  # kept on disk between runs
+    assert cpu_project._project._cache.__class__.__name__ == "FunctionCache"
+
+    def halve(x):
+        return x / 2
+
+    monkeypatch.setattr(caching.CacheImpl, "_locator_classes", [])  # no folder numba can write
+    with pytest.raises(RuntimeError):
+        numba.njit(cache=True)(halve)  # what a bare cache=True does at import
+    kernel = cached_njit(boundscheck=False)(halve)
+    assert kernel(3.0) == 1.5 and kernel._cache.__class__.__name__ == "NullCache"

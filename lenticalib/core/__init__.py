@@ -39,6 +39,7 @@ Files and documents
 
 Shared machinery
     plugins             the one loader behind every registry of backends by name (entry points)
+    jit                 numba's njit with the compiled kernels cached on disk (silently not, where no folder is writable)
     slides              what ``show`` and ``capture`` step through: an image, a pattern set, a
                         folder
 

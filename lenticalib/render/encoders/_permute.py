@@ -41,6 +41,7 @@ from numba import prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from ...core.jit import cached_njit
 from ._simd import _const, _splat, next_source_row, prefetch_row_lines
 
 LANES = 64
@@ -270,7 +271,7 @@ def block_tables(s_left: np.ndarray, s_right: np.ndarray, x_weight: np.ndarray, 
     return starts, s_min * vs, tables, windows
 
 
-@nb.njit(cache=True, boundscheck=False)
+@cached_njit(boundscheck=False)
 def _transpose_row(flat, row_start, plane, n_views, row_bytes, vs, dest):  # pragma: no cover - compiled
     """Transpose source row ``row_start`` (byte offset in a view plane) of all views into ``dest``."""
     src = flat.ctypes.data + row_start
@@ -285,7 +286,7 @@ def _transpose_row(flat, row_start, plane, n_views, row_bytes, vs, dest):  # pra
             transpose_64(src + s0, plane, n_views, dst + s0 * vs)
 
 
-@nb.njit(parallel=True, cache=True, boundscheck=False)
+@cached_njit(parallel=True, boundscheck=False)
 def encode_u8_permute(flat, out2d, views_u8, row_lo, row_hi, fyq, starts, s_min_bytes, tables, windows,
                       plane, row_bytes, n_views, vs, t_bytes, n_chunks):  # pragma: no cover - compiled
     """Encode uint8 views with the permute kernel: threads over ``n_chunks`` bands of rows."""

@@ -31,12 +31,13 @@ The IR is generic: on CPUs without AVX-512/AVX2 gathers LLVM lowers it to scalar
 from __future__ import annotations
 
 import llvmlite.ir as ir
-import numba as nb
 import numpy as np
 from numba import prange
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
+
+from ...core.jit import cached_njit
 
 LANES = 64
 WEIGHT_BITS = 11  # bilinear weights are integers in [0, 2**WEIGHT_BITS]
@@ -153,7 +154,7 @@ def prefetch(typingctx, address):
     return types.void(types.intp), codegen
 
 
-@nb.njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def prefetch_row_lines(row, view, line, count, n_views, lines, plane):  # pragma: no cover - compiled
     """Prefetch the next ``count`` cache lines of a source row of the N views: the row's address in
     view 0 ``row``, ``lines`` lines per view row, views ``plane`` bytes apart, going on from line
@@ -168,7 +169,7 @@ def prefetch_row_lines(row, view, line, count, n_views, lines, plane):  # pragma
     return view, line
 
 
-@nb.njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def next_source_row(row_lo, row_hi, y, end, top, bottom):  # pragma: no cover - compiled
     """The first output row after ``y`` (before ``end``) whose bilinear row taps are not
     ``(top, bottom)``, and the source row it adds (any direction: image flips); ``(end, -1)``
@@ -189,7 +190,7 @@ def next_source_row(row_lo, row_hi, y, end, top, bottom):  # pragma: no cover - 
 _U64 = np.uint64
 
 
-@nb.njit(cache=True, boundscheck=False)
+@cached_njit(boundscheck=False)
 def interleave_rows(pair, flat, n_views, plane, top, bottom, row_bytes, stride):  # pragma: no cover - compiled
     """Fill ``pair`` (uint16, ``n_views * stride // 2``): per view, byte ``i`` of source row ``top``
     and of ``bottom`` side by side (``pair[v * stride // 2 + i] = top_i | bottom_i << 8``)."""
@@ -202,7 +203,7 @@ def interleave_rows(pair, flat, n_views, plane, top, bottom, row_bytes, stride):
             dest[i] = np.uint16(upper[i]) | (np.uint16(lower[i]) << np.uint16(8))
 
 
-@nb.njit(parallel=True, cache=True, boundscheck=False)
+@cached_njit(parallel=True, boundscheck=False)
 def encode_u8_blocks(flat, out2d, z0, k, n_views, shift, threshold, mode, tab, lane_table,
                      row_lo, row_hi, fyq, plane, row_bytes, stride, n_chunks):  # pragma: no cover - compiled
     height = out2d.shape[0]

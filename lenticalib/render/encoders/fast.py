@@ -35,6 +35,7 @@ import numba as nb
 import numpy as np
 from numba import prange
 
+from ...core.jit import cached_njit
 from ...core.profile import PanelProfile
 from ...core.routing import RoutingPlan, routing_plan, view_map
 from ..sampling import column_sampling, row_sampling
@@ -46,7 +47,7 @@ _ONE = 1 << _simd.WEIGHT_BITS
 _CHUNKS_PER_THREAD = 8  # row bands per thread (each starts with one extra row-pair build)
 
 
-@nb.njit(parallel=True, cache=True, boundscheck=False)
+@cached_njit(parallel=True, boundscheck=False)
 def _encode_scalar(views, out, z0, k, shift, n_views, has_dark, threshold, rho, x_lo, x_hi, x_w,
                    y_lo, y_hi, y_w, is_int, top):  # pragma: no cover - compiled
     height, width = out.shape[0], out.shape[1]

@@ -55,6 +55,7 @@ from numba import prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from ...core.jit import cached_njit
 from ..gaussians import Gaussians
 from .common import TILE_SIZE, check_finite_gaussians, check_render_inputs, jacobian_limits
 from .cpu_project import (_B, _CA, _CB, _CC, _CHUNKS, _EXT_Y, _G, _MX, _MY, _OP, _Q, _R, _RECORD, _SLOPE,
@@ -161,7 +162,7 @@ def _blend_half(typingctx, buf, xs_ptr, mx, half_a, bdy, half_cdy2, op, cr, cg, 
 
 # The compositing kernel stays in this file, next to the intrinsics it inlines: numba's on-disk
 # cache is keyed on the defining file, so editing either invalidates both.
-@nb.njit(parallel=True, cache=True)
+@cached_njit(parallel=True)
 def _composite(records, offsets, ids, tile_order, workers, width, height, tiles_x, background,
                out):  # pragma: no cover - compiled
     """Front-to-back compositing of every tile into ``out`` (H, W, 4): RGB over ``background``, alpha.

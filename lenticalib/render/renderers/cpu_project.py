@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 from numba import prange
 
+from ...core.jit import cached_njit
 from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE
 
 ALPHA_MIN = 1.0 / 255.0  # gsplat's ALPHA_THRESHOLD
@@ -36,7 +36,7 @@ _MX, _MY, _CA, _CB, _CC, _OP, _R, _G, _B, _SLOPE, _Q, _EXT_Y = range(12)
 _RECORD = 12
 
 
-@nb.njit(parallel=True, cache=True)
+@cached_njit(parallel=True)
 def _world_covariances(quats, scales):  # pragma: no cover - compiled
     """(G, 6) float64 covariances R S S^T R^T, upper triangle xx xy xz yy yz zz, quats normalised."""
     g = quats.shape[0]
@@ -65,7 +65,7 @@ def _world_covariances(quats, scales):  # pragma: no cover - compiled
     return out
 
 
-@nb.njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _sh_colour(sh, i, degree, x, y, z, c):  # pragma: no cover - compiled
     """0.5 + sum_k sh[i, k, c] Y_k(x, y, z), clamped at 0; (x, y, z) a unit vector (gsplat's basis)."""
     r = 0.2820947917738781 * sh[i, 0, c]
@@ -90,7 +90,7 @@ def _sh_colour(sh, i, degree, x, y, z, c):  # pragma: no cover - compiled
     return max(r + 0.5, 0.0)
 
 
-@nb.njit(parallel=True, cache=True)
+@cached_njit(parallel=True)
 def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, width, height, tiles_x, tiles_y,
              records, boxes, depth):  # pragma: no cover - compiled
     """Project every Gaussian into one view (gsplat's frame: cx, cy already + 0.5; ``limits`` the
@@ -183,7 +183,7 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, widt
             records[i, _R + ch] = _sh_colour(sh, i, degree, dx, dy, dz, ch)
 
 
-@nb.njit(parallel=True, cache=True)
+@cached_njit(parallel=True)
 def _bin(order, boxes, records, ntiles, tiles_x, chunks):  # pragma: no cover - compiled
     """Tile lists of the visible Gaussians ``order`` (front to back), a parallel counting sort.
 
