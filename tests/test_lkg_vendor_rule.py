@@ -14,7 +14,8 @@ written separately from :mod:`lenticalib.core.lkg_rule` so that the port is held
 vendor's code, not against itself.
 
 THE CALIBRATIONS (fixtures/lkg/README.md): real units (a gen3 16" landscape with two cells and no
-``invView``, a first-generation 8.9") and every device template of Looking Glass's LKG-Toolkit,
+``invView``, a first-generation 8.9", two Portraits, a Go) and every device template of Looking
+Glass's LKG-Toolkit,
 every subpixel of each; then each with ``invView`` 0 and with the slope's sign turned, the real
 units and the gen3 templates with ``flipImageX``, ``flipImageY`` and (stripes) ``flipSubp`` set,
 and the two-cell calibrations under every ``CellPatternMode``, on their first and last 64 rows.  Every
@@ -137,7 +138,8 @@ def _load(name):
 
 
 TEMPLATES = _load("toolkit_templates.json")
-REAL = {"LKG-J00332": _load("LKG-J00332.json"), "LKG-2K-04409": _load("LKG-2K-04409.json")}
+REAL = {name: _load(f"{name}.json") for name in ("LKG-J00332", "LKG-2K-04409", "LKG-P03996", "LKG-P00655",
+                                                 "LKG-E05304")}
 
 
 def variants(cal):
