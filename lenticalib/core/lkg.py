@@ -33,7 +33,9 @@ subpixel more than their cell position).  A flipped stripe (``sigma = -1``) runs
 leftwards: position ``c`` sits at ``3 x - c``, which is a stripe of the opposite order shifted two
 subpixels, so ``k0 = -0.5`` and the order is BGR (RGB with ``flipSubp``).  Cells map to a
 :class:`~lenticalib.core.layout.SubpixelLayout` (``dy = -dy_up``; the pattern of
-``CellPatternMode`` in lenticalib's top-down rows).  ``invView = 0`` gives
+``CellPatternMode``, numbered as Looking Glass's own shaders number it -- 2 alternating columns,
+4 alternating rows, not a third-party fork's ``y % 4`` and ``x % 2`` -- in lenticalib's top-down
+rows).  ``invView = 0`` gives
 ``views_reversed``; ``flipImageX/Y`` also mirror the view images (``flip_image_x/y``).
 
 WHICH WAY THE VIEWS RUN.  A lens focused on the pixel plane inverts, so on an unmirrored panel a
