@@ -104,10 +104,16 @@ def test_a_hint_never_suggests_a_name_without_a_suffix_where_one_is_needed(tmp_p
 
 @pytest.mark.parametrize("name", ["cam.json", "cam", "cam.yaml"])
 def test_camera_calibrate_refuses_a_model_name_fit_could_not_read_before_any_work(tmp_path, name):
-    line = refused("camera", "calibrate", tmp_path / "no-photos-needed", "-o", tmp_path / name,
-                   source=tmp_path / name)
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for k in range(2):
+        (photos / f"board-{k}.jpg").write_bytes(b"a photo of the board")
+    argv = ["camera", "calibrate", photos, "--board", "9x6", "--square", "20", "-o", tmp_path / name]
+    line = refused(*argv, source=tmp_path / name)
     assert ".cameramodel" in line and f"name it {tmp_path / 'cam.cameramodel'}" in line, line
     assert not (tmp_path / name).exists()
+    argv[-1] = tmp_path / "cam.cameramodel"  # the suggestion passes the output checks: the photos are next
+    assert "only 2 photos given" in refused(*argv, source="PHOTOS")
 
 
 # ------------------------------------------------------------------ item 5: advice agrees with the summary

@@ -182,10 +182,6 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     from .report import REPORT_FILES, calibration_summary, write_report
 
     start = time.perf_counter()
-    if Path(output).suffix != ".cameramodel" and not Path(output).is_dir():  # mrcal's format; any other name would be refused when read
-        raise InputError(f"a camera model is written in mrcal's .cameramodel format, not as "
-                         f"{Path(output).suffix or 'a file without a suffix'}", source=str(output),
-                         hint=f"name it {Path(output).with_suffix('.cameramodel')}")
     if not 1 <= jobs <= MAX_JOBS:
         raise InputError(f"{jobs} jobs is out of range", source="jobs", hint=f"use 1..{MAX_JOBS} (the number of cores)")
     if lensmodel is not None:
@@ -195,6 +191,10 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
                                    marker_mm=marker_mm, dictionary=dictionary)
     inputs = (*photos, manifest)
     output = check_output_file(output, "camera model", example="camera.cameramodel", inputs=inputs)
+    if output.suffix != ".cameramodel":  # mrcal's format: fit --camera would refuse any other name
+        raise InputError(f"a camera model is written in mrcal's .cameramodel format, not as "
+                         f"{output.suffix or 'a file without a suffix'}", source=str(output),
+                         hint=f"name it {output.with_suffix('.cameramodel')}")
     if report_dir is not None:
         check_output_folder(report_dir, REPORT_WHAT, REPORT_FILES, inputs=inputs)
     if len(photos) < MIN_VIEWS:
