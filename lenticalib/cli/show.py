@@ -30,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     quilts.add_argument("--quilt-rows", type=int, metavar="R", help="quilt rows (with --quilt-cols)")
     quilts.add_argument("--quilt-aspect", type=float, metavar="A", help="the aspect the quilt was made for")
     quilts.add_argument("--stretch", action="store_true", help="play quilts made for another aspect ratio")
-    quilts.add_argument("--encoder", default="gl", help="gl (default: on the GPU, CPU fallback) or a CPU encoder")
+    quilts.add_argument("--encoder", default="auto", help="auto (default: gl on a GPU, fast where OpenGL renders "
+                        "in software), gl (OpenGL, CPU fallback) or a CPU encoder (fast, ...)")
     quilts.add_argument("--fps", type=float, metavar="F", help="video frame rate (default: the video's)")
     quilts.add_argument("--json", action="store_true", help="print the playback summary as JSON")
     parser.set_defaults(run=run, flags=FLAGS)  # the library's argument names, as flags
@@ -123,7 +124,7 @@ def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
         raise InputError("an offscreen show with --loop never ends", source="--display", hint="drop --loop")
     grid = _quilt_grid(args)
     profile = load_profile(args.profile, "`profile`")
-    if args.encoder != "gl":
+    if args.encoder not in ("gl", "auto"):
         get_encoder(args.encoder)  # an unknown encoder is refused before anything opens
     model = quilt_model(profile)  # a quilt named without _qs: the one Looking Glass renders for the model
     default = None if model is None else QuiltGrid(model.columns, model.rows, profile.width / profile.height)

@@ -7,14 +7,16 @@ Each frame goes the OpenGL way: decoded on the host (a reader thread,
 :class:`~.encoders.gl_encoder.GLEncoder` living in the presenter's own context, the raster drawn
 straight into the presenter's framebuffer (:meth:`~.present.Presenter.show_drawn`).  Where that
 cannot run (no OpenGL context: the ``none`` display; a driver refusing the textures; 16-bit
-quilts) a CPU encoder (``fast``) makes the raster and :meth:`~.present.Presenter.show` sends it,
-said once in :attr:`PlaybackReport.notes`.
+quilts), and with ``encoder="auto"`` where OpenGL renders in software (llvmpipe: the CPU encoder
+is 2-4x faster there, ``tools/bench_show_quilt.py``), a CPU encoder (``fast``) makes the raster
+and :meth:`~.present.Presenter.show` sends it, said once in :attr:`PlaybackReport.notes`.
 
-Pacing: frame ``k`` after a start (or a seek, a pause, a loop) is due ``k / fps`` seconds later
-(``fps``: the video's, or given); it is shown at its due time (the buffer swap then waits for the
-display's refresh when vsync is on).  A frame that is still not shown when the next one is due, and
-a later one is decoded already, is dropped and counted (:attr:`PlaybackReport.dropped`); none is
-dropped silently, and a late frame with none after it yet is shown late (decoding is the limit).  ``fps`` None:
+Pacing: frame ``k`` after the first one shown after a start (or a seek, a pause, a loop) is due
+``k / fps`` seconds after that one was (``fps``: the video's, or given), and shown then (the
+buffer swap then waits for the display's refresh when vsync is on).  A frame still not shown when
+the next one is due, with a later one decoded already, is dropped and counted
+(:attr:`PlaybackReport.dropped`); none is dropped silently, and a late frame with none decoded
+after it yet is shown late (decoding is then the limit).  ``fps`` None:
 every frame as fast as possible (benchmarks), none dropped.
 
 Keys (:data:`PAUSE_KEYS` ...): space pauses and resumes; right / left step to the next / previous
@@ -80,15 +82,19 @@ class _Drawer:
 
     def __init__(self, presenter, profile: PanelProfile, encoder: str, report: PlaybackReport):
         self.presenter, self.profile, self.report = presenter, profile, report
-        self.cpu = encoder if encoder != "gl" else "fast"
-        self.use_gl = encoder == "gl"
-        self.report.encoder = encoder
+        self.cpu = encoder if encoder not in ("gl", "auto") else "fast"
+        self.use_gl = encoder in ("gl", "auto")
+        self.report.encoder = "gl" if self.use_gl else encoder
         if self.use_gl and getattr(presenter, "ctx", None) is None:
             self._fall_back(f"the {presenter.kind} display has no OpenGL context")
         elif self.use_gl and any(name in str(presenter.ctx.info.get("GL_RENDERER", "")).lower()
                                  for name in SOFTWARE_RENDERERS):
-            self.report.notes.append("OpenGL renders on the CPU here (Mesa's software renderer): the fast encoder "
-                                     "plays faster on this machine (`encoder` fast)")
+            if encoder == "auto":
+                self._fall_back("OpenGL renders on the CPU here (a software renderer), where the fast encoder is "
+                                "2-4x faster (`encoder` gl to use OpenGL anyway)")
+            else:
+                self.report.notes.append("OpenGL renders on the CPU here (a software renderer): the fast encoder "
+                                         "plays faster on this machine (`encoder` fast)")
         self._encoders: dict = {}
 
     def _fall_back(self, why: str) -> None:
@@ -131,7 +137,8 @@ def play_quilts(presenter, items: list[QuiltItem], profile: PanelProfile, *, enc
                 clock=time.monotonic) -> PlaybackReport:
     """Play ``items`` on the opened ``presenter`` (whose size is the panel's) for ``profile``.
 
-    ``encoder``: "gl" (the GPU way, CPU fallback) or a CPU encoder's name; ``fps``: "video" (each
+    ``encoder``: "gl" (the GPU way, CPU fallback), "auto" (as "gl", but the CPU's ``fast`` where
+    OpenGL renders in software: Mesa's llvmpipe) or a CPU encoder's name; ``fps``: "video" (each
     video's own rate), a number, or None (unpaced); ``interval``: seconds an image stays (None:
     until a key); ``loop``: start again after the last item (a single video loops); ``on_present(item,
     frame)`` after each frame shown (frame 0 for an image).  Returns :class:`PlaybackReport`.
@@ -226,10 +233,8 @@ def _play_video(presenter, drawer, item, mapping, item_index, report, fps, inter
                     if held.views is None:  # the end of the video
                         reader.check()
                         return 1
-                if rate is not None:
+                if rate is not None and origin is not None:
                     now = clock()
-                    if origin is None:
-                        origin = (now, held.index)
                     due = origin[0] + (held.index - origin[1]) / rate
                     if now >= due + 1.0 / rate and reader.ready():  # a later frame is due and decoded
                         report.dropped += 1
@@ -241,5 +246,7 @@ def _play_video(presenter, drawer, item, mapping, item_index, report, fps, inter
                 frame, held = held, None
                 last = frame.index
                 _present(drawer, frame.views, item.source, report, on_present, item_index, frame.index, clock)
+                if origin is None:  # pacing counts from the first frame on the panel (a first encode compiles)
+                    origin = (clock(), frame.index)
         finally:
             report.decoded += reader.decoded

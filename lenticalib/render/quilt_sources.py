@@ -34,7 +34,7 @@ from .views import QuiltGrid, natural_key, parse_quilt_name, split_quilt
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg")  # as render.offline's
 ASPECT_TOLERANCE = 0.01  # as the encoders' check_views
 QUEUE_FRAMES = 2  # decoded frames waiting to be shown (a 4K quilt's views are 25 MB each)
-GRID_HINT = "name the file with a _qsCOLSxROWSaASPECT suffix or pass `grid` COLSxROWS"
+GRID_HINT = "name the file with a _qsCOLSxROWSaASPECT suffix or give the `grid`"
 
 
 def tile_for_views(tiles: int, views: int) -> np.ndarray:
