@@ -20,7 +20,7 @@ GEN3 = (((-0.25, 0.31), (-0.25, -0.28), (0.25, 0.0)), ((0.25, 0.31), (0.25, -0.2
 def _cell_panel(reversed_views=False, n=8, period=7.7, width=150, height=48):
     stripe = PanelProfile(views=n, slant=-0.19, period=period, offset=1.9, reference_view=0.6, width=width,
                           height=height)
-    layout = SubpixelLayout(cells=GEN3, pattern=pattern_for_mode(4, 2, height))
+    layout = SubpixelLayout(cells=GEN3, pattern=pattern_for_mode(2, 2, height))  # alternating columns
     return stripe, stripe.replace(subpixel_layout=layout, views_reversed=reversed_views)
 
 
