@@ -210,3 +210,14 @@ def test_a_quilt_video_and_image_play_in_a_window_with_real_keys(xvfb, tmp_path)
     summary = json.loads(out)
     assert summary["encoder"] == "gl" and summary["items"] == 2
     assert summary["presented"] + summary["dropped"] == 4 and summary["decoded"] == 3
+
+
+def test_a_video_faster_than_the_displays_refresh_is_said_to_drop_frames(tmp_path):
+    from lenticalib.render.monitors import Monitor
+
+    _write_video(tmp_path / "fast_qs4x2a1.7778.avi", _quilt_frames(2), fps=120)
+    with MemoryPresenter((96, 54)) as presenter:
+        presenter.monitor, presenter.vsync = Monitor(0, "LKG", 0, 0, 96, 54, 60), True  # a 60 Hz window's
+        report = play_quilts(presenter, quilt_items(tmp_path / "fast_qs4x2a1.7778.avi"), _profile())
+    assert any("120 fps, the display refreshes at 60 Hz: some 50 %" in note for note in report.notes), report.notes
+    assert report.presented + report.dropped == 2

@@ -203,6 +203,10 @@ def _play_video(presenter, drawer, item, mapping, item_index, report, fps, inter
         rate = (reader.fps or DEFAULT_FPS) if fps == "video" else fps
         if fps == "video" and reader.fps is None:
             report.notes.append(f"{item.path.name} states no frame rate: played at {DEFAULT_FPS:g} fps")
+        refresh = getattr(getattr(presenter, "monitor", None), "refresh_hz", None)
+        if rate and refresh and presenter.vsync and rate > refresh * 1.01:
+            report.notes.append(f"{item.path.name} runs at {rate:g} fps, the display refreshes at {refresh:g} Hz: "
+                                f"some {100 * (1 - refresh / rate):.0f} % of its frames will be dropped (counted)")
         generation, origin, last = 0, None, 0  # origin: (clock, frame index) the pacing counts from
         paused, held, pending = False, None, []
         try:
