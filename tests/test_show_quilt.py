@@ -221,3 +221,27 @@ def test_a_video_faster_than_the_displays_refresh_is_said_to_drop_frames(tmp_pat
         report = play_quilts(presenter, quilt_items(tmp_path / "fast_qs4x2a1.7778.avi"), _profile())
     assert any("120 fps, the display refreshes at 60 Hz: some 50 %" in note for note in report.notes), report.notes
     assert report.presented + report.dropped == 2
+
+
+def test_the_next_image_of_a_show_is_read_while_one_is_shown(tmp_path, monkeypatch):
+    import threading
+
+    from lenticalib.render import quilt_player
+
+    frames = _quilt_frames(3, seed=5)
+    for k, quilt in enumerate(frames):
+        write_image(tmp_path / f"s{k}_qs4x2a1.7778.png", quilt)
+    readers, original = [], quilt_player.read_quilt_image
+
+    def recording(item, mapping):
+        readers.append((item.path.name[:2], threading.current_thread().name.split("_")[0]))
+        return original(item, mapping)
+
+    monkeypatch.setattr(quilt_player, "read_quilt_image", recording)
+    with OffscreenPresenter((96, 54), keep=True) as presenter:
+        report = play_quilts(presenter, quilt_items(tmp_path), _profile(), encoder="gl", interval=0.05)
+    assert readers == [("s0", "MainThread"), ("s1", "quilt-image"), ("s2", "quilt-image")]
+    assert report.presented == 3
+    for quilt, shown in zip(frames, presenter.presented):
+        reference = encode(split_quilt(quilt, QuiltGrid(4, 2)), _profile(), "reference").astype(np.int32)
+        assert np.abs(shown.astype(np.int32) - reference).max() <= 1

@@ -21,7 +21,8 @@ every frame as fast as possible (benchmarks), none dropped.
 
 Keys (:data:`PAUSE_KEYS` ...): space pauses and resumes; right / left step to the next / previous
 item, or seek +-5 s in a video; down, page down, enter and up, page up, backspace step items in a
-video too; q or escape quit.  Images advance after ``interval`` seconds (None: on a key).
+video too; q or escape quit.  Images advance after ``interval`` seconds (None: on a key); the
+next image of a show is read on a thread while the current item plays.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import collections
 import dataclasses
 import queue
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numpy as np
@@ -145,6 +147,7 @@ def play_quilts(presenter, items: list[QuiltItem], profile: PanelProfile, *, enc
     """
     report = PlaybackReport()
     drawer = _Drawer(presenter, profile, encoder, report)
+    images = _ImagesAhead(items, profile, allow_stretch, loop)
     start = clock()
     index = 0
     try:
@@ -152,8 +155,13 @@ def play_quilts(presenter, items: list[QuiltItem], profile: PanelProfile, *, enc
             item = items[index]
             mapping = QuiltMapping(profile, item.grid, allow_stretch)
             report.items += 1
-            play = _play_video if item.video else _play_image
-            step = play(presenter, drawer, item, mapping, index, report, fps, interval, on_present, clock)
+            if item.video:
+                images.read_ahead(index)
+                step = _play_video(presenter, drawer, item, mapping, index, report, fps, on_present, clock)
+            else:
+                views = images.views(index)
+                images.read_ahead(index)
+                step = _play_image(presenter, drawer, item, views, index, report, interval, on_present, clock)
             if step == 0:
                 break
             index += step
@@ -162,9 +170,41 @@ def play_quilts(presenter, items: list[QuiltItem], profile: PanelProfile, *, enc
             elif index < 0:
                 index = 0
     finally:
+        images.close()
         drawer.release()
         report.seconds = clock() - start
     return report
+
+
+class _ImagesAhead:
+    """The next quilt image of the show read (and split into views) on a thread while this item
+    plays: at most one ahead."""
+
+    def __init__(self, items: list[QuiltItem], profile: PanelProfile, allow_stretch: bool, loop: bool):
+        self.items, self.profile, self.allow_stretch, self.loop = items, profile, allow_stretch, loop
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="quilt-image")
+        self.ahead: dict = {}  # item index -> Future of its views
+
+    def _read(self, index: int) -> np.ndarray:
+        item = self.items[index]
+        return read_quilt_image(item, QuiltMapping(self.profile, item.grid, self.allow_stretch))
+
+    def views(self, index: int) -> np.ndarray:
+        future = self.ahead.pop(index, None)
+        return self._read(index) if future is None else future.result()
+
+    def read_ahead(self, index: int) -> None:
+        following = (index + 1) % len(self.items) if self.loop else index + 1
+        if following >= len(self.items) or following == index or self.items[following].video \
+                or following in self.ahead:
+            return
+        for future in self.ahead.values():
+            future.cancel()
+        self.ahead = {following: self.pool.submit(self._read, following)}
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+        self.ahead.clear()
 
 
 def _present(drawer: _Drawer, views, source, report, on_present, item_index, frame_index, clock) -> None:
@@ -176,9 +216,9 @@ def _present(drawer: _Drawer, views, source, report, on_present, item_index, fra
         on_present(item_index, frame_index)
 
 
-def _play_image(presenter, drawer, item, mapping, item_index, report, fps, interval, on_present, clock) -> int:
-    """Show one quilt image; +1 / -1 (next / previous) or 0 (quit)."""
-    _present(drawer, read_quilt_image(item, mapping), item.source, report, on_present, item_index, 0, clock)
+def _play_image(presenter, drawer, item, views, item_index, report, interval, on_present, clock) -> int:
+    """Show one quilt image's ``views``; +1 / -1 (next / previous) or 0 (quit)."""
+    _present(drawer, views, item.source, report, on_present, item_index, 0, clock)
     deadline = None if interval is None else clock() + interval
     paused_left = None
     while True:
@@ -197,7 +237,7 @@ def _play_image(presenter, drawer, item, mapping, item_index, report, fps, inter
             return 1
 
 
-def _play_video(presenter, drawer, item, mapping, item_index, report, fps, interval, on_present, clock) -> int:
+def _play_video(presenter, drawer, item, mapping, item_index, report, fps, on_present, clock) -> int:
     """Play one quilt video to its end (0 quit, +1 / -1 an item key, +1 at the end)."""
     with FrameReader(item, mapping) as reader:
         rate = (reader.fps or DEFAULT_FPS) if fps == "video" else fps
