@@ -154,12 +154,13 @@ def test_keys_seek_pause_step_and_quit(tmp_path):
 def test_bad_quilts_and_options_end_in_one_line_before_anything_opens(tmp_path, panel, cli):
     write_image(tmp_path / "tall_qs4x2a0.75.png", _quilt_frames(1)[0])
     write_image(tmp_path / "plain.png", _quilt_frames(1)[0])
-    _write_video(tmp_path / "odd_qs5x2a1.7778.avi", _quilt_frames(1), fps=5)
+    _write_video(tmp_path / "odd_qs250x2a1.7778.avi", _quilt_frames(1), fps=5)  # 192 pixels wide
     cases = [
         (["show", tmp_path / "tall_qs4x2a0.75.png", "--profile", panel], "aspect 0.75"),
         (["show", tmp_path / "plain.png", "--profile", panel], "quilt grid unknown"),
         (["show", tmp_path / "plain.png", "--profile", panel, "--quilt-cols", "4"], "--quilt-rows"),
-        (["show", tmp_path / "odd_qs5x2a1.7778.avi", "--profile", panel, "--display", "offscreen"], "5x2 tiles"),
+        (["show", tmp_path / "odd_qs250x2a1.7778.avi", "--profile", panel, "--display", "offscreen"],
+     "no pixel per tile"),
         (["show", tmp_path / "tall_qs4x2a0.75.png", "--profile", panel, "--display", "offscreen", "--loop"],
          "never ends"),
         (["show", tmp_path / "plain.png", "--quilt-cols", "4"], "--profile"),
@@ -245,3 +246,15 @@ def test_the_next_image_of_a_show_is_read_while_one_is_shown(tmp_path, monkeypat
     for quilt, shown in zip(frames, presenter.presented):
         reference = encode(split_quilt(quilt, QuiltGrid(4, 2)), _profile(), "reference").astype(np.int32)
         assert np.abs(shown.astype(np.int32) - reference).max() <= 1
+
+
+def test_a_quilt_whose_sides_the_grid_does_not_divide_is_read_from_the_bottom_left(tmp_path):
+    # Looking Glass's 4096x4096 8x6 quilts: tiles of 512x682, four rows left over at the top
+    quilt = _quilt_frames(1, seed=7)[0]
+    padded = np.full((quilt.shape[0] + 1, quilt.shape[1] + 3, 3), 255, np.uint8)  # 195x55: 4x2 tiles of 48x27
+    padded[1:, :-3] = quilt  # a left-over row at the top, columns at the right
+    write_image(tmp_path / "odd_qs4x2a1.7778.png", padded)
+    with OffscreenPresenter((96, 54), keep=True) as presenter:
+        play_quilts(presenter, quilt_items(tmp_path / "odd_qs4x2a1.7778.png"), _profile(), encoder="gl", interval=0.01)
+    reference = encode(split_quilt(quilt, QuiltGrid(4, 2)), _profile(), "reference").astype(np.int32)
+    assert np.abs(presenter.presented[0].astype(np.int32) - reference).max() <= 1

@@ -4,7 +4,8 @@ bounded reader that decodes the next video frame while one is shown.
 A *quilt item* is one file: a quilt image or a quilt video, with its :class:`~.views.QuiltGrid`
 (from the file name's ``_qsCOLSxROWSaASPECT`` suffix, :func:`~.views.parse_quilt_name`, or given).
 :class:`QuiltMapping` turns one quilt frame ``(H, W, 3)`` into the profile's ``N`` views
-``(N, H/rows, W/cols, 3)`` with :func:`~.views.split_quilt`; a quilt of another tile count is
+``(N, H // rows, W // cols, 3)`` with :func:`~.views.split_quilt` (left-over pixels of sides the
+grid does not divide unused, as Looking Glass leaves them); a quilt of another tile count is
 sampled as Looking Glass samples it: profile view ``i`` (of ``N``) shows tile
 ``floor((i + 0.5) * T / N)`` (of ``T``), the tile at the same fraction of the view cone
 (:func:`tile_for_views`).  A quilt made for another aspect ratio than the panel's is refused in
@@ -77,8 +78,16 @@ class QuiltMapping:
                          hint="use the profile of the panel the quilt was made for, or allow_stretch")
 
     def views(self, quilt: np.ndarray, source: str) -> np.ndarray:
-        """``(N, H/rows, W/cols, 3)`` views of the quilt frame ``(H, W, 3)`` (view 0 bottom-left)."""
-        tiles = split_quilt(quilt, self.grid, source=source)
+        """``(N, H // rows, W // cols, 3)`` views of the quilt frame ``(H, W, 3)`` (view 0
+        bottom-left).  A quilt whose sides do not divide by the grid (Looking Glass's 4096x4096 8x6
+        quilts: tiles of 512x682) is read as Looking Glass reads it: tiles of the whole pixels from
+        the bottom-left, the left-over rows at the top and columns at the right unused."""
+        height, width = quilt.shape[:2]
+        th, tw = height // self.grid.rows, width // self.grid.cols
+        if not th or not tw:
+            raise ImageError(f"a {width}x{height} quilt has no pixel per tile in a {self.grid.cols}x{self.grid.rows} "
+                             "grid", source=source, hint="check the grid (file-name suffix _qsCOLSxROWS or `grid`)")
+        tiles = split_quilt(quilt[height - th * self.grid.rows:, :tw * self.grid.cols], self.grid, source=source)
         self.check_aspect(tiles.shape[2] / tiles.shape[1], source)
         if self.grid.tiles == self.profile.views:
             return tiles
@@ -130,8 +139,8 @@ def check_video(item: QuiltItem, mapping: QuiltMapping) -> None:
     finally:
         cap.release()
     grid = item.grid
-    if width % grid.cols or height % grid.rows or not width or not height:
-        raise ImageError(f"its {width}x{height} frames do not divide into {grid.cols}x{grid.rows} tiles",
+    if width < grid.cols or height < grid.rows:
+        raise ImageError(f"its {width}x{height} frames have no pixel per tile in a {grid.cols}x{grid.rows} grid",
                          source=item.source, hint="check the grid (file-name suffix _qsCOLSxROWS or `grid`)")
     mapping.check_aspect((width // grid.cols) / (height // grid.rows), item.source)
 
