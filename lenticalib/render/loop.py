@@ -38,6 +38,7 @@ from ..core.errors import InputError
 from ..core.imageio import read_image
 from ..core.profile import PanelProfile
 from ..core.retarget import Retargeter
+from ..core.view_defaults import view_size_hint
 from ..core.view_direction import direction_warning
 from .cameras import ViewCameras, empty_views_warning, order_for_direction
 
@@ -184,7 +185,6 @@ class AvatarPipeline:
     def __init__(self, avatar, profile: PanelProfile, cameras: ViewCameras, *, renderer: str = "cpu",
                  encoder: str = "fast", device: str = "cpu", background: np.ndarray | None = None,
                  edge_desaturation: float = 0.0, compensator=None):
-        from ..core.view_defaults import view_size_hint
         from .encoders import get_encoder
         from .encoders.common import ASPECT_TOLERANCE
         from .renderers import get_renderer
