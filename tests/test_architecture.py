@@ -82,3 +82,154 @@ def test_imports_between_packages_sit_at_the_module_top():
     found = function_level_cross_package_imports(ROOT)
     assert not found, ("imports of another lenticalib package inside a function; move them to the module top, "
                        "or mark a needed one '# lazy: <reason>':\n" + "\n".join(found))
+
+
+def _module_path(dotted: str) -> Path | None:
+    """The file of lenticalib module ``dotted`` (a package's ``__init__.py``), or None if it is no module."""
+    path = ROOT.joinpath(*dotted.split("."))
+    if path.with_suffix(".py").is_file():
+        return path.with_suffix(".py")
+    if (path / "__init__.py").is_file():
+        return path / "__init__.py"
+    return None
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def private_names_imported_across_modules(root: Path) -> list[str]:
+    """``path:line module.name`` of each private name (leading underscore, dunders excepted) a lenticalib
+    module takes from another lenticalib module: ``from m import _name`` or ``alias._name`` on an imported
+    module, imports inside functions included.  A private submodule (``from pkg import _flags``) is a module,
+    not a name, and is allowed."""
+    found = []
+    for path in sorted((root / "lenticalib").rglob("*.py")):
+        parts = list(path.relative_to(root).with_suffix("").parts)
+        package = parts[:-1] if parts[-1] != "__init__" else parts[:-1]
+        if parts[-1] == "__init__":
+            package = parts[:-1]
+        tree = ast.parse(path.read_text())
+        modules: dict[str, str] = {}  # local alias -> dotted lenticalib module
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith("lenticalib.") and alias.asname:
+                        modules[alias.asname] = alias.name
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = ".".join(package[:len(package) - node.level + 1] + ([node.module] if node.module else []))
+                else:
+                    base = node.module or ""
+                if base.split(".")[0] != "lenticalib":
+                    continue
+                for alias in node.names:
+                    target = f"{base}.{alias.name}"
+                    if _module_path(target) is not None:
+                        modules[alias.asname or alias.name] = target
+                    elif _private(alias.name):
+                        found.append(f"{path.relative_to(root)}:{node.lineno} {target}")
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.value.id in modules and _private(node.attr)):
+                found.append(f"{path.relative_to(root)}:{node.lineno} {modules[node.value.id]}.{node.attr}")
+    return found
+
+
+def test_no_module_imports_a_private_name_of_another():
+    found = private_names_imported_across_modules(ROOT)
+    assert not found, ("private names taken from another lenticalib module; give each a public name "
+                       "(with a docstring) in the module that owns it:\n" + "\n".join(found))
+
+
+def _module_name(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def module_import_graph(root: Path) -> dict[str, set[str]]:
+    """``{module: modules it imports}`` over lenticalib, read from the AST, imports inside functions included.
+
+    Relative imports are resolved; ``from pkg import name`` counts as an import of ``pkg.name`` when that
+    is a module, else of ``pkg``.  A package's ``__init__`` importing its own submodules (its re-exports)
+    is left out: a module that imports the package would otherwise close a cycle with every sibling.
+    """
+    paths = sorted((root / "lenticalib").rglob("*.py"))
+    modules = {_module_name(p, root): p for p in paths}
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, path in modules.items():
+        is_package = path.name == "__init__.py"
+        package = name.split(".") if is_package else name.split(".")[:-1]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            for target in _imported_modules(node, package):
+                if target.split(".")[0] != "lenticalib":
+                    continue
+                if isinstance(node, ast.ImportFrom) and target not in modules:
+                    target = target.rsplit(".", 1)[0]
+                while target not in modules and "." in target:
+                    target = target.rsplit(".", 1)[0]
+                if target == name or (is_package and target.startswith(name + ".")):
+                    continue
+                graph[name].add(target)
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for nxt in sorted(graph[node]):
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in on_stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return sorted(found)
+
+
+# The import cycles main still has (issue 47), each hidden by an import inside a function; the list only
+# shrinks: a cycle not in it fails the test, and one broken must leave it.
+KNOWN_CYCLES: tuple[tuple[str, ...], ...] = (
+    ("lenticalib.calib.camera_file", "lenticalib.calib.intrinsics.crossval", "lenticalib.calib.intrinsics.solve"),
+    ("lenticalib.calib.intrinsics.charuco_corners", "lenticalib.calib.intrinsics.corners",
+     "lenticalib.calib.intrinsics.partial"),
+    ("lenticalib.render.controls", "lenticalib.render.student.live", "lenticalib.render.student.predict"),
+    ("lenticalib.render.diagnose", "lenticalib.render.diagnose_report"),
+    ("lenticalib.render.gl_pipeline", "lenticalib.render.loop"),
+    ("lenticalib.render.present", "lenticalib.render.present_offscreen"),
+    ("lenticalib.render.rig", "lenticalib.render.rig_file", "lenticalib.render.rig_mesh"),
+)
+
+
+def test_no_import_cycles_between_modules():
+    cycles = [tuple(c) for c in import_cycles(module_import_graph(ROOT))]
+    new = [c for c in cycles if c not in KNOWN_CYCLES]
+    assert not new, "import cycles between modules (imports inside functions included):\n" + "\n".join(
+        " <-> ".join(c) for c in new)
+    gone = [c for c in KNOWN_CYCLES if c not in cycles]
+    assert not gone, "broken cycles still listed in KNOWN_CYCLES:\n" + "\n".join(" <-> ".join(c) for c in gone)
+    assert len(cycles) <= len(KNOWN_CYCLES)
