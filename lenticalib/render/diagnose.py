@@ -52,12 +52,11 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.outputs import check_output_folder
 from .camera_models import robust_box
+from .diagnose_report import REPORT_CONTENTS, REPORT_WHAT, write_diagnose_report
 from .side_metrics import HIGHER_IS_BETTER, METRICS, crop_rule, view_metrics
 
 SIDE_YAW_DEG = 25.0
 DEMO_FPS = 30.0
-REPORT_WHAT = "avatar diagnostics report"
-REPORT_CONTENTS = ("*.json", "*-metrics.png", "*-sides.png")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -274,8 +273,6 @@ def diagnose_avatars(avatars: list[str | os.PathLike], *, mesh: str | os.PathLik
     step = steps("diagnosing", 2 * len(prepared))
     records = [_diagnose_one(p, o, render_fn, renderer, step) for p in prepared]
     if report is not None:
-        from .diagnose_report import write_diagnose_report
-
         write_diagnose_report(report, records, report_names([r["avatar"] for r in records]), o, inputs=inputs)
     for r in records:
         r.pop("_maps")

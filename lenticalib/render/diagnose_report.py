@@ -33,6 +33,8 @@ from .side_metrics import (DILATION_PX, HIGHER_IS_BETTER, METRIC_MEANINGS, METRI
 
 DOCUMENT = FORMATS["lenticalib.avatar-diagnostics"]
 FIGURE_SIZES = {"metrics": (1800, 1500), "sides": (1800, 1000)}
+REPORT_WHAT = "avatar diagnostics report"
+REPORT_CONTENTS = ("*.json", "*-metrics.png", "*-sides.png")
 UNITS = {"O_alpha": "share of the view's alpha", "G_m": "share of the view's alpha", "G_d": "alpha per pixel of N",
          "S_n": "4A(1-A) per pixel of N", "S_alpha": "4A(1-A) per pixel of D", "F_c": "saturation (0..1)",
          "E_c": "|grad C|_1 per pixel (1/px)"}
@@ -42,8 +44,6 @@ def write_diagnose_report(directory: str | os.PathLike, records: list[dict], nam
                           inputs: Inputs) -> Path:
     """Write the report of ``records`` (with their ``_maps``) under ``names`` into ``directory``, staged
     (``directory`` may neither be nor hold one of the ``inputs``, the files the diagnosis read)."""
-    from .diagnose import REPORT_CONTENTS, REPORT_WHAT
-
     with staged_folder(directory, REPORT_WHAT, REPORT_CONTENTS, inputs=inputs) as stage:
         for record, name in zip(records, names):
             body = {k: v for k, v in record.items() if k != "_maps"}
