@@ -129,11 +129,11 @@ def test_a_chessboard_cut_by_the_frame_is_located_again_on_its_cut_side_too(rend
 def test_chessboard_windows_reach_a_share_of_the_square_along_its_shorter_side():
     """A grid of 40 x 20 px squares (foreshortened): the window is CHESSBOARD_WINDOW of the shorter
     side, so the board's next lines stay out of it; large squares are capped."""
-    from lenticalib.calib.intrinsics.corner_model import _local_axes
+    from lenticalib.calib.intrinsics.corner_model import local_axes
 
     jj, ii = np.meshgrid(np.arange(COLS, dtype=np.float64), np.arange(ROWS, dtype=np.float64))
     for sx, sy, want in ((40.0, 20.0, int(CHESSBOARD_WINDOW * 20)), (400.0, 300.0, CHESSBOARD_MAX_WINDOW)):
         grid = np.stack([sx * jj, sy * ii], axis=-1)
         grid[0, 0] = np.nan
-        win = windows(grid, BOARD, _local_axes(grid))
+        win = windows(grid, BOARD, local_axes(grid))
         assert win[0, 0] == 0 and (win[np.isfinite(grid[..., 0])] == want).all(), (sx, sy, np.unique(win))

@@ -32,7 +32,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .lkg_file import DEFAULT_SOURCE, _normalize
+from .lkg_file import DEFAULT_SOURCE, normalize_visual
 
 
 def _cell_index(mode: int, x: np.ndarray, y_gl: np.ndarray) -> np.ndarray:
@@ -54,7 +54,7 @@ def lkg_phase(visual: Mapping[str, Any]) -> np.ndarray:
     ``y`` counts from the top (lenticalib's row), channel 0, 1, 2 = R, G, B.  In lenticules, not
     reduced.
     """
-    v = _normalize(visual, DEFAULT_SOURCE)
+    v = normalize_visual(visual, DEFAULT_SOURCE)
     w, h = v["screenW"], v["screenH"]
     pitch, slope, center, dpi = v["pitch"], v["slope"], v["center"], v["DPI"]
     sign = -1.0 if v.get("flipImageX", 0.0) == 1.0 else 1.0
@@ -87,7 +87,7 @@ def lkg_view_map(visual: Mapping[str, Any], views: int) -> np.ndarray:
     ``floor(z N)`` with ``z = 1 - frac(phase)`` (``invView = 1`` or absent) or ``frac(phase)``
     (``invView = 0``), in float64; N occurs only on exact ties with ``invView = 1``.
     """
-    v = _normalize(visual, DEFAULT_SOURCE)
+    v = normalize_visual(visual, DEFAULT_SOURCE)
     phase = lkg_phase(v)
     frac = phase - np.floor(phase)
     z = frac if v.get("invView", 1.0) == 0.0 else 1.0 - frac

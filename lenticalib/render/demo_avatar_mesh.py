@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .demo_avatar_parts import DEMO_BONES, EYE_L, EYE_R, HEAD, JAW, NECK, _jaw_weight, ear_geometry
+from .demo_avatar_parts import DEMO_BONES, EYE_L, EYE_R, HEAD, JAW, NECK, ear_geometry, jaw_weight
 from .demo_avatar_shapes import EYE_RADIUS, eye_centres, head_surface, neck_radius, smoothstep, sphere_at
 
 HEAD_GRID = (120, 240)   # polar x azimuth steps of the head surface
@@ -46,7 +46,7 @@ def _head():
     d = np.stack([np.sin(T) * np.sin(P), np.cos(T), np.sin(T) * np.cos(P)], -1).reshape(-1, 3)
     p, _ = head_surface(d)
     w = np.zeros((len(p), len(DEMO_BONES)))
-    wj = _jaw_weight(p)
+    wj = jaw_weight(p)
     w[:, JAW], w[:, HEAD] = wj, 1 - wj
     return p, grid_triangles(nu, nv, True), w, True
 

@@ -78,13 +78,13 @@ def make_skin(rng, n):
     scalp, _ = hairline(d, y)
     albedo[scalp] = HAIR * 0.7
     weights = np.zeros((n, len(DEMO_BONES)))
-    wj = _jaw_weight(p)
+    wj = jaw_weight(p)
     weights[:, JAW] = wj
     weights[:, HEAD] = 1 - wj
     return Part("skin", p, nrm, surf.tangent, surf.scales(), albedo, 0.96, weights, ao=conc * 25)
 
 
-def _jaw_weight(p):
+def jaw_weight(p):
     """How much a point of the lower face follows the jaw: 1 below the lips, 0 above, soft at the cheeks."""
     x, y, z = p[:, 0], p[:, 1], p[:, 2]
     ax = np.abs(x)

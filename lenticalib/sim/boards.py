@@ -205,9 +205,9 @@ def print_board_radiance(camera: Camera, board, pose: BoardPose, rng: np.random.
 
     The light falls off across the board by up to +-8 % in a random direction drawn from ``rng``.
     """
-    from .render import _undistortion_grid
+    from .render import undistortion_grid
 
-    gx, gy = _undistortion_grid(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy,
+    gx, gy = undistortion_grid(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy,
                                 tuple(float(v) for v in camera.distortion), GRID_STEP)
     angle = rng.uniform(0.0, 2.0 * math.pi)
     slope = rng.uniform(0.0, 0.16) / max(board.size_mm)

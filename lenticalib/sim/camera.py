@@ -27,7 +27,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..core.errors import InputError
-from .optics import _fields_from
+from .optics import fields_from
 
 UNDISTORT_CRITERIA = (3, 100, 1e-13)  # cv2.TERM_CRITERIA_COUNT | EPS, iterations, epsilon
 
@@ -276,6 +276,6 @@ class Camera:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "scene") -> "Camera":
         """Inverse of :meth:`to_dict`; InputError naming ``source`` for unknown or missing fields."""
-        return cls(**_fields_from(cls, data, source, "camera",
+        return cls(**fields_from(cls, data, source, "camera",
                                   tuples=("distortion", "position", "aim", "colour_matrix", "vignetting",
                                           "chromatic")))

@@ -306,7 +306,7 @@ class PanelOptics:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "scene") -> "PanelOptics":
         """Inverse of :meth:`to_dict`; InputError naming ``source`` for unknown or missing fields."""
-        fields = _fields_from(cls, data, source, "optics", tuples=("backlight",))
+        fields = fields_from(cls, data, source, "optics", tuples=("backlight",))
         if fields.get("subpixel_layout") is not None:
             try:
                 fields["subpixel_layout"] = layout_from_dict(fields["subpixel_layout"], source)
@@ -316,7 +316,7 @@ class PanelOptics:
         return cls(**fields)
 
 
-def _fields_from(cls, data: Any, source: str, what: str, tuples: tuple[str, ...] = ()) -> dict[str, Any]:
+def fields_from(cls, data: Any, source: str, what: str, tuples: tuple[str, ...] = ()) -> dict[str, Any]:
     """Keyword arguments for dataclass ``cls`` from a JSON mapping, with one-line errors."""
     if not isinstance(data, Mapping):
         raise InputError(f"'{what}' must be a JSON object", source=source)

@@ -366,7 +366,7 @@ def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, ca
 
 
 @functools.lru_cache(maxsize=4)
-def _undistortion_grid(width: int, height: int, fx: float, fy: float, cx: float, cy: float,
+def undistortion_grid(width: int, height: int, fx: float, fy: float, cx: float, cy: float,
                        distortion: tuple, step: int) -> tuple[np.ndarray, np.ndarray]:
     """Normalized undistorted coordinates at pixel coordinates (J step - 0.5, I step - 0.5)."""
     geometry = Camera(width=width, height=height, fx=fx, fy=fy, cx=cx, cy=cy, distortion=distortion,
@@ -425,7 +425,7 @@ def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:
     raster = check_raster(raster, scene)
     cam = scene.camera
     lut = srgb_decode_lut()
-    gx, gy = _undistortion_grid(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy,
+    gx, gy = undistortion_grid(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy,
                                 tuple(float(v) for v in cam.distortion), GRID_STEP)
     rot = np.ascontiguousarray(cam.rotation)
     position = np.asarray(cam.position, np.float64)

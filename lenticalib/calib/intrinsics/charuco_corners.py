@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import corner_model
-from .corner_model import _local_axes, fit_corners
+from .corner_model import fit_corners, local_axes
 from .corners import SUBPIX_LIMITS
 
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
@@ -75,14 +75,14 @@ def charuco_windows(corners: np.ndarray, board, axes: np.ndarray | None = None) 
     """The ``cv2.cornerSubPix`` half-window (px, int) of each identified ChArUco corner: the
     largest image-aligned square window that stays inside the clean chessboard around the corner
     (the markers start ``gap = (1 - marker/square) / 2`` of a square away), mapped through the
-    corner's local image axes (:func:`_local_axes`, so a rolled or foreshortened board gets a window
+    corner's local image axes (:func:`local_axes`, so a rolled or foreshortened board gets a window
     that still misses its markers), times ``CHARUCO_WINDOW``; at most ``SUBPIX_LIMITS[1]``.  A
     corner without an identified neighbour gets the median window.  int ``(rows, cols)``, 0 where
-    not identified.  ``axes``: float64 ``(rows, cols, 2, 2)``, the local axes (as :func:`_local_axes`
+    not identified.  ``axes``: float64 ``(rows, cols, 2, 2)``, the local axes (as :func:`local_axes`
     returns them) in another view of the corners (:mod:`.rectified`); None: from ``corners``."""
     seen = np.isfinite(corners[..., 0])
     win = np.zeros(seen.shape, int)
-    axes = _local_axes(corners) if axes is None else axes
+    axes = local_axes(corners) if axes is None else axes
     ok = seen & np.all(np.isfinite(axes), axis=(-2, -1))
     gap = (1.0 - float(board.marker_mm) / float(board.square_mm)) / 2.0
     half = np.full(seen.shape, np.nan)

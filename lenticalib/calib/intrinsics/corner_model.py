@@ -220,7 +220,7 @@ def axes(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return coef[2], coef[1]
 
 
-def _local_axes(corners: np.ndarray) -> np.ndarray:
+def local_axes(corners: np.ndarray) -> np.ndarray:
     """Per corner of a ``(rows, cols, 2)`` grid (NaN = missing), the image vectors (px) of one square
     along the board's columns and rows: float64 ``(rows, cols, 2, 2)``, ``[..., :, 0]`` along +x,
     ``[..., :, 1]`` along +y; central differences where both neighbours are known, one-sided where
@@ -242,10 +242,10 @@ def _local_axes(corners: np.ndarray) -> np.ndarray:
 
 
 def corner_axes(corners: np.ndarray) -> np.ndarray:
-    """:func:`_local_axes`, with the grid's own affine axes (:func:`axes`) for a corner that has no
+    """:func:`local_axes`, with the grid's own affine axes (:func:`axes`) for a corner that has no
     seen neighbour (a lone identified corner of a cut ChArUco board); NaN only where fewer than
     three corners are seen."""
-    local = _local_axes(corners)
+    local = local_axes(corners)
     lone = np.isfinite(corners[..., 0]) & ~(np.isfinite(local[..., 0, 0]) & np.isfinite(local[..., 0, 1]))
     if lone.any() and np.isfinite(corners[..., 0]).sum() >= 3:
         along, down = axes(corners)

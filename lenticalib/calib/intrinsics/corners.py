@@ -116,7 +116,7 @@ def grey8(image: np.ndarray) -> np.ndarray:
     return np.clip(enc * 255.0 + 0.5, 0, 255).astype(np.uint8)
 
 
-def _sample(grey: np.ndarray, points: np.ndarray) -> np.ndarray:
+def sample_bilinear(grey: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Bilinear grey values at pixel coordinates ``points`` (n, 2); NaN outside the image."""
     from scipy.ndimage import map_coordinates
 
@@ -150,7 +150,7 @@ def orient(corners: np.ndarray, grey: np.ndarray, symmetric: bool) -> np.ndarray
         return c if (c[0, -1] - c[0, 0])[0] >= (turned[0, -1] - turned[0, 0])[0] else turned
     rows, cols = c.shape[:2]
     centres = 0.25 * (c[:-1, :-1] + c[1:, :-1] + c[:-1, 1:] + c[1:, 1:])  # inner squares
-    values = _sample(grey, centres.reshape(-1, 2))
+    values = sample_bilinear(grey, centres.reshape(-1, 2))
     ii, jj = np.meshgrid(np.arange(rows - 1), np.arange(cols - 1), indexing="ij")
     black = ((ii + jj) % 2 == 0).ravel()  # as drawn: the square inside corner (i, j) is black for even i + j
     ok = np.isfinite(values)

@@ -62,7 +62,7 @@ def holdout_rss(mrcal, solve, half_solves, keep: np.ndarray) -> np.ndarray:
     RETURNED VALUE
     float64 ``(Nframes,)``; NaN for a photo with fewer than 4 corners in ``keep``.
     """
-    from .solve import _optimize, board_residuals, frame_indices
+    from .solve import board_residuals, frame_indices, optimize_quietly
 
     oi_full = solve.optimization_inputs
     rss = np.full(len(keep), np.nan)
@@ -76,7 +76,7 @@ def holdout_rss(mrcal, solve, half_solves, keep: np.ndarray) -> np.ndarray:
                   do_optimize_intrinsics_core=False, do_optimize_intrinsics_distortions=False,
                   do_optimize_calobject_warp=False, do_optimize_frames=True,
                   do_apply_outlier_rejection=False, do_apply_regularization=False)
-        _optimize(mrcal, **oi)
+        optimize_quietly(mrcal, **oi)
         r = board_residuals(oi)
         sq = np.where(keep[held], np.sum(r * r, axis=-1), 0.0).sum(axis=(1, 2))
         rss[held] = np.where(keep[held].sum(axis=(1, 2)) >= 4, sq, np.nan)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .corner_model import axes
-from .corners import _sample
+from .corners import sample_bilinear
 
 EDGE_PAPER_AT = 1.3  # squares beyond a block's outer corner row where paper shows if it is the board's edge
 EDGE_MARGIN_PX = 3.0  # such a sample must be this far inside the photo to count
@@ -66,14 +66,14 @@ def side_is_edge(grey: np.ndarray, block: np.ndarray) -> bool:
         return False
     paper = paper[inside]
     centres = 0.25 * (block[:-1, :-1] + block[1:, :-1] + block[:-1, 1:] + block[1:, 1:]).reshape(-1, 2)
-    inner = _sample(grey, centres)
+    inner = sample_bilinear(grey, centres)
     inner = inner[np.isfinite(inner)]
     if inner.size < 2:
         return False
     dark, bright = np.percentile(inner, 25), np.percentile(inner, 75)
     if bright - dark < 20:
         return False
-    values = _sample(grey, paper)
+    values = sample_bilinear(grey, paper)
     return bool(np.all(values > dark + 0.6 * (bright - dark)))
 
 
@@ -149,8 +149,8 @@ def checkered(grey: np.ndarray, block: np.ndarray) -> bool:
     ``CALIB_CB_LARGER`` the detector can return every other corner along an axis: then the cell
     centres land on corners, mid-grey; or skip corners, refused by :func:`_wide_sides`.)"""
     a, b, c, d = block[:-1, :-1], block[:-1, 1:], block[1:, :-1], block[1:, 1:]
-    centres = _sample(grey, (0.25 * (a + b + c + d)).reshape(-1, 2)).reshape(a.shape[:2])
-    quarters = np.concatenate([_sample(grey, (0.625 * p + 0.125 * (a + b + c + d - p)).reshape(-1, 2))
+    centres = sample_bilinear(grey, (0.25 * (a + b + c + d)).reshape(-1, 2)).reshape(a.shape[:2])
+    quarters = np.concatenate([sample_bilinear(grey, (0.625 * p + 0.125 * (a + b + c + d - p)).reshape(-1, 2))
                                for p in (a, b, c, d)])
     quarters = quarters[np.isfinite(quarters)]
     i, j = np.indices(centres.shape)

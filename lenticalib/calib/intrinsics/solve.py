@@ -112,7 +112,9 @@ def _quiet_c_stderr():
         os.close(saved)
 
 
-def _optimize(mrcal, **inputs) -> dict:
+def optimize_quietly(mrcal, **inputs) -> dict:
+    """``mrcal.optimize(**inputs)`` (solves the ``optimization_inputs`` dict in place) with mrcal's C-level
+    stderr chatter silenced; returns mrcal's stats dict.  Shared with crossval's refits."""
     with _quiet_c_stderr():
         return mrcal.optimize(**inputs)
 
@@ -243,8 +245,8 @@ def _seed(mrcal, observations, indices, imagersizes, spacing, focal):
                   do_optimize_intrinsics_distortions=False, do_optimize_calobject_warp=False,
                   calibration_object_spacing=spacing, do_apply_outlier_rejection=False,
                   do_apply_regularization=False, verbose=False)
-    _optimize(mrcal, **common, do_optimize_intrinsics_core=False)
-    _optimize(mrcal, **common, do_optimize_intrinsics_core=True)
+    optimize_quietly(mrcal, **common, do_optimize_intrinsics_core=False)
+    optimize_quietly(mrcal, **common, do_optimize_intrinsics_core=True)
     return intrinsics, rt_ref_frame
 
 
@@ -266,10 +268,10 @@ def _solve_model(mrcal, lensmodel, seed, observations, indices, imagersizes, spa
               do_optimize_extrinsics=False, do_optimize_frames=True, do_optimize_calobject_warp=False,
               calibration_object_spacing=spacing, do_apply_outlier_rejection=True,
               do_apply_regularization=True, verbose=False)
-    _optimize(mrcal, **oi)
+    optimize_quietly(mrcal, **oi)
     oi["calobject_warp"] = np.zeros(2)
     oi["do_optimize_calobject_warp"] = True
-    _optimize(mrcal, **oi)
+    optimize_quietly(mrcal, **oi)
     residuals = board_residuals(oi)
     return Solve(lensmodel, oi, residuals, oi["observations_board"][..., 2] > 0, time.perf_counter() - start)
 

@@ -42,7 +42,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ...core.jit import cached_njit
-from ._simd import _const, _splat, next_source_row, prefetch_row_lines
+from ._simd import next_source_row, prefetch_row_lines, splat, vector_constant
 
 LANES = 64
 WINDOW = 128  # bytes a two-source byte permute selects from
@@ -214,13 +214,13 @@ def _block_codegen(context, builder, signature, args):
         phi.add_incoming(value, loop)
     builder.cbranch(builder.icmp_unsigned("<", k_next, windows), loop, done)
     builder.position_at_end(done)
-    upper = builder.lshr(_x_blend(builder, new[0], new[1], weights), _const(v32, Y_DROP))
-    lower = builder.lshr(_x_blend(builder, new[2], new[3], weights), _const(v32, Y_DROP))
-    fy32 = _splat(builder, builder.trunc(fy, _I32), v32)
-    acc = builder.add(builder.add(builder.shl(upper, _const(v32, Y_BITS)), builder.mul(builder.sub(lower, upper), fy32)),
-                      _const(v32, 1 << (X_BITS - Y_DROP + Y_BITS - 1)))
-    value = builder.trunc(builder.lshr(acc, _const(v32, X_BITS - Y_DROP + Y_BITS)), _V8)
-    value = builder.select(builder.icmp_unsigned("==", view, _const(_V8, DARK)), zero, value)
+    upper = builder.lshr(_x_blend(builder, new[0], new[1], weights), vector_constant(v32, Y_DROP))
+    lower = builder.lshr(_x_blend(builder, new[2], new[3], weights), vector_constant(v32, Y_DROP))
+    fy32 = splat(builder, builder.trunc(fy, _I32), v32)
+    acc = builder.add(builder.add(builder.shl(upper, vector_constant(v32, Y_BITS)), builder.mul(builder.sub(lower, upper), fy32)),
+                      vector_constant(v32, 1 << (X_BITS - Y_DROP + Y_BITS - 1)))
+    value = builder.trunc(builder.lshr(acc, vector_constant(v32, X_BITS - Y_DROP + Y_BITS)), _V8)
+    value = builder.select(builder.icmp_unsigned("==", view, vector_constant(_V8, DARK)), zero, value)
     builder.store(value, builder.inttoptr(out_ptr, _V8.as_pointer()), align=1)
     return context.get_dummy_value()
 

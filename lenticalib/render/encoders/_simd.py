@@ -48,13 +48,15 @@ _V1, _V8, _V32, _V64 = (ir.VectorType(t, LANES) for t in (_I1, _I8, _I32, _I64))
 _VPTR = ir.VectorType(ir.PointerType(), LANES)
 
 
-def _splat(builder, value, vty):
+def splat(builder, value, vty):
+    """LLVM IR: the scalar ``value`` broadcast to every lane of vector type ``vty`` (shared with _permute)."""
     first = builder.insert_element(ir.Constant(vty, ir.Undefined), value, ir.Constant(_I32, 0))
     return builder.shuffle_vector(first, ir.Constant(vty, ir.Undefined),
                                   ir.Constant(ir.VectorType(_I32, vty.count), [0] * vty.count))
 
 
-def _const(vty, value):
+def vector_constant(vty, value):
+    """LLVM IR: a constant of vector type ``vty`` with ``value`` in every lane (shared with _permute)."""
     return ir.Constant(vty, [value] * vty.count)
 
 
@@ -68,11 +70,11 @@ def _view_index(builder, z, n_or_shift, pow2, dark):
         halves = builder.bitcast(z, ir.VectorType(_I32, 2 * LANES))
         high = builder.shuffle_vector(halves, ir.Constant(halves.type, ir.Undefined),
                                       ir.Constant(_V32, [2 * lane + 1 for lane in range(LANES)]))
-        return builder.lshr(high, _splat(builder, builder.trunc(builder.sub(n_or_shift, ir.Constant(_I64, 32)), _I32), _V32)), None
-    n = _splat(builder, builder.zext(builder.trunc(n_or_shift, _I32), _I64), _V64)
-    c32 = _const(_V64, 32)
+        return builder.lshr(high, splat(builder, builder.trunc(builder.sub(n_or_shift, ir.Constant(_I64, 32)), _I32), _V32)), None
+    n = splat(builder, builder.zext(builder.trunc(n_or_shift, _I32), _I64), _V64)
+    c32 = vector_constant(_V64, 32)
     hi = builder.mul(builder.lshr(z, c32), n)
-    lo = builder.mul(builder.and_(z, _const(_V64, 0xFFFFFFFF)), n)
+    lo = builder.mul(builder.and_(z, vector_constant(_V64, 0xFFFFFFFF)), n)
     view = builder.trunc(builder.lshr(builder.add(hi, builder.lshr(lo, c32)), c32), _V32)
     return view, (builder.add(lo, builder.shl(hi, c32)) if dark else None)
 
@@ -81,19 +83,19 @@ def _make_codegen(pow2: bool, dark: bool):
     def codegen(context, builder, signature, args):
         base, tab_ptr, lane_ptr, out_ptr, z_block, n_or_shift, threshold, stride, fy = args
         lane = builder.load(builder.inttoptr(lane_ptr, _V64.as_pointer()), align=8)
-        z = builder.sub(_splat(builder, z_block, _V64), lane)
+        z = builder.sub(splat(builder, z_block, _V64), lane)
         view, frac = _view_index(builder, z, n_or_shift, pow2, dark)
         tab = builder.load(builder.inttoptr(tab_ptr, _V32.as_pointer()), align=4)
-        col = builder.and_(tab, _const(_V32, (1 << COLUMN_BITS) - 1))
-        fx = builder.lshr(tab, _const(_V32, COLUMN_BITS))
-        offsets = builder.add(builder.mul(view, _splat(builder, builder.trunc(stride, _I32), _V32)), col)
+        col = builder.and_(tab, vector_constant(_V32, (1 << COLUMN_BITS) - 1))
+        fx = builder.lshr(tab, vector_constant(_V32, COLUMN_BITS))
+        offsets = builder.add(builder.mul(view, splat(builder, builder.trunc(stride, _I32), _V32)), col)
         gather = cgutils.get_or_insert_function(
             builder.module, ir.FunctionType(_V64, [_VPTR, _I32, _V1, _V64]),
             f"llvm.masked.gather.v{LANES}i64.v{LANES}p0")
         # base + 32-bit offsets: LLVM emits the 32-bit-index gather, not the 64-bit-index form
-        ptrs = builder.gep(_splat(builder, builder.inttoptr(base, ir.PointerType()), _VPTR), [offsets],
+        ptrs = builder.gep(splat(builder, builder.inttoptr(base, ir.PointerType()), _VPTR), [offsets],
                            source_etype=_I8)
-        taps = builder.call(gather, [ptrs, ir.Constant(_I32, 1), _const(_V1, 1), ir.Constant(_V64, ir.Undefined)])
+        taps = builder.call(gather, [ptrs, ir.Constant(_I32, 1), vector_constant(_V1, 1), ir.Constant(_V64, ir.Undefined)])
         # the 8 bytes hold (top, bottom) of the left tap and, 6 bytes on, of the right tap: keep
         # bytes 0, 6 (top row) and 1, 7 (bottom row) of each, one byte shuffle per output register
         as_bytes = builder.bitcast(taps, ir.VectorType(_I8, 8 * LANES))
@@ -101,23 +103,23 @@ def _make_codegen(pow2: bool, dark: bool):
         words = builder.bitcast(builder.shuffle_vector(as_bytes, ir.Constant(as_bytes.type, ir.Undefined),
                                                        ir.Constant(ir.VectorType(_I32, 4 * LANES), picks)), _V32)
         one = 1 << WEIGHT_BITS
-        gx = builder.sub(_const(_V32, one), fx)
-        low_byte = _const(_V32, 255)
+        gx = builder.sub(vector_constant(_V32, one), fx)
+        low_byte = vector_constant(_V32, 255)
 
         def blend_row(shift):
-            left = builder.and_(builder.lshr(words, _const(_V32, shift)) if shift else words, low_byte)
-            right = builder.and_(builder.lshr(words, _const(_V32, shift + 8)), low_byte)
+            left = builder.and_(builder.lshr(words, vector_constant(_V32, shift)) if shift else words, low_byte)
+            right = builder.and_(builder.lshr(words, vector_constant(_V32, shift + 8)), low_byte)
             return builder.add(builder.mul(left, gx), builder.mul(right, fx))
 
         fy32 = builder.trunc(fy, _I32)
         acc = builder.add(
-            builder.add(builder.mul(blend_row(0), _splat(builder, builder.sub(ir.Constant(_I32, one), fy32), _V32)),
-                        builder.mul(blend_row(16), _splat(builder, fy32, _V32))),
-            _const(_V32, 1 << (2 * WEIGHT_BITS - 1)))
-        value = builder.lshr(acc, _const(_V32, 2 * WEIGHT_BITS))
+            builder.add(builder.mul(blend_row(0), splat(builder, builder.sub(ir.Constant(_I32, one), fy32), _V32)),
+                        builder.mul(blend_row(16), splat(builder, fy32, _V32))),
+            vector_constant(_V32, 1 << (2 * WEIGHT_BITS - 1)))
+        value = builder.lshr(acc, vector_constant(_V32, 2 * WEIGHT_BITS))
         if dark:
-            lit = builder.icmp_unsigned("<", frac, _splat(builder, threshold, _V64))
-            value = builder.select(lit, value, _const(_V32, 0))
+            lit = builder.icmp_unsigned("<", frac, splat(builder, threshold, _V64))
+            value = builder.select(lit, value, vector_constant(_V32, 0))
         builder.store(builder.trunc(value, _V8), builder.inttoptr(out_ptr, _V8.as_pointer()), align=1)
         return context.get_dummy_value()
 
