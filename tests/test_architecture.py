@@ -218,7 +218,6 @@ KNOWN_CYCLES: tuple[tuple[str, ...], ...] = (
     ("lenticalib.calib.intrinsics.charuco_corners", "lenticalib.calib.intrinsics.corners",
      "lenticalib.calib.intrinsics.partial"),
     ("lenticalib.render.controls", "lenticalib.render.student.live", "lenticalib.render.student.predict"),
-    ("lenticalib.render.gl_pipeline", "lenticalib.render.loop"),
     ("lenticalib.render.present", "lenticalib.render.present_offscreen"),
     ("lenticalib.render.rig", "lenticalib.render.rig_file", "lenticalib.render.rig_mesh"),
 )

@@ -54,6 +54,7 @@ Judging an avatar for the panel
 
 On OpenGL (any GPU driver, or Mesa's llvmpipe)
     gl_context          offscreen OpenGL contexts (EGL first), shared by the presenter and the gl backends
+    host_views          the views stage on the host: background, edge desaturation, 8 bits, pre-compensation
     gl_views            the views stage on the GPU: background, edge desaturation, 8 bits, pre-compensation
     gl_pipeline         render, views stage and encode in one OpenGL context (``GLFrame``), timer queries
 """

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..core.profile import PanelProfile
 from .cameras import ViewCameras
+from .host_views import prepare_views
 
 _HINT = "or use the cpu renderer and the fast encoder"
 
@@ -95,8 +96,6 @@ class GLFrame:
             if self.stage is not None:
                 compose_ms = self._timed("compose", lambda: self.stage.run(self.renderer.views))
             else:  # no compute shaders: the host path, then one upload
-                from .loop import prepare_views
-
                 self._host_views = prepare_views(self.renderer.read(), self.background, self.edge_desaturation,
                                                  self.compensator, background_rendered=self._colour_background())
                 self.encoder.upload_views(self._host_views)
