@@ -180,7 +180,7 @@ def test_kernels_are_cached_on_disk_and_compile_without_a_writable_folder(monkey
     from lenticalib.render.renderers import cpu_project
 
     assert fast._encode_scalar._cache.__class__.__name__ == "FunctionCache"  # kept on disk between runs
-    assert cpu_project._project._cache.__class__.__name__ == "FunctionCache"
+    assert cpu_project.project_view._cache.__class__.__name__ == "FunctionCache"
 
     def halve(x):
         return x / 2

@@ -58,8 +58,9 @@ from numba.extending import intrinsic
 from ...core.jit import cached_njit
 from ..gaussians import Gaussians
 from .common import TILE_SIZE, check_finite_gaussians, check_render_inputs, jacobian_limits
-from .cpu_project import (_B, _CA, _CB, _CC, _CHUNKS, _EXT_Y, _G, _MX, _MY, _OP, _Q, _R, _RECORD, _SLOPE,
-                          ALPHA_MIN, _bin, _front_to_back, _project, _world_covariances)
+from .cpu_project import (ALPHA_MIN, BIN_CHUNKS, REC_B, REC_CA, REC_CB, REC_CC, REC_EXT_Y, REC_G, REC_MX, REC_MY,
+                          REC_OP, REC_Q, REC_R, REC_SLOPE, RECORD_FIELDS, bin_tiles, front_to_back, project_view,
+                          world_covariances)
 
 __all__ = ["ALPHA_MAX", "ALPHA_MIN", "T_MIN", "render_cpu"]
 
@@ -201,14 +202,14 @@ def _composite(records, offsets, ids, tile_order, workers, width, height, tiles_
             pxs = xs.ctypes.data
             for j in range(offsets[t], offsets[t + 1]):
                 g = ids[j]
-                mx, my = records[g, _MX], records[g, _MY]
-                ext_y = np.float64(records[g, _EXT_Y])
-                slope, q = np.float64(records[g, _SLOPE]), np.float64(records[g, _Q])
+                mx, my = records[g, REC_MX], records[g, REC_MY]
+                ext_y = np.float64(records[g, REC_EXT_Y])
+                slope, q = np.float64(records[g, REC_SLOPE]), np.float64(records[g, REC_Q])
                 ra = int(max(np.ceil(my - ext_y - 0.5) - y0, 0.0))  # clamped as floats, then converted
                 rb = int(min(np.floor(my + ext_y - 0.5) - y0, ts - 1.0))
-                half_a, b, half_c = half * records[g, _CA], records[g, _CB], half * records[g, _CC]
-                op = records[g, _OP]
-                cr, cg, cb = records[g, _R], records[g, _G], records[g, _B]
+                half_a, b, half_c = half * records[g, REC_CA], records[g, REC_CB], half * records[g, REC_CC]
+                op = records[g, REC_OP]
+                cr, cg, cb = records[g, REC_R], records[g, REC_G], records[g, REC_B]
                 for r in range(ra, rb + 1):
                     if alive[r] == 0:
                         continue
@@ -274,10 +275,10 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
         out[..., :3] = bg
         out[..., 3] = 0.0
         return out
-    cov = _world_covariances(g.quats, g.scales)
+    cov = world_covariances(g.quats, g.scales)
     tiles_x = -(-width // TILE_SIZE)
     tiles_y = -(-height // TILE_SIZE)
-    records = np.empty((g.count, _RECORD), dtype=np.float32)
+    records = np.empty((g.count, RECORD_FIELDS), dtype=np.float32)
     boxes = np.empty((g.count, 4), dtype=np.int32)
     depth = np.empty(g.count, dtype=np.float32)
     index = np.arange(g.count, dtype=np.uint64)
@@ -285,10 +286,11 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
     for view in range(n):
         k = Ks[view]
         fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2] + 0.5, k[1, 2] + 0.5
-        _project(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], fx, fy, cx, cy,
-                 jacobian_limits(width, height, fx, fy, cx, cy), width, height, tiles_x, tiles_y, records, boxes, depth)
-        order = _front_to_back(depth, index)
-        offsets, ids, packed = _bin(order, boxes, records, tiles_x * tiles_y, tiles_x, _CHUNKS)
+        project_view(g.means, cov, g.opacities, g.sh, g.sh_degree, viewmats[view], fx, fy, cx, cy,
+                     jacobian_limits(width, height, fx, fy, cx, cy), width, height, tiles_x, tiles_y,
+                     records, boxes, depth)
+        order = front_to_back(depth, index)
+        offsets, ids, packed = bin_tiles(order, boxes, records, tiles_x * tiles_y, tiles_x, BIN_CHUNKS)
         # busiest tiles first, dealt to the workers in turn, so that the threads finish together
         tile_order = np.argsort(offsets[:-1] - offsets[1:], kind="stable")
         _composite(packed, offsets, ids, tile_order, workers, width, height, tiles_x, bg, out[view])

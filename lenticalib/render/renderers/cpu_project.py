@@ -1,12 +1,16 @@
 """Projection, colour and binning kernels of the ``cpu`` renderer (:mod:`.cpu`), in numba.
 
-Per view: :func:`_world_covariances` (once per render, R S S^T R^T), :func:`_project` (EWA
+Per view: :func:`world_covariances` (once per render, R S S^T R^T), :func:`project_view` (EWA
 projection, culling, gsplat's opacity-aware tile box, SH colour by :func:`_sh_colour`),
-:func:`_front_to_back` (depth order, ties by index) and :func:`_bin` (per-tile lists, a parallel
+:func:`front_to_back` (depth order, ties by index) and :func:`bin_tiles` (per-tile lists, a parallel
 counting sort).  The maths and gsplat's constants are described in :mod:`.cpu`'s docstring; the
 compositing that consumes the records written here lives there.
 
-The per-Gaussian record layout (``_MX`` ... ``_EXT_Y``, ``_RECORD``) is defined here and read by
+Public because they are a contract shared by two renderers: :mod:`.cpu` composites the records, and
+the ``gl`` renderer (:mod:`.gl_upload`, :mod:`.gl_renderer`, :mod:`.gl_shaders`) uploads the same
+records and uses ``COV_MAX`` / ``SIGMA_MARGIN`` in its shaders.
+
+The per-Gaussian record layout (``REC_MX`` ... ``REC_EXT_Y``, ``RECORD_FIELDS``) is defined here and read by
 :func:`lenticalib.render.renderers.cpu._composite`.  numba's on-disk cache (``cache=True``) is
 keyed on each kernel's own file and freezes imported constants at compile time, so a change to
 the layout here must also touch cpu.py (or clear its ``__pycache__``) to recompile the compositor.
@@ -23,21 +27,24 @@ from ...core.jit import cached_njit
 from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE
 
 ALPHA_MIN = 1.0 / 255.0  # gsplat's ALPHA_THRESHOLD
-_SIGMA_MARGIN = 1e-3  # the visited ellipse reaches slightly past alpha = 1/255; alpha is tested exactly
-_CHUNKS = 16  # runs of Gaussians binned in parallel
+SIGMA_MARGIN = 1e-3  # the visited ellipse reaches slightly past alpha = 1/255; alpha is tested exactly
+BIN_CHUNKS = 16  # runs of Gaussians binned in parallel
 # Gaussians whose 2D variance exceeds this (px^2; a radius of 1e15 px) are culled, so that every
 # per-Gaussian value fits float32 (gsplat's float32 kernels would overflow on them)
-_COV_MAX = 1e30
+COV_MAX = 1e30
 
-# Per-Gaussian record of one view, float32.  The ellipse E where sigma <= ln(255 opacity) + margin
-# (outside it alpha < 1/255) reaches rows |dy| <= _EXT_Y, and on row dy it spans
-# x in mx + _SLOPE dy -+ sqrt(_Q (_EXT_Y^2 - dy^2)) (pixels).
-_MX, _MY, _CA, _CB, _CC, _OP, _R, _G, _B, _SLOPE, _Q, _EXT_Y = range(12)
-_RECORD = 12
+# Per-Gaussian record of one view, float32, RECORD_FIELDS values; REC_* are the column indices:
+# mean (REC_MX, REC_MY) px; conic (REC_CA, REC_CB, REC_CC) of [[a, b], [b, c]] (1/px^2); opacity REC_OP;
+# colour (REC_R, REC_G, REC_B) from the SH; ellipse REC_SLOPE (px per row), REC_Q, half-height REC_EXT_Y (rows).
+# The ellipse E where sigma <= ln(255 opacity) + margin (outside it alpha < 1/255) reaches rows
+# |dy| <= REC_EXT_Y, and on row dy it spans
+# x in mx + REC_SLOPE dy -+ sqrt(REC_Q (REC_EXT_Y^2 - dy^2)) (pixels).
+REC_MX, REC_MY, REC_CA, REC_CB, REC_CC, REC_OP, REC_R, REC_G, REC_B, REC_SLOPE, REC_Q, REC_EXT_Y = range(12)
+RECORD_FIELDS = 12
 
 
 @cached_njit(parallel=True)
-def _world_covariances(quats, scales):  # pragma: no cover - compiled
+def world_covariances(quats, scales):  # pragma: no cover - compiled
     """(G, 6) float64 covariances R S S^T R^T, upper triangle xx xy xz yy yz zz, quats normalised."""
     g = quats.shape[0]
     out = np.empty((g, 6))
@@ -91,12 +98,12 @@ def _sh_colour(sh, i, degree, x, y, z, c):  # pragma: no cover - compiled
 
 
 @cached_njit(parallel=True)
-def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, width, height, tiles_x, tiles_y,
+def project_view(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, width, height, tiles_x, tiles_y,
              records, boxes, depth):  # pragma: no cover - compiled
     """Project every Gaussian into one view (gsplat's frame: cx, cy already + 0.5; ``limits`` the
     Jacobian's clamp, :func:`.common.jacobian_limits`).
 
-    Writes, per Gaussian, ``records`` (G, _RECORD) float32 (mean 2D, conic (a, b, c) of
+    Writes, per Gaussian, ``records`` (G, RECORD_FIELDS) float32 (mean 2D, conic (a, b, c) of
     [[a, b], [b, c]], opacity, colour, ellipse half-extents), ``boxes`` (G, 4) int32 the tiles
     [x0, x1) x [y0, y1) its box touches and ``depth`` (G,) float32, +inf where culled.
     """
@@ -148,7 +155,7 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, widt
         c01 = j00 * j11 * k01 + j00 * j12 * k02 + j02 * j11 * k12 + j02 * j12 * k22
         c11 = j11 * j11 * k11 + 2.0 * j11 * j12 * k12 + j12 * j12 * k22 + EPS2D
         det = c00 * c11 - c01 * c01
-        if not (det > 0.0 and c00 < _COV_MAX and c11 < _COV_MAX):  # NaN-safe; _COV_MAX: see above
+        if not (det > 0.0 and c00 < COV_MAX and c11 < COV_MAX):  # NaN-safe; COV_MAX: see above
             continue
         extend = min(3.33, math.sqrt(2.0 * math.log(op / ALPHA_MIN)))
         rx = np.ceil(extend * math.sqrt(c00))
@@ -160,16 +167,16 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, widt
         if u + rx <= 0.0 or u - rx >= width or v + ry <= 0.0 or v - ry >= height:
             continue
         depth[i] = z
-        records[i, _MX] = u
-        records[i, _MY] = v
-        records[i, _CA] = c11 / det
-        records[i, _CB] = -c01 / det
-        records[i, _CC] = c00 / det
-        records[i, _OP] = op
-        slim = math.log(op / ALPHA_MIN) + _SIGMA_MARGIN
-        records[i, _SLOPE] = c01 / c11
-        records[i, _Q] = det / (c11 * c11)
-        records[i, _EXT_Y] = math.sqrt(2.0 * slim * c11)
+        records[i, REC_MX] = u
+        records[i, REC_MY] = v
+        records[i, REC_CA] = c11 / det
+        records[i, REC_CB] = -c01 / det
+        records[i, REC_CC] = c00 / det
+        records[i, REC_OP] = op
+        slim = math.log(op / ALPHA_MIN) + SIGMA_MARGIN
+        records[i, REC_SLOPE] = c01 / c11
+        records[i, REC_Q] = det / (c11 * c11)
+        records[i, REC_EXT_Y] = math.sqrt(2.0 * slim * c11)
         # gsplat's tile box (IntersectTile.cu): [floor((u - rx) / ts), ceil((u + rx) / ts)) clamped
         boxes[i, 0] = int(min(max(np.floor((u - rx) / TILE_SIZE), 0.0), tiles_x))
         boxes[i, 1] = int(min(max(np.ceil((u + rx) / TILE_SIZE), 0.0), tiles_x))
@@ -180,23 +187,23 @@ def _project(means, cov, opacities, sh, degree, vm, fx, fy, cx, cy, limits, widt
         if n > 0.0:
             dx, dy, dz = dx / n, dy / n, dz / n
         for ch in range(3):
-            records[i, _R + ch] = _sh_colour(sh, i, degree, dx, dy, dz, ch)
+            records[i, REC_R + ch] = _sh_colour(sh, i, degree, dx, dy, dz, ch)
 
 
 @cached_njit(parallel=True)
-def _bin(order, boxes, records, ntiles, tiles_x, chunks):  # pragma: no cover - compiled
+def bin_tiles(order, boxes, records, ntiles, tiles_x, chunks):  # pragma: no cover - compiled
     """Tile lists of the visible Gaussians ``order`` (front to back), a parallel counting sort.
 
-    Returns (offsets (ntiles + 1,) int64, ids int32 ranks into ``order``, packed (n, _RECORD)
+    Returns (offsets (ntiles + 1,) int64, ids int32 ranks into ``order``, packed (n, RECORD_FIELDS)
     float32 records in rank order): tile t holds ids[offsets[t]:offsets[t + 1]], ascending = front
     to back.  ``chunks`` runs of ranks are counted and filled in parallel, each into its own slots.
     """
     n = order.shape[0]
-    packed = np.empty((n, _RECORD), dtype=np.float32)
+    packed = np.empty((n, RECORD_FIELDS), dtype=np.float32)
     box = np.empty((n, 4), dtype=np.int32)
     for r in prange(n):
         i = order[r]
-        for q in range(_RECORD):  # element loops: row-slice assignment is several times slower here
+        for q in range(RECORD_FIELDS):  # element loops: row-slice assignment is several times slower here
             packed[r, q] = records[i, q]
         for q in range(4):
             box[r, q] = boxes[i, q]
@@ -227,7 +234,7 @@ def _bin(order, boxes, records, ntiles, tiles_x, chunks):  # pragma: no cover - 
     return offsets, ids, packed
 
 
-def _front_to_back(depth: np.ndarray, index: np.ndarray) -> np.ndarray:
+def front_to_back(depth: np.ndarray, index: np.ndarray) -> np.ndarray:
     """Indices of the finite ``depth`` values, ascending, ties by index (gsplat's stable sort).
 
     Positive float32 sort like their bit patterns, so one uint64 key (bits << 32 | index) sorts

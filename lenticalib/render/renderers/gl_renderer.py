@@ -37,8 +37,8 @@ exceed the driver's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (llvmpipe's 128 MiB holds 2
 Gaussians).
 
 With the CPU sort (``sort="cpu"``; what runs where OpenGL 4.3 is missing, e.g. macOS's 4.1), the
-projection and the order are the ``cpu`` renderer's own kernels (:func:`.cpu_project._project`,
-:func:`.cpu_project._front_to_back`, float64) on the host; the records are uploaded in drawing
+projection and the order are the ``cpu`` renderer's own kernels (:func:`.cpu_project.project_view`,
+:func:`.cpu_project.front_to_back`, float64) on the host; the records are uploaded in drawing
 order as one RGBA32F texture and drawn, a draw call per view, by the same triangles and fragment
 shader (OpenGL 3.3).
 
@@ -80,7 +80,7 @@ from ..gaussians import Gaussians
 from ..gl_context import headless_context, headless_unavailable
 from . import gl_shaders as sh
 from .common import check_finite_gaussians, check_render_inputs, check_view_memory
-from .cpu_project import _RECORD
+from .cpu_project import RECORD_FIELDS
 from .gl_sort import GLSorter
 from .gl_upload import camera_table, host_records, pack_gaussians, record_table
 
@@ -300,7 +300,7 @@ class GLSplatRenderer:
         """Views per batch: as many as keep the per-view buffers within the driver's storage block
         size.  DisplayError when even the Gaussians, or one view's records, do not fit."""
         limit = _storage_limit(self.ctx)
-        per_view = count * _RECORD * 4
+        per_view = count * RECORD_FIELDS * 4
         if limit and (count * stride * 4 > limit or per_view > limit):
             size = f"{limit >> 20} MiB" if limit >= 1 << 20 else f"{limit} bytes"
             raise DisplayError(f"{count} Gaussians exceed the OpenGL driver's shader storage block size ({size})",
@@ -312,7 +312,7 @@ class GLSplatRenderer:
         data = pack_gaussians(g)
         batch = self._batch(count, data.shape[1])
         gauss = self._buffer("gauss", data.nbytes)
-        splats = self._buffer("splats", batch * count * _RECORD * 4)
+        splats = self._buffer("splats", batch * count * RECORD_FIELDS * 4)
         keys = self._buffer("keys", batch * count * 4)
         vals = self._buffer("vals", batch * count * 4)
         gauss.write(data)

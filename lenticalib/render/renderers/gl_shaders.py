@@ -14,7 +14,7 @@ view v of the batch starting at ``first_view`` being its local view v - first_vi
                already + 0.5), the camera centre (xyz, 0), the clamp limits of J (lim_x_pos,
                lim_x_neg, lim_y_pos, lim_y_neg)
     2 SPLATS   vec4[3 B G]: per (local view, Gaussian) the ``cpu`` renderer's record
-               (:mod:`.cpu_project`'s _MX ... _EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity,
+               (:mod:`.cpu_project`'s REC_MX ... REC_EXT_Y, 12 floats) -- (mx, my, a, b), (c, opacity,
                R, G), (B, slope, q, ext_y)
     3 KEYS     uint[B G]: per local view G depth keys (float bits of the camera z, ascending =
                front to back; 0xFFFFFFFF where culled)
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from .common import EPS2D, FAR_PLANE, NEAR_PLANE
 from .cpu import ALPHA_MAX
-from .cpu_project import _COV_MAX, _SIGMA_MARGIN, ALPHA_MIN
+from .cpu_project import ALPHA_MIN, COV_MAX, SIGMA_MARGIN
 
 GROUP = 64  # compute work-group size (invocations along x)
 GAUSS, CAMS, SPLATS, KEYS, VALS, CMDS = range(6)
@@ -49,8 +49,8 @@ const float FAR_PLANE = {_f(FAR_PLANE)};
 const float EPS2D = {_f(EPS2D)};
 const float ALPHA_MIN = {_f(ALPHA_MIN)};
 const float ALPHA_MAX = {_f(ALPHA_MAX)};
-const float SIGMA_MARGIN = {_f(_SIGMA_MARGIN)};
-const float COV_MAX = {_f(_COV_MAX)};
+const float SIGMA_MARGIN = {_f(SIGMA_MARGIN)};
+const float COV_MAX = {_f(COV_MAX)};
 """
 
 # SH colour (gsplat's / Sloan's basis, as cpu_project._sh_colour), for a unit direction d;
