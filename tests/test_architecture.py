@@ -84,14 +84,10 @@ def test_imports_between_packages_sit_at_the_module_top():
                        "or mark a needed one '# lazy: <reason>':\n" + "\n".join(found))
 
 
-def _module_path(dotted: str) -> Path | None:
-    """The file of lenticalib module ``dotted`` (a package's ``__init__.py``), or None if it is no module."""
-    path = ROOT.joinpath(*dotted.split("."))
-    if path.with_suffix(".py").is_file():
-        return path.with_suffix(".py")
-    if (path / "__init__.py").is_file():
-        return path / "__init__.py"
-    return None
+def _is_module(root: Path, dotted: str) -> bool:
+    """Whether ``dotted`` names a module or package under ``root`` (not a name inside one)."""
+    path = root.joinpath(*dotted.split("."))
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
 
 
 def _private(name: str) -> bool:
@@ -106,9 +102,7 @@ def private_names_imported_across_modules(root: Path) -> list[str]:
     found = []
     for path in sorted((root / "lenticalib").rglob("*.py")):
         parts = list(path.relative_to(root).with_suffix("").parts)
-        package = parts[:-1] if parts[-1] != "__init__" else parts[:-1]
-        if parts[-1] == "__init__":
-            package = parts[:-1]
+        package = parts[:-1]
         tree = ast.parse(path.read_text())
         modules: dict[str, str] = {}  # local alias -> dotted lenticalib module
         for node in ast.walk(tree):
@@ -125,7 +119,7 @@ def private_names_imported_across_modules(root: Path) -> list[str]:
                     continue
                 for alias in node.names:
                     target = f"{base}.{alias.name}"
-                    if _module_path(target) is not None:
+                    if _is_module(root, target):
                         modules[alias.asname or alias.name] = target
                     elif _private(alias.name):
                         found.append(f"{path.relative_to(root)}:{node.lineno} {target}")
