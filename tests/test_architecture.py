@@ -213,7 +213,6 @@ KNOWN_CYCLES: tuple[tuple[str, ...], ...] = (
      "lenticalib.calib.intrinsics.partial"),
     ("lenticalib.render.controls", "lenticalib.render.student.live", "lenticalib.render.student.predict"),
     ("lenticalib.render.present", "lenticalib.render.present_offscreen"),
-    ("lenticalib.render.rig", "lenticalib.render.rig_file", "lenticalib.render.rig_mesh"),
 )
 
 

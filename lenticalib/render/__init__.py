@@ -20,6 +20,7 @@ The avatar
     gaussians           a set of 3D Gaussians, as every renderer and deformer takes it
     ply                 the standard 3DGS PLY file (INRIA 3DGS and gsplat layout)
     rig                 a rig (Gaussians + blendshapes + bones), its control layout, its deformer
+    rig_deform          the deformation kernels a rig and its mesh share: quaternions, blendshapes, blended bones
     rig_file            the rig as a numpy ``.npz``: read, validated, written
     demo_avatar         the built-in demo head (about 100k Gaussians) as a rig
     demo_avatar_parts   the demo head's parts: where their Gaussians sit, colours, bones

@@ -49,20 +49,22 @@ vector); degree 2 and 3 coefficients are not rotated (view-dependent colour of t
 fixed in the world; the demo avatar has degree 0).
 
 The file that holds a rig (numpy ``.npz``: the arrays, their shapes and checks) is
-:mod:`.rig_file`: :func:`load_rig`, :func:`save_rig`, :func:`~.rig_file.rig_from_arrays`.
+:mod:`.rig_file`: :func:`~.rig_file.load_rig`, :func:`~.rig_file.save_rig`, :func:`~.rig_file.rig_from_arrays`.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.documents import FORMATS, VERSION_KEY
 from ..core.errors import InputError
 from .gaussians import Gaussians
-from .rig_file import load_rig, save_rig  # noqa: F401  (public API: rigs are loaded and saved from here too)
-from .rig_file import rig_to_arrays
+from .rig_deform import (apply_blended, quat_from_axis_angle, quat_multiply,
+                         quat_to_matrix, sparse_blend, with_rest_weight)
 
 if TYPE_CHECKING:
     from .rig_mesh import RigMesh
@@ -121,75 +123,19 @@ DEFAULT_LAYOUT = ControlLayout((("expression", 50), ("jaw", 3), ("neck", 3), ("h
                                 ("eyelids", 2), ("translation", 3)))
 
 
-# --------------------------------------------------------------------------------------------
-# torch helpers (batched over leading dimensions)
-
-def quat_multiply(a, b):
-    """Hamilton product a * b of (..., 4) (w, x, y, z) quaternions (broadcasting)."""
-    import torch
-
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
-    return torch.stack((aw * bw - ax * bx - ay * by - az * bz,
-                        aw * bx + ax * bw + ay * bz - az * by,
-                        aw * by - ax * bz + ay * bw + az * bx,
-                        aw * bz + ax * by - ay * bx + az * bw), -1)
+DOCUMENT = FORMATS["lenticalib.rig"]
 
 
-def quat_from_axis_angle(v):
-    """(..., 3) axis-angle (radians) -> (..., 4) unit quaternions (w >= 0 for angles <= pi)."""
-    import torch
-
-    theta = torch.sqrt((v * v).sum(-1, keepdim=True) + 1e-30)
-    half = 0.5 * theta
-    # sin(theta/2)/theta = 0.5 sinc(theta / (2 pi)) with torch.sinc(x) = sin(pi x)/(pi x): exact at 0
-    return torch.cat((torch.cos(half), v * (0.5 * torch.sinc(theta / (2 * torch.pi)))), -1)
-
-
-def quat_to_matrix(q):
-    """(..., 4) unit quaternions -> (..., 3, 3) rotation matrices."""
-    import torch
-
-    w, x, y, z = q.unbind(-1)
-    return torch.stack((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
-                       -1).reshape(q.shape[:-1] + (3, 3))
-
-
-# --------------------------------------------------------------------------------------------
-
-def with_rest_weight(skin_weights):
-    """Skinning weights (..., B) with the rest frame's weight as a last column, (..., B + 1), rows
-    summing to 1 (rows that sum a hair over 1, within the loader's tolerance, are scaled down)."""
-    import torch
-
-    w = skin_weights / skin_weights.sum(-1, keepdim=True).clamp(min=1.0)
-    return torch.cat((w, (1.0 - w.sum(-1, keepdim=True)).clamp(min=0.0)), -1).contiguous()
-
-
-def sparse_blend(c, blend_controls, index, shape, values, count: int):
-    """Sum of blendshape entries for controls c (..., D): entry n adds c[blend_controls[shape[n]]]
-    * values[n] (N, 3) to row index[n]; (..., count, 3) float32 torch."""
-    import torch
-
-    coeff = c[..., blend_controls][..., shape].unsqueeze(-1)              # (..., N, 1)
-    batch = tuple(c.shape[:-1])
-    return torch.zeros(batch + (count, 3), dtype=torch.float32, device=c.device).index_add_(
-        len(batch), index, coeff * values)
-
-
-def apply_blended(A, x):
-    """Points x (..., P, 3) mapped by blended transform rows A (..., P or 1, 16) of
-    :meth:`Rig.frame_transforms` (the rotation's columns, then the translation)."""
-    return A[..., 0:3] * x[..., 0:1] + A[..., 3:6] * x[..., 1:2] + A[..., 6:9] * x[..., 2:3] + A[..., 9:12]
+def envelope_arrays() -> dict[str, np.ndarray]:
+    """The rig file's envelope as arrays: ``format`` (str) and ``format_version`` (int32)."""
+    return {"format": np.array(DOCUMENT.name), VERSION_KEY: np.array(DOCUMENT.version, dtype=np.int32)}
 
 
 class Rig:
     """A deformable avatar: canonical Gaussians, blendshapes, bones, a rigid pose (module docstring).
 
     Tensors live on one torch device (:attr:`device`, :meth:`to`).  Build one with
-    :func:`~.rig_file.rig_from_arrays` or :func:`load_rig`; :meth:`to_arrays` gives the file's arrays back.
+    :func:`~.rig_file.rig_from_arrays` or :func:`~.rig_file.load_rig`; :meth:`to_arrays` gives the file's arrays back.
     """
 
     def __init__(self, *, layout: ControlLayout, control_names: tuple[str, ...], canonical: Gaussians,
@@ -399,5 +345,36 @@ class Rig:
     # ---- file arrays
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        """The rig as the file's arrays (:func:`~.rig_file.rig_to_arrays`)."""
-        return rig_to_arrays(self)
+        """The rig as the file's arrays (numpy, float32 / int32 / str), raw Gaussian parameters
+        (:mod:`.rig_file` reads and writes them)."""
+        g = self.canonical.to_numpy()
+        eps = 1e-7
+        op = np.clip(g.opacities.astype(np.float64), eps, 1 - eps)
+
+        def arr(t, dtype=np.float32):
+            return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=dtype)
+
+        out = {
+            **envelope_arrays(), "means": g.means, "quats": g.quats, "log_scales": np.log(g.scales).astype(np.float32),
+            "opacity_logits": np.log(op / (1 - op)).astype(np.float32), "sh": g.sh,
+            "control_groups": np.array(self.layout.names, dtype=str),
+            "control_sizes": np.array([s for _, s in self.layout.groups], dtype=np.int32),
+            "control_dim": np.array(self.control_dim, dtype=np.int32),
+            "control_names": np.array(self.control_names, dtype=str),
+            "blend_controls": arr(self.blend_controls, np.int32), "blend_index": arr(self.blend_index, np.int32),
+            "blend_shape": arr(self.blend_shape, np.int32), "blend_pos": arr(self.blend_pos),
+            "bone_names": np.array(self.bone_names, dtype=str).reshape(-1),
+            "bone_parents": np.array(self.bone_parents, dtype=np.int32).reshape(-1),
+            "bone_pivots": arr(self.bone_pivots).reshape(-1, 3),
+            "bone_controls": np.array(self.bone_controls, dtype=np.int32).reshape(-1),
+            "skin_weights": arr(self.skin_weights), "pose_pivot": arr(self.pose_pivot),
+            "pose_controls": np.array(self.pose_controls, dtype=np.int32),
+            "provenance": np.array(json.dumps(self.provenance, sort_keys=True)),
+        }
+        if self.blend_rot is not None:
+            out["blend_rot"] = arr(self.blend_rot)
+        if self.blend_color is not None:
+            out["blend_color"] = arr(self.blend_color)
+        if self.mesh is not None:
+            out.update(self.mesh.to_arrays())
+        return out

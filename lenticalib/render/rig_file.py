@@ -47,23 +47,19 @@ sizes in the central directory add up to more (a few megabytes deflated from gig
 from __future__ import annotations
 
 import io
-import json
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..core.arrayfile import GIB, load_npz
 from ..core.atomic import write_bytes_atomic
-from ..core.documents import FORMATS, OLD_VERSION_KEY, VERSION_KEY, check_envelope, json_from_text
+from ..core.documents import OLD_VERSION_KEY, VERSION_KEY, check_envelope, json_from_text
 from ..core.errors import InputError
 from .gaussians import Gaussians
 from .rig_mesh import MESH_ARRAYS, MESH_BLEND_ARRAYS, mesh_from_arrays
 
-if TYPE_CHECKING:
-    from .rig import Rig
-
-DOCUMENT = FORMATS["lenticalib.rig"]
+from .rig import DOCUMENT, ControlLayout, Rig, envelope_arrays  # noqa: F401  (envelope_arrays: the file's, here too)
 _ENVELOPE = ("format", VERSION_KEY, OLD_VERSION_KEY)  # the version under either key (core.documents)
 _REQUIRED = ("format", "means", "quats", "log_scales", "opacity_logits", "sh", "control_groups",
              "control_sizes", "control_dim", "control_names", "blend_controls", "blend_index", "blend_shape",
@@ -77,44 +73,10 @@ MAX_RIG_BYTES = 2 * GIB
 # --------------------------------------------------------------------------------------------
 # building, loading, saving
 
-def envelope_arrays() -> dict[str, np.ndarray]:
-    """The envelope as the file's arrays: ``format`` (str) and ``format_version`` (int32)."""
-    return {"format": np.array(DOCUMENT.name), VERSION_KEY: np.array(DOCUMENT.version, dtype=np.int32)}
-
-
 def rig_to_arrays(rig: Rig) -> dict[str, np.ndarray]:
-    """The rig as the file's arrays (numpy, float32 / int32 / str), raw Gaussian parameters."""
-    g = rig.canonical.to_numpy()
-    eps = 1e-7
-    op = np.clip(g.opacities.astype(np.float64), eps, 1 - eps)
-
-    def arr(t, dtype=np.float32):
-        return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=dtype)
-
-    out = {
-        **envelope_arrays(), "means": g.means, "quats": g.quats, "log_scales": np.log(g.scales).astype(np.float32),
-        "opacity_logits": np.log(op / (1 - op)).astype(np.float32), "sh": g.sh,
-        "control_groups": np.array(rig.layout.names, dtype=str),
-        "control_sizes": np.array([s for _, s in rig.layout.groups], dtype=np.int32),
-        "control_dim": np.array(rig.control_dim, dtype=np.int32),
-        "control_names": np.array(rig.control_names, dtype=str),
-        "blend_controls": arr(rig.blend_controls, np.int32), "blend_index": arr(rig.blend_index, np.int32),
-        "blend_shape": arr(rig.blend_shape, np.int32), "blend_pos": arr(rig.blend_pos),
-        "bone_names": np.array(rig.bone_names, dtype=str).reshape(-1),
-        "bone_parents": np.array(rig.bone_parents, dtype=np.int32).reshape(-1),
-        "bone_pivots": arr(rig.bone_pivots).reshape(-1, 3),
-        "bone_controls": np.array(rig.bone_controls, dtype=np.int32).reshape(-1),
-        "skin_weights": arr(rig.skin_weights), "pose_pivot": arr(rig.pose_pivot),
-        "pose_controls": np.array(rig.pose_controls, dtype=np.int32),
-        "provenance": np.array(json.dumps(rig.provenance, sort_keys=True)),
-    }
-    if rig.blend_rot is not None:
-        out["blend_rot"] = arr(rig.blend_rot)
-    if rig.blend_color is not None:
-        out["blend_color"] = arr(rig.blend_color)
-    if rig.mesh is not None:
-        out.update(rig.mesh.to_arrays())
-    return out
+    """The rig as the file's arrays (numpy, float32 / int32 / str), raw Gaussian parameters
+    (:meth:`.rig.Rig.to_arrays`)."""
+    return rig.to_arrays()
 
 
 def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "cpu") -> Rig:
@@ -125,7 +87,6 @@ def rig_from_arrays(arrays: dict[str, Any], source: str = "rig", device: str = "
     """
     import torch
 
-    from .rig import ControlLayout, Rig  # here, not at the top: rig.py imports this module
 
     def need(name):
         if name not in arrays:

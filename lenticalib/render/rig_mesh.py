@@ -18,15 +18,13 @@ blendshapes, then linear blend skinning and the rigid pose (:meth:`.rig.Rig.fram
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..core.errors import InputError
 from .mesh import check_mesh
-
-if TYPE_CHECKING:
-    from .rig import Rig
+from .rig_deform import apply_blended, sparse_blend, with_rest_weight
 
 MESH_ARRAYS = ("mesh_vertices", "mesh_triangles", "mesh_skin_weights")
 MESH_BLEND_ARRAYS = ("mesh_blend_index", "mesh_blend_shape", "mesh_blend_pos")
@@ -37,8 +35,6 @@ class RigMesh:
     ``triangles`` (F, 3) int64 numpy, the blend entries torch (module docstring)."""
 
     def __init__(self, vertices, triangles: np.ndarray, skin_weights, blend_index, blend_shape, blend_pos):
-        from .rig import with_rest_weight
-
         self.vertices = vertices
         self.triangles = triangles
         self.skin_weights = skin_weights
@@ -55,10 +51,8 @@ class RigMesh:
         return RigMesh(self.vertices.to(device), self.triangles, self.skin_weights.to(device),
                        self.blend_index.to(device), self.blend_shape.to(device), self.blend_pos.to(device))
 
-    def pose(self, rig: "Rig", c):
-        """Vertices (V, 3) float32 torch posed by the rig's controls c (D,), world units."""
-        from .rig import apply_blended, sparse_blend
-
+    def pose(self, rig, c):
+        """Vertices (V, 3) float32 torch posed by the :class:`~.rig.Rig` ``rig``'s controls c (D,), world units."""
         x = self.vertices
         if self.blend_index.shape[0]:
             x = x + sparse_blend(c, rig.blend_controls, self.blend_index, self.blend_shape, self.blend_pos, self.count)
