@@ -28,8 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import corner_model
-from .corner_model import fit_corners, local_axes
-from .corners import SUBPIX_LIMITS
+from .corner_model import SUBPIX_LIMITS, fit_corners, local_axes
 
 CHARUCO_WINDOW = 1.0  # cornerSubPix half-window, as a share of the clean chessboard around a corner
 MIN_CHARUCO_CORNERS = 10  # identified corners a photo of a ChArUco board needs to be used

@@ -50,6 +50,19 @@ import numpy as np
 FIT_MODEL = True  # False: the corners keep cornerSubPix's location, what plain OpenCV gives (a benchmark's baseline)
 MAX_SHIFT = 1.0  # px: a fit that moves the corner further than this from its start is not that corner
 MIN_CONTRAST = 8.0  # grey levels (of 255): |2 A| below this is no corner
+SUBPIX_LIMITS = (2, 25)  # pixels: the least and most cornerSubPix half-window
+
+
+def sample_bilinear(grey: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Bilinear grey values at pixel coordinates ``points`` (n, 2); NaN outside the image."""
+    from scipy.ndimage import map_coordinates
+
+    h, w = grey.shape
+    inside = (points[:, 0] >= 0) & (points[:, 0] <= w - 1) & (points[:, 1] >= 0) & (points[:, 1] <= h - 1)
+    values = np.full(len(points), np.nan)
+    if inside.any():
+        values[inside] = map_coordinates(grey.astype(np.float64), [points[inside, 1], points[inside, 0]], order=1)
+    return values
 
 
 def _model(params: np.ndarray, dx0: np.ndarray, dy0: np.ndarray, curved: bool):

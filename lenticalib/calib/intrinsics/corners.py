@@ -71,11 +71,10 @@ import numpy as np
 from ...core.colour import srgb_encode
 from ...core.imageio import read_image
 from . import corner_model
-from .corner_model import axes, fit_corners
+from .corner_model import SUBPIX_LIMITS, axes, fit_corners, sample_bilinear
 
 FLAGS_NAMES = ("CALIB_CB_EXHAUSTIVE", "CALIB_CB_NORMALIZE_IMAGE")
 SUBPIX_WINDOW = 0.35  # cornerSubPix half-window, as a share of the smallest square side in the photo
-SUBPIX_LIMITS = (2, 25)  # pixels
 PART_SIZES = ((3, 3), (5, 3), (3, 5), (5, 4), (4, 5))  # smallest blocks the searches for a part of a board start from
 PART_SCALES = (1.0, 0.5, 0.25)  # photo scales the part searches run at (each finds different blocks)
 PART_MIN_SQUARE_PX = 24.0  # a part search at a smaller scale runs only while the photo's squares stay this large there
@@ -114,18 +113,6 @@ def grey8(image: np.ndarray) -> np.ndarray:
     v = np.clip(linear / level, 0.0, 1.0) if level > 0 else np.zeros_like(linear)
     enc = srgb_encode(v)
     return np.clip(enc * 255.0 + 0.5, 0, 255).astype(np.uint8)
-
-
-def sample_bilinear(grey: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Bilinear grey values at pixel coordinates ``points`` (n, 2); NaN outside the image."""
-    from scipy.ndimage import map_coordinates
-
-    h, w = grey.shape
-    inside = (points[:, 0] >= 0) & (points[:, 0] <= w - 1) & (points[:, 1] >= 0) & (points[:, 1] <= h - 1)
-    values = np.full(len(points), np.nan)
-    if inside.any():
-        values[inside] = map_coordinates(grey.astype(np.float64), [points[inside, 1], points[inside, 0]], order=1)
-    return values
 
 
 def unmirror(corners: np.ndarray) -> np.ndarray:

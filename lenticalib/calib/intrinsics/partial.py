@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .corner_model import axes
-from .corners import sample_bilinear
+from .corner_model import axes, sample_bilinear
 
 EDGE_PAPER_AT = 1.3  # squares beyond a block's outer corner row where paper shows if it is the board's edge
 EDGE_MARGIN_PX = 3.0  # such a sample must be this far inside the photo to count
