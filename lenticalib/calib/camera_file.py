@@ -38,6 +38,7 @@ HINT = ("give an mrcal .cameramodel ('lenticalib camera calibrate' writes one) o
 MAX_CAMERAMODEL_BYTES = 8 * MIB  # a whole .cameramodel file: some 350 000 board corners, read in ~220 MB
 MAX_MODEL_TEXT_BYTES = 1 * MIB  # its model besides optimization_inputs
 MAX_OPTIMIZATION_INPUTS_BYTES = 32 * MIB  # optimization_inputs' arrays inflated: some 1.3 M board corners
+NOTE_KEY = "lenticalib-uncertainty-scale"  # the comment line that records the uncertainty scale
 MAX_CAMERA_TEXT_BYTES = 1 * MIB  # an OpenCV YAML/XML or JSON camera model: a matrix and a few coefficients
 
 
@@ -139,6 +140,30 @@ class CameraModel:
         return self._covariance_root
 
 
+def note_line(scale: float) -> str:
+    """The note line that records ``scale`` in the written .cameramodel."""
+    return f"{NOTE_KEY}: {scale:.4f}"
+
+
+def read_scale(text: str) -> float:
+    """The recorded scale (:mod:`.intrinsics.crossval`) from a .cameramodel's leading comment lines (1.0 when absent).  Only the
+    header comments are looked at; the model itself is read by mrcal."""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if not stripped.startswith("#"):
+            if stripped:
+                break
+            continue
+        body = stripped.lstrip("#").strip()
+        if body.startswith(NOTE_KEY + ":"):
+            try:
+                value = float(body.split(":", 1)[1])
+            except ValueError:
+                return 1.0
+            return value if np.isfinite(value) and 1.0 <= value <= 100.0 else 1.0
+    return 1.0
+
+
 def _unpack_scale(packed: np.ndarray, oi: dict) -> np.ndarray:
     """mrcal's packed (unitless) state -> real units, on a copy (mrcal scales in place)."""
     import mrcal
@@ -235,8 +260,6 @@ def _from_mrcal(path: Path) -> CameraModel:
         oi = model.optimization_inputs()
     except Exception:  # a model without (or with unusable) optimization inputs is still a model
         oi = None
-    from .intrinsics.crossval import read_scale
-
     return CameraModel(lensmodel, np.asarray(intrinsics, np.float64).copy(),
                        None if size is None else (int(size[0]), int(size[1])), source, oi, read_scale(text))
 

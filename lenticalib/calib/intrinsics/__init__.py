@@ -17,6 +17,7 @@ and one camera model solved with mrcal together with every board pose.  Part of 
     rectified corners (chessboard and ChArUco) located again in views rectified with a first camera model
     solve     the mrcal solve: seed, pre-solves, lens models tried, the choice, the .cameramodel
     crossval  cross-validation: is mrcal's uncertainty as large as the real error?
+    holdout   a model solved on half the photos predicting the other half; the mrcal calls shared with solve
     quality   residuals, noise, coverage and projection uncertainty of a solve; truth comparison
     report    the figures (residuals.png, coverage.png, uncertainty.png) and summary.json
     pipeline  the whole calibration, photos to model and report: :func:`~.pipeline.calibrate_camera`

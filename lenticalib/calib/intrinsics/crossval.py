@@ -39,48 +39,11 @@ from __future__ import annotations
 
 import numpy as np
 
-NOTE_KEY = "lenticalib-uncertainty-scale"
-MIN_FRAMES_PER_HALF = 5
+from ..camera_file import NOTE_KEY, note_line, read_scale  # noqa: F401  (the note the .cameramodel holds)
+from .holdout import MIN_FRAMES_PER_HALF
+from .solve import calibrate, import_mrcal
+
 GRID = 24  # cells across the image
-
-
-def halves(n: int) -> list[np.ndarray]:
-    """Frame indices of the two halves of ``n`` photos: even and odd frames."""
-    return [np.arange(i, n, 2) for i in (0, 1)]
-
-
-def holdout_rss(mrcal, solve, half_solves, keep: np.ndarray) -> np.ndarray:
-    """Per photo, the sum of squared errors (px^2) with which ``solve``'s lens model, solved on the
-    other half, predicts the photo's corners (module docstring).
-
-    ARGUMENTS
-    solve        the full solve (:class:`~.solve.Solve`): its board poses start each photo's pose fit
-    half_solves  the two :class:`~.solve.Solve` of the model on the even and the odd frames
-    keep         bool ``(Nframes, rows, cols)``: the corners to predict and to fit the poses to
-                 (those every full solve kept: a misread corner weighs on no candidate)
-
-    RETURNED VALUE
-    float64 ``(Nframes,)``; NaN for a photo with fewer than 4 corners in ``keep``.
-    """
-    from .solve import board_residuals, frame_indices, optimize_quietly
-
-    oi_full = solve.optimization_inputs
-    rss = np.full(len(keep), np.nan)
-    for held, trained in zip(halves(len(keep))[::-1], half_solves):
-        oi = dict(trained.optimization_inputs)
-        obs = oi_full["observations_board"][held].copy()
-        obs[..., 2] = np.where(keep[held], 1.0, -1.0)
-        oi.update(observations_board=obs, rt_ref_frame=oi_full["rt_ref_frame"][held].copy(),
-                  indices_frame_camintrinsics_camextrinsics=frame_indices(len(held)),
-                  intrinsics=trained.optimization_inputs["intrinsics"].copy(),
-                  do_optimize_intrinsics_core=False, do_optimize_intrinsics_distortions=False,
-                  do_optimize_calobject_warp=False, do_optimize_frames=True,
-                  do_apply_outlier_rejection=False, do_apply_regularization=False)
-        optimize_quietly(mrcal, **oi)
-        r = board_residuals(oi)
-        sq = np.where(keep[held], np.sum(r * r, axis=-1), 0.0).sum(axis=(1, 2))
-        rss[held] = np.where(keep[held].sum(axis=(1, 2)) >= 4, sq, np.nan)
-    return rss
 
 
 def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel: str) -> dict:
@@ -95,8 +58,6 @@ def cross_validation(corners: np.ndarray, board, imagersize: tuple[int, int], le
     dict: ``scale`` (>= 1), ``mean_squared_mahalanobis`` (2 when honest), ``points`` compared,
     ``frames`` per half, ``median_difference_px``, or ``{"scale": 1.0, "skipped": why}`` with too few frames.
     """
-    from .solve import calibrate, import_mrcal
-
     n = len(corners)
     if n < 2 * MIN_FRAMES_PER_HALF:
         return {"scale": 1.0, "skipped": f"{n} photos: cross-validation needs >= {2 * MIN_FRAMES_PER_HALF}"}
@@ -133,8 +94,6 @@ def locator_difference(kept, other, corners: np.ndarray) -> dict:
     inside the hull, ``C`` the kept model's covariance), ``median_difference_px``,
     ``worst_difference_px``, ``points``; or ``{"skipped": why}`` with too few points.
     """
-    from .solve import import_mrcal
-
     mrcal = import_mrcal()
     compared = _compared_where_observed(mrcal, [kept, other], corners)
     if compared is None:
@@ -178,27 +137,3 @@ def _observed_region(corners: np.ndarray, q: np.ndarray) -> np.ndarray:
     points = points[np.all(np.isfinite(points), axis=1)].astype(np.float32)  # ChArUco: identified corners only
     hull = cv2.convexHull(points)
     return np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), False) >= 0 for x, y in q])
-
-
-def note_line(scale: float) -> str:
-    """The note line that records ``scale`` in the written .cameramodel."""
-    return f"{NOTE_KEY}: {scale:.4f}"
-
-
-def read_scale(text: str) -> float:
-    """The recorded scale from a .cameramodel's leading comment lines (1.0 when absent).  Only the
-    header comments are looked at; the model itself is read by mrcal."""
-    for line in text.splitlines():
-        stripped = line.strip()
-        if not stripped.startswith("#"):
-            if stripped:
-                break
-            continue
-        body = stripped.lstrip("#").strip()
-        if body.startswith(NOTE_KEY + ":"):
-            try:
-                value = float(body.split(":", 1)[1])
-            except ValueError:
-                return 1.0
-            return value if np.isfinite(value) and 1.0 <= value <= 100.0 else 1.0
-    return 1.0

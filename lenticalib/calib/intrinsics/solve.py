@@ -16,9 +16,9 @@ Procedure (after mrcal's own ``mrcal-calibrate-cameras``):
    ``LENSMODEL_OPENCV8`` always; ``LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=..._fov_x_deg=...``
    (the field of view from the OPENCV8 solution, 10 % wider) too when there are at least
    ``SPLINE_MIN_FRAMES`` frames and the corners cover at least ``SPLINE_MIN_COVERAGE`` of the
-   image (cells of an 8 x 6 grid).  With at least ``2 * crossval.MIN_FRAMES_PER_HALF`` frames,
+   image (cells of an 8 x 6 grid).  With at least ``2 * holdout.MIN_FRAMES_PER_HALF`` frames,
    the model that predicts best the corners of photos it was not solved on is kept
-   (:func:`choose`, :func:`.crossval.holdout_rss`): each candidate solved on the even frames
+   (:func:`choose`, :func:`.holdout.holdout_rss`): each candidate solved on the even frames
    predicts the odd ones (their board poses fitted, nothing else) and the other way round; a
    richer model replaces a simpler one only when its prediction errors are lower by more than
    ``HOLDOUT_T`` standard errors of the photo-by-photo differences.  A richer model that only
@@ -39,12 +39,10 @@ its residuals and uncertainty), written by mrcal with a note of how it was made,
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import os
 import re
-import tempfile
 import time
 from pathlib import Path
 from typing import Callable
@@ -52,7 +50,9 @@ from typing import Callable
 import numpy as np
 
 from ...core.atomic import write_text_atomic
-from ...core.errors import BackendUnavailableError, CalibrationError, InputError
+from ...core.errors import CalibrationError, InputError
+from .holdout import (MIN_FRAMES_PER_HALF, board_residuals, frame_indices, halves, holdout_rss,  # noqa: F401
+                      import_mrcal, optimize_quietly)
 
 OPENCV8 = "LENSMODEL_OPENCV8"
 OPENCV5 = "LENSMODEL_OPENCV5"
@@ -66,18 +66,6 @@ LENSMODEL_PATTERNS = (r"LENSMODEL_(PINHOLE|STEREOGRAPHIC|OPENCV4|OPENCV5|OPENCV8
                       r"LENSMODEL_SPLINED_STEREOGRAPHIC_order=[23]_Nx=\d+_Ny=\d+_fov_x_deg=\d+(\.\d+)?")
 
 
-def import_mrcal():
-    """The ``mrcal`` module, or a one-line BackendUnavailableError saying how to get it."""
-    try:
-        import mrcal
-    except ImportError as exc:
-        from ..camera_file import MRCAL_INSTALL
-
-        raise BackendUnavailableError(f"calibrating a camera needs mrcal, which is not available ({exc})",
-                                      source="mrcal", hint=MRCAL_INSTALL) from None
-    return mrcal
-
-
 def check_lensmodel(name: str) -> str:
     """``name`` if it is a lens model this calibration can fit; InputError naming ``lensmodel`` otherwise."""
     if not any(re.fullmatch(p, name or "") for p in LENSMODEL_PATTERNS):
@@ -86,37 +74,6 @@ def check_lensmodel(name: str) -> str:
                               "LENSMODEL_STEREOGRAPHIC or "
                               "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=12_Ny=9_fov_x_deg=70")
     return name
-
-
-@contextlib.contextmanager
-def _quiet_c_stderr():
-    """Hold back what mrcal's C code prints on stderr during a solve ("Threw out some outliers ...":
-    the outliers are counted and reported by us)."""
-    import sys
-
-    try:
-        fd = sys.stderr.fileno()
-    except (AttributeError, ValueError, OSError):  # a replaced sys.stderr (tests): nothing to redirect
-        yield
-        return
-    sys.stderr.flush()
-    saved = os.dup(fd)
-    try:
-        with tempfile.TemporaryFile() as sink:
-            os.dup2(sink.fileno(), fd)
-            try:
-                yield
-            finally:
-                os.dup2(saved, fd)
-    finally:
-        os.close(saved)
-
-
-def optimize_quietly(mrcal, **inputs) -> dict:
-    """``mrcal.optimize(**inputs)`` (solves the ``optimization_inputs`` dict in place) with mrcal's C-level
-    stderr chatter silenced; returns mrcal's stats dict.  Shared with crossval's refits."""
-    with _quiet_c_stderr():
-        return mrcal.optimize(**inputs)
 
 
 @dataclasses.dataclass
@@ -170,27 +127,6 @@ class Calibration:
         """The ``mrcal.cameramodel`` of the chosen solve (camera 0, with its optimisation inputs)."""
         mrcal = import_mrcal()
         return mrcal.cameramodel(optimization_inputs=self.solve.optimization_inputs, icam_intrinsics=0)
-
-
-def board_residuals(optimization_inputs: dict) -> np.ndarray:
-    """Projected minus observed corners of every board observation, float64 ``(Nframes, rows, cols, 2)``
-    pixels, computed afresh (outliers included, so two solves can be compared on the same corners)."""
-    mrcal = import_mrcal()
-    oi = optimization_inputs
-    obs = oi["observations_board"]
-    rows, cols = obs.shape[1:3]
-    points = mrcal.ref_calibration_object(cols, rows, oi["calibration_object_spacing"],
-                                          calobject_warp=oi.get("calobject_warp"))
-    frames = oi["rt_ref_frame"][oi["indices_frame_camintrinsics_camextrinsics"][:, 0]]
-    p_cam = mrcal.transform_point_rt(frames[:, None, None, :], points)
-    q = mrcal.project(p_cam, oi["lensmodel"], oi["intrinsics"][0])
-    return q - obs[..., :2]
-
-
-def frame_indices(n: int) -> np.ndarray:
-    """mrcal's ``indices_frame_camintrinsics_camextrinsics`` of ``n`` frames of the one camera, which
-    is the reference: int32 ``(n, 3)`` rows (frame, 0, -1)."""
-    return np.stack([np.arange(n), np.zeros(n, int), -np.ones(n, int)], axis=1).astype(np.int32)
 
 
 def board_observations(corners: np.ndarray) -> np.ndarray:
@@ -295,7 +231,7 @@ def choose(*solves: Solve, holdout: list[np.ndarray] | None = None) -> tuple:
     solve, in order).
 
     ``holdout``: per solve, the per-photo squared errors with which the model solved on the other
-    half of the photos predicts each photo's corners (:func:`.crossval.holdout_rss`).  Given, a
+    half of the photos predicts each photo's corners (:func:`.holdout.holdout_rss`).  Given, a
     richer solve replaces the one kept so far only when it predicts the photos better by more than
     ``HOLDOUT_T`` standard errors of the photo-by-photo differences.  None (too few photos to
     split): the lowest BIC over the corners every solve kept, the earlier (simpler) solve on a tie.
@@ -382,8 +318,6 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
     except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
         raise CalibrationError(f"the mrcal solve failed: {exc}", source="camera calibrate",
                                hint="check that the photos show the board sharply, from varied tilted views") from None
-    from .crossval import MIN_FRAMES_PER_HALF, halves, holdout_rss
-
     holdout = None
     if n >= 2 * MIN_FRAMES_PER_HALF:
         keep = np.logical_and.reduce([s.inlier for s in solves])
