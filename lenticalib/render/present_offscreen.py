@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core.errors import DisplayError
 from .gl_context import offscreen_context, unbind_egl
-from .present import FrameTiming, Presenter, check_raster
+from .present_base import FrameTiming, Presenter, check_raster
 
 
 class OffscreenPresenter(Presenter):
