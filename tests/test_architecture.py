@@ -205,18 +205,7 @@ def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return sorted(found)
 
 
-# The import cycles main still has (issue 47), each hidden by an import inside a function; the list only
-# shrinks: a cycle not in it fails the test, and one broken must leave it.
-KNOWN_CYCLES: tuple[tuple[str, ...], ...] = (
-    ("lenticalib.render.controls", "lenticalib.render.student.live", "lenticalib.render.student.predict"),
-)
-
-
 def test_no_import_cycles_between_modules():
-    cycles = [tuple(c) for c in import_cycles(module_import_graph(ROOT))]
-    new = [c for c in cycles if c not in KNOWN_CYCLES]
-    assert not new, "import cycles between modules (imports inside functions included):\n" + "\n".join(
-        " <-> ".join(c) for c in new)
-    gone = [c for c in KNOWN_CYCLES if c not in cycles]
-    assert not gone, "broken cycles still listed in KNOWN_CYCLES:\n" + "\n".join(" <-> ".join(c) for c in gone)
-    assert len(cycles) <= len(KNOWN_CYCLES)
+    cycles = import_cycles(module_import_graph(ROOT))
+    assert not cycles, "import cycles between modules (imports inside functions included):\n" + "\n".join(
+        " <-> ".join(c) for c in cycles)

@@ -10,18 +10,22 @@ in, float32 (``|v| <= FLOAT32_MAX``, about 3.4e38: 1e39 is refused, not turned i
 ``t`` (:mod:`.controls`), live streams may leave it out (:mod:`.control_streams`).  A bad record --
 not JSON, nested too deep, an integer of thousands of digits, a wrong type or size, a value out of
 range -- is one InputError naming its source, with the expected dimension and layout; quoted
-values are shortened to :data:`SHOW_CHARS` characters.
+values are shortened to :data:`SHOW_CHARS` characters.  :func:`write_controls_csv` writes timed
+control vectors as the CSV control file :func:`~.controls.load_controls` reads.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import sys
-from typing import Any
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
+from ..core.atomic import write_text_atomic
 from ..core.errors import InputError
 from ..core.fields import is_finite_number, short_repr
 from .rig import ControlLayout
@@ -114,3 +118,15 @@ def parse_control_line(line: str, layout: ControlLayout, source: str, *, require
         raise InputError(f"not JSON: an integer of more than {sys.get_int_max_str_digits()} digits",
                          source=source) from None
     return parse_control_record(obj, layout, source, require_t=require_t)
+
+
+def write_controls_csv(path: str | os.PathLike, t: np.ndarray, controls: np.ndarray, layout: ControlLayout,
+                       names: Sequence[str] | None = None) -> Path:
+    """Write timed controls (t (T,) seconds, controls (T, D)) as a CSV that :func:`~.controls.load_controls`
+    reads: a header ``t`` and one column per component (``names`` when given, else ``GROUP.I``),
+    one row per sample, written atomically."""
+    header = ["t"] + list(names if names is not None else layout.default_names())
+    lines = [",".join(header)]
+    for ti, row in zip(np.asarray(t, dtype=np.float64), np.asarray(controls, dtype=np.float32)):
+        lines.append(",".join([repr(float(ti))] + [repr(float(v)) for v in row]))
+    return write_text_atomic(path, "\n".join(lines) + "\n")

@@ -57,9 +57,9 @@ import numpy as np
 
 from ..core.arrayfile import GIB, MIB, load_npz, size_text
 from ..core.input_files import bounded_lines
-from ..core.atomic import write_text_atomic
 from ..core.errors import InputError
 from .control_records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
+from .control_records import write_controls_csv  # noqa: F401  (public API: control files are written from here too)
 from .control_streams import DemoControls, open_text_stream, open_udp
 from .control_streams import StreamControls  # noqa: F401  (public API: the sources open_controls gives)
 from .rig import DEFAULT_LAYOUT, ControlLayout
@@ -336,15 +336,3 @@ def open_controls(spec: str, layout: ControlLayout = DEFAULT_LAYOUT, names: Sequ
 
         return StudentControls(spec, layout)
     return FileControls(load_controls(spec, layout, names))
-
-
-def write_controls_csv(path: str | os.PathLike, t: np.ndarray, controls: np.ndarray, layout: ControlLayout,
-                       names: Sequence[str] | None = None) -> Path:
-    """Write timed controls (t (T,) seconds, controls (T, D)) as a CSV that :func:`load_controls`
-    reads: a header ``t`` and one column per component (``names`` when given, else ``GROUP.I``),
-    one row per sample, written atomically."""
-    header = ["t"] + list(names if names is not None else layout.default_names())
-    lines = [",".join(header)]
-    for ti, row in zip(np.asarray(t, dtype=np.float64), np.asarray(controls, dtype=np.float32)):
-        lines.append(",".join([repr(float(ti))] + [repr(float(v)) for v in row]))
-    return write_text_atomic(path, "\n".join(lines) + "\n")

@@ -4,7 +4,7 @@
 units: the crop rule applied (a tracker keeps its state from frame to frame), the network run on
 CPU or GPU, the output de-normalised with the subject's statistics (components that did not vary
 in training are their mean).  :func:`predict_controls` runs it over a video or a folder and writes
-the controls as a CSV that ``--controls`` reads (:func:`~lenticalib.render.controls.write_controls_csv`).
+the controls as a CSV that ``--controls`` reads (:func:`~lenticalib.render.control_records.write_controls_csv`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 from ...core.errors import InputError
 from ...core.fields import short_repr
 from ...core.outputs import check_output_file
-from ..controls import write_controls_csv
+from ..control_records import write_controls_csv
 from .crop import CropTracker, to_input
 from .frames import open_frames
 from .student_file import Student, load_student
