@@ -157,3 +157,27 @@ def test_no_other_module_parses_an_AxB_text():
     found = [f"{p.relative_to(package)}:{n}" for p in package.rglob("*.py") if p.name != "sizes.py"
              for n, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]
     assert found == []
+
+
+def test_one_check_raster_serves_the_display_and_the_cameras_shown_raster():
+    wide = np.zeros((48, 64, 3), np.uint16)
+    assert check_raster(wide, 64, 48, "r", "the display", max_bits=10).dtype == np.uint16
+    assert one_line(lambda: check_raster(wide, 64, 48, "r", "the display", max_bits=8), ImageError) == (
+        "r: is 16-bit but the display shows 8 bits per channel (show an 8-bit raster, or set the display to "
+        "10-bit colour)")
+    assert one_line(lambda: check_raster(np.zeros((3, 5, 3), np.uint8), 64, 48, "r", "the display", max_bits=8),
+                    ImageError).startswith("r: is 5x3 pixels, the display is 64x48")
+    assert check_raster(np.zeros((3, 5, 3), np.uint8), None, None, "shown", error=InputError).shape == (3, 5, 3)
+    text = one_line(lambda: check_raster(np.zeros((3, 5), np.uint8), None, None, "shown", error=InputError),
+                    InputError)
+    assert text == "shown: a raster must be 8-bit RGB (H, W, 3), got uint8 (3, 5)"
+    with pytest.raises(InputError) as caught:  # the camera's error class, not an image file's
+        check_raster(np.zeros((3, 5), np.uint8), None, None, "shown", error=InputError)
+    assert type(caught.value) is InputError
+
+
+def test_there_is_one_check_raster():
+    """core/sizes owns the check; the simulator's is a one-line delegate for its scene's panel."""
+    root = Path(lenticalib.__file__).parent
+    owners = sorted(p.relative_to(root).as_posix() for p in root.rglob("*.py") if "def check_raster(" in p.read_text())
+    assert owners == ["core/sizes.py", "sim/render.py"]

@@ -89,22 +89,44 @@ def parse_size(value: Any, source: str, low: int = 1, high: int = MAX_SIDE,
     return check_sides(pair[0], pair[1], source, low, high)
 
 
-def check_raster(raster: Any, width: int, height: int, source: str, what: str = "the panel",
-                 hint: str | None = None) -> np.ndarray:
-    """``raster`` as C-contiguous uint8 ``(height, width, 3)`` RGB; ImageError naming ``source``
-    unless it is one (``what`` names the panel it must fit, ``hint`` says what to do)."""
-    shape = getattr(raster, "shape", None)
-    dtype = getattr(raster, "dtype", type(raster).__name__)
-    if not isinstance(raster, np.ndarray) or raster.dtype != np.uint8 or raster.ndim != 3 or raster.shape[2] != 3:
-        raise ImageError(f"a raster must be 8-bit RGB (H, W, 3), got {dtype} {shape}", source=source, hint=hint)
-    check_raster_size((raster.shape[1], raster.shape[0]), (width, height), source, what, hint)
-    return np.ascontiguousarray(raster)
+def check_raster(raster: Any, width: int | None, height: int | None, source: str, what: str = "the panel",
+                 hint: str | None = None, *, max_bits: int | None = None,
+                 error: type[InputError] = ImageError) -> np.ndarray:
+    """``raster`` as a C-contiguous ``(height, width, 3)`` RGB array: the one raster check.
+
+    ``raster``: uint8 ``(H, W, 3)`` -- or uint16 when ``max_bits`` (the bits per channel of the
+    display it goes to) is 10 or more; ``width``, ``height``: the size in pixels it must have
+    (None: any size of at least 1 x 1); ``what`` names the panel it must fit, ``hint`` says what
+    to do.  Anything else is one ``error`` (ImageError unless the caller's inputs are not images:
+    a camera's ``shown`` raster is an InputError) naming ``source``.
+    """
+    try:
+        array = np.asarray(raster)
+    except (TypeError, ValueError):  # a ragged list, say
+        array = None
+    shape = getattr(array, "shape", None)
+    dtype = getattr(array, "dtype", type(raster).__name__)
+    if max_bits is not None and array is not None:  # a raster for a display of max_bits per channel
+        if array.ndim != 3 or array.shape[2] != 3:
+            raise error(f"is not an RGB image (shape {array.shape})", source=source,
+                        hint="show an RGB raster made by 'lenticalib encode' or 'lenticalib patterns'")
+        if array.dtype == np.uint16 and max_bits < 10:
+            raise error(f"is 16-bit but the display shows {max_bits} bits per channel", source=source,
+                        hint="show an 8-bit raster, or set the display to 10-bit colour")
+        if array.dtype not in (np.uint8, np.uint16):
+            raise error(f"has sample type {array.dtype}; the panel takes 8-bit (or 16-bit) integers", source=source)
+    elif (array is None or array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3
+          or array.shape[0] < 1 or array.shape[1] < 1):
+        raise error(f"a raster must be 8-bit RGB (H, W, 3), got {dtype} {shape}", source=source, hint=hint)
+    if width is not None and height is not None:
+        check_raster_size((array.shape[1], array.shape[0]), (width, height), source, what, hint, error=error)
+    return np.ascontiguousarray(array)
 
 
 def check_raster_size(size: tuple[int, int], expected_size: tuple[int, int], source: str, what: str,
-                      hint: str | None = None) -> None:
-    """ImageError naming ``source`` when an image of ``size`` (W, H) is not ``expected_size`` (W, H),
-    the size of ``what`` (e.g. "the simulated panel")."""
+                      hint: str | None = None, *, error: type[InputError] = ImageError) -> None:
+    """``error`` (ImageError) naming ``source`` when an image of ``size`` (W, H) is not
+    ``expected_size`` (W, H), the size of ``what`` (e.g. "the simulated panel")."""
     if tuple(size) != tuple(expected_size):
-        raise ImageError(f"is {size[0]}x{size[1]} pixels, {what} is {expected_size[0]}x{expected_size[1]}",
+        raise error(f"is {size[0]}x{size[1]} pixels, {what} is {expected_size[0]}x{expected_size[1]}",
                          source=source, hint=hint or f"give a {expected_size[0]}x{expected_size[1]} image")

@@ -37,7 +37,7 @@ The avatar
 
 Presenting and the pipeline
     present             pixel-exact full-screen presentation (glfw + moderngl): ``Presenter``
-    present_base        the presenters' base: ``Presenter``, ``FrameTiming``, ``check_raster``
+    present_base        the presenters' base: ``Presenter``, ``FrameTiming``, ``RASTER_HINT``
     present_offscreen   presenters with no window: an offscreen framebuffer, or no graphics
     cuda_gl             CUDA-OpenGL interop: a raster made on a CUDA GPU copied into the presenter on the GPU
     monitors            the monitors a raster can be shown on (glfw), and choosing one

@@ -30,7 +30,7 @@ import numpy as np
 from ..core.errors import DisplayError
 from .gl_context import load_llvm_users_first, versions_to_try
 from .monitors import Monitor, choose_monitor, glfw_module, init_glfw, list_monitors
-from .present_base import MAX_TIMINGS, FrameTiming, Presenter, check_raster  # noqa: F401  (the base, named here too)
+from .present_base import MAX_TIMINGS, FrameTiming, Presenter  # noqa: F401  (the base, named here too)
 from .present_offscreen import MemoryPresenter, OffscreenPresenter
 
 

@@ -1,5 +1,6 @@
 """The presenters' base: :class:`Presenter` (one OpenGL program drawing a raster texel for pixel),
-:class:`FrameTiming`, :func:`check_raster`; the backends are in :mod:`.present` (``window``, and
+:class:`FrameTiming`, :data:`RASTER_HINT` (rasters are checked by :func:`lenticalib.core.sizes.check_raster`,
+``max_bits`` the framebuffer's); the backends are in :mod:`.present` (``window``, and
 :func:`~.present.open_presenter`) and :mod:`.present_offscreen` (``offscreen``, ``none``).
 
 Frames: rasters are (height, width, 3) arrays, row 0 at the top of the panel, RGB order; uint8, or
@@ -14,13 +15,15 @@ from collections import deque
 
 import numpy as np
 
-from ..core.errors import DisplayError, ImageError
-from ..core.sizes import check_raster_size
+from ..core.errors import DisplayError
+from ..core.sizes import check_raster
 from .gl_context import VIEWPORT_TRIANGLE
 
 GL_DITHER = 0x0BD0
 MAX_TIMINGS = 100_000  # frame timings a presenter keeps (the latest; half an hour at 60 fps)
 GL_FRAMEBUFFER_SRGB = 0x8DB9
+RASTER_HINT = ("rasters are never scaled: encode for this panel's size, or show it on the monitor of that size "
+               "(`display`)")  # what to do with a raster the display's size refuses
 
 _FRAGMENT = """
 #version 330 core
@@ -53,23 +56,6 @@ class FrameTiming:
 
     upload_ms: float
     present_ms: float
-
-
-def check_raster(raster: np.ndarray, size: tuple[int, int], max_bits: int = 8, source: str | None = None) -> None:
-    """ImageError (one line) unless ``raster`` is (height, width, 3) uint8 -- or uint16 when the
-    framebuffer has ``max_bits`` >= 10 -- of exactly ``size`` (width, height)."""
-    arr = np.asarray(raster)
-    if arr.ndim != 3 or arr.shape[2] != 3:
-        raise ImageError(f"is not an RGB image (shape {arr.shape})", source=source,
-                         hint="show an RGB raster made by 'lenticalib encode' or 'lenticalib patterns'")
-    if arr.dtype == np.uint16 and max_bits < 10:
-        raise ImageError(f"is 16-bit but the display shows {max_bits} bits per channel", source=source,
-                         hint="show an 8-bit raster, or set the display to 10-bit colour")
-    if arr.dtype not in (np.uint8, np.uint16):
-        raise ImageError(f"has sample type {arr.dtype}; the panel takes 8-bit (or 16-bit) integers", source=source)
-    check_raster_size((arr.shape[1], arr.shape[0]), size, source, "the display",
-                      hint="rasters are never scaled: encode for this panel's size, or show it on the monitor "
-                           "of that size (`display`)")
 
 
 class Presenter:
@@ -164,7 +150,7 @@ class Presenter:
     # -- frames ------------------------------------------------------------------------------
     def show(self, raster: np.ndarray, source: str | None = None) -> FrameTiming:
         """Put ``raster`` (height, width, 3) on the panel; returns and records its timing."""
-        check_raster(raster, self.size, self.bits, source)
+        check_raster(raster, self.size[0], self.size[1], source, "the display", RASTER_HINT, max_bits=self.bits)
         data = np.ascontiguousarray(raster)
         start = time.perf_counter()
         buffer = self._buffers[self._next_buffer]

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..core.errors import DisplayError
 from .gl_context import offscreen_context, unbind_egl
-from .present_base import FrameTiming, Presenter, check_raster
+from ..core.sizes import check_raster
+from .present_base import RASTER_HINT, FrameTiming, Presenter
 
 
 class OffscreenPresenter(Presenter):
@@ -87,7 +88,7 @@ class MemoryPresenter(Presenter):
         pass
 
     def show(self, raster: np.ndarray, source: str | None = None) -> FrameTiming:
-        check_raster(raster, self.size, 8, source)
+        check_raster(raster, self.size[0], self.size[1], source, "the display", RASTER_HINT, max_bits=8)
         start = time.perf_counter()
         self._shown = np.array(raster, copy=True)
         timing = FrameTiming(1e3 * (time.perf_counter() - start), 0.0)

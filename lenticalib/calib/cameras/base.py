@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ...core.errors import CameraError, InputError
+from ...core.sizes import check_raster
 from .files import PHOTO_SUFFIXES
 
 
@@ -96,7 +97,7 @@ class CaptureCamera(abc.ABC):
         if not isinstance(name, str) or not name.strip():
             raise InputError(f"the pattern name must be a non-empty string, got {name!r}", source="name")
         if shown is not None:
-            shown = check_raster(shown)
+            shown = check_raster(shown, None, None, "shown", error=InputError)
         destination = Path(destination)
         if destination.suffix.lower() in PHOTO_SUFFIXES:
             raise InputError(f"has the suffix {destination.suffix}; give the path without one (the camera "
@@ -135,15 +136,6 @@ class CaptureCamera(abc.ABC):
 
     def _close(self) -> None:
         """Release what :meth:`_open` acquired."""
-
-
-def check_raster(shown: Any) -> np.ndarray:
-    """``shown`` as a uint8 ``(H, W, 3)`` array; InputError showing the actual dtype and shape otherwise."""
-    array = np.asarray(shown)
-    if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3 or array.shape[0] < 1 or array.shape[1] < 1:
-        raise InputError(f"the shown raster must be uint8 (H, W, 3) RGB, got {array.dtype} {array.shape}",
-                         source="shown")
-    return array
 
 
 def positive_seconds(value: Any, option: str, kind: str) -> float:
