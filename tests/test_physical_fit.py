@@ -19,7 +19,7 @@ from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
 from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile
-from lenticalib.sim.optics import routing_error
+from lenticalib.sim.truth import routing_error
 from lenticalib.sim.scene import random_scene
 
 

@@ -15,7 +15,7 @@ from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.physical import gap_from_view_cone, validate_physical, view_cone_deg
 from lenticalib.core.profile import load_profile, profile_from_dict, save_profile
 from lenticalib.core.retarget import Eye, Retargeter, retarget_profile, routing_difference
-from lenticalib.sim.optics import routing_error, truth_profile
+from lenticalib.sim.truth import routing_error, truth_profile
 from lenticalib.sim.scene import random_scene
 
 
@@ -193,7 +193,7 @@ def test_set_physical_from_a_data_sheet_then_retarget(tmp_path, cli):
 def test_retargeting_a_cell_layout_routes_every_channel_from_its_true_position(reversed_views, tmp_path):
     from lenticalib.core.layout import SubpixelLayout, pattern_for_mode
     from lenticalib.core.routing import view_coordinate
-    from lenticalib.sim.optics import view_coordinate_truth
+    from lenticalib.sim.truth import view_coordinate_truth
 
     optics = random_scene(6, distance=600).optics
     cells = (((-0.25, 0.31), (-0.25, -0.28), (0.25, 0.0)), ((0.25, 0.31), (0.25, -0.28), (-0.25, 0.0)))

@@ -60,7 +60,7 @@ def one_seed(seed: int, model_kind: str) -> dict:
     from lenticalib.core.profile import load_profile
     from lenticalib.core.retarget import retarget_profile
     from lenticalib.sim.capture import simulate_capture_set
-    from lenticalib.sim.optics import routing_error
+    from lenticalib.sim.truth import routing_error
     from lenticalib.sim.scene import random_scene
 
     start = time.perf_counter()

@@ -5,7 +5,8 @@ the ground truth for the camera position: the profile, the crosstalk, the camera
 (``docs/optics.md``; overview in ``docs/simulator.md``).  sim may import core, calib and render,
 never device or cli.
 
-    optics           PanelOptics (lens sheet, pixel plane, emission), seen point, w*, truth profile
+    optics           PanelOptics (lens sheet, pixel plane, emission), seen point
+    truth            the ground truth for an eye: w* by ray tracing, the ideal profile, routing error
     camera           Camera (OpenCV intrinsics + distortion, pose, photometric settings)
     scene            Scene = optics + camera + seed; random_scene(); JSON form
     layouts          subpixel layouts of the virtual panel: RGB, BGR, named cell layouts, JSON files
@@ -29,7 +30,8 @@ loads numpy and ``optics``, ``camera`` and ``scene``.
 from __future__ import annotations
 
 from .camera import Camera
-from .optics import PanelOptics, truth_constants, truth_profile, truth_view_direction, view_coordinate_truth
+from .optics import PanelOptics
+from .truth import truth_constants, truth_profile, truth_view_direction, view_coordinate_truth
 from .scene import RANGES, Scene, random_scene
 
 __all__ = ["Camera", "PanelOptics", "RANGES", "Scene", "photograph", "photograph_jpeg", "random_scene",

@@ -23,7 +23,8 @@ import numpy as np
 from ..core.profile import PanelProfile
 from ..core.routing import view_coordinate, view_map
 from .camera import Camera
-from .optics import PanelOptics, view_coordinate_truth
+from .optics import PanelOptics
+from .truth import view_coordinate_truth
 from .scene import Scene
 
 CENTRE_FRACTION = 0.4  # the centre region: this fraction of the panel width and height, centred

@@ -74,7 +74,8 @@ from ..core.errors import InputError
 from ..core.layout import SubpixelLayout
 from ..core.profile import PanelProfile
 from .camera import Camera
-from .optics import PanelOptics, truth_profile
+from .optics import PanelOptics
+from .truth import truth_profile
 
 DOCUMENT = FORMATS["lenticalib.simulation"]
 DEFAULT_RESOLUTION = (4000, 3000)
@@ -119,7 +120,7 @@ class Scene:
         return tuple(float(c) for c in self.camera.position)
 
     def truth_profile(self, views: int, **kwargs: Any) -> PanelProfile:
-        """The ideal profile for this camera position (see :func:`.optics.truth_profile`)."""
+        """The ideal profile for this camera position (see :func:`.truth.truth_profile`)."""
         return truth_profile(self.optics, self.eye, views, **kwargs)
 
     def replace_camera(self, **changes: Any) -> "Scene":
