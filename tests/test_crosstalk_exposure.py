@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from lenticalib.calib.crosstalk import exposure, tone
+from lenticalib.calib.crosstalk import exposure, tiles, tone
 from lenticalib.core.colour import srgb_decode_lut, srgb_encode
 
 POWER = 1.05  # the camera's light of code c: sRGB decoding ** POWER
@@ -123,10 +123,10 @@ def test_the_tone_curve_is_fitted_with_the_photos_brought_to_white_s_exposure(mo
     exposure: the power fitted with the frame's exposures is within 0.01 of the camera's; without
     them (the exposure taken as locked) it is not."""
     photos, _ = _photos(fixed={"white": 0.97, "black": 0.98, "half-0": 1.04, "half-1": 1.03})
-    curve = tone.fit_tone_curve(photos, tone.tile_size(SIZE[0]))
+    curve = tone.fit_tone_curve(photos, tiles.tile_size(SIZE[0]))
     assert curve.exposures is not None and curve.model == "power"
     assert abs(curve.power - POWER) < 0.01
     assert abs(math.log(curve.power / POWER)) <= 3 * curve.sigma
     monkeypatch.setattr(tone, "EXPOSURE_ROUNDS", 0)
-    locked = tone.fit_tone_curve(photos, tone.tile_size(SIZE[0]))
+    locked = tone.fit_tone_curve(photos, tiles.tile_size(SIZE[0]))
     assert locked.exposures is None and abs(locked.power - POWER) > 0.02

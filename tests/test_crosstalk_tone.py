@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from lenticalib.calib.crosstalk import tone
+from lenticalib.calib.crosstalk import tiles, tone
 from lenticalib.core.colour import srgb_encode
 
 POWER = 1.05  # the camera's light of code c: sRGB decoding ** POWER
@@ -52,7 +52,7 @@ def test_the_power_rests_on_the_halves_not_on_resolved_level_rows(shortfall):
     the camera's, inside 3 sigma, and the levels are no photos of another pattern.  (Pinned by the
     levels, tile by tile, it came out 1.064 with the shortfall, and the medians of the tiles put 1-in-8
     and 1-in-4 rows 19 % off their share.)"""
-    curve = tone.fit_tone_curve(_photos(shortfall), tone.tile_size(600))
+    curve = tone.fit_tone_curve(_photos(shortfall), tiles.tile_size(600))
     assert curve.model == "power" and curve.levels
     assert abs(curve.power - POWER) < 0.01
     assert abs(math.log(curve.power / POWER)) <= 3 * curve.sigma
@@ -62,7 +62,7 @@ def test_the_power_rests_on_the_halves_not_on_resolved_level_rows(shortfall):
 def test_level_residuals_are_sums_over_the_tiles_not_medians():
     """Without a shortfall the levels hold over whole periods of their rows: each level's light over
     the panel is its share of white's within 1 %, although most tiles hold one lit row too few."""
-    curve = tone.fit_tone_curve(_photos({}), tone.tile_size(600))
+    curve = tone.fit_tone_curve(_photos({}), tiles.tile_size(600))
     assert max(abs(r) for r in curve.level_residuals) < 0.01
 
 
@@ -131,7 +131,7 @@ def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_i
     from lenticalib.calib.report import read_figure_record
     from lenticalib.core.figures import write_figures
 
-    fitted = tone.fit_tone_curve(_photos(DEMOSAIC_SHORTFALL), tone.tile_size(600))
+    fitted = tone.fit_tone_curve(_photos(DEMOSAIC_SHORTFALL), tiles.tile_size(600))
     curve = fitted.to_dict()
     other = tone.ToneCurve("curve", tone.decode_lut(1.1), 0.03, 0.01, 1000, levels=True)
     blended = dict(curve, blended_with={**other.to_dict(), "weight": 0.3})
@@ -184,7 +184,7 @@ def test_a_power_camera_s_toe_is_left_open_by_a_few_per_cent_only():
     """On photos of a camera whose curve is a power (the model chosen), the bent curve's freer toe
     is weighted by how much less sure it is of itself: both models fitted, the toe's sigma
     recorded, under 6 %."""
-    curve = tone.fit_tone_curve(_photos({}), tone.tile_size(600))
+    curve = tone.fit_tone_curve(_photos({}), tiles.tile_size(600))
     assert curve.model == "power" and curve.alternative is not None
     assert 0.0 < curve.toe_sigma < 0.06 and curve.alternative.toe_sigma == curve.toe_sigma
     assert curve.to_dict()["toe_sigma"] == pytest.approx(curve.toe_sigma, abs=1e-4)

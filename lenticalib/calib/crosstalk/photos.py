@@ -15,7 +15,7 @@ import numpy as np
 from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
 from ...core.imageio import read_header, read_image
-from . import dark, tone
+from . import dark, tiles, tone
 from .photometry import lit_region, working
 
 WORKING_WIDTH = 1000  # working pixels across (about)
@@ -206,7 +206,7 @@ def measure_tone(capture, warnings: list[str]) -> tone.ToneCurve | None:
         images[name] = raw[:, :, :3]
     if len({v.shape for v in images.values()}) > 1:
         return None  # the photo-size check of load_all names the odd one
-    curve = tone.fit_tone_curve(images, tone.tile_size(images["white"].shape[1]))
+    curve = tone.fit_tone_curve(images, tiles.tile_size(images["white"].shape[1]))
     if curve is None:
         warnings.append("the black, white and half photos show too little to measure the camera's tone curve: the "
                         "photos are decoded as plain sRGB, and the uncertainty allows for a camera that is not")

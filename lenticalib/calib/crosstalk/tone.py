@@ -57,10 +57,10 @@ import numpy as np
 from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
 from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
+from .tiles import tile_histograms, tile_max, tile_means
 from .tone_choice import curve_weight
 
 PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
-TILE_PER_WIDTH = 200  # tiles across the photo (about): 8 photo pixels at 1600 wide
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
 # the curve model's knots (codes): finer at the toe, where an S-curve bends most and the half photos'
 # dark tiles are its only data (bench hard case 11: its codes 1-15 above black 16-20 % too dark with
@@ -156,46 +156,9 @@ class ToneCurve:
         return data
 
 
-def tile_size(width: int) -> int:
-    """Side of the tiles (photo pixels) for photos ``width`` pixels wide: at least 4."""
-    return max(4, int(round(width / TILE_PER_WIDTH)))
-
-
 def decode_lut(power: float = 1.0) -> np.ndarray:
     """float32 (256,): sRGB-decoded light of each 8-bit code, to the power ``power``."""
     return (srgb_decode_lut() ** power).astype(np.float32)
-
-
-def tile_means(image: np.ndarray, tile: int) -> np.ndarray:
-    """float32 (h // tile, w // tile): mean code of each tile over its pixels and channels (uint8 (h, w, c) in)."""
-    h, w, c = image.shape
-    hh, ww = h // tile, w // tile
-    blocks = image[:hh * tile, :ww * tile].reshape(hh, tile, ww, tile, c)
-    return blocks.mean(axis=(1, 3, 4), dtype=np.float32)
-
-
-def tile_max(image: np.ndarray, tile: int) -> np.ndarray:
-    """uint8 (h // tile, w // tile): the largest code of each tile over its pixels and channels."""
-    h, w, c = image.shape
-    hh, ww = h // tile, w // tile
-    return image[:hh * tile, :ww * tile].reshape(hh, tile, ww, tile, c).max(axis=(1, 3, 4))
-
-
-def tile_histograms(image: np.ndarray, tile: int, picked: np.ndarray):
-    """scipy CSR (len(picked), 256): the share of each code in the ``picked`` tiles (flat tile indices
-    of the (h // tile, w // tile) grid), over their ``tile`` x ``tile`` pixels and all channels."""
-    from scipy.sparse import csr_matrix
-
-    h, w, c = image.shape
-    ww = w // tile
-    ty, tx = np.divmod(picked, ww)
-    dy, dx = np.mgrid[0:tile, 0:tile]
-    rows = (ty[:, None, None] * tile + dy[None]).reshape(len(picked), -1)
-    cols = (tx[:, None, None] * tile + dx[None]).reshape(len(picked), -1)
-    codes = image[rows, cols].reshape(len(picked), -1).astype(np.int64)
-    index = np.repeat(np.arange(len(picked)), codes.shape[1])
-    data = np.full(codes.size, 1.0 / codes.shape[1], np.float64)
-    return csr_matrix((data, (index, codes.ravel())), shape=(len(picked), 256))
 
 
 def _half_residual(table, hist, gains=None):
