@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 import struct
 import zlib
 
@@ -99,6 +100,20 @@ def test_family_file_loads():
     assert {t.kind for t in family.transports} == {"serial", "hid", "usb"}
     assert family.transport("hid").report_size == 64
     assert family_for("usb", 0x1209, 0x0003) is family
+
+
+def test_the_package_ships_the_documented_families(monkeypatch, tmp_path):
+    """drivers/*.toml is the specification; lenticalib/device/families/ the same bytes, found by
+    importlib.resources (not by a path relative to the source file), so a wheel finds them too."""
+    from lenticalib.device.drivers import packaged_families, search_path
+
+    shipped = {p.name: p.read_bytes() for p in packaged_families().glob("*.toml")}
+    assert shipped == {p.name: p.read_bytes() for p in (REPO / "drivers").glob("*.toml")}
+    assert "lc32.toml" in shipped and packaged_families() != REPO / "drivers"
+    monkeypatch.delenv("LENTICALIB_DRIVERS", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert search_path()[-1] == packaged_families() and REPO / "drivers" not in search_path()
+    assert {f.name for f in families()} == {"lc32"} and Path(family_for().source).parent == packaged_families()
 
 
 def test_bad_family_file_names_the_field(tmp_path):

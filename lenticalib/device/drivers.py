@@ -1,16 +1,19 @@
 """Controller family descriptions: the TOML files in ``drivers/`` (data, not code).
 
 Search path, first match of a family name wins: ``$LENTICALIB_DRIVERS`` (``os.pathsep``
-separated), ``~/.config/lenticalib/drivers``, the repository's ``drivers/`` next to the
-package, then ``<prefix>/share/lenticalib/drivers`` where a wheel installs them.  See ``drivers/lc32.toml`` for the format.
+separated), ``~/.config/lenticalib/drivers``, then the families shipped in the package
+(``lenticalib/device/families/*.toml``, package data read through :mod:`importlib.resources`,
+so an editable install and a wheel find them alike).  The repository's ``drivers/`` folder is
+the documented specification; the package's copy is the same bytes (tests/test_device_record.py
+checks it).  See ``drivers/lc32.toml`` for the format.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.resources
 import os
-import sys
 import tomllib
 from pathlib import Path
 
@@ -61,11 +64,19 @@ class ControllerFamily:
 
 
 def search_path() -> list[Path]:
+    """The folders searched for family files, first match of a name wins (module docstring)."""
     paths = [Path(p) for p in os.environ.get("LENTICALIB_DRIVERS", "").split(os.pathsep) if p]
     paths.append(Path(os.path.expanduser("~")) / ".config" / "lenticalib" / "drivers")
-    paths.append(Path(__file__).resolve().parents[2] / "drivers")  # a source checkout / editable install
-    paths.append(Path(sys.prefix) / "share" / "lenticalib" / "drivers")  # a wheel install (data-files)
+    paths.append(packaged_families())
     return paths
+
+
+def packaged_families() -> Path:
+    """The folder of the family files shipped inside the package (``lenticalib/device/families``).
+
+    The package is installed as files (an editable install or a wheel), so the resource is a folder
+    on disk; were it ever not (a zip import), the folder does not exist and is skipped."""
+    return Path(str(importlib.resources.files(__package__).joinpath("families")))
 
 
 MAX_DRIVER_BYTES = 256 * KIB  # a controller description (drivers/lc32.toml is some 2 KiB)
