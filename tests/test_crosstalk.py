@@ -115,7 +115,7 @@ def test_measured_matrix_matches_the_truth_within_its_uncertainty(measured_set, 
 
 def _true_light_of_codes(camera) -> np.ndarray:
     """float64 (256,): the simulated camera's linear light of each 8-bit code (its tone curve inverted)."""
-    from lenticalib.sim.render import _tone_lut
+    from lenticalib.sim.photo import _tone_lut
 
     encoded = _tone_lut(float(camera.tone_gamma), float(camera.tone_contrast))
     return np.interp(np.arange(256) / 255.0, encoded, np.arange(65536) / 65535.0)
@@ -371,7 +371,7 @@ def _texts(record) -> list[str]:
 @pytest.mark.slow
 def test_report_figures_state_the_numbers_of_crosstalk_json(measured_cli):
     from lenticalib.calib.crosstalk.result import FIGURES
-    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import read_figure_record
 
     out, report = measured_cli.out, measured_cli.report
     data = json.loads(out.read_text())
@@ -410,7 +410,7 @@ def test_report_figures_state_the_numbers_of_crosstalk_json(measured_cli):
 @pytest.mark.slow
 def test_every_report_figure_has_a_title_and_axes_with_units(measured_cli):
     from lenticalib.calib.crosstalk.report import FIGURE_SIZES
-    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import read_figure_record
 
     report = measured_cli.report
     written = sorted(p.name for p in report.iterdir())

@@ -9,7 +9,7 @@ from lenticalib.core.errors import InputError
 from lenticalib.core.profile import load_profile
 from lenticalib.core.routing import view_coordinate
 from lenticalib.sim import Scene, random_scene, view_coordinate_truth
-from lenticalib.sim.render import photograph, photograph_jpeg
+from lenticalib.sim.photo import photograph, photograph_jpeg
 
 from .cli_support import one_error_line
 
@@ -320,7 +320,7 @@ def test_hard_conditions_add_phone_behaviour_and_leave_every_other_draw_alone():
 
 
 def test_s_curve_tone_lut():
-    from lenticalib.sim.render import _tone_lut
+    from lenticalib.sim.photo import _tone_lut
 
     plain, strong = _tone_lut(1.0, 0.0), _tone_lut(1.0, 1.0)
     mid = np.searchsorted(plain, 0.5)

@@ -10,7 +10,8 @@ never device or cli.
     camera           Camera (OpenCV intrinsics + distortion, pose, photometric settings)
     scene            Scene = optics + camera + seed; random_scene(); JSON form
     layouts          subpixel layouts of the virtual panel: RGB, BGR, named cell layouts, JSON files
-    render           numba ray kernel and the camera's photometric chain: photograph()
+    render           the numba ray kernel: render_radiance(), the light reaching each camera pixel
+    photo            the camera's photometric chain (develop) and photo files: photograph()
     capture          simulate_capture_set(): a pattern folder photographed into DIR/captures
     simulate_folder  simulate_folder(): what ``lenticalib simulate`` runs (pattern or board folder)
     capture_camera   SimCamera: the capture camera ``--camera sim`` (registered in
@@ -40,10 +41,14 @@ __all__ = ["Camera", "PanelOptics", "RANGES", "Scene", "photograph", "photograph
 
 
 def __getattr__(name):
-    if name in ("photograph", "photograph_jpeg", "render_radiance"):
-        from . import render
+    if name == "render_radiance":
+        from .render import render_radiance
 
-        return getattr(render, name)
+        return render_radiance
+    if name in ("photograph", "photograph_jpeg"):
+        from . import photo
+
+        return getattr(photo, name)
     if name == "simulate_capture_set":
         from .capture import simulate_capture_set
 

@@ -147,7 +147,7 @@ def simulate_board_set(directory: str | os.PathLike, *, kind: str = "panel", see
         start = time.perf_counter()
         record = {"file": f"{CAPTURE_FOLDER}/{photo_name(k)}", "rt_cam_board": pose.rt().round(12).tolist()}
         if kind == "panel":
-            from .render import photograph_jpeg
+            from .photo import photograph_jpeg
 
             moved = camera_for_pose(camera, optics, board, pose)
             shot, _ = moved.for_photo(rng)

@@ -7,9 +7,9 @@ print   a flat printed board at a chosen pose in front of the camera.  Every sen
         exactly (the camera's undistortion on a grid every ``GRID_STEP`` pixels, bilinear in
         between, as the panel renderer does) onto the board plane; the board's ink edges are soft
         (a linear ramp ``EDGE_SOFTNESS`` squares wide), the light falls off slightly across the
-        board; then the camera's photometric chain :func:`.render.develop` and JPEG.
+        board; then the camera's photometric chain :func:`.photo.develop` and JPEG.
 panel   the board raster shown on the virtual panel and photographed through its lens sheet by
-        the panel renderer (:func:`.render.photograph_jpeg`), the camera moved around the panel.
+        the panel renderer (:func:`.photo.photograph_jpeg`), the camera moved around the panel.
 
 Frames and units.  Camera frame: OpenCV's (x right, y down, z forward), mm.  Board frame: origin
 at inner corner (0, 0), x along a row of corners, y down a column, z into the board, mm.  A
@@ -201,7 +201,7 @@ def _markers(board) -> tuple[np.ndarray, np.ndarray, float]:
 
 def print_board_radiance(camera: Camera, board, pose: BoardPose, rng: np.random.Generator) -> np.ndarray:
     """Light reaching each sensor pixel from a printed board at ``pose``: float32 ``(h, w, 3)``, the
-    three channels equal (grey paper and ink), in the units :func:`.render.develop` takes.
+    three channels equal (grey paper and ink), in the units :func:`.photo.develop` takes.
 
     The light falls off across the board by up to +-8 % in a random direction drawn from ``rng``.
     """
@@ -223,7 +223,7 @@ def print_board_radiance(camera: Camera, board, pose: BoardPose, rng: np.random.
 
 def photograph_print_board(camera: Camera, board, pose: BoardPose, rng: np.random.Generator) -> bytes:
     """The camera's JPEG of a printed ``board`` at ``pose`` (noise, exposure drift from ``rng``)."""
-    from .render import develop, encode_jpeg
+    from .photo import develop, encode_jpeg
 
     shot, _ = camera.for_photo(rng)
     shot = shot.replace(exposure=shot.exposure * 0.8 / REFLECTANCE["white"])

@@ -74,7 +74,7 @@ def photograph_pattern(scene: Scene, pattern_name: str, raster: np.ndarray, raw:
     come from :func:`noise_seed` / :func:`photo_scene`, so the same scene, name and raster give the
     same bytes (what ``simulation.json`` promises).
     """
-    from .render import photograph_jpeg, photograph_raw_png
+    from .photo import photograph_jpeg, photograph_raw_png
 
     rng = np.random.default_rng(noise_seed(scene, pattern_name))
     shoot = photograph_raw_png if raw else photograph_jpeg

@@ -148,7 +148,7 @@ def make_driver_video(directory: str | os.PathLike, frames: int = 1800, seed: in
     (default: the demo avatar); returns the ``video.json`` record."""
     import cv2
 
-    from .render import encode_jpeg
+    from .photo import encode_jpeg
 
     rig = avatar if avatar is not None else make_demo_avatar()
     W, H = size
