@@ -17,6 +17,7 @@ The fit, in the order it runs
     phase            phase-shift demodulation, unwrapping and smoothing of the seen-coordinate maps
     photometric      the camera's tone response, cancelled where it biases the fringe phase
     model            the global model: the view-coordinate plane and the subpixel order
+    order_photos     the subpixel order (order photos) and the layout (cell photos) against the fitted plane
     layout_fit       the subpixel layout (stripe or cells) from the cell photos, with its uncertainty
     uncertainty      jackknife plus floors, propagated into the profile's constants
     camera_file      a calibrated camera from a file (mrcal ``.cameramodel``, OpenCV YAML/JSON)

@@ -34,9 +34,9 @@ from . import layout_fit, model, phase, photometric
 from .camera import CameraModel, describe_pose, estimate_camera, load_camera_model
 from .captures import CaptureSet, Photo, open_capture_set
 from .checks import check_clipping, check_photo_steps, mask_checks
-from .groups import Group, Registration, demodulate_group, group_photos
-from .patterns import (CELL_PERIOD_RANGE, CELL_X_GROUPS, CELL_Y_GROUPS, CELL_Y_PERIOD,
-                       FINE_PERIODS, PERIOD_RANGE)
+from .groups import Group, Registration, demodulate_group
+from .order_photos import ORDER_CHANNELS, cell_layout, predicted_fine_cycles, subpixel_order
+from .patterns import CELL_PERIOD_RANGE, CELL_X_GROUPS, CELL_Y_GROUPS, FINE_PERIODS, PERIOD_RANGE
 from .pose import PanelPose, camera_pose
 from .uncertainty import constants_with_uncertainty, quality_and_covariance, registration_variance
 
@@ -45,7 +45,6 @@ ProgressFn = Callable[[str], None]
 # What fit_capture_set does, in order: every photo of these groups is read (one progress call
 # each), and each stage is one progress call; progress_steps counts from the same lists.
 DEMODULATED_GROUPS = ("x1", "y1", "x0", "y0", "x2") + tuple(f"f{t:g}" for t in FINE_PERIODS)
-ORDER_CHANNELS = {"order-r": 0, "order-b": 2}  # the order photos, and the channel each lights
 STAGE_PANEL, STAGE_COORDINATES, STAGE_PLANE, STAGE_ORDER = STAGES = (
     "finding the panel", "measuring seen panel coordinates", "fitting the view-coordinate plane", "subpixel order")
 STAGE_LAYOUT = "subpixel layout"  # only for a set with the cell photos
@@ -68,7 +67,6 @@ MAX_PREDICTED_CENTRING = 0.5
 MIN_COHERENCE = 0.15  # |mean exp(2 pi i residual)| of the fine samples
 MIN_ORDER_MARGIN = 0.35  # fraction of the RGB/BGR separation
 MAX_ALIAS = 0.42  # |T/Delta_r - 1| ... a fine group aliasing beyond this is not used
-MIN_CELL_CONTRAST = 0.1  # a cell photo's fringe contrast, of the fine green group's
 MAX_LAYOUT_SIGMA = 0.08  # views: 1-sigma of a cell layout's shifts (a stripe found is exact)
 
 
@@ -251,13 +249,13 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
 
     if progress:
         progress(STAGE_ORDER)
-    order = _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration)
+    order = subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration)
     _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used)
     layout = None
     if ps.cells:
         if progress:
             progress(STAGE_LAYOUT)
-        layout = _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration, n_views)
+        layout = cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration, n_views)
 
     camera, pose = _camera(groups["x1"].photos[0], x_sm, y_sm, valid, ps, given_camera, pixel_pitch_mm)
     reg_var = registration_variance(groups, registration.shifts, x_sm, y_sm, valid, fit, used)
@@ -321,113 +319,13 @@ def fit_capture_set(directory: str | os.PathLike, *, views: int | None = None,
     return FitResult(profile, not problems, problems, quality, maps, seconds, warnings, pose=pose, layout=layout)
 
 
-def _predicted_fine_cycles(fit, x_sm, y_sm, valid, period):
-    out = np.zeros(x_sm.shape)
-    out[valid] = x_sm[valid] / period + fit.psi(x_sm[valid], y_sm[valid])
-    return out
-
-
-def _subpixel_order(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration) -> model.OrderDecision:
-    period = capture.patterns.group("order-r")[0].period
-    pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
-    f_ref = groups[f"f{period:g}"]
-    # the median: a dark, noisy pixel (or the resampling's ringing next to one) has dc near 0
-    # and would dominate a mean of the ratio
-    ref_amp = float(np.median(np.abs(f_ref.z[valid]) / np.maximum(f_ref.dc[valid], 1e-6)))
-    offsets, amps = {}, {}
-    for name, channel in ORDER_CHANNELS.items():
-        photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
-        registration.undo_shake([photo], capture)
-        rgb_mean = photo.rgb[valid].mean(axis=0)
-        other = 2 - channel
-        if rgb_mean[channel] <= rgb_mean[other]:
-            colour = "red" if channel == 0 else "blue"
-            raise CaptureError(f"should show a {colour} pattern but its panel is not {colour}",
-                               source=str(photo.path),
-                               hint=f"photograph {name}.png (swapped with the other order photo?)")
-        amplitudes, _, _ = layout_fit.block_phases(photo.luma, pred, valid, block=48)
-        q, blocks = complex(amplitudes.sum()), int(amplitudes.size)
-        blocks = max(1, blocks)
-        amps[name] = abs(q) / blocks / max(ref_amp, 1e-9)
-        offsets[name] = math.atan2(q.imag, q.real) / (2 * math.pi)
-        if amps[name] < 0.15:
-            raise CaptureError(f"shows almost no fringes of pattern {name} (contrast {amps[name]:.2f} of the fine "
-                               "green group)", source=str(photo.path),
-                               hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
-    return model.decide_order(offsets["order-r"], offsets["order-b"], period, amps["order-r"], amps["order-b"])
-
-
-def _cell_layout(capture, fit, x_sm, y_sm, valid, shape, groups, progress, registration,
-                 views: int) -> layout_fit.LayoutDecision:
-    """The stripe order or the cell layout from the cell photos (:mod:`.layout_fit`); CaptureError
-    naming a photo that does not show its channel's fringes (at every period of the x photos),
-    CalibrationError (one line) when the shifts cannot tell the layout."""
-    lens_period = -1.0 / fit.a
-    slant = fit.b * lens_period / 3.0
-    parts, floors, weak = [], [], []
-    for period, names in CELL_X_GROUPS.items():
-        reference = groups[f"f{min(FINE_PERIODS, key=lambda p: abs(p - period)):g}"]
-        part, faint = _cell_shifts(capture, names, period, _predicted_fine_cycles(fit, x_sm, y_sm, valid, period),
-                                   reference, valid, shape, progress, registration)
-        parts.append(part)
-        floors.append(layout_fit.shift_floor(lens_period, period))
-        weak.append(faint)
-    for key, error in weak[0].items():  # a photo without fringes is an error only when no period has them
-        if all(key in faint for faint in weak[1:]):
-            raise error
-    along_row, floor = layout_fit.combine_periods(parts, floors)
-    along_column, faint = _cell_shifts(capture, CELL_Y_GROUPS, CELL_Y_PERIOD,
-                                       np.where(valid, y_sm / CELL_Y_PERIOD, 0.0), groups["y1"], valid, shape,
-                                       progress, registration)
-    for error in faint.values():
-        raise error
-    shifts = layout_fit.route_shifts(along_row, along_column, slant)
-    decision = layout_fit.decide_layout(shifts, views / lens_period, floor)
-    layout_fit.refuse_if_unresolved(decision, str(capture.directory / "captures"))
-    return decision
-
-
-def _cell_shifts(capture, names, period, pred, reference, valid, shape, progress,
-                 registration) -> tuple[layout_fit.CellShifts, dict]:
-    """The shifts (in units of the pattern coordinate) one kind of cell photo measures, against the
-    phase ``pred`` (cycles, per working pixel); contrast judged against the green group ``reference``.
-
-    Returns the shifts (sigma ``inf`` for a photo whose fringes are too faint) and, per
-    ``(class, channel)`` of such a photo, the CaptureError that names it; a photo of the wrong
-    colour raises at once."""
-    ref_amp = float(np.median(np.abs(reference.z[valid]) / np.maximum(reference.dc[valid], 1e-6)))
-    classes = len(names) // 3
-    offset, sigma, amplitude = (np.zeros((classes, 3)) for _ in range(3))
-    faint = {}
-    for name in names:
-        channel, k = "rgb".index(name[-2]), int(name[-1])
-        photo = group_photos(capture, name, shape, progress, keep_rgb=True)[0]
-        registration.undo_shake([photo], capture)
-        rgb_mean = photo.rgb[valid].mean(axis=0)
-        if int(np.argmax(rgb_mean)) != channel:
-            colour = ("red", "green", "blue")[channel]
-            raise CaptureError(f"should show a {colour} pattern but its panel is not {colour}",
-                               source=str(photo.path), hint=f"photograph {name}.png (swapped with another cell photo?)")
-        q, rows, cols = layout_fit.block_phases(photo.luma, pred, valid)
-        offset[k, channel], sigma[k, channel], amp = layout_fit.phase_offset(q, rows, cols, photo.luma.shape)
-        amplitude[k, channel] = amp / max(ref_amp, 1e-9)
-        if amplitude[k, channel] < MIN_CELL_CONTRAST:
-            faint[(k, channel)] = CaptureError(
-                f"shows almost no fringes of pattern {name} (contrast {amplitude[k, channel]:.2f} of the green "
-                "group's)", source=str(photo.path),
-                hint=f"show {name}.png full screen, keep the camera still and in focus, and retake")
-            sigma[k, channel] = math.inf
-    shifts = layout_fit.shifts_from_offsets(offset, sigma, amplitude, period)
-    return shifts, faint
-
-
 def _check_fine_photos(capture, groups, fit, x_sm, y_sm, valid, used) -> None:
     """Each fine photo must show its phase step of the fringe the fitted plane predicts."""
     for gi, period in enumerate(FINE_PERIODS):
         if gi not in used:
             continue
         g = groups[f"f{period:g}"]
-        pred = _predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
+        pred = predicted_fine_cycles(fit, x_sm, y_sm, valid, period)
         check_photo_steps(g, pred, valid, capture, "(checked against the fitted panel model)")
 
 
