@@ -456,7 +456,7 @@ def _stated_rms(record) -> list[str]:
 def test_report_figures_state_the_summary_residual(demo_fit):
     """view-map.png and residual.png show the residual the summary reports (issue 19: the view map said
     0.427 views RMS, a second definition, beside a headline of 0.037)."""
-    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import read_figure_record
 
     report = demo_fit.out / "profile-report"
     quality = json.loads((report / "summary.json").read_text())["quality"]
@@ -480,7 +480,7 @@ def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fi
     """The crop is drawn at a zoom where one subpixel is several screen pixels wide, and the measured
     samples in it agree with the fitted w of the subpixel they lie on (no aliased checkerboard)."""
     from lenticalib.calib.model import wrap
-    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import read_figure_record
     from lenticalib.core.routing import view_coordinate
 
     numbers = read_figure_record(demo_fit.out / "profile-report" / "view-map.png")["numbers"]
@@ -499,7 +499,8 @@ def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fi
 
 
 def test_every_fit_report_figure_has_a_title_and_axes_with_units(demo_fit):
-    from lenticalib.calib.report import FIGURE_SIZES, read_figure_record
+    from lenticalib.calib.report import FIGURE_SIZES
+    from lenticalib.core.figures import read_figure_record
 
     for name in FIGURE_SIZES:
         record = read_figure_record(demo_fit.out / "profile-report" / name)

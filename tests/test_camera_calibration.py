@@ -110,7 +110,7 @@ def test_calibrate_writes_a_real_cameramodel_and_a_report(printed):
                        ("uncertainty.png", (1800, 860))):
         with Image.open(report / name) as img:
             assert img.size == size
-    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import read_figure_record
 
     coverage = read_figure_record(report / "coverage.png")["axes"][0]
     assert f"{100 * summary['coverage']:.0f}% of the 8x6 grid" in coverage["title"]

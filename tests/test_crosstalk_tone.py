@@ -128,7 +128,7 @@ def test_the_report_draws_the_measured_tone_curve_with_its_sigma_and_the_codes_i
     with the 1-sigma it propagates, the black and white photos' codes, and a blended model named
     with its weight; all texts and the numbers recorded in the PNG."""
     from lenticalib.calib.crosstalk.report import FIGURE_SIZES, _tone_curve
-    from lenticalib.calib.report import read_figure_record
+    from lenticalib.core.figures import read_figure_record
     from lenticalib.core.figures import write_figures
 
     fitted = tone.fit_tone_curve(_photos(DEMOSAIC_SHORTFALL), tiles.tile_size(600))

@@ -17,7 +17,7 @@ Written into one folder (each file atomically; ``lenticalib fit`` stages the who
 
 Every residual a figure shows is ``PlaneFit.residual`` of the fit's samples (measured minus
 fitted, wrapped, in views), the one the quality numbers come from; the numbers a figure states
-are those of the summary, recorded in the PNG (:func:`read_figure_record`).  Every figure has a
+are those of the summary, recorded in the PNG (:func:`lenticalib.core.figures.read_figure_record`).  Every figure has a
 title, axes labelled with units and a colour bar with units; sizes are :data:`FIGURE_SIZES`
 (pixels), fonts at least 10 pt.
 """
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.documents import FORMATS, write_document
-from ..core.figures import RECORD_KEY, figure_record, jsonable, read_figure_record, write_figures  # noqa: F401
+from ..core.figures import jsonable, write_figures
 from ..core.routing import view_coordinate
 
 FIGURE_SIZES = {"panel.png": (1800, 1200), "view-map.png": (1800, 1500), "residual.png": (1800, 700)}

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.colour import srgb_decode_lut
+from ...core.figures import write_figures
 from .ratios import TOE_END
 from .result import HEADLINE, describe_figure
 
@@ -42,8 +43,6 @@ def write_crosstalk_report(measurement, directory: str | Path, document: dict,
     """Write the figures of ``measurement`` (:class:`.measure.Measurement`) into ``directory``; the
     numbers they state come from ``document`` (:func:`.result.crosstalk_document`) and the
     ``compensation`` study (:func:`lenticalib.render.compensation.compensation_study`)."""
-    from ..report import write_figures
-
     directory = Path(directory)
     directory.mkdir(exist_ok=True)
     drawings = [("view-cone.png", lambda fig, m: _cone(fig, m, document)), ("matrix.png", _matrix),
