@@ -6,6 +6,7 @@ uses them:
     patterns     the sweep patterns and their manifest (``lenticalib crosstalk patterns``)
     photos       reading the photos: linear light, the panel's lit area, registration
     tone         the camera's tone curve, from the black, white, half and level photos
+    tone_models  the tone curve's two models (power, bent curve) fitted to the photos' relations
     tiles        photo tiles for the tone curve: the tile side, each tile's mean and largest code, histograms
     exposure     each photo's exposure, read on the registration frame's step down to the bezel
     tone_choice  the power, the bent curve or a blend of the two: the curve's weight, the blend

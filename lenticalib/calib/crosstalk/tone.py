@@ -58,22 +58,20 @@ from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
 from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
+from .tone_models import (KNOTS, PHOTOS, bend_gain, best_power, fitted_curve, half_residual, level_power,
+                          log_slope)
 from .tone_choice import curve_weight
 
-PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
 LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
 # the curve model's knots (codes): finer at the toe, where an S-curve bends most and the half photos'
 # dark tiles are its only data (bench hard case 11: its codes 1-15 above black 16-20 % too dark with
 # knots every 16, the mid-tones' bend carried into the toe by the smoothing)
-KNOTS = (0, 2, 4, 6, 8, 10, 12, 14, 16, 20, 24, 32) + tuple(range(48, 256, 16))
-SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
 BINS = 64  # bins of tiles (by white's code) the level relations are averaged over
 MIN_BIN = 50  # tiles per bin at least
 PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: _relations)
-POWER_RANGE = (0.6, 1.6)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
 MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
@@ -131,7 +129,7 @@ class ToneCurve:
             return 0.0
         black, white = self.code_range
         codes = np.arange(min(black + 2, white - 1), white + 1)
-        apart = 0.5 * abs(_log_slope(np.asarray(other.table, np.float64), np.asarray(self.table, np.float64), codes))
+        apart = 0.5 * abs(log_slope(np.asarray(other.table, np.float64), np.asarray(self.table, np.float64), codes))
         share = _other_share(self, other)
         return share if apart * share > self.sigma else 0.0
 
@@ -159,40 +157,6 @@ class ToneCurve:
 def decode_lut(power: float = 1.0) -> np.ndarray:
     """float32 (256,): sRGB-decoded light of each 8-bit code, to the power ``power``."""
     return (srgb_decode_lut() ** power).astype(np.float32)
-
-
-def _half_residual(table, hist, gains=None):
-    """(relative RMS, gains (2,)) of ``a0 half-0 + a1 half-1 = white + black`` under ``table``;
-    ``gains`` None: the best (least squares)."""
-    means = {k: hist[k] @ table for k in PHOTOS}
-    lit = np.maximum(means["white"] - means["black"], 1e-9)
-    y = (means["white"] + means["black"]) / lit
-    a = np.stack([means["half-0"] / lit, means["half-1"] / lit], axis=1)
-    if gains is None:
-        gains, *_ = np.linalg.lstsq(a, y, rcond=None)
-    return float(np.sqrt(np.mean((a @ gains - y) ** 2))), gains
-
-
-def _best_power(hist) -> tuple[float, float]:
-    from scipy.optimize import minimize_scalar
-
-    srgb = srgb_decode_lut()
-    grid = np.linspace(*POWER_RANGE, 21)
-    values = [_half_residual(srgb ** p, hist)[0] for p in grid]
-    i = int(np.argmin(values))
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    best = minimize_scalar(lambda p: _half_residual(srgb ** p, hist)[0], bounds=(lo, hi), method="bounded",
-                           options={"xatol": 1e-4})
-    return float(best.x), float(best.fun)
-
-
-def _basis() -> np.ndarray:
-    """float64 (256, len(KNOTS)): the sRGB decoding times hat functions on ``KNOTS`` (each rises from
-    the knot before and falls to the knot after; the last one falls to 0 at code 256)."""
-    codes = np.arange(256, dtype=np.float64)
-    knots = np.asarray(KNOTS + (256,), np.float64)
-    hats = np.stack([np.interp(codes, knots, np.eye(knots.size)[j]) for j in range(len(KNOTS))], axis=1)
-    return srgb_decode_lut()[:, None] * hats
 
 
 def _relations(hist, mixed, levels=LEVELS) -> list:
@@ -227,69 +191,12 @@ def _relations(hist, mixed, levels=LEVELS) -> list:
     return relations
 
 
-def _misfit(table, relations) -> float:
-    """RMS of the relations under ``table`` (float (256,)), each row over white's light under it,
-    weighted by the tiles it stands for."""
-    total = sum(float(np.sum(n)) for *_, n in relations)
-    return float(np.sqrt(sum(float(np.sum(n * ((r @ table) / np.maximum(lit @ table, 1e-12)) ** 2))
-                             for r, lit, n in relations) / total))
-
-
-def _level_power(relations) -> float:
-    """The power ``p`` of ``D ** p`` that fits the relations best (the exposure locked)."""
-    from scipy.optimize import minimize_scalar
-
-    srgb = srgb_decode_lut()
-    best = minimize_scalar(lambda p: _misfit(srgb ** p, relations), bounds=POWER_RANGE, method="bounded",
-                           options={"xatol": 1e-4})
-    return float(best.x)
-
-
-def _bent(power: float, bend: float) -> np.ndarray:
-    """float64 (256,): ``D ** power x exp(bend v (1 - v))``, ``v`` the code over 255: the power with one
-    smooth bend of the mid-tones (the test for a curve that is not a power)."""
-    v = np.arange(256) / 255.0
-    return srgb_decode_lut() ** power * np.exp(bend * v * (1.0 - v))
-
-
-def _bend_gain(relations, power: float) -> float:
-    """How much better (relative RMS of the relations, 0..1) the power fits with a bend of the mid-tones."""
-    from scipy.optimize import minimize
-
-    plain = _misfit(_bent(power, 0.0), relations)
-    best = minimize(lambda x: _misfit(_bent(x[0], x[1]), relations), [power, 0.0], method="Nelder-Mead",
-                    options={"xatol": 1e-4, "fatol": 1e-9})
-    return 1.0 - float(best.fun) / max(plain, 1e-12)
-
-
-def _curve(relations) -> np.ndarray:
-    """float64 (256,): the curve model fitted to the relations (linear least squares, smoothed)."""
-    srgb, basis = srgb_decode_lut(), _basis()
-    weights = [np.sqrt(n) / np.maximum(lit @ srgb, 1e-6) for _, lit, n in relations]
-    a = np.vstack([(r @ basis) * w[:, None] for (r, _, _), w in zip(relations, weights)])
-    b = -np.concatenate([(r @ srgb) * w for (r, _, _), w in zip(relations, weights)])
-    n, rows = basis.shape[1], sum(float(np.sum(c)) for *_, c in relations)
-    penalty = np.sqrt(SMOOTHING * rows) * np.diff(np.eye(n), 2, axis=0)
-    ridge = np.sqrt(1e-6 * rows) * np.eye(n)
-    theta, *_ = np.linalg.lstsq(np.vstack([a, penalty, ridge]), np.concatenate([b, np.zeros(2 * n - 2)]),
-                                rcond=None)
-    return srgb + basis @ theta
-
-
 def _level_biases(hist, table) -> tuple[float, ...]:
     """Each level photo's light over its share of white's (above black), less 1, under ``table``:
     sums over all tiles (a tile's own ratio is off by a lit row where the camera resolves them)."""
     lit = max(float(np.sum((hist["white"] - hist["black"]) @ table)), 1e-9)
     return tuple(float(k * np.sum((hist[name] - hist["black"]) @ table) / lit - 1.0)
                  for name, k in zip(LEVELS, LEVEL_PERIODS))
-
-
-def _log_slope(table, reference, codes) -> float:
-    """The power ``d`` that best maps ``reference`` onto ``table`` over ``codes`` (both scaled to 1 at the
-    last code): ``log(table / reference) ~ d log(reference)``."""
-    x = np.log(reference[codes] / reference[codes[-1]])
-    y = np.log(np.maximum(table[codes], 1e-12) / table[codes[-1]]) - x
-    return float(np.dot(x, y) / max(np.dot(x, x), 1e-12))
 
 
 def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None:
@@ -325,11 +232,11 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     codes = np.arange(min(black + 2, white - 1), white + 1)
     strips = []
     if not levels:
-        power, residual = _best_power(hist)
+        power, residual = best_power(hist)
         for g in range(GROUPS):
             sel = group == g
             if sel.sum() >= MIN_TILES // GROUPS:
-                strips.append(_best_power({k: v[sel] for k, v in hist.items()})[0])
+                strips.append(best_power({k: v[sel] for k, v in hist.items()})[0])
         spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else abs(power - 1.0)
         sigma = math.sqrt(spread ** 2 + POWER_FLOOR ** 2) / power
         return ToneCurve("power", decode_lut(power), sigma, residual, int(picked.size), power, tuple(strips),
@@ -365,7 +272,7 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None) -> 
     ``weight``: the curve's weight given instead); model "power" with a NaN sigma where a level
     photo is too far from its share of white."""
     # a level photo of another pattern would bend the fit: each is judged first under the halves' power
-    halves_power, halves_residual = _best_power({k: v[mixed] for k, v in hist.items()})
+    halves_power, halves_residual = best_power({k: v[mixed] for k, v in hist.items()})
     biases = _level_biases(hist, srgb_decode_lut() ** halves_power)
     if max(abs(b) for b in biases) > MAX_LEVEL_BIAS:
         return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(hist["white"].shape[0]),
@@ -374,13 +281,13 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None) -> 
     finest = _relations(hist, mixed, PINNING)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
     # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
-    power = _level_power(relations[:1])
-    curve = _curve(relations)
+    power = level_power(relations[:1])
+    curve = fitted_curve(relations)
     # the curve's weight (tone_choice): by how much a bend of the mid-tones fits the halves better
     # than the power and how far the levels lie from their shares under the halves' power (a
     # camera's S-curve); the curve's freedom otherwise follows the level photos' texture more than
     # the camera.  Between the two, both models are measured and blended
-    gain = _bend_gain(relations[:1], power)
+    gain = bend_gain(relations[:1], power)
     level_bias = max(abs(b) for b in biases)
     if weight is None:
         weight = curve_weight(gain, level_bias)
@@ -424,21 +331,21 @@ def _other_share(main: ToneCurve, other: ToneCurve) -> float:
 def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest) -> ToneCurve:
     """The :class:`ToneCurve` of ``model`` ("power" of ``power``, or "curve") with ``table`` (256,),
     its residuals and its 1-sigma: the strips' spread and what the relations leave open."""
-    residual = _half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
+    residual = half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
     level_residuals = _level_biases(hist, table)
     strips = []
     for g in range(GROUPS):
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
             part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel])
-            fitted = _curve(part) if model == "curve" else srgb_decode_lut() ** _level_power(part[:1])
-            strips.append(_log_slope(fitted, table, codes))
+            fitted = fitted_curve(part) if model == "curve" else srgb_decode_lut() ** level_power(part[:1])
+            strips.append(log_slope(fitted, table, codes))
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
     # what the relations leave open: the halves' power against the one the finest level pins too, a
     # bent curve against the one the halves and the finest rows alone give (they differ by the
     # coarser levels' texture bias and by what the power family cannot follow)
-    reference = srgb_decode_lut() ** _level_power(finest) if model == "power" else _curve(finest)
-    spread = math.sqrt(spread ** 2 + _log_slope(reference, table, codes) ** 2)
+    reference = srgb_decode_lut() ** level_power(finest) if model == "power" else fitted_curve(finest)
+    spread = math.sqrt(spread ** 2 + log_slope(reference, table, codes) ** 2)
     return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
                      int(hist["white"].shape[0]), power if model == "power" else math.nan, tuple(strips),
                      level_residuals, levels=True)
