@@ -335,3 +335,19 @@ def test_the_board_folder_stands_for_its_captures(printed):
     folder = printed[0]
     assert collect_photos([folder]) == collect_photos([folder / "captures"])
     assert all(p.parent == folder / "captures" for p in collect_photos([folder]))
+
+
+def test_board_panel_is_a_library_call_naming_its_arguments(tmp_path):
+    """The panel of `camera patterns` (profile, or panel + pixel pitch) is chosen by the library."""
+    from lenticalib.calib.intrinsics.pipeline import board_panel
+    from lenticalib.core.errors import InputError
+
+    assert board_panel(panel="1920x1080", pixel_pitch_mm=0.3) == (1920, 1080, 0.3, None)
+    profile = {"views": 8, "slant": 0.19, "period": 7.5, "offset": 1.5, "reference_view": 4, "width": 1920,
+               "height": 1080, "subpixel_order": "BGR", "physical": {"pixel_pitch_mm": 0.2}}
+    (tmp_path / "p.json").write_text(json.dumps(profile))
+    assert board_panel(tmp_path / "p.json") == (1920, 1080, 0.2, 2.5)
+    for kwargs in ({}, {"profile": tmp_path / "p.json", "panel": "1920x1080"}, {"panel": "1920x1080"}):
+        with pytest.raises(InputError) as caught:
+            board_panel(**kwargs)
+        assert "--" not in str(caught.value) and caught.value.source in ("profile", "panel")

@@ -75,51 +75,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     s.set_defaults(run=run_simulate)
 
 
-def _panel_geometry(args: argparse.Namespace):
-    """(width, height, pixel pitch mm or None, lens pitch in pixels or None) from --profile or --panel/--pixel-pitch."""
-    from ..core.errors import InputError
-
-    if (args.profile is None) == (args.panel is None):
-        raise InputError("give the panel once: --profile P, or --panel WxH with --pixel-pitch MM",
-                         source="--profile" if args.profile else "--panel",
-                         hint="e.g. lenticalib camera patterns -o board --panel 3840x2160 --pixel-pitch 0.1796")
-    pitch, lens_px = args.pixel_pitch, None
-    if args.profile is not None:
-        from ..core.profile import load_profile
-
-        profile = load_profile(args.profile, "--profile")
-        width, height = profile.width, profile.height
-        lens_px = profile.period / 3.0
-        if pitch is None:
-            pitch = (profile.physical or {}).get("pixel_pitch_mm")
-        if pitch is None:
-            raise InputError("the profile does not give the panel's pixel pitch", source=args.profile,
-                             hint="pass --pixel-pitch MM (from the panel's data sheet)")
-    else:
-        from ..core.sizes import MIN_PANEL_SIDE, parse_size
-
-        width, height = parse_size(args.panel, "--panel", MIN_PANEL_SIDE)
-        if pitch is None:
-            raise InputError("the panel's pixel pitch is needed for the board's square size", source="--panel",
-                             hint="pass --pixel-pitch MM (from the panel's data sheet)")
-    return width, height, pitch, lens_px
-
-
 FLAGS = {"pixel_pitch_mm": "--pixel-pitch", "lens_pitch_mm": "--lens-pitch", "resolution": "--resolution",
          "photos": "--photos", "subsamples": "--subsamples", "seed": "--seed", "kind": "--kind",
          "conditions": "--conditions", "squares": "--squares", "paper": "--paper",
          "square_mm": "--print-square", "dictionary": "--dictionary",
-         "pattern": "--board"}  # the library's argument names
+         "pattern": "--board", "profile": "--profile", "panel": "--panel"}  # the library's argument names
 
 
 def run_patterns(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from ..calib.intrinsics.board import MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, parse_squares
-    from ..calib.intrinsics.pipeline import write_board_folder
+    from ..calib.intrinsics.pipeline import board_panel, write_board_folder
     from ._flags import flag_names
 
-    width, height, pitch, lens_px = _panel_geometry(args)
+    with flag_names(FLAGS):
+        width, height, pitch, lens_px = board_panel(args.profile, args.panel, args.pixel_pitch)
     squares = parse_squares(args.squares, "--squares") if args.squares else None
     if args.dictionary is not None and args.pattern != "charuco":
         from ..core.errors import InputError

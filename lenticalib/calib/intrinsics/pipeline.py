@@ -32,6 +32,8 @@ from typing import Callable
 from ...core.errors import ImageError, InputError
 from ...core.imageio import header_size, write_image
 from ...core.outputs import Inputs, check_output_file, check_output_folder, staged_folder
+from ...core.profile import load_profile
+from ...core.sizes import MIN_PANEL_SIDE, parse_size
 from .board import MANIFEST_NAME as BOARD_MANIFEST
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
@@ -286,6 +288,38 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
         with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES, inputs=inputs) as stage_dir:
             write_report(stage_dir, cal, qual, summary)
     return CameraCalibration(summary, output, None if report_dir is None else Path(report_dir), model, cal, qual)
+
+
+def board_panel(profile: str | os.PathLike | None = None, panel: str | tuple[int, int] | None = None,
+                pixel_pitch_mm: float | None = None) -> tuple[int, int, float, float | None]:
+    """The panel a board is drawn for: ``(width, height)`` in pixels, the pixel pitch in mm and the
+    lens pitch in pixels (None without a profile), for :func:`write_board_folder`.
+
+    Give the panel once: ``profile`` (a profile's path: its size, lens period, and its physical
+    block's pixel pitch unless ``pixel_pitch_mm`` is given), or ``panel`` (``"WxH"`` or a pair, at
+    least :data:`lenticalib.core.sizes.MIN_PANEL_SIDE` pixels a side) with ``pixel_pitch_mm``.
+    InputError (ProfileError for the profile) naming the argument otherwise.
+    """
+    if (profile is None) == (panel is None):
+        raise InputError("give the panel once: `profile` P, or `panel` WxH with `pixel_pitch_mm` MM",
+                         source="profile" if profile else "panel",
+                         hint="e.g. `panel` 3840x2160 and `pixel_pitch_mm` 0.1796")
+    pitch, lens_px = pixel_pitch_mm, None
+    if profile is not None:
+        loaded = load_profile(profile, "`profile`")
+        width, height = loaded.width, loaded.height
+        lens_px = loaded.period / 3.0
+        if pitch is None:
+            pitch = (loaded.physical or {}).get("pixel_pitch_mm")
+        if pitch is None:
+            raise InputError("the profile does not give the panel's pixel pitch", source=str(profile),
+                             hint="pass `pixel_pitch_mm` MM (from the panel's data sheet)")
+    else:
+        width, height = parse_size(panel, "panel", MIN_PANEL_SIDE)
+        if pitch is None:
+            raise InputError("the panel's pixel pitch is needed for the board's square size", source="panel",
+                             hint="pass `pixel_pitch_mm` MM (from the panel's data sheet)")
+    return width, height, pitch, lens_px
 
 
 def write_board_folder(output: str | os.PathLike, width: int, height: int, pixel_pitch_mm: float, *,
