@@ -51,13 +51,13 @@ def test_a_blurred_point_swept_over_a_stretch_lights_an_aperture_as_the_exact_in
     ``[-ext/2, ext/2]``, against a dense numerical average over the sweep."""
     from scipy.special import ndtr
 
-    from lenticalib.sim.render import _PHI_TABLE, _coverage
+    from lenticalib.sim.gaussian_cover import PHI_TABLE, coverage
 
     for lo, width, ext, s in [(-0.4, 0.8, 0.0, 0.2), (-0.4, 0.8, 1.05, 0.1), (0.3, 0.8, 0.7, 0.25),
                               (-2.5, 0.85, 1.0, 0.15), (12.0, 0.8, 1.0, 0.2), (-0.9, 0.8, 0.003, 0.3)]:
         centre = ext * ((np.arange(100_000) + 0.5) / 100_000 - 0.5)  # midpoints of the sweep
         expected = np.mean(ndtr((lo + width - centre) / s) - ndtr((lo - centre) / s))
-        assert _coverage(lo, width, ext, s, _PHI_TABLE) == pytest.approx(expected, abs=1e-6)
+        assert coverage(lo, width, ext, s, PHI_TABLE) == pytest.approx(expected, abs=1e-6)
 
 
 def test_a_view_seen_through_a_coarse_camera_is_as_bright_as_through_a_fine_one(monkeypatch):

@@ -11,6 +11,7 @@ never device or cli.
     scene            Scene = optics + camera + seed; random_scene(); JSON form
     layouts          subpixel layouts of the virtual panel: RGB, BGR, named cell layouts, JSON files
     render           the numba ray kernel: render_radiance(), the light reaching each camera pixel
+    gaussian_cover   a blurred point's light inside an aperture: Gaussian CDF tables for the kernel
     photo            the camera's photometric chain (develop) and photo files: photograph()
     capture          simulate_capture_set(): a pattern folder photographed into DIR/captures
     simulate_folder  simulate_folder(): what ``lenticalib simulate`` runs (pattern or board folder)

@@ -40,66 +40,12 @@ from numba import njit, prange
 from ..core import sizes
 from ..core.colour import srgb_decode_lut
 from .camera import Camera
+from .gaussian_cover import PHI_TABLE, coverage
 from .scene import Scene
 
 GRID_STEP = 4  # pixels between exactly undistorted grid points
-_PHI_RANGE = 7.0  # the Gaussian CDF table spans [-7, 7] sigma
-_PHI_SCALE = 512.0  # table entries per sigma
 SCATTER_BLOCK = 8  # panel pixels per cell of the scattered-light map
 ROW_BLOCK = 16  # sensor rows per parallel task (corner rays are shared between adjacent rows)
-EXACT_EXTENT = 0.02  # below this share of the blur's sigma a seen stretch's X-extent is a point
-
-
-def _phi_table() -> np.ndarray:
-    """float64 (2, L) on t in [-7, 7] sigma: row 0 the Gaussian CDF Phi(t), row 1 its integral
-    ``G(t) = t Phi(t) + phi(t)`` (``G' = Phi``)."""
-    t = np.arange(-_PHI_RANGE, _PHI_RANGE + 2.0 / _PHI_SCALE, 1.0 / _PHI_SCALE)
-    from scipy.special import ndtr
-
-    cdf = ndtr(t)
-    return np.ascontiguousarray(np.stack([cdf, t * cdf + np.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)]))
-
-
-_PHI_TABLE = _phi_table()
-
-
-@njit(cache=True, inline="always")
-def _from_table(t, table, row):
-    """Row ``row`` of :func:`_phi_table` at ``t``, linear between entries; beyond the table's
-    ends, the row's limits (0 left; 1 for Phi and ``t`` for its integral right)."""
-    f = (t + _PHI_RANGE) * _PHI_SCALE
-    if f <= 0.0:
-        return 0.0
-    if f >= table.shape[1] - 1:
-        return 1.0 if row == 0 else t
-    i = int(f)
-    a = f - i
-    return table[row, i] + a * (table[row, i + 1] - table[row, i])
-
-
-@njit(cache=True, inline="always")
-def _phi(t, table):
-    """Phi(t), the Gaussian CDF."""
-    return _from_table(t, table, 0)
-
-
-@njit(cache=True, inline="always")
-def _phi_integral(t, table):
-    """G(t) = integral of Phi up to t (t Phi(t) + phi(t)): 0 far left, t far right."""
-    return _from_table(t, table, 1)
-
-
-@njit(cache=True, inline="always")
-def _coverage(lo, width, ext, s, table):
-    """Share of a Gaussian's light (sigma ``s``) inside ``[lo, lo + width)`` (subpixels, relative
-    to the Gaussian's centre), its centre averaged uniformly over ``[-ext/2, ext/2]``."""
-    inv_s = 1.0 / s
-    if ext < EXACT_EXTENT * s:
-        return _phi((lo + width) * inv_s, table) - _phi(lo * inv_s, table)
-    h = 0.5 * ext
-    hi = lo + width
-    return (_phi_integral((hi + h) * inv_s, table) - _phi_integral((hi - h) * inv_s, table)
-            - _phi_integral((lo + h) * inv_s, table) + _phi_integral((lo - h) * inv_s, table)) * s / ext
 
 
 @njit(cache=True, inline="always")
@@ -131,7 +77,7 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
 
     The seen point sweeps a stretch ``h_y`` rows long along the lens axis (dX = slope dY); each
     row's open aperture is cut out of it exactly, and the Gaussian blur (variance ``sig2``,
-    subpixels^2) around it is integrated exactly over its X-extent there (:func:`_coverage`).
+    subpixels^2) around it is integrated exactly over its X-extent there (:func:`coverage`).
 
     ``reach`` 0: a stripe panel (slot ``pos`` of a pixel shows channel ``chan_of_pos[pos]``).
     Otherwise a subpixel layout (:func:`_layout_seen`): every slot's aperture at its channel's
@@ -169,7 +115,7 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
             c = chan_of_pos[pos]
             value = lut[raster[r, px, c]]
             if value != 0.0:  # a dark subpixel adds nothing: its coverage is not needed
-                acc[c] += wr * _coverage(lo, open_w, ext, s, table) * value
+                acc[c] += wr * coverage(lo, open_w, ext, s, table) * value
             lo += 1.0
             pos += 1
             if pos == 3:
@@ -225,7 +171,7 @@ def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, bi
             if seg <= 0.0:
                 continue
             xm = sx + (0.5 * (a0 + a1) - sy) * slope
-            cov = _coverage(q + shifts[0, srow, col] + half_bmh - xm, open_w, abs(seg * slope), s, table)
+            cov = coverage(q + shifts[0, srow, col] + half_bmh - xm, open_w, abs(seg * slope), s, table)
             if cov > 0.0:
                 acc[c] += seg / h_y * cov * value
 
@@ -429,5 +375,5 @@ def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:
     reach = 0.0 if scene.optics.subpixel_layout is None else float(np.abs(shifts[0]).max()) + 1.0
     out = np.empty((cam.height, cam.width, 3), dtype=np.float32)
     _render_kernel(raster, lut, chan_of_pos, gx, gy, float(GRID_STEP), rot, position,
-                   _kernel_params(scene), _PHI_TABLE, scatter, shifts, reach, out)
+                   _kernel_params(scene), PHI_TABLE, scatter, shifts, reach, out)
     return out
