@@ -9,6 +9,7 @@ import re
 import pytest
 
 from lenticalib.core.profile import load_profile, save_profile
+from lenticalib.device.info import device_info
 
 from .device_support import emulator_process, profile_a, profile_b, same_constants
 
@@ -36,6 +37,7 @@ def test_emulate_flash_read_verify_compare(tmp_path, cli_process):
         assert same_constants(load_profile(back), profile_b())
         info = json.loads(cli_process("device", "info", url, "--json").stdout)
         assert info["record"]["sequence"] == 1 and info["serial"]
+        assert info == device_info(url)  # the command prints the library's document
         listed = cli_process("device", "list", "--json")
         assert url in [d["url"] for d in json.loads(listed.stdout)["devices"]]
         other = tmp_path / "other.json"

@@ -193,6 +193,9 @@ def test_info_shows_the_serial_and_the_calibration_version(cli):
     info = json.loads(out)
     assert info["serial"] == "LKG-P-01234" and info["config_version"] == "3.0" and info["usb_serial"] == "LKG-EMU-U"
     assert info["calibration"]["screenW"] == 1536.0
+    from lenticalib.device.info import device_info
+
+    assert info == device_info(url)  # the command prints the library's document
 
 
 def test_device_list_shows_units_beside_the_controllers(cli):

@@ -106,69 +106,43 @@ def _refuse_looking_glass(url: str, message: str, then: str = "") -> None:
                      hint=f"read its calibration with 'lenticalib device read {url} -o profile.json --views N'{then}")
 
 
-def run_info_looking_glass(args) -> int:
-    from ..device.looking_glass import read_calibration
-
-    calibration = read_calibration(args.url)
-    fields = ("screenW", "screenH", "pitch", "slope", "center", "viewCone", "DPI", "invView", "flipImageX",
-              "flipImageY", "flipSubp")
-    out = {"url": args.url, "kind": f"Looking Glass ({calibration.kind})", "serial": calibration.serial,
-           "usb_serial": calibration.usb_serial, "config_version": calibration.config_version,
-           "calibration_bytes": calibration.size, "calibration_sha256": calibration.sha256,
-           "calibration": {key: calibration.field(key) for key in fields if calibration.field(key) is not None}}
-    if args.json:
-        print(json.dumps(out, indent=2))
-        return 0
-    usb = (f", USB serial {shown(calibration.usb_serial)}"
-           if calibration.usb_serial and calibration.usb_serial != calibration.serial else "")
-    print(f"Looking Glass unit ({calibration.kind}), serial {shown(calibration.serial or '?')}{usb}")
-    print(f"calibration version {shown(calibration.config_version or '? (no configVersion)')}, "
-          f"visual.json of {calibration.size} bytes")
+def _print_looking_glass_info(out: dict) -> None:
+    kind = out["kind"].removeprefix("Looking Glass (").removesuffix(")")
+    usb = (f", USB serial {shown(out['usb_serial'])}"
+           if out["usb_serial"] and out["usb_serial"] != out["serial"] else "")
+    print(f"Looking Glass unit ({shown(kind)}), serial {shown(out['serial'] or '?')}{usb}")
+    print(f"calibration version {shown(out['config_version'] or '? (no configVersion)')}, "
+          f"visual.json of {out['calibration_bytes']} bytes")
     cal = out["calibration"]
     if cal:
         print(", ".join(f"{key} {shown(value)}" for key, value in cal.items()))
-    print(f"read it into a profile with 'lenticalib device read {shown(args.url)} -o profile.json --views N'")
-    return 0
+    print(f"read it into a profile with 'lenticalib device read {shown(out['url'])} -o profile.json --views N'")
 
 
 def run_info(args) -> int:
-    from ..device import PanelController
     from ..core.profile import format_constant
+    from ..device.info import device_info
+    from ..device.protocol import PanelGeometry
 
-    if _looking_glass(args.url):
-        return run_info_looking_glass(args)
-    with PanelController.open(args.url) as panel:
-        identity = panel.identify()
-        current = panel.current(identity)
-    geometry = identity.panel
-    out = {"url": args.url, "model": identity.model, "firmware_version": identity.firmware_version,
-           "serial": identity.serial, "protocol_version": identity.version,
-           "record_layout_version": identity.layout_version, "capabilities": identity.capabilities,
-           "panel": None if geometry is None else {"width": geometry.width, "height": geometry.height,
-                                                    "subpixel_order": geometry.subpixel_order,
-                                                    "view_counts": list(geometry.view_counts)},
-           "record": None}
-    if current is not None:
-        out["record"] = {"slot": current.slot, "sequence": current.record.sequence, "crc32": f"{current.crc:08x}",
-                         "crc32_reported_by_device": current.crc_from_device,
-                         "written": current.record.written_iso,
-                         **current.record.to_profile().to_dict()}
-        for key in ("provenance", "format", "format_version"):
-            out["record"].pop(key, None)
+    out = device_info(args.url)
     if args.json:
         print(json.dumps(out, indent=2))
         return 0
-    print(f"{shown(identity.model)}, firmware {shown(identity.firmware_version)}, serial {shown(identity.serial)}")
-    print(f"protocol v{identity.version}, record layout v{identity.layout_version}")
-    if geometry is not None:
+    if "kind" in out:
+        _print_looking_glass_info(out)
+        return 0
+    print(f"{shown(out['model'])}, firmware {shown(out['firmware_version'])}, serial {shown(out['serial'])}")
+    print(f"protocol v{out['protocol_version']}, record layout v{out['record_layout_version']}")
+    if out["panel"] is not None:
+        geometry = PanelGeometry(**{**out["panel"], "view_counts": tuple(out["panel"]["view_counts"])})
         print(f"panel {shown(geometry.describe())}")
     else:
-        print(f"panel not reported (protocol {identity.version} firmware)")
-    if current is None:
+        print(f"panel not reported (protocol {out['protocol_version']} firmware)")
+    r = out["record"]
+    if r is None:
         print("no calibration record (flash one with 'lenticalib device flash')")
     else:
-        r = out["record"]
-        crc = r["crc32"] + ("" if current.crc_from_device else ", from the bytes read back")
+        crc = r["crc32"] + ("" if r["crc32_reported_by_device"] else ", from the bytes read back")
         print(f"record #{r['sequence']} in slot {r['slot']} (CRC-32 {crc}), written {shown(r['written'] or '?')}: "
               f"{r['views']} views, slant {format_constant('slant', r['slant'])}, "
               f"period {format_constant('period', r['period'])}, offset {format_constant('offset', r['offset'])}, "

@@ -18,6 +18,7 @@ device imports only core (and itself).  Modules:
     deadline    one deadline over a whole conversation with a device (the client's operations, a
                 Looking Glass unit's page read)
     discovery   ``device list``: asks every transport and Looking Glass reader that can list its devices
+    info        ``device info``'s document: what a controller or a Looking Glass unit says about itself
     transports  serial, HID, USB and emulated byte pipes, behind a registry of URL schemes
     looking_glass  Looking Glass units (read-only): the EEPROM over HID, the USB drive's
                 visual.json, the emulated unit; a registry of ``lkg-*`` URL schemes
