@@ -115,7 +115,7 @@ def test_measured_matrix_matches_the_truth_within_its_uncertainty(measured_set, 
 
 def _true_light_of_codes(camera) -> np.ndarray:
     """float64 (256,): the simulated camera's linear light of each 8-bit code (its tone curve inverted)."""
-    from lenticalib.sim.render import _tone_lut
+    from lenticalib.sim.photo import _tone_lut
 
     encoded = _tone_lut(float(camera.tone_gamma), float(camera.tone_contrast))
     return np.interp(np.arange(256) / 255.0, encoded, np.arange(65536) / 65535.0)
