@@ -12,7 +12,7 @@ from lenticalib.render.compensation import Compensator
 from lenticalib.render.encoders import compensates_on_device, encode
 from lenticalib.render.gl_context import headless_context
 from lenticalib.render.gl_views import GLViewStage
-from lenticalib.render.loop import desaturate_edges, to_uint8
+from lenticalib.render.host_views import desaturate_edges, to_uint8
 
 
 def _rendered(n, h, w, seed):

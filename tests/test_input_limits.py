@@ -17,7 +17,6 @@ import io
 import json
 import resource
 import struct
-import tracemalloc
 import zipfile
 import zlib
 
@@ -40,6 +39,7 @@ from lenticalib.sim.scene import Scene, random_scene
 
 from .cli_support import refused
 from .cli_support import raises_one_line as _raises_one_line
+from .memory_support import peak_traced
 
 SMALL = {"views": 8, "slant": -0.2, "period": 9.5, "offset": 1.25, "reference_view": 0.0, "width": 320,
          "height": 180, "subpixel_order": "RGB"}
@@ -48,18 +48,6 @@ VISUAL = {"pitch": {"value": 52.563}, "slope": {"value": -7.24467}, "center": {"
           "screenW": {"value": 1536.0}, "screenH": {"value": 2048.0}, "flipSubp": {"value": 0.0}}
 HUGE_INT = "1" + "0" * 400
 MiB = 1 << 20
-
-
-def _peak_traced(fn) -> int:
-    """Bytes allocated (numpy and Python, as tracemalloc sees them) at the peak while ``fn`` runs."""
-    tracemalloc.start()
-    try:
-        fn()
-    finally:
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-    return peak
-
 
 
 # ------------------------------------------------------------------ numbers in every JSON reader
@@ -292,7 +280,7 @@ def test_a_rig_array_claiming_10_to_the_12_elements_is_refused_from_its_header(t
     path = _npz(tmp_path / "rig.npz", arrays, [("means", _npy_header((10 ** 12, 3)), bytes(64), 1)])
     text = _raises_one_line(lambda: load_rig(path))
     assert text.startswith(f"{path}: array 'means' claims shape (1000000000000, 3) of float32") and "holds only" in text
-    assert _peak_traced(lambda: pytest.raises(InputError, load_rig, path)) < 16 * MiB
+    assert peak_traced(lambda: pytest.raises(InputError, load_rig, path)) < 16 * MiB
     refused("render", path, "--profile", save_profile(PanelProfile(**SMALL), tmp_path / "p.json"),
             "-o", tmp_path / "out.png", source=path)
     assert not (tmp_path / "out.png").exists()
@@ -306,7 +294,7 @@ def test_a_missing_rig_array_is_named_before_128_mib_of_deflated_zeros_are_infla
     path = _npz(tmp_path / "rig.npz", arrays, [("padding", _npy_header((32 * MiB,)), bytes(MiB), 128)])
     assert path.stat().st_size < 2 * MiB
     assert "array 'format' is missing" in _raises_one_line(lambda: load_rig(path))
-    assert _peak_traced(lambda: pytest.raises(InputError, load_rig, path)) < 16 * MiB
+    assert peak_traced(lambda: pytest.raises(InputError, load_rig, path)) < 16 * MiB
 
 
 def test_rig_arrays_over_the_size_limit_are_refused_unread(tmp_path, monkeypatch):
@@ -324,7 +312,7 @@ def test_a_control_npz_claiming_a_huge_track_and_a_pickle_are_one_line(tmp_path)
 
     path = _npz(tmp_path / "c.npz", {"t": np.arange(3.0)}, [("controls", _npy_header((10 ** 12, 70)), bytes(64), 1)])
     assert "array 'controls' claims shape (1000000000000, 70)" in _raises_one_line(lambda: load_controls(path))
-    assert _peak_traced(lambda: pytest.raises(InputError, load_controls, path)) < 16 * MiB
+    assert peak_traced(lambda: pytest.raises(InputError, load_controls, path)) < 16 * MiB
     np.savez(tmp_path / "p.npz", t=np.arange(3.0), controls=np.array([{"a": 1}] * 3, dtype=object))
     assert "pickled object array" in _raises_one_line(lambda: load_controls(tmp_path / "p.npz"))
 
@@ -344,7 +332,7 @@ def test_a_ply_header_claiming_10_to_the_13_vertices_is_refused_before_reading(t
     path.write_bytes(header.encode() + bytes(3 * 4 * len(PLY_PROPERTIES)))
     text = _raises_one_line(lambda: load_ply(path))
     assert "the header claims 10000000000000 'vertex' rows" in text and "168 bytes after the header" in text
-    assert _peak_traced(lambda: pytest.raises(InputError, load_ply, path)) < 16 * MiB
+    assert peak_traced(lambda: pytest.raises(InputError, load_ply, path)) < 16 * MiB
     refused("render", path, "--profile", save_profile(PanelProfile(**SMALL), tmp_path / "p.json"),
             "-o", tmp_path / "out.png", source=path)
 

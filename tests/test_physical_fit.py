@@ -184,7 +184,7 @@ def test_the_camera_model_records_its_cross_validated_uncertainty(two_distances,
     """'camera calibrate' writes the cross-validation scale into the model's note; the loader reads
     it and the intrinsics draws (and so every pose sigma) carry it."""
     from lenticalib.calib.camera_file import load_camera_model
-    from lenticalib.calib.intrinsics.crossval import NOTE_KEY
+    from lenticalib.calib.camera_file import NOTE_KEY
 
     text = calibrated.model.read_text()
     assert NOTE_KEY in text.split("{", 1)[0]

@@ -12,7 +12,6 @@ Views of 64x36 pixels, 4 views, the cpu renderer unless said: each render takes 
 
 from __future__ import annotations
 
-import tracemalloc
 
 import numpy as np
 import pytest
@@ -30,6 +29,7 @@ from lenticalib.render.renderers.cpu import render_cpu
 from lenticalib.render.session import AvatarOptions, open_avatar_session
 
 from .cli_support import refused, run_main
+from .memory_support import peak_traced
 
 FAR_X = 20.0
 VIEW_SIZE = "64x36"
@@ -155,20 +155,11 @@ def test_help_states_the_targets_frame_and_units(capsys):
 
 # ------------------------------------------------------------------ the views' memory
 
-def _peak(fn) -> int:
-    tracemalloc.start()
-    try:
-        fn()
-    finally:
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-    return peak
-
 
 @pytest.mark.parametrize("renderer", ["cpu", "gl"])
 def test_views_too_large_for_memory_are_refused_in_one_line_before_allocation(files, tmp_path, renderer):
     lines = []
-    peak = _peak(lambda: lines.append(refused(
+    peak = peak_traced(lambda: lines.append(refused(
         "render", files["avatar"], "--profile", files["huge"], "-o", tmp_path / "r.png", "--view-size", "16384x9216",
         "--renderer", renderer, source="--view-size")))
     assert "200 views of 16384x9216 pixels take 534.4 GiB" in lines[0] and "--view-size" in lines[0].split("(")[-1]
@@ -187,7 +178,7 @@ def test_the_renderers_refuse_views_too_large_before_allocation():
             render_cpu(g, cams.viewmats, cams.K, 16384, 9216)
         errors.append(err.value)
 
-    assert _peak(attempt) < 16 * MiB
+    assert peak_traced(attempt) < 16 * MiB
     assert errors[0].source == "view_size" and "534.4 GiB" in errors[0].message
     assert check_view_memory(4, 64, 36) == 4 * 64 * 36 * 19
     side = int((MAX_VIEW_BYTES // 19) ** 0.5)

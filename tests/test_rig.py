@@ -25,7 +25,8 @@ from lenticalib.render.demo_avatar_parts import DEMO_BONES  # noqa: E402
 from lenticalib.render.drivers import load_driver  # noqa: E402
 from lenticalib.render.gaussians import SH_C0, Gaussians  # noqa: E402
 from lenticalib.render.rig import DEFAULT_LAYOUT  # noqa: E402
-from lenticalib.render.rig_file import envelope_arrays, load_rig, rig_from_arrays, save_rig  # noqa: E402
+from lenticalib.render.rig import envelope_arrays  # noqa: E402
+from lenticalib.render.rig_file import load_rig, rig_from_arrays, save_rig  # noqa: E402
 
 L = DEFAULT_LAYOUT
 D = L.dim

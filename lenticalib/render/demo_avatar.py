@@ -55,8 +55,8 @@ from .demo_avatar_parts import (DEMO_BONES, HEAD, NECK, make_brows, make_cavity,
 from .demo_avatar_mesh import demo_mesh_arrays
 from .demo_avatar_shapes import eye_centres, frame_quats, gauss, smoothstep
 from .gaussians import SH_C0
-from .rig import DEFAULT_LAYOUT, Rig
-from .rig_file import envelope_arrays, rig_from_arrays
+from .rig import DEFAULT_LAYOUT, Rig, envelope_arrays
+from .rig_file import rig_from_arrays
 
 DEMO_EXPRESSIONS = ("smile", "frown", "brows_up", "brows_down", "mouth_wide", "pucker", "cheeks_puff", "sneer",
                     "smile_left", "smile_right")

@@ -6,7 +6,7 @@ views, all N layers at once, what :class:`lenticalib.render.loop.AvatarPipeline`
 host for the CPU path, in the same order and arithmetic:
 
 1. ``rgb += (1 - alpha) * background`` (a colour, an image of the view size, or black: none);
-2. edge desaturation ``luma + (rgb - luma) (1 - s (1 - alpha))`` (:func:`..loop.desaturate_edges`);
+2. edge desaturation ``luma + (rgb - luma) (1 - s (1 - alpha))`` (:func:`..host_views.desaturate_edges`);
 3. 8-bit codes ``floor(v 255 + 0.5)`` clamped to 0..255, in double precision like ``to_uint8``;
 4. crosstalk pre-compensation (:class:`lenticalib.render.compensation.Compensator`): the codes
    decoded to linear light by the same table, the circular filters along the view axis with the

@@ -72,7 +72,8 @@ def play_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Path
     docstring).  ``on_warning`` gets the pipeline's warning and notes (before the first frame: the
     profile's direction, the views that show nothing of the avatar; after it: fallbacks taken), ``on_stats``
     the stage times (ms, by stage) of a frame about once a second.  Returns :class:`PlayRun`."""
-    from .loop import StageTimes, views_on_host
+    from .host_views import views_on_host
+    from .loop import StageTimes
     from .present import WindowPresenter, open_presenter
     from .present_offscreen import MemoryPresenter
 

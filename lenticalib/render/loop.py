@@ -41,7 +41,7 @@ from ..core.retarget import Retargeter
 from ..core.view_defaults import view_size_hint
 from ..core.view_direction import direction_warning
 from .cameras import ViewCameras, empty_views_warning, order_for_direction
-from .host_views import desaturate_edges, prepare_views, to_uint8, views_on_host  # noqa: F401  (also here)
+from .host_views import desaturate_edges, prepare_views
 
 STAGES = ("drive", "render", "compose", "present")
 
@@ -202,7 +202,7 @@ class AvatarPipeline:
     def frame(self, controls: np.ndarray | None, raster_to_host: bool = True) -> tuple[np.ndarray | None, object, dict]:
         """(raster uint8 (height, width, 3) on the host, views, {"drive", "render", "compose"}
         milliseconds).  Views: uint8 (N, H_v, W_v, 3) numpy, a torch tensor (gsplat) or a
-        :class:`~.gl_pipeline.FrameViews` (gl: read back when indexed; :func:`views_on_host`).
+        :class:`~.gl_pipeline.FrameViews` (gl: read back when indexed; :func:`.host_views.views_on_host`).
         ``raster_to_host=False``: the raster stays on the GPU: with the gl renderer and encoder
         None is returned for it and :meth:`draw_raster` draws it (its time is added to compose);
         with gsplat it is the torch encoder's uint8 tensor on the CUDA device (:meth:`present`)."""

@@ -133,7 +133,7 @@ def render_avatar(avatar: str | os.PathLike, profile: PanelProfile | str | os.Pa
 
 
 def _render_frames(session, output, frames, fps, times, targets, writer, single, inputs, step) -> None:
-    from .loop import views_on_host
+    from .host_views import views_on_host
 
     pipeline = session.pipeline
     with contextlib.ExitStack() as stack:

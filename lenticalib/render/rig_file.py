@@ -59,7 +59,7 @@ from ..core.errors import InputError
 from .gaussians import Gaussians
 from .rig_mesh import MESH_ARRAYS, MESH_BLEND_ARRAYS, mesh_from_arrays
 
-from .rig import DOCUMENT, ControlLayout, Rig, envelope_arrays  # noqa: F401  (envelope_arrays: the file's, here too)
+from .rig import DOCUMENT, ControlLayout, Rig
 _ENVELOPE = ("format", VERSION_KEY, OLD_VERSION_KEY)  # the version under either key (core.documents)
 _REQUIRED = ("format", "means", "quats", "log_scales", "opacity_logits", "sh", "control_groups",
              "control_sizes", "control_dim", "control_names", "blend_controls", "blend_index", "blend_shape",

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..camera_file import NOTE_KEY, note_line, read_scale  # noqa: F401  (the note the .cameramodel holds)
 from .holdout import MIN_FRAMES_PER_HALF
 from .solve import calibrate, import_mrcal
 

@@ -27,7 +27,7 @@ import numpy as np
 from ...core.documents import FORMATS, write_document
 from ...core.profile import make_provenance
 from ...core.figures import write_figures
-from .crossval import note_line
+from ..camera_file import note_line
 from .solve import COVERAGE_GRID, covered_cells
 from .quality import IMAGE_CORNERS, weak_corner_keys, weak_corners
 
