@@ -2,7 +2,7 @@
 
 import torch
 
-from lenticalib.render.gaussians import Gaussians
+from lenticalib.render.avatar.gaussians import Gaussians
 
 control_dim_value = 4
 not_callable = 3

@@ -6,10 +6,10 @@ model), registered through a real distribution's entry points that the tests wri
 import cv2
 import numpy as np
 
-from lenticalib.calib.cameras.base import CaptureCamera
-from lenticalib.calib.cameras.files import write_photo
+from lenticalib.calib.capture.cameras.base import CaptureCamera
+from lenticalib.calib.capture.cameras.files import write_photo
 from lenticalib.device.transports.base import FoundDevice, Transport
-from lenticalib.render.camera_models import arc_cameras
+from lenticalib.render.cameras.models import arc_cameras
 
 
 def runs_anywhere(*args, **kwargs):

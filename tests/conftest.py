@@ -73,7 +73,7 @@ def capture_set(tmp_path_factory):
     """
     import json
 
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import simulate_capture_set
 

@@ -14,6 +14,8 @@ import re
 import tomllib
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "lenticalib"
 
@@ -31,13 +33,44 @@ def test_imports_keep_the_layer_contracts(capsys):
     assert result == use_cases.SUCCESS, report
 
 
+def _layers(container: str) -> list[str]:
+    (layers,) = [c["layers"] for c in _config()["contracts"] if c.get("containers") == [container]]
+    return layers
+
+
 def test_the_package_top_level_holds_only_the_layers():
-    (layers,) = [c["layers"] for c in _config()["contracts"] if c["type"] == "layers"]
+    layers = _layers("lenticalib")
     declared = {name.strip() for layer in layers for name in layer.split("|")}
     packages = {p.name for p in PACKAGE.iterdir() if p.is_dir() and p.name != "__pycache__"}
     files = {p.name for p in PACKAGE.iterdir() if p.is_file()}
     assert packages == declared, f"lenticalib/ holds {sorted(packages)}; the layer contract declares {sorted(declared)}"
     assert files == {"__init__.py", "__main__.py"}, f"lenticalib/ holds modules beside the layers: {sorted(files)}"
+
+
+@pytest.mark.parametrize("layer", ["render", "calib"])
+def test_render_and_calib_hold_only_their_stage_packages(layer):
+    declared = {name.strip() for stage in _layers(f"lenticalib.{layer}") for name in stage.split("|")}
+    folder = PACKAGE / layer
+    packages = {p.name for p in folder.iterdir() if (p / "__init__.py").is_file()}
+    files = {p.name for p in folder.glob("*.py")}
+    assert packages == declared, f"lenticalib/{layer}/ holds {sorted(packages)}; its stage contract declares {sorted(declared)}"
+    assert files == {"__init__.py"}, f"lenticalib/{layer}/ holds modules beside its stages: {sorted(files)}"
+
+
+MAX_MODULES_PER_FOLDER = 20
+MAX_MODULE_LINES = 450
+
+
+def test_no_folder_holds_more_than_20_modules():
+    crowded = {str(d.relative_to(ROOT)): n for d in [PACKAGE, *PACKAGE.rglob("*")] if d.is_dir()
+               and (n := len(list(d.glob("*.py")))) > MAX_MODULES_PER_FOLDER}
+    assert not crowded, f"folders of more than {MAX_MODULES_PER_FOLDER} modules (make stage packages): {crowded}"
+
+
+def test_no_module_is_longer_than_450_lines():
+    long = {str(p.relative_to(ROOT)): n for p in PACKAGE.rglob("*.py")
+            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by job): {long}"
 
 
 LAZY_MARKER = re.compile(r"#\s*lazy:\s*\S")

@@ -19,15 +19,15 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from lenticalib.core.errors import InputError  # noqa: E402
-from lenticalib.render.demo_avatar_shapes import frame_quats  # noqa: E402
-from lenticalib.render.diagnose import DiagnoseOptions, diagnose_avatars, diagnose_cameras, mesh_box  # noqa: E402
-from lenticalib.render.gaussians import SH_C0, Gaussians  # noqa: E402
-from lenticalib.render.mesh import check_mesh_fits, load_mesh_file  # noqa: E402
-from lenticalib.render.mesh_raster import mesh_masks  # noqa: E402
-from lenticalib.render.ply import save_ply  # noqa: E402
+from lenticalib.render.avatar.demo_avatar_shapes import frame_quats  # noqa: E402
+from lenticalib.render.diagnose.avatars import DiagnoseOptions, diagnose_avatars, diagnose_cameras, mesh_box  # noqa: E402
+from lenticalib.render.avatar.gaussians import SH_C0, Gaussians  # noqa: E402
+from lenticalib.render.avatar.mesh import check_mesh_fits, load_mesh_file  # noqa: E402
+from lenticalib.render.diagnose.mesh_raster import mesh_masks  # noqa: E402
+from lenticalib.render.avatar.ply import save_ply  # noqa: E402
 from lenticalib.render.renderers.cpu_project import ALPHA_MIN  # noqa: E402
 from lenticalib.render.renderers.common import EPS2D  # noqa: E402
-from lenticalib.render.side_metrics import (DILATION_PX, Crop, alpha_boundary, crop_rule, dilate,  # noqa: E402
+from lenticalib.render.diagnose.side_metrics import (DILATION_PX, Crop, alpha_boundary, crop_rule, dilate,  # noqa: E402
                                             view_metrics)
 
 R = 0.1  # sphere radius, metres
@@ -252,8 +252,8 @@ def test_a_mesh_must_fit_the_avatars_box():
 # ------------------------------------------------------------------ the rig's mesh
 
 def test_rig_mesh_is_posed_exactly_like_the_gaussians(tmp_path):
-    from lenticalib.render.demo_avatar import demo_avatar_arrays
-    from lenticalib.render.rig_file import load_rig, rig_from_arrays, save_rig
+    from lenticalib.render.avatar.demo_avatar import demo_avatar_arrays
+    from lenticalib.render.avatar.rig_file import load_rig, rig_from_arrays, save_rig
 
     arrays = demo_avatar_arrays(seed=3, count=3000)
     arrays.pop("part_names")
@@ -278,7 +278,7 @@ def test_rig_mesh_is_posed_exactly_like_the_gaussians(tmp_path):
 def test_demo_mesh_lies_on_the_demo_gaussians_surfaces():
     from scipy.spatial import cKDTree
 
-    from lenticalib.render.demo_avatar import demo_avatar_arrays
+    from lenticalib.render.avatar.demo_avatar import demo_avatar_arrays
 
     a = demo_avatar_arrays(seed=0, count=20000)
     skin = a["part_names"] == "skin"
@@ -287,7 +287,7 @@ def test_demo_mesh_lies_on_the_demo_gaussians_surfaces():
     assert np.percentile(d, 99) < 0.003   # every skin Gaussian within a grid cell of the mesh
     # and the mesh does not stray from the avatar: where the mask is, the avatar is opaque
     from lenticalib.render.renderers import render
-    from lenticalib.render.rig_file import rig_from_arrays
+    from lenticalib.render.avatar.rig_file import rig_from_arrays
 
     rig = rig_from_arrays({k: v for k, v in a.items() if k != "part_names"})
     vertices = rig.pose_mesh(rig.neutral_controls()).numpy()
@@ -355,8 +355,8 @@ def test_bad_input_is_one_line_before_rendering(cli, tmp_path, sphere_files):
 
 
 def test_a_rig_is_diagnosed_in_the_pose_its_controls_give(cli, tmp_path):
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     save_rig(tmp_path / "demo.npz", make_demo_avatar(seed=1, count=4000))
     args = ("avatar", "diagnose", tmp_path / "demo.npz", "--views", 3, "--view-size", "320x180", "--json")
@@ -370,7 +370,7 @@ def test_a_rig_is_diagnosed_in_the_pose_its_controls_give(cli, tmp_path):
     assert demo["controls"] == {"source": "demo", "frame": 45, "t": 1.5} and "the controls" in demo["mask_source"]
     # a pose far from the canonical one: head turned 0.6 rad, moved 5 cm sideways; the mesh moves with
     # it, so the outside-support share stays that of the hair (a still mesh would leave the head outside)
-    from lenticalib.render.rig import DEFAULT_LAYOUT
+    from lenticalib.render.avatar.rig import DEFAULT_LAYOUT
 
     pose = np.zeros((2, DEFAULT_LAYOUT.dim), np.float32)
     pose[:, DEFAULT_LAYOUT.slice("head").start + 1] = 0.6

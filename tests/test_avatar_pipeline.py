@@ -13,11 +13,11 @@ import sys
 import numpy as np
 import pytest
 
-from lenticalib.core.imageio import read_image
+from lenticalib.core.files.imageio import read_image
 from lenticalib.core.profile import load_profile, save_profile
 from lenticalib.render.encoders import encode
-from lenticalib.render.gaussians import SH_C0, Gaussians
-from lenticalib.render.ply import save_ply
+from lenticalib.render.avatar.gaussians import SH_C0, Gaussians
+from lenticalib.render.avatar.ply import save_ply
 
 PROFILE = "fixtures/panel-4k-32.json"
 SMALL_VIEWS = "192x108"
@@ -25,8 +25,8 @@ SMALL_VIEWS = "192x108"
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     path = tmp_path_factory.mktemp("avatar") / "demo.npz"
     save_rig(path, make_demo_avatar(seed=1, count=6000))
@@ -111,7 +111,7 @@ def test_the_view_direction_reverses_the_cameras_and_unknown_is_warned(demo, dir
 
 
 def test_an_image_background_shows_where_the_avatar_is_not(demo, directed, tmp_path, cli_process):
-    from lenticalib.core.imageio import write_image
+    from lenticalib.core.files.imageio import write_image
 
     backdrop = np.zeros((108, 192, 3), np.uint8)
     backdrop[:, :96] = (200, 30, 40)
@@ -283,7 +283,7 @@ def test_the_first_ctrl_c_asks_the_live_loop_to_stop_and_the_second_interrupts()
     import os
     import signal
 
-    from lenticalib.render.live import stop_on_interrupt
+    from lenticalib.render.pipeline.live import stop_on_interrupt
 
     before = signal.getsignal(signal.SIGINT)
     with stop_on_interrupt() as interrupted:

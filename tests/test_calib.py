@@ -18,10 +18,10 @@ import cv2
 import numpy as np
 import pytest
 
-import lenticalib.calib.fit as fit_module
-import lenticalib.cli._progress as progress_module
-from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import design_patterns, read_manifest
+import lenticalib.calib.routing.fit as fit_module
+import lenticalib.cli.shared.progress as progress_module
+from lenticalib.calib.routing.compare import compare_profiles
+from lenticalib.calib.patterns.calibration_patterns import design_patterns, read_manifest
 from lenticalib.core.errors import InputError
 from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.profile import load_profile
@@ -432,7 +432,7 @@ def _png_size(path: Path) -> tuple[int, int]:
 
 
 def test_report_figures_are_readable_sizes(demo_fit):
-    from lenticalib.calib.report import FIGURE_SIZES, REPORT_FILES as FILES
+    from lenticalib.calib.routing.report import FIGURE_SIZES, REPORT_FILES as FILES
 
     report = demo_fit.out / "profile-report"
     assert sorted(FILES) == sorted(REPORT_FILES)
@@ -479,7 +479,7 @@ def test_report_figures_state_the_summary_residual(demo_fit):
 def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fit):
     """The crop is drawn at a zoom where one subpixel is several screen pixels wide, and the measured
     samples in it agree with the fitted w of the subpixel they lie on (no aliased checkerboard)."""
-    from lenticalib.calib.model import wrap
+    from lenticalib.calib.routing.model import wrap
     from lenticalib.core.figures import read_figure_record
     from lenticalib.core.routing import view_coordinate
 
@@ -499,7 +499,7 @@ def test_view_map_crop_resolves_subpixels_and_its_samples_lie_on_the_fit(demo_fi
 
 
 def test_every_fit_report_figure_has_a_title_and_axes_with_units(demo_fit):
-    from lenticalib.calib.report import FIGURE_SIZES
+    from lenticalib.calib.routing.report import FIGURE_SIZES
     from lenticalib.core.figures import read_figure_record
 
     for name in FIGURE_SIZES:
@@ -534,7 +534,7 @@ def test_summary_json_is_what_fit_json_prints(demo_fit, tmp_path, cli, monkeypat
 
 @pytest.mark.parametrize("earlier", [False, True], ids=["fresh", "over-earlier-results"])
 def test_fit_failing_in_the_report_leaves_nothing(demo_fit, tmp_path, cli, monkeypatch, earlier):
-    import lenticalib.calib.report as report_module
+    import lenticalib.calib.routing.report as report_module
 
     _fit_returning(monkeypatch, demo_fit.result)
     out = tmp_path / "out"

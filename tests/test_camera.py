@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from lenticalib.calib.camera import estimate_camera, load_camera_model
+from lenticalib.calib.camera.from_panel import estimate_camera, load_camera_model
 from lenticalib.core.errors import InputError
 
 MATRIX = np.array([[3100.0, 0, 2010.0], [0, 3100.0, 1490.0], [0, 0, 1]])

@@ -19,7 +19,8 @@ from lenticalib.calib.intrinsics import board as boards
 from lenticalib.calib.intrinsics.corners import grey8, orient
 from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.calib.intrinsics.quality import compare_to_truth
-from lenticalib.calib.intrinsics.solve import OPENCV5, OPENCV8, Solve, choose, write_cameramodel
+from lenticalib.calib.camera.model_file import write_cameramodel
+from lenticalib.calib.intrinsics.solve import OPENCV5, OPENCV8, Solve, choose
 from lenticalib.sim.board_set import read_truth_poses, simulate_board_set
 
 import mrcal  # noqa: E402  (a requirement of 'lenticalib camera')
@@ -129,7 +130,7 @@ def test_corner_labels_do_not_depend_on_the_detector_order(printed):
     """Any labelling of the grid (from either end, mirrored) is turned back into the drawn one."""
     folder = printed[0]
     board = boards.read_board(folder / "board.json")
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     grey = grey8(read_image(folder / "captures" / "board-01.jpg"))
     rt = read_truth_poses(folder)["board-01.jpg"]
@@ -185,7 +186,7 @@ def test_camera_patterns_writes_the_panel_and_the_printable_boards(tmp_path, cli
     assert manifest["kind"] == "panel" and (manifest["cols"], manifest["rows"]) == (15, 8)
     assert manifest["panel"] == {"width": 1920, "height": 1080, "pixel_pitch_mm": 0.36}
     assert manifest["square_mm"] == pytest.approx(manifest["square_px"] * 0.36, abs=1e-9)
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     raster = read_image(out / "board.png")
     assert raster.shape == (1080, 1920, 3) and raster.dtype == np.uint8
@@ -283,7 +284,7 @@ def test_too_few_boards_fail_before_the_solve_with_the_counts(tmp_path, printed,
 
 
 def test_lenticalib_simulate_photographs_the_board_of_a_camera_patterns_folder(tmp_path, cli):
-    from lenticalib.calib.camera_file import load_camera_model
+    from lenticalib.calib.camera.model_file import load_camera_model
 
     folder = tmp_path / "board"
     code, out, err = cli("camera", "patterns", "-o", folder, "--panel", "1920x1080", "--pixel-pitch", "0.36",

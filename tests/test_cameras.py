@@ -1,4 +1,4 @@
-"""The capture cameras (lenticalib.calib.cameras): registry, gphoto2, OpenCV, manual, virtual.
+"""The capture cameras (lenticalib.calib.capture.cameras): registry, gphoto2, OpenCV, manual, virtual.
 
 No real camera, display or GPU is needed:
 
@@ -27,8 +27,8 @@ import cv2
 import numpy as np
 import pytest
 
-from lenticalib.calib.cameras import CAMERA_KINDS, make_camera, open_camera
-from lenticalib.calib.cameras.base import CaptureCamera
+from lenticalib.calib.capture.cameras import CAMERA_KINDS, make_camera, open_camera
+from lenticalib.calib.capture.cameras.base import CaptureCamera
 from lenticalib.core.errors import CameraError, InputError
 from lenticalib.sim.scene import DEFAULT_RESOLUTION
 
@@ -367,7 +367,7 @@ def test_manual_key_mode_takes_the_file_the_user_put_in_place(tmp_path):
 # -- sim -------------------------------------------------------------------------------------------
 
 def test_sim_photographs_the_shown_patterns_and_records_the_truth(tmp_path):
-    from lenticalib.calib.patterns import design_patterns, render_pattern
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns, render_pattern
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile
     from lenticalib.sim.capture import photograph_pattern
@@ -404,7 +404,7 @@ def test_sim_photographs_the_shown_patterns_and_records_the_truth(tmp_path):
 
 
 def test_sim_record_is_complete_once_every_pattern_is_photographed(tmp_path):
-    from lenticalib.calib.patterns import design_patterns, render_pattern
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns, render_pattern
     from lenticalib.core.pattern_sets import write_patterns
 
     pattern_set = design_patterns(96, 64, 8)

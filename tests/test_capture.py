@@ -10,15 +10,15 @@ import shutil
 import numpy as np
 import pytest
 
-from lenticalib.calib import acquire
-from lenticalib.calib.cameras import open_camera
-from lenticalib.calib.captures import load_photo
-from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import design_patterns
+from lenticalib.calib.capture import acquire
+from lenticalib.calib.capture.cameras import open_camera
+from lenticalib.calib.patterns.capture_sets import load_photo
+from lenticalib.calib.routing.compare import compare_profiles
+from lenticalib.calib.patterns.calibration_patterns import design_patterns
 from lenticalib.core.errors import CaptureError
 from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.profile import load_profile
-from lenticalib.render.present import open_presenter
+from lenticalib.render.present.displays import open_presenter
 
 from .cli_support import run_main, run_process
 from .display_support import SCREEN
@@ -68,7 +68,7 @@ def test_the_virtual_camera_photographs_what_the_screen_showed(captured):
     """The scene the capture recorded (the one ``simulate --seed 3`` draws for this panel and
     camera), photographed straight from the pattern PNGs, gives the same photos: the window
     presenter put the patterns on screen unchanged.  (``simulate`` itself: tests/test_sim.py.)"""
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
     from lenticalib.sim.capture import photograph_pattern
     from lenticalib.sim.scene import Scene, random_scene
 
@@ -112,7 +112,7 @@ class _FirstPhotoBlack:
     def capture(self, name, shown, destination):
         if name in self.black:
             self.black.discard(name)
-            from lenticalib.core.imageio import write_image
+            from lenticalib.core.files.imageio import write_image
 
             return write_image(destination.with_suffix(".png"), np.zeros((900, 1200, 3), np.uint8))
         return self.inner.capture(name, shown, destination)
@@ -289,7 +289,7 @@ def test_unchanged_photos_are_rejected_and_fine_steps_pass(captured_4k, tmp_path
 def captured_4k_crosstalk(captured_4k):
     """Crosstalk patterns of the 4K capture's true profile, with the longest sweep (1.6 panel widths:
     some bands pass the camera's view nowhere), captured by the same virtual camera."""
-    from lenticalib.calib.crosstalk.patterns import MAX_SWEEP_FRACTION, design_crosstalk_patterns
+    from lenticalib.calib.patterns.crosstalk_patterns import MAX_SWEEP_FRACTION, design_crosstalk_patterns
 
     folder, _, _ = captured_4k
     xt = folder.parent / "xt"
@@ -306,7 +306,7 @@ def test_every_crosstalk_band_is_captured_and_a_stale_band_is_not(captured_4k_cr
     """A band moved by a tenth of the view cone moves little light, yet clearly more than noise; two
     bands the camera sees nowhere give the same dark photo, rightly (the patterns say so); a band
     photographed while the panel still showed the previous one is rejected."""
-    from lenticalib.calib.crosstalk.patterns import seen_columns
+    from lenticalib.calib.patterns.crosstalk_patterns import seen_columns
 
     xt, pattern_set, report, notes = captured_4k_crosstalk
     assert len(report.taken) == len(pattern_set.patterns) == 17 and report.retakes == {}, notes

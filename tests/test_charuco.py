@@ -232,7 +232,7 @@ def test_a_charuco_board_given_by_options_calibrates(tmp_path, cli):
 def test_simulate_photographs_a_charuco_patterns_folder_and_camera_simulate_makes_charuco_sets(tmp_path, cli):
     """The panel board of 'camera patterns --board charuco' through the virtual lens sheet, with some
     boards cut by the frame, calibrates; 'camera simulate --board charuco' writes a ChArUco set."""
-    from lenticalib.calib.camera_file import load_camera_model
+    from lenticalib.calib.camera.model_file import load_camera_model
 
     folder = tmp_path / "board"
     code, _, err = cli("camera", "patterns", "-o", folder, "--panel", "1920x1080", "--pixel-pitch", "0.36",

@@ -104,7 +104,7 @@ def test_corners_the_detector_made_up_are_left_out(tmp_path):
     corner under another label): they are dropped, the others kept."""
     from lenticalib.calib.intrinsics.corners import grey8
     from lenticalib.calib.intrinsics.partial import consistent
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     (path,), (truth,) = _photos(tmp_path, "mild", 5, 1, cut=0.0)
     grey = grey8(read_image(path))
@@ -122,7 +122,7 @@ def test_a_block_reaching_the_photos_corner_is_placed_by_the_board_edge_in_view(
     edge must not hide that edge (bench phone 3, photo 11: the block was centred, one square off)."""
     from lenticalib.calib.intrinsics.corners import grey8
     from lenticalib.calib.intrinsics.partial import EDGE_MARGIN_PX, EDGE_PAPER_AT, _outward, place, side_is_edge
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     board = print_board()
     (path,), (truth,) = _photos(tmp_path, "mild", 5, 1, cut=0.0)
@@ -160,7 +160,7 @@ def test_a_large_board_cut_by_two_edges_is_found_by_the_searches_on_a_smaller_co
     MIN_CHESSBOARD_CORNERS, refused), on a quarter-size copy 21.  The corners are the board's own,
     refined on the full photo, and its top-left corner is placed by the edges in view."""
     from lenticalib.calib.intrinsics.corners import grey8, locate_chessboard
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     board = print_board()
     path, truth = _bench_photo(tmp_path, "mild", 2, 5)
@@ -179,7 +179,7 @@ def test_a_block_that_skips_corners_is_not_taken_for_single_squares(tmp_path):
     refused (what is left is too small to place)."""
     from lenticalib.calib.intrinsics.corners import grey8
     from lenticalib.calib.intrinsics.partial import _wide_sides
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     board = print_board()
     path, truth = _bench_photo(tmp_path, "strong", 2, 9)

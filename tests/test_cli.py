@@ -5,8 +5,8 @@ import sys
 import numpy as np
 import pytest
 
-from lenticalib.core.imageio import read_image, write_image
-from lenticalib.render.views import QuiltGrid, load_view_folder, make_quilt, parse_quilt_name, split_quilt
+from lenticalib.core.files.imageio import read_image, write_image
+from lenticalib.render.compose.views import QuiltGrid, load_view_folder, make_quilt, parse_quilt_name, split_quilt
 
 from .cli_support import one_error_line, run_main
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from lenticalib.calib.patterns import design_patterns
+from lenticalib.calib.patterns.calibration_patterns import design_patterns
 from lenticalib.core.pattern_sets import write_patterns
 
 from .cli_support import one_error_line, refused
@@ -65,10 +65,10 @@ def _make_node(kind: str, path: Path) -> None:
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
     """Small real inputs: a demo avatar, a visual.json, a small profile."""
-    from lenticalib.core.lkg import export_visual_json
+    from lenticalib.core.looking_glass.convert import export_visual_json
     from lenticalib.core.profile import load_profile
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     folder = tmp_path_factory.mktemp("inputs")
     save_rig(folder / "demo.npz", make_demo_avatar(seed=1, count=2000))

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
-import lenticalib.calib.fit as fit_module
+import lenticalib.calib.routing.fit as fit_module
 import lenticalib.core.pattern_sets as pattern_sets_module
 import lenticalib.sim.capture as capture_module
-from lenticalib.calib.patterns import design_patterns
+from lenticalib.calib.patterns.calibration_patterns import design_patterns
 from lenticalib.core.errors import InputError
 from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.sim.scene import random_scene

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import InputError
-from lenticalib.core.imageio import read_image, write_image
-from lenticalib.render.compensation import Compensator, circulant_row, compensation_study
+from lenticalib.core.files.imageio import read_image, write_image
+from lenticalib.render.compose.compensation import Compensator, circulant_row, compensation_study
 
 from .cli_support import one_error_line
 

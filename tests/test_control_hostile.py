@@ -22,9 +22,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lenticalib.render.control_records import FLOAT32_MAX
-from lenticalib.render.control_streams import MAX_LINE_BYTES, open_text_stream, open_udp
-from lenticalib.render.rig import DEFAULT_LAYOUT as L
+from lenticalib.render.controls.records import FLOAT32_MAX
+from lenticalib.render.controls.streams import MAX_LINE_BYTES, open_text_stream, open_udp
+from lenticalib.render.avatar.rig import DEFAULT_LAYOUT as L
 
 D = L.dim
 JAW = L.slice("jaw").start
@@ -196,7 +196,7 @@ def test_a_reader_that_dies_does_not_look_healthy(caplog):
     stats = src.stats
     assert stats["received"] == 1 and stats["ended"] is False
     assert stats["failed"] == "stdin: the reader stopped on RuntimeError: the device vanished"
-    with caplog.at_level(logging.WARNING, logger="lenticalib.render.control_streams"):
+    with caplog.at_level(logging.WARNING, logger="lenticalib.render.controls.streams"):
         t, c = src.latest()
         src.latest()
     assert c[JAW] == np.float32(0.3)  # the last valid pose stays
@@ -210,7 +210,7 @@ def test_a_reader_that_dies_does_not_look_healthy(caplog):
 def test_a_udp_port_open_to_the_network_says_so():
     """UDP has no sender check: a port bound to every interface (or a network address) is a warning
     naming the exposure; a loopback port is not."""
-    from lenticalib.render.control_streams import exposure_warning
+    from lenticalib.render.controls.streams import exposure_warning
 
     with open_udp("udp://0.0.0.0:0", L) as src:
         port = src.address[1]
@@ -227,8 +227,8 @@ def test_a_udp_port_open_to_the_network_says_so():
 
 
 def test_play_prints_the_exposure_of_a_udp_port(cli, tmp_path):
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     from .cli_support import REPO
 
@@ -247,7 +247,7 @@ def test_a_control_file_past_the_track_cap_is_refused_as_it_is_read(tmp_path, mo
     """Rows are stored as float32 as they are read and counted against MAX_TRACK_BYTES (256 MiB,
     made small here), in every format; the line that passes it is named."""
     from lenticalib.core.errors import InputError
-    from lenticalib.render import controls
+    from lenticalib.render.controls import sources as controls
 
     monkeypatch.setattr(controls, "MAX_TRACK_BYTES", 64 * 1024)
     most = 64 * 1024 // (8 + 4 * D + 4)  # 224 samples of the 70 default controls
@@ -267,7 +267,7 @@ def test_a_control_file_past_the_track_cap_is_refused_as_it_is_read(tmp_path, mo
 
 def test_overlong_lines_and_huge_text_control_files_are_one_line(tmp_path):
     from lenticalib.core.errors import InputError
-    from lenticalib.render.controls import MAX_TEXT_BYTES, MAX_TEXT_LINE, load_controls
+    from lenticalib.render.controls.files import MAX_TEXT_BYTES, MAX_TEXT_LINE, load_controls
 
     (tmp_path / "wide.csv").write_text("t,jaw.0\n0," + "7" * (MAX_TEXT_LINE + 10) + "\n")
     (tmp_path / "wide.jsonl").write_text('{"t": 0, "jaw": [' + " " * (MAX_TEXT_LINE + 10) + "0, 0, 0]}\n")

@@ -10,9 +10,9 @@ import types
 import numpy as np
 import pytest
 
-from lenticalib.calib.crosstalk.patterns import (BAND_PATTERNS, LEVEL_ROW_PERIODS, design_crosstalk_patterns,
+from lenticalib.calib.patterns.crosstalk_patterns import (BAND_PATTERNS, LEVEL_ROW_PERIODS, design_crosstalk_patterns,
                                                  lit_subpixels)
-from lenticalib.calib.patterns import design_patterns, read_manifest
+from lenticalib.calib.patterns.calibration_patterns import design_patterns, read_manifest
 from lenticalib.core.colour import srgb_decode_lut
 from lenticalib.core.errors import CaptureError, InputError
 from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
@@ -60,7 +60,7 @@ def test_band_patterns_light_one_view_wide_bands_that_sweep_across_the_panel(pro
 
 
 def test_rendered_pattern_has_the_frame_and_full_white_bands(profile):
-    from lenticalib.calib.patterns import frame_width
+    from lenticalib.calib.patterns.calibration_patterns import frame_width
 
     pattern_set = design_crosstalk_patterns(profile)
     raster = pattern_set.render(pattern_set.bands[0])

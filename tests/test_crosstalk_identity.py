@@ -14,7 +14,7 @@ import pytest
 
 from lenticalib.calib.crosstalk.checks import ROUTING_LIMITS
 from lenticalib.calib.crosstalk.measure import measure_crosstalk
-from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
+from lenticalib.calib.patterns.crosstalk_patterns import design_crosstalk_patterns
 from lenticalib.core.errors import CaptureError
 from lenticalib.sim.scene import random_scene
 

@@ -17,7 +17,7 @@ from lenticalib.device.framing import MAX_FRAME, MAX_PAYLOAD, SOF, Frame, FrameP
 from lenticalib.device.protocol import BEGIN_WRITE, CHUNK_HEADER, VERIFY_REPLY, Command, Identity
 from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record, record_crc,
                                       record_from_profile)
-from lenticalib.device.drivers import family_for
+from lenticalib.device.controller_families import family_for
 from lenticalib.device.url import parse_device_url
 
 from .device_support import profile_a

@@ -10,7 +10,7 @@ from lenticalib.device.emulator.controller import EmulatedController, ensure_ima
 from lenticalib.device.emulator.firmware import Firmware
 from lenticalib.device.protocol import VERIFY_REPLY, Identity, PanelGeometry, Status
 from lenticalib.device.record import LEGACY_CRC_RESIDUE, RECORD_SIZE
-from lenticalib.device.drivers import family_for
+from lenticalib.device.controller_families import family_for
 from lenticalib.device.transports.base import Transport
 from lenticalib.device.url import parse_device_url
 from lenticalib.core.errors import DeviceProtocolError, ProfileError

@@ -10,7 +10,7 @@ import zlib
 import pytest
 from hypothesis import given, strategies as st
 
-from lenticalib.device.drivers import families, family_for, load_family
+from lenticalib.device.controller_families import families, family_for, load_family
 from lenticalib.device.looking_glass.hid import PRODUCT_ID, VENDOR_ID
 from lenticalib.device.framing import FrameParser, crc16, encode_frame
 from lenticalib.device.record import (RECORD_SIZE, RecordFormatError, encode_record, parse_record,
@@ -105,7 +105,7 @@ def test_family_file_loads():
 def test_the_package_ships_the_documented_families(monkeypatch, tmp_path):
     """drivers/*.toml is the specification; lenticalib/device/families/ the same bytes, found by
     importlib.resources (not by a path relative to the source file), so a wheel finds them too."""
-    from lenticalib.device.drivers import packaged_families, search_path
+    from lenticalib.device.controller_families import packaged_families, search_path
 
     shipped = {p.name: p.read_bytes() for p in packaged_families().glob("*.toml")}
     assert shipped == {p.name: p.read_bytes() for p in (REPO / "drivers").glob("*.toml")}

@@ -1,4 +1,4 @@
-"""The document envelope (lenticalib.core.documents): every format lenticalib writes carries
+"""The document envelope (lenticalib.core.files.documents): every format lenticalib writes carries
 "format" and "format_version", is read through the one reader, and old spellings still read."""
 
 import ast
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import lenticalib
-from lenticalib.core.documents import (FORMATS, DocumentFormat, check_envelope, read_document, read_json_file,
+from lenticalib.core.files.documents import (FORMATS, DocumentFormat, check_envelope, read_document, read_json_file,
                                        write_document)
 from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.profile import PanelProfile, load_profile, profile_from_dict, save_profile
@@ -70,7 +70,7 @@ def _hand_written_envelopes(path: Path, text: str) -> list[str]:
 def test_no_module_spells_an_envelope_by_hand():
     """Every envelope is written from the table (DocumentFormat.envelope, write_document)."""
     found = [hit for p, text in _sources().items()
-             if p.relative_to(PACKAGE).as_posix() != "core/documents.py"
+             if p.relative_to(PACKAGE).as_posix() != "core/files/documents.py"
              for hit in _hand_written_envelopes(p, text)]
     assert found == []
 
@@ -82,8 +82,8 @@ def test_every_format_in_the_table_is_used_by_the_package():
 
 
 def test_pattern_manifests_and_crosstalk_files_are_read_through_the_envelope(tmp_path):
-    from lenticalib.calib import patterns
-    from lenticalib.calib.crosstalk import patterns as xpatterns
+    from lenticalib.calib.patterns import calibration_patterns as patterns
+    from lenticalib.calib.patterns import crosstalk_patterns as xpatterns
     from lenticalib.core import crosstalk_document
     from lenticalib.core.crosstalk_document import read_crosstalk_document
     from lenticalib.core.pattern_sets import MANIFEST_NAME, read_pattern_folder, write_patterns
@@ -188,8 +188,8 @@ def test_profile_round_trips_with_its_envelope_and_a_hand_written_one_reads(tmp_
 
 
 def test_cameras_file_round_trips_with_its_envelope(tmp_path):
-    from lenticalib.render.camera_models import arc_cameras
-    from lenticalib.render.cameras import ViewCameras
+    from lenticalib.render.cameras.models import arc_cameras
+    from lenticalib.render.cameras.view_cameras import ViewCameras
 
     cams = arc_cameras((-0.1, -0.1, -0.1), (0.1, 0.1, 0.1), n_views=4, view_size=(64, 48))
     path = tmp_path / "cameras.json"
@@ -221,7 +221,7 @@ def test_board_manifest_round_trips_and_an_old_version_key_reads(tmp_path):
 
 
 def test_scene_and_simulation_record_carry_their_envelopes_and_read_back(tmp_path):
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.sim.capture import SIMULATION_NAME, write_simulation_record
     from lenticalib.sim.scene import Scene, random_scene
 
@@ -252,7 +252,7 @@ def test_crosstalk_truth_carries_its_envelope(tmp_path):
 
 
 def test_controller_description_is_read_through_the_envelope(tmp_path):
-    from lenticalib.device.drivers import load_family
+    from lenticalib.device.controller_families import load_family
 
     text = (PACKAGE.parent / "drivers" / "lc32.toml").read_text()
     assert load_family(PACKAGE.parent / "drivers" / "lc32.toml")

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import lenticalib.core.outputs
+import lenticalib.core.files.outputs
 import lenticalib.render.encoders
-from lenticalib.core.imageio import read_image, write_image
-from lenticalib.render.views import QuiltGrid, make_quilt
+from lenticalib.core.files.imageio import read_image, write_image
+from lenticalib.render.compose.views import QuiltGrid, make_quilt
 
 from .cli_support import one_error_line, run_main
 
@@ -140,7 +140,7 @@ def test_encode_output_path_is_refused_before_encoding(files, monkeypatch, no_en
     locked.mkdir()
     locked.chmod(0o555)
     real_access = os.access  # root passes any mode bits: report the folder as a user would see it
-    monkeypatch.setattr(lenticalib.core.outputs.os, "access",
+    monkeypatch.setattr(lenticalib.core.files.outputs.os, "access",
                         lambda p, mode: False if Path(p) == locked and mode & os.W_OK else real_access(p, mode))
     line = _error_line(encode + [locked / "o.png"])
     assert f"{locked}: folder is not writable" in line

@@ -16,13 +16,13 @@ from hypothesis import strategies as st
 import torch  # noqa: E402  (a test dependency: pip install -e .[test])
 
 from lenticalib.core.errors import ConfigurationError, ImageError  # noqa: E402
-from lenticalib.core.imageio import read_image, write_image  # noqa: E402
+from lenticalib.core.files.imageio import read_image, write_image  # noqa: E402
 from lenticalib.core.profile import PanelProfile, load_profile  # noqa: E402
 from lenticalib.render.encoders import encode, get_encoder  # noqa: E402
 from lenticalib.render.encoders import torch_encoder as te  # noqa: E402
 from lenticalib.core.routing import view_map  # noqa: E402
-from lenticalib.render.sampling import NO_VIEW, column_sampling, row_sampling  # noqa: E402
-from lenticalib.render.views import QuiltGrid, load_quilt, make_quilt  # noqa: E402
+from lenticalib.render.compose.sampling import NO_VIEW, column_sampling, row_sampling  # noqa: E402
+from lenticalib.render.compose.views import QuiltGrid, load_quilt, make_quilt  # noqa: E402
 
 from .strategies import profiles, tie_profiles  # noqa: E402
 from .test_encoders import _chosen_views, _in_output_order, _random_views, bundled_4k  # noqa: E402
@@ -346,7 +346,7 @@ def test_registry_gives_encode_torch_and_caches_encoders():
 
 def test_encode_to_file_with_the_torch_encoder(tmp_path):
     """What 'lenticalib encode --encoder torch' runs: the raster file is the reference encoding."""
-    from lenticalib.render.encode_file import encode_to_file
+    from lenticalib.render.pipeline.encode_file import encode_to_file
 
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
                "width": 96, "height": 54, "subpixel_order": "BGR"}

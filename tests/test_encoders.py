@@ -32,7 +32,7 @@ def bundled_4k():
     -- the count of its tie subpixels, the canonical view of every subpixel in output order
     (int8 ``(H, W, 3)``, -1 where dark), the demo quilt's views and their reference encoding."""
     from lenticalib.core.profile import load_profile
-    from lenticalib.render.views import load_quilt
+    from lenticalib.render.compose.views import load_quilt
 
     profile = load_profile(FIXTURES / "panel-4k-32.json")
     expected = _in_output_order(profile, view_map(profile)).astype(np.int8)

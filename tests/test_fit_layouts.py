@@ -7,9 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
-from lenticalib.calib import layout_fit
-from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.patterns import (CELL_CLASSES, CELL_GROUPS, CELL_WIDE_GROUPS, CELL_WIDER_GROUPS, CELL_X_GROUPS,
+from lenticalib.calib.routing import layout_fit
+from lenticalib.calib.routing.compare import compare_profiles
+from lenticalib.calib.patterns.calibration_patterns import (CELL_CLASSES, CELL_GROUPS, CELL_WIDE_GROUPS, CELL_WIDER_GROUPS, CELL_X_GROUPS,
                                        CELL_Y_GROUPS, cell_class_of,
                                        design_patterns, read_manifest, render_pattern)
 from lenticalib.core.colour import srgb_encode8
@@ -145,7 +145,7 @@ def test_two_periods_combine_by_their_sigma_and_floor():
 # 3. A simulated cell panel, fitted end to end -------------------------------------------------------
 @pytest.mark.slow
 def test_simulated_cell_panel_fit_recovers_the_layout_and_meets_the_targets(tmp_path):
-    from lenticalib.calib.fit import fit_capture_set
+    from lenticalib.calib.routing.fit import fit_capture_set
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
 

@@ -4,7 +4,7 @@ import moderngl
 import pytest
 
 from lenticalib.core.errors import DisplayError
-from lenticalib.render import gl_context
+from lenticalib.render.gpu import gl_context
 
 
 def test_versions_are_asked_newest_first_and_the_minimum_last():

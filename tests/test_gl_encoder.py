@@ -12,9 +12,9 @@ from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import view_map
 from lenticalib.render.encoders import available_encoders, encode, get_encoder
 from lenticalib.render.encoders.gl_encoder import GLEncoder
-from lenticalib.render.monitors import list_monitors
-from lenticalib.render.present import WindowPresenter
-from lenticalib.render.present_offscreen import MemoryPresenter, OffscreenPresenter
+from lenticalib.render.gpu.monitors import list_monitors
+from lenticalib.render.present.window import WindowPresenter
+from lenticalib.render.present.offscreen import MemoryPresenter, OffscreenPresenter
 
 from .display_support import SCREEN
 from .strategies import profiles, tie_profiles
@@ -99,8 +99,8 @@ def test_gl_refuses_what_it_cannot_do_in_one_line():
 def test_encode_cli_with_the_gl_encoder(tmp_path, cli):
     import json
 
-    from lenticalib.core.imageio import read_image, write_image
-    from lenticalib.render.views import QuiltGrid, make_quilt
+    from lenticalib.core.files.imageio import read_image, write_image
+    from lenticalib.render.compose.views import QuiltGrid, make_quilt
 
     profile = {"views": 8, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,
                "width": 96, "height": 54, "subpixel_order": "BGR"}

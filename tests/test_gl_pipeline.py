@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from lenticalib.core.imageio import read_image
+from lenticalib.core.files.imageio import read_image
 from lenticalib.core.profile import PanelProfile, save_profile
 from lenticalib.render.encoders import encode
 
@@ -98,12 +98,12 @@ def test_play_headless_with_gl_prints_the_stage_table(avatar, panel, cli_process
 
 
 def test_play_on_the_panel_draws_the_gl_raster_into_the_window(avatar, panel, tmp_path, on_xvfb):
-    from lenticalib.render.live import play_avatar
-    from lenticalib.render.offline import render_avatar
-    from lenticalib.render.session import AvatarOptions
+    from lenticalib.render.pipeline.live import play_avatar
+    from lenticalib.render.pipeline.offline import render_avatar
+    from lenticalib.render.pipeline.session import AvatarOptions
 
-    from lenticalib.render.ply import save_ply
-    from lenticalib.render.avatar import load_avatar
+    from lenticalib.render.avatar.ply import save_ply
+    from lenticalib.render.avatar.sources import load_avatar
 
     still = tmp_path / "still.ply"  # a static avatar: every frame is the same
     save_ply(still, load_avatar(avatar).pose(None, "cpu"))
@@ -165,9 +165,9 @@ def test_torch_can_load_its_compiler_after_an_opengl_context(where, xvfb):
     import subprocess
     import sys
 
-    opening = ("from lenticalib.render.gl_context import headless_context\nctx = headless_context()\n"
+    opening = ("from lenticalib.render.gpu.gl_context import headless_context\nctx = headless_context()\n"
                "with ctx:\n    print(ctx.info['GL_RENDERER'])\n") if where == "offscreen" else (
-        "from lenticalib.render.monitors import list_monitors\nfrom lenticalib.render.present import WindowPresenter\n"
+        "from lenticalib.render.gpu.monitors import list_monitors\nfrom lenticalib.render.present.window import WindowPresenter\n"
         "presenter = WindowPresenter(list_monitors()[0])\npresenter.open()\nprint(presenter.ctx.info['GL_RENDERER'])\n")
     script = opening + "import torch._dynamo\nprint('loaded')\n"
     done = subprocess.run([sys.executable, "-c", script], env=xvfb.env(), capture_output=True, text=True,

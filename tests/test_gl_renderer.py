@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import DisplayError, InputError
-from lenticalib.render.gl_context import headless_context
+from lenticalib.render.gpu.gl_context import headless_context
 from lenticalib.render.renderers import available_renderers, get_renderer, render
 from lenticalib.render.renderers import gl_renderer
 from lenticalib.render.renderers.cpu import render_cpu
@@ -79,8 +79,8 @@ def test_the_cpu_sort_agrees_with_the_cpu_renderer_and_the_gpu_sort(ctx, name):
 
 @pytest.mark.parametrize("sort", ["gpu", "cpu"])  # cpu: 18000 records, 18 rows of the record texture
 def test_gl_agrees_with_the_cpu_renderer_on_the_demo_avatar(ctx, sort):
-    from lenticalib.render.camera_models import make_cameras
-    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.cameras.models import make_cameras
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
 
     rig = make_demo_avatar(seed=2, count=6000)
     gaussians = rig.deform(rig.neutral_controls()).to_numpy()

@@ -8,11 +8,11 @@ import pytest
 
 from lenticalib.core.errors import DisplayError
 from lenticalib.core.profile import PanelProfile
-from lenticalib.render.compensation import Compensator
+from lenticalib.render.compose.compensation import Compensator
 from lenticalib.render.encoders import compensates_on_device, encode
-from lenticalib.render.gl_context import headless_context
-from lenticalib.render.gl_views import GLViewStage
-from lenticalib.render.host_views import desaturate_edges, to_uint8
+from lenticalib.render.gpu.gl_context import headless_context
+from lenticalib.render.compose.gl_views import GLViewStage
+from lenticalib.render.compose.host_views import desaturate_edges, to_uint8
 
 
 def _rendered(n, h, w, seed):
@@ -98,7 +98,7 @@ def test_gl_compensates_on_the_gpu_within_one_level_of_the_host():
 
 
 def test_encode_cli_compensates_on_the_gpu_with_the_gl_encoder(tmp_path, cli):
-    from lenticalib.core.imageio import read_image, write_image
+    from lenticalib.core.files.imageio import read_image, write_image
 
     n = 8
     profile = {"views": n, "slant": 0.19, "period": 7.4, "offset": 1.5, "reference_view": 4,

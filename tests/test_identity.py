@@ -15,9 +15,9 @@ import json
 import numpy as np
 import pytest
 
-from lenticalib.calib.patterns import design_patterns
+from lenticalib.calib.patterns.calibration_patterns import design_patterns
 from lenticalib.core.identity import profile_identity, virtual_panel_record
-from lenticalib.core.imageio import write_image
+from lenticalib.core.files.imageio import write_image
 from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
 from lenticalib.sim.capture import TRUTH_NAME, write_simulation_record, write_truth
@@ -86,8 +86,8 @@ def test_render_refuses_a_compensation_of_another_panel_before_the_avatar(encode
 
 
 def test_render_with_force_warns_that_the_compensation_is_of_another_panel(encode_files):
-    from lenticalib.render.gaussians import Gaussians
-    from lenticalib.render.ply import save_ply
+    from lenticalib.render.avatar.gaussians import Gaussians
+    from lenticalib.render.avatar.ply import save_ply
 
     tmp_path, _, crosstalk = encode_files
     rng = np.random.default_rng(2)
@@ -205,7 +205,7 @@ def test_capture_sim_resumes_a_calibration_folder_on_its_own_virtual_panel(tmp_p
     scene = random_scene(SEED, width=W, height=H, resolution=(1200, 900), subsamples=1)
     _, constants = write_truth(cal, scene, patterns)
     write_simulation_record(cal, scene, patterns, "in progress", [], {"file": TRUTH_NAME, **constants})
-    from lenticalib.calib.cameras import make_camera
+    from lenticalib.calib.capture.cameras import make_camera
 
     camera = make_camera("sim", folder=cal, resolution=(1200, 900), subsamples=1)
     camera.open()

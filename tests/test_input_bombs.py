@@ -158,8 +158,8 @@ def test_the_number_check_builds_no_path_per_element(tmp_path):
 
 
 def test_a_rig_provenance_nested_100000_deep_is_one_line(tmp_path):
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     rig = tmp_path / "rig.npz"
     save_rig(rig, make_demo_avatar(seed=1, count=2000))
@@ -218,7 +218,7 @@ def test_a_cameramodel_whose_optimization_inputs_inflate_to_1_gib_is_refused_unr
 
 
 def test_cameramodel_size_and_model_text_are_capped(tmp_path):
-    from lenticalib.calib.camera_file import MAX_CAMERAMODEL_BYTES, MAX_MODEL_TEXT_BYTES, load_camera_model
+    from lenticalib.calib.camera.model_file import MAX_CAMERAMODEL_BYTES, MAX_MODEL_TEXT_BYTES, load_camera_model
     from lenticalib.core.errors import InputError
 
     plain = tmp_path / "plain.cameramodel"
@@ -241,8 +241,8 @@ def test_cameramodel_size_and_model_text_are_capped(tmp_path):
 @pytest.fixture(scope="module")
 def avatar(tmp_path_factory):
     """A small 3DGS PLY avatar, a unit sphere of 400 Gaussians."""
-    from lenticalib.render.gaussians import Gaussians
-    from lenticalib.render.ply import save_ply
+    from lenticalib.render.avatar.gaussians import Gaussians
+    from lenticalib.render.avatar.ply import save_ply
 
     rng = np.random.default_rng(0)
     n = 400
@@ -280,7 +280,7 @@ def test_a_10_mb_obj_fan_is_refused_by_its_line_and_its_triangle_count(tmp_path,
 
 
 def test_mesh_polygons_are_split_into_fans_in_one_pass():
-    from lenticalib.render.mesh import fan_triangles
+    from lenticalib.render.avatar.mesh import fan_triangles
 
     tris = fan_triangles(np.arange(9), np.array([3, 6]))  # a triangle, then a hexagon
     assert tris.tolist() == [[0, 1, 2], [3, 4, 5], [3, 5, 6], [3, 6, 7], [3, 7, 8]]
@@ -290,7 +290,7 @@ def test_ply_faces_of_one_size_are_read_as_one_array_and_row_by_row_reading_is_c
     import plyfile
 
     from lenticalib.core.errors import InputError
-    from lenticalib.render import mesh
+    from lenticalib.render.avatar import mesh
 
     vert = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
     quads = np.array([([0, 1, 2, 3],)], dtype=[("vertex_indices", "i4", (4,))])
@@ -340,7 +340,7 @@ def fifo(tmp_path):
 def student(tmp_path_factory):
     """An untrained student driver, saved as 'driver distill' saves one (no distillation)."""
     torch = pytest.importorskip("torch")
-    from lenticalib.render.rig import DEFAULT_LAYOUT
+    from lenticalib.render.avatar.rig import DEFAULT_LAYOUT
     from lenticalib.render.student.model import build_student
     from lenticalib.render.student.student_file import save_student
 
@@ -386,7 +386,7 @@ def test_dev_zero_as_a_visual_json_is_one_line(tmp_path):
 
 def test_the_input_helper_never_reads_more_than_its_cap(tmp_path):
     from lenticalib.core.errors import InputError
-    from lenticalib.core.input_files import check_input, read_input
+    from lenticalib.core.files.input_files import check_input, read_input
 
     path = tmp_path / "f.bin"
     path.write_bytes(b"x" * 100)

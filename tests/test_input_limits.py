@@ -23,18 +23,18 @@ import zlib
 import numpy as np
 import pytest
 
-from lenticalib.core import lkg
-from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
+from lenticalib.core.looking_glass import convert as lkg
+from lenticalib.calib.patterns.crosstalk_patterns import design_crosstalk_patterns
 from lenticalib.calib.crosstalk.result import read_crosstalk
 from lenticalib.calib.intrinsics.board import panel_board, read_board, write_manifest
-from lenticalib.calib.patterns import design_patterns
+from lenticalib.calib.patterns.calibration_patterns import design_patterns
 from lenticalib.core.errors import ImageError, InputError, ProfileError
-from lenticalib.core.imageio import MAX_IMAGE_PIXELS, check_image_pixels, read_image
-from lenticalib.core.documents import read_json_file
+from lenticalib.core.files.imageio import MAX_IMAGE_PIXELS, check_image_pixels, read_image
+from lenticalib.core.files.documents import read_json_file
 from lenticalib.core.pattern_sets import read_pattern_folder, write_patterns
 from lenticalib.core.profile import PanelProfile, load_profile, save_profile
-from lenticalib.render.cameras import ViewCameras
-from lenticalib.render.camera_models import arc_cameras
+from lenticalib.render.cameras.view_cameras import ViewCameras
+from lenticalib.render.cameras.models import arc_cameras
 from lenticalib.sim.scene import Scene, random_scene
 
 from .cli_support import refused
@@ -99,7 +99,7 @@ def _scene_doc(folder):
 
 
 def _camera_model_doc(folder):
-    from lenticalib.calib.camera_file import load_camera_model
+    from lenticalib.calib.camera.model_file import load_camera_model
 
     path = folder / "camera.json"
     path.write_text(json.dumps({"camera_matrix": [[1000.0, 0, 640.0], [0, 1000.0, 360.0], [0, 0, 1]],
@@ -273,7 +273,7 @@ def _npz(path, arrays, raw_members=()):
 
 
 def test_a_rig_array_claiming_10_to_the_12_elements_is_refused_from_its_header(tmp_path):
-    from lenticalib.render.rig_file import load_rig
+    from lenticalib.render.avatar.rig_file import load_rig
 
     arrays = _rig_arrays()
     del arrays["means"]
@@ -287,7 +287,7 @@ def test_a_rig_array_claiming_10_to_the_12_elements_is_refused_from_its_header(t
 
 
 def test_a_missing_rig_array_is_named_before_128_mib_of_deflated_zeros_are_inflated(tmp_path):
-    from lenticalib.render.rig_file import load_rig
+    from lenticalib.render.avatar.rig_file import load_rig
 
     arrays = _rig_arrays()
     del arrays["format"]
@@ -298,7 +298,7 @@ def test_a_missing_rig_array_is_named_before_128_mib_of_deflated_zeros_are_infla
 
 
 def test_rig_arrays_over_the_size_limit_are_refused_unread(tmp_path, monkeypatch):
-    from lenticalib.render import rig_file
+    from lenticalib.render.avatar import rig_file
 
     path = _npz(tmp_path / "rig.npz", _rig_arrays())
     rig_file.load_rig(path)
@@ -308,7 +308,7 @@ def test_rig_arrays_over_the_size_limit_are_refused_unread(tmp_path, monkeypatch
 
 
 def test_a_control_npz_claiming_a_huge_track_and_a_pickle_are_one_line(tmp_path):
-    from lenticalib.render.controls import load_controls
+    from lenticalib.render.controls.files import load_controls
 
     path = _npz(tmp_path / "c.npz", {"t": np.arange(3.0)}, [("controls", _npy_header((10 ** 12, 70)), bytes(64), 1)])
     assert "array 'controls' claims shape (1000000000000, 70)" in _raises_one_line(lambda: load_controls(path))
@@ -324,7 +324,7 @@ PLY_PROPERTIES = ("x y z f_dc_0 f_dc_1 f_dc_2 opacity scale_0 scale_1 scale_2 ro
 
 @pytest.mark.parametrize("encoding", ["binary_little_endian", "ascii"])
 def test_a_ply_header_claiming_10_to_the_13_vertices_is_refused_before_reading(tmp_path, encoding):
-    from lenticalib.render.ply import load_ply
+    from lenticalib.render.avatar.ply import load_ply
 
     header = (f"ply\nformat {encoding} 1.0\nelement vertex {10 ** 13}\n"
               + "".join(f"property float {name}\n" for name in PLY_PROPERTIES) + "end_header\n")
@@ -401,7 +401,7 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
     views = tmp_path / "views"
     views.mkdir()
     small = np.zeros((SMALL["height"] // 2, SMALL["width"] // 4, 3), np.uint8)
-    from lenticalib.core.imageio import write_image
+    from lenticalib.core.files.imageio import write_image
 
     for i in range(SMALL["views"]):
         write_image(views / f"v{i}.png", small)
@@ -425,7 +425,7 @@ def test_an_8000_x_8000_image_where_a_known_size_is_due_is_refused_from_its_head
 
 def test_a_damaged_deflate_stream_in_an_npz_is_one_line(tmp_path):
     """A bit flipped inside a compressed member makes zlib fail (not a CRC error): one InputError."""
-    from lenticalib.core.arrayfile import load_npz
+    from lenticalib.core.files.arrayfile import load_npz
 
     buf = io.BytesIO()
     np.savez_compressed(buf, a=np.arange(100000) % 7)

@@ -4,11 +4,11 @@ with cell layouts and reversed views."""
 import numpy as np
 import pytest
 
-from lenticalib.calib.compare import compare_profiles
-from lenticalib.calib.crosstalk.patterns import band_centre, design_crosstalk_patterns
-from lenticalib.calib.patterns import frame_width
+from lenticalib.calib.routing.compare import compare_profiles
+from lenticalib.calib.patterns.crosstalk_patterns import band_centre, design_crosstalk_patterns
+from lenticalib.calib.patterns.calibration_patterns import frame_width
 from lenticalib.core.errors import InputError
-from lenticalib.core.imageio import read_image
+from lenticalib.core.files.imageio import read_image
 from lenticalib.core.layout import SubpixelLayout, pattern_for_mode
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import view_map

@@ -15,7 +15,7 @@ from lenticalib.core.layout import LKG_CELL_PATTERNS, SubpixelLayout, pattern_fo
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import view_map
 from lenticalib.render.encoders import encode
-from lenticalib.render.sampling import column_sampling, row_sampling
+from lenticalib.render.compose.sampling import column_sampling, row_sampling
 
 from .strategies import profiles
 from .test_encoders import _chosen_views, _in_output_order, _random_views

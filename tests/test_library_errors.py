@@ -5,7 +5,7 @@ Every string in a ``raise ...Error(...)`` outside ``lenticalib/cli`` (the messag
 (a source for a helper to raise with); a ``--flag`` in one fails the test, listing where.  A hint may
 still tell the user to run a command (``'lenticalib fit DIR --camera M'``) or another program
 (``'gphoto2 --auto-detect'``): those commands are taken out before looking.  The CLI maps the
-library's names to its flags (:mod:`lenticalib.cli._flags`).
+library's names to its flags (:mod:`lenticalib.cli.shared.flags`).
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def test_the_scan_sees_a_flag_handed_on_as_a_source():
 
 
 def test_the_cli_says_its_flags_for_the_library_names():
-    from lenticalib.cli._flags import with_flags
+    from lenticalib.cli.shared.flags import with_flags
     from lenticalib.core.errors import InputError
 
     flags = {"camera": "--camera", "display": "--display", "view_size": "--view-size"}

@@ -1,6 +1,6 @@
-"""Looking Glass visual.json import/export (lenticalib.core.lkg).
+"""Looking Glass visual.json import/export (lenticalib.core.looking_glass.convert).
 
-The golden model is :func:`lenticalib.core.lkg_rule.lkg_view_map`, our float64 port of the
+The golden model is :func:`lenticalib.core.looking_glass.vendor_rule.lkg_view_map`, our float64 port of the
 Looking Glass shader's rule; lenticalib's canonical :func:`routing.view_map` of the imported
 profile must agree with it on every colour of every pixel except exact ties (their ``phase * N``
 within 1e-6 of an integer, where float evaluations may legitimately differ).  Cell layouts and
@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lenticalib.core import lkg, lkg_rule
+from lenticalib.core.looking_glass import convert as lkg, vendor_rule as lkg_rule
 from lenticalib.core.errors import ProfileError
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core import routing

@@ -1,6 +1,6 @@
 """Looking Glass calibrations with subpixel cells, flips and inverted views: import + encode vs their rule.
 
-The oracle is :mod:`lenticalib.core.lkg_rule`, our float64 port of the Looking Glass lenticular
+The oracle is :mod:`lenticalib.core.looking_glass.vendor_rule`, our float64 port of the Looking Glass lenticular
 shader (nearest view), evaluated per colour of every pixel.  lenticalib imports the calibration
 (:func:`lkg.profile_from_visual`) and encodes a view stack in which view ``v`` is filled with the
 value ``v``: every colour of the raster then names the view it shows, and it must be the view
@@ -19,7 +19,8 @@ import json
 import numpy as np
 import pytest
 
-from lenticalib.core import lkg, lkg_rule, routing
+from lenticalib.core.looking_glass import convert as lkg, vendor_rule as lkg_rule
+from lenticalib.core import routing
 from lenticalib.core.errors import ProfileError
 from lenticalib.core.layout import SubpixelLayout
 from lenticalib.core.profile import PanelProfile, load_profile, save_profile

@@ -1,7 +1,7 @@
 """A Looking Glass Portrait plays with the README's own commands (issue 46, part 2).
 
 Defaults follow the panel: a Looking Glass profile takes the quilt Looking Glass renders for its
-model (from the calibration's serial, lenticalib.core.lkg_models), any other profile a view size
+model (from the calibration's serial, lenticalib.core.looking_glass.models), any other profile a view size
 at its aspect; a view size of another aspect is refused in one line whose hint names sizes that
 then work.
 """
@@ -13,7 +13,7 @@ import re
 import numpy as np
 import pytest
 
-from lenticalib.core.lkg_models import QUILT_MODELS, model_for_serial
+from lenticalib.core.looking_glass.models import QUILT_MODELS, model_for_serial
 from lenticalib.core.profile import load_profile
 from lenticalib.core.view_defaults import (DEFAULT_VIEW_SIZE, aspect_error, default_camera_arc, default_view_size,
                                            fitting_size)
@@ -29,8 +29,8 @@ ENCODERS_TOLERANCE = 0.01  # lenticalib.render.encoders.common.ASPECT_TOLERANCE
 def portrait(tmp_path_factory):
     """An emulated Portrait's visual.json, its profile as the README makes it (device read, no
     --views) and a small demo avatar: (folder, profile path, avatar path)."""
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     folder = tmp_path_factory.mktemp("portrait")
     (folder / "visual.json").write_bytes(visual_bytes(CELLS))  # serial LKG-P-01234, 1536x2048
@@ -101,7 +101,7 @@ def test_readme_commands_play_render_show_on_a_portrait(portrait, tmp_path):
     assert code == 0, err
     assert f"48 views {proposed}" in out and (tmp_path / "frame.png").is_file()
     # a pre-made quilt: encode --quilt quilt_qs8x6a0.75.png, then show the frame
-    from lenticalib.core.imageio import write_image
+    from lenticalib.core.files.imageio import write_image
 
     quilt = tmp_path / "quilt_qs8x6a0.75.png"
     write_image(quilt, np.random.default_rng(0).integers(0, 256, (6 * 56, 8 * 42, 3), dtype=np.uint8))
@@ -120,7 +120,7 @@ def test_readme_commands_play_render_show_on_a_portrait(portrait, tmp_path):
 
 
 def test_a_4k_profile_keeps_960x540(portrait, tmp_path):
-    from lenticalib.render.session import open_avatar_session
+    from lenticalib.render.pipeline.session import open_avatar_session
 
     _, lkg, demo = portrait
     session = open_avatar_session(demo, PANEL_4K)

@@ -1,4 +1,4 @@
-"""Looking Glass's own lenticular rule, transcribed here apart from lenticalib.core.lkg_rule, against import + encode.
+"""Looking Glass's own lenticular rule, transcribed here apart from lenticalib.core.looking_glass.vendor_rule, against import + encode.
 
 THE REFERENCE.  ``vendor_views`` below is a line-by-line transcription, in the shader's own names,
 of Looking Glass's lenticular shader as their WebXR library generates it:
@@ -10,7 +10,7 @@ Looking-Glass/looking-glass-webxr, ``dist/bundle/webxr.js`` at b44ed27fea197f28f
 ``Lenticular_RGBA_With_Aspect``.  ``invView`` and ``flipSubp`` (which the newer shaders no longer
 read) follow the older HoloPlay shader (``HoloPlay/Lenticular``, 2017: ``nuv.z = (1.0 - invView) *
 nuv.z + invView * (1.0 - nuv.z)`` and ``float4(rgb[ri].r, rgb[1].g, rgb[bi].b, 1)``).  It is
-written separately from :mod:`lenticalib.core.lkg_rule` so that the port is held against the
+written separately from :mod:`lenticalib.core.looking_glass.vendor_rule` so that the port is held against the
 vendor's code, not against itself.
 
 THE CALIBRATIONS (fixtures/lkg/README.md): real units (a gen3 16" landscape with two cells and no
@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lenticalib.core import lkg, routing
+from lenticalib.core.looking_glass import convert as lkg
+from lenticalib.core import routing
 from lenticalib.render.encoders import encode
 
 FIXTURES = Path(__file__).resolve().parent.parent / "fixtures" / "lkg"
@@ -256,7 +257,7 @@ def _small_unit():
 def test_compare_says_whether_a_visual_json_and_a_measured_layout_agree(tmp_path):
     from .cli_support import run_main
 
-    from lenticalib.calib.compare import AGREE_FRACTION, compare_profiles
+    from lenticalib.calib.routing.compare import AGREE_FRACTION, compare_profiles
     from lenticalib.core.profile import save_profile
 
     cal = _small_unit()

@@ -12,7 +12,7 @@ import os
 
 import pytest
 
-from lenticalib.core.lkg import import_visual_json
+from lenticalib.core.looking_glass.convert import import_visual_json
 from lenticalib.device.emulator.looking_glass import create_unit
 from lenticalib.device.looking_glass import is_looking_glass, open_unit, read_calibration
 from lenticalib.device.looking_glass.hid import LENGTH_BYTES, PAGE_SIZE, HidUnit

@@ -11,7 +11,7 @@ import json
 import pytest
 
 from lenticalib.core.errors import DeviceNotFoundError, DeviceProtocolError, DeviceTimeoutError, InputError
-from lenticalib.core.lkg import import_visual_json
+from lenticalib.core.looking_glass.convert import import_visual_json
 from lenticalib.core.profile import load_profile, save_profile
 from lenticalib.device.emulator.looking_glass import EmulatedLookingGlassHid, create_unit, eeprom_bytes, unit_image
 from lenticalib.device.looking_glass import is_looking_glass, open_unit, read_calibration

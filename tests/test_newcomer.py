@@ -59,9 +59,9 @@ def test_retarget_after_the_data_sheet_route_names_the_flag_that_fixes_it_and_th
 # ------------------------------------------------------------------ item 3: hints suggest names that work
 
 def test_an_output_folder_given_by_mistake_suggests_a_file_name_the_command_takes(tmp_path, monkeypatch):
-    from lenticalib.core.imageio import write_image
-    from lenticalib.core.lkg import export_visual_json
-    from lenticalib.render.views import QuiltGrid, make_quilt
+    from lenticalib.core.files.imageio import write_image
+    from lenticalib.core.looking_glass.convert import export_visual_json
+    from lenticalib.render.compose.views import QuiltGrid, make_quilt
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("LENTICALIB_EMULATOR_DIR", str(tmp_path / "emu"))
@@ -92,7 +92,7 @@ def test_an_output_folder_given_by_mistake_suggests_a_file_name_the_command_take
 
 def test_a_hint_never_suggests_a_name_without_a_suffix_where_one_is_needed(tmp_path):
     from lenticalib.core.errors import InputError
-    from lenticalib.core.outputs import check_output_file
+    from lenticalib.core.files.outputs import check_output_file
 
     (tmp_path / "d").mkdir()
     with pytest.raises(InputError) as caught:
@@ -232,8 +232,8 @@ def test_a_profile_read_from_a_unit_says_when_it_was_read(tmp_path, monkeypatch)
 
 
 def test_the_render_table_shows_present_as_not_run_and_counts_one_frame(tmp_path):
-    from lenticalib.render.gaussians import Gaussians
-    from lenticalib.render.ply import save_ply
+    from lenticalib.render.avatar.gaussians import Gaussians
+    from lenticalib.render.avatar.ply import save_ply
 
     rng = np.random.default_rng(2)
     means = rng.uniform(-0.1, 0.1, (50, 3)).astype(np.float32)
@@ -250,8 +250,8 @@ def test_the_render_table_shows_present_as_not_run_and_counts_one_frame(tmp_path
 
 
 def test_diagnose_names_no_worst_view_for_a_metric_equal_in_every_view():
-    from lenticalib.render.diagnose import METRICS
-    from lenticalib.render.diagnose_report import diagnose_table
+    from lenticalib.render.diagnose.avatars import METRICS
+    from lenticalib.render.diagnose.report import diagnose_table
 
     views = [dict({m: 0.0 for m in METRICS}, yaw_deg=yaw, O_alpha=0.05 + 0.001 * k)
              for k, yaw in enumerate((-25.0, 0.0, 25.0))]

@@ -32,7 +32,7 @@ class FakeTerminal(io.StringIO):
 
 @pytest.fixture(scope="module")
 def video(tmp_path_factory):
-    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
     from lenticalib.sim.driver_video import make_driver_video
 
     root = tmp_path_factory.mktemp("newcomer")
@@ -105,8 +105,8 @@ def test_epoch_lines_give_the_readmes_units(distilled):
 
 def test_render_shows_a_bar_over_the_frames_on_a_terminal(tmp_path):
     from lenticalib.cli import main
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     save_rig(tmp_path / "demo.npz", make_demo_avatar(seed=1, count=2000))
     args = ["render", str(tmp_path / "demo.npz"), "--profile", "fixtures/panel-4k-32.json", "-o",
@@ -124,7 +124,7 @@ def test_render_shows_a_bar_over_the_frames_on_a_terminal(tmp_path):
 def test_a_compile_is_said_once_on_a_terminal():
     import numba
 
-    from lenticalib.cli._progress import compile_notice
+    from lenticalib.cli.shared.progress import compile_notice
 
     @numba.njit
     def twice(x):

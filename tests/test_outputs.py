@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from lenticalib.core.errors import InputError
-from lenticalib.core.outputs import check_output_file, check_output_folder, restored_on_failure, staged_folder
+from lenticalib.core.files.outputs import check_output_file, check_output_folder, restored_on_failure, staged_folder
 
 from .outputs_support import read_only  # noqa: F401 -- pytest fixture
 
@@ -156,7 +156,7 @@ def _identity(path: Path) -> tuple:
 
 
 def test_outputs_never_replace_fifos_devices_folders_or_links_to_them(tmp_path):
-    from lenticalib.core.atomic import write_bytes_atomic
+    from lenticalib.core.files.atomic import write_bytes_atomic
 
     nodes = _nodes(tmp_path / "nodes")
     before = {name: _identity(path) for name, path in nodes.items()}
@@ -175,7 +175,7 @@ def test_outputs_never_replace_fifos_devices_folders_or_links_to_them(tmp_path):
 def test_a_node_appearing_during_the_work_is_not_replaced(tmp_path):
     import os
 
-    from lenticalib.core.atomic import PendingFile
+    from lenticalib.core.files.atomic import PendingFile
 
     target = tmp_path / "out.json"
     pending = PendingFile(target, "profile")
@@ -189,7 +189,7 @@ def test_a_node_appearing_during_the_work_is_not_replaced(tmp_path):
 def test_a_link_to_a_regular_file_is_followed_and_set_id_bits_are_dropped(tmp_path):
     import os
 
-    from lenticalib.core.atomic import write_bytes_atomic
+    from lenticalib.core.files.atomic import write_bytes_atomic
 
     (tmp_path / "real").mkdir()
     (tmp_path / "links").mkdir()
@@ -211,8 +211,8 @@ def test_outputs_get_the_umask_mode_or_the_replaced_files_mode(tmp_path):
 
     import numpy as np
 
-    from lenticalib.core.atomic import write_bytes_atomic
-    from lenticalib.render.offline import _VideoFile
+    from lenticalib.core.files.atomic import write_bytes_atomic
+    from lenticalib.render.pipeline.offline import _VideoFile
 
     old_mask = os.umask(0o027)
     try:
@@ -236,7 +236,7 @@ def test_outputs_get_the_umask_mode_or_the_replaced_files_mode(tmp_path):
 
 def test_a_folder_that_takes_no_files_is_named_not_writable(tmp_path):
     """/proc exists and passes os.access for root, but no file can be made there."""
-    from lenticalib.core.atomic import write_bytes_atomic
+    from lenticalib.core.files.atomic import write_bytes_atomic
 
     for call in (lambda: check_output_file("/proc/lenticalib-test.json", "profile", inputs=()),
                  lambda: write_bytes_atomic("/proc/lenticalib-test.json", b"{}")):
@@ -292,8 +292,8 @@ def test_restored_on_failure_never_copies_or_replaces_a_node(tmp_path):
 
 _KILLED_WRITER = """
 import sys, time
-from lenticalib.core.atomic import PendingFile
-from lenticalib.core.outputs import staged_folder
+from lenticalib.core.files.atomic import PendingFile
+from lenticalib.core.files.outputs import staged_folder
 with staged_folder(sys.argv[1], "frames folder", ("frame-*.png",), inputs=()) as stage:
     (stage / "frame-00000.png").write_bytes(b"half")
     video = PendingFile(sys.argv[2], "video", suffix=".mkv")
@@ -309,7 +309,7 @@ def test_what_a_killed_run_left_is_removed_by_the_next_run_of_the_same_output(tm
     import subprocess
     import sys
 
-    from lenticalib.core.atomic import remove_leftovers, write_bytes_atomic
+    from lenticalib.core.files.atomic import remove_leftovers, write_bytes_atomic
 
     frames, video = tmp_path / "frames", tmp_path / "out.mkv"
     decoys = {".frames.notes": b"mine", ".frames.abcd1234.partial.txt": b"mine", ".other.abcd1234.tmp": b"mine",
@@ -362,7 +362,7 @@ def test_a_failed_swap_puts_the_earlier_folder_back(tmp_path, monkeypatch):
 def test_a_file_of_our_own_folder_replaces_a_planted_link_instead_of_writing_through_it(tmp_path):
     """write_text_atomic(..., follow_links=False) (the emulator's announcements): the link at the name
     is replaced by the new file and what it pointed to is never written."""
-    from lenticalib.core.atomic import write_text_atomic
+    from lenticalib.core.files.atomic import write_text_atomic
 
     victim = tmp_path / "victim.txt"
     victim.write_text("keep me")

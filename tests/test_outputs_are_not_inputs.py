@@ -77,13 +77,13 @@ def _tree(folder: Path) -> dict:
 def made(tmp_path_factory):
     """Small real inputs, copied into each test's folder: a profile, a visual.json, a quilt and
     its views, a demo avatar, a background image, a pattern folder and a scene."""
-    from lenticalib.calib.patterns import design_patterns
-    from lenticalib.core.imageio import write_image
-    from lenticalib.core.lkg import export_visual_json
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
+    from lenticalib.core.files.imageio import write_image
+    from lenticalib.core.looking_glass.convert import export_visual_json
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
     from lenticalib.sim.scene import random_scene
 
     folder = tmp_path_factory.mktemp("made")
@@ -354,7 +354,7 @@ def test_hard_links_across_folders_are_the_same_file(tmp_path):
     """The two branches no command above reaches: an output file that is a hard link to a file of an
     input folder read whole, and a folder to be replaced that holds a hard link to an input file."""
     from lenticalib.core.errors import InputError
-    from lenticalib.core.outputs import check_output_file, check_output_folder
+    from lenticalib.core.files.outputs import check_output_file, check_output_folder
 
     (tmp_path / "views").mkdir()
     (tmp_path / "views" / "view-00.png").write_bytes(b"a view")

@@ -11,8 +11,8 @@ from importlib import metadata
 import numpy as np
 import pytest
 
-from lenticalib.calib.crosstalk.patterns import CrosstalkPatternSet, design_crosstalk_patterns
-from lenticalib.calib.patterns import PatternSet, design_patterns
+from lenticalib.calib.patterns.crosstalk_patterns import CrosstalkPatternSet, design_crosstalk_patterns
+from lenticalib.calib.patterns.calibration_patterns import PatternSet, design_patterns
 from lenticalib.core import plugins
 from lenticalib.core.errors import InputError
 from lenticalib.core.pattern_sets import MANIFEST_NAME, PATTERN_SET_GROUP, read_pattern_folder, write_patterns

@@ -3,7 +3,7 @@
 
 import numpy as np
 
-from lenticalib.calib import phase
+from lenticalib.calib.patterns import phase
 
 
 def _known_map(h=300, w=400):

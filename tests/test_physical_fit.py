@@ -15,7 +15,7 @@ import types
 import numpy as np
 import pytest
 
-from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
+from lenticalib.calib.routing.fit_pipeline import PhysicalOptions, fit_capture_sets
 from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 from lenticalib.core.profile import load_profile
 from lenticalib.core.retarget import retarget_profile
@@ -183,8 +183,8 @@ def test_with_a_calibrated_camera_distance_gap_and_retargeting_meet_the_targets(
 def test_the_camera_model_records_its_cross_validated_uncertainty(two_distances, calibrated):
     """'camera calibrate' writes the cross-validation scale into the model's note; the loader reads
     it and the intrinsics draws (and so every pose sigma) carry it."""
-    from lenticalib.calib.camera_file import load_camera_model
-    from lenticalib.calib.camera_file import NOTE_KEY
+    from lenticalib.calib.camera.model_file import load_camera_model
+    from lenticalib.calib.camera.model_file import NOTE_KEY
 
     text = calibrated.model.read_text()
     assert NOTE_KEY in text.split("{", 1)[0]

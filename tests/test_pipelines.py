@@ -1,7 +1,7 @@
 """The library's pipelines called as a library user calls them, without the CLI: a two-distance fit
-(``calib.fit_pipeline``), a camera calibration (``calib.intrinsics.pipeline``), encoding to a file
-(``render.encode_file``); their errors name the argument, and the CLI's mapping of those names to
-its flags (``cli._flags``).  Small sizes: a 640x360 panel, a 1200x900 camera, 12 board photos."""
+(``calib.routing.fit_pipeline``), a camera calibration (``calib.intrinsics.pipeline``), encoding to a file
+(``render.pipeline.encode_file``); their errors name the argument, and the CLI's mapping of those names to
+its flags (``cli.shared.flags``).  Small sizes: a 640x360 panel, a 1200x900 camera, 12 board photos."""
 
 import dataclasses
 import json
@@ -11,8 +11,8 @@ import types
 import numpy as np
 import pytest
 
-from lenticalib.calib import fit as fit_module
-from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
+from lenticalib.calib.routing import fit as fit_module
+from lenticalib.calib.routing.fit_pipeline import PhysicalOptions, fit_capture_sets
 from lenticalib.core.errors import InputError
 from lenticalib.core.profile import load_profile
 
@@ -26,7 +26,7 @@ def two_distances(tmp_path_factory):
     and 580 mm, fitted through ``fit_capture_sets`` with ``PhysicalOptions(second_distance=...)``."""
     import mrcal
 
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import simulate_capture_set
     from lenticalib.sim.scene import random_scene
@@ -128,7 +128,7 @@ def test_library_fit_errors_name_the_argument_before_any_fit(two_distances, monk
 
 
 def test_the_cli_maps_argument_names_to_its_flags():
-    from lenticalib.cli._flags import flag_names, with_flags
+    from lenticalib.cli.shared.flags import flag_names, with_flags
     from lenticalib.cli.fit import FLAGS
 
     error = with_flags(InputError("a camera model gives the pose only with the pitch", source="camera_model",
@@ -154,7 +154,7 @@ def board_photos(tmp_path_factory):
 
 
 def test_a_camera_calibration_through_the_library(board_photos, tmp_path):
-    from lenticalib.calib.camera_file import load_camera_model
+    from lenticalib.calib.camera.model_file import load_camera_model
     from lenticalib.calib.intrinsics.pipeline import calibrate_camera
 
     stages = []
@@ -199,9 +199,9 @@ def test_camera_calibration_errors_name_the_argument(board_photos, tmp_path, kwa
 
 
 def test_encode_to_file_writes_what_encode_makes(tmp_path):
-    from lenticalib.core.imageio import read_image, write_image
+    from lenticalib.core.files.imageio import read_image, write_image
     from lenticalib.core.profile import PanelProfile
-    from lenticalib.render.encode_file import CompensationOptions, encode_to_file
+    from lenticalib.render.pipeline.encode_file import CompensationOptions, encode_to_file
     from lenticalib.render.encoders import encode
 
     profile = PanelProfile(views=8, slant=0.19, period=7.4, offset=1.5, reference_view=4, width=160, height=90,
@@ -222,7 +222,7 @@ def test_encode_to_file_writes_what_encode_makes(tmp_path):
 
 
 def test_field_paths_in_messages_are_not_taken_for_argument_names():
-    from lenticalib.cli._flags import with_flags
+    from lenticalib.cli.shared.flags import with_flags
 
     error = with_flags(InputError("field 'physical.gap_mm': 0 is outside 0.0001..50", source="p.json",
                                   hint="either second_distance or gap_mm"), {"gap_mm": "--gap MM",

@@ -13,13 +13,13 @@ import cv2
 import numpy as np
 import pytest
 
-from lenticalib.calib.cameras import CAMERA_KINDS, make_camera, open_camera
+from lenticalib.calib.capture.cameras import CAMERA_KINDS, make_camera, open_camera
 from lenticalib.core.errors import BackendUnavailableError, DeviceNotFoundError, InputError
 from lenticalib.core.plugins import Registry, load, runnable
 from lenticalib.device.discovery import list_devices
 from lenticalib.device.transports import TRANSPORTS, open_transport
-from lenticalib.render.camera_models import CAMERA_MODELS, make_cameras
-from lenticalib.render.drivers import DRIVERS, load_driver
+from lenticalib.render.cameras.models import CAMERA_MODELS, make_cameras
+from lenticalib.render.avatar.drivers import DRIVERS, load_driver
 from lenticalib.render.encoders import ENCODERS, available_encoders, get_encoder
 from lenticalib.render.renderers import RENDERERS, get_renderer, render
 
@@ -149,18 +149,18 @@ def test_every_registry_loads_its_builtins_by_name(kind):
 
 
 def test_the_simulated_camera_is_a_sim_backend_and_no_backend_loads_with_its_registry():
-    assert CAMERA_KINDS["sim"].__module__ == "lenticalib.sim.capture_camera"
-    code = ("import sys; from lenticalib.calib.cameras import CAMERA_KINDS, make_camera; "
-            "from lenticalib.device.transports import TRANSPORTS; from lenticalib.render.camera_models import "
+    assert CAMERA_KINDS["sim"].__module__ == "lenticalib.sim.capture_backend"
+    code = ("import sys; from lenticalib.calib.capture.cameras import CAMERA_KINDS, make_camera; "
+            "from lenticalib.device.transports import TRANSPORTS; from lenticalib.render.cameras.models import "
             "CAMERA_MODELS; print(list(CAMERA_KINDS), list(TRANSPORTS)); make_camera('manual'); "
-            "print(sorted(m for m in sys.modules if m.startswith(('lenticalib.sim', 'lenticalib.calib.cameras.', "
+            "print(sorted(m for m in sys.modules if m.startswith(('lenticalib.sim', 'lenticalib.calib.capture.cameras.', "
             "'lenticalib.device.transports.'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=REPO)
     assert out.returncode == 0, out.stderr
     names, modules = out.stdout.strip().splitlines()
     assert names == "['gphoto2', 'opencv', 'manual', 'sim'] ['serial', 'socket', 'hid', 'usb', 'emu']"
-    assert modules == ("['lenticalib.calib.cameras.base', 'lenticalib.calib.cameras.files', "
-                       "'lenticalib.calib.cameras.manual', 'lenticalib.device.transports.base']")
+    assert modules == ("['lenticalib.calib.capture.cameras.base', 'lenticalib.calib.capture.cameras.files', "
+                       "'lenticalib.calib.capture.cameras.manual', 'lenticalib.device.transports.base']")
 
 
 def test_entry_points_add_a_backend_to_every_registry(plugin_site, tmp_path):

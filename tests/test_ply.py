@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import InputError
-from lenticalib.render.gaussians import Gaussians
-from lenticalib.render.ply import load_ply, save_ply
+from lenticalib.render.avatar.gaussians import Gaussians
+from lenticalib.render.avatar.ply import load_ply, save_ply
 
 import plyfile  # noqa: E402  (a dependency of lenticalib)
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import DisplayError, ImageError
-from lenticalib.render.monitors import Monitor, choose_monitor, list_monitors
-from lenticalib.render.present import WindowPresenter
-from lenticalib.render.present_offscreen import OffscreenPresenter
+from lenticalib.render.gpu.monitors import Monitor, choose_monitor, list_monitors
+from lenticalib.render.present.window import WindowPresenter
+from lenticalib.render.present.offscreen import OffscreenPresenter
 
 from .display_support import SCREEN
 
@@ -140,7 +140,7 @@ def test_show_advances_by_itself_with_an_interval(xvfb, tmp_path, cli_process):
 
 
 def test_show_a_pattern_set_without_its_pngs_draws_them_from_the_manifest(tmp_path):
-    from lenticalib.calib.patterns import design_patterns, render_pattern
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns, render_pattern
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.slides import slides_from_path
 
@@ -189,7 +189,7 @@ def test_a_raster_on_a_device_the_driver_cannot_share_goes_through_host_memory(o
     # and the fallback is said once
     import torch
 
-    from lenticalib.render import cuda_gl
+    from lenticalib.render.gpu import cuda_gl
 
     def refuse(self, buffer):
         raise DisplayError("CUDA-OpenGL interop: cuGraphicsGLRegisterBuffer failed (CUDA error 219)")

@@ -140,8 +140,8 @@ PREPARED = {"Use a Looking Glass": "visual.json of a unit, emulated as lkg-emu:/
 def _small_avatar(path: Path) -> None:
     import numpy as np
 
-    from lenticalib.render.gaussians import Gaussians
-    from lenticalib.render.ply import save_ply
+    from lenticalib.render.avatar.gaussians import Gaussians
+    from lenticalib.render.avatar.ply import save_ply
 
     rng = np.random.default_rng(5)
     n = 400

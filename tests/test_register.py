@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from lenticalib.calib import photometric, register
+from lenticalib.calib.routing import photometric
+from lenticalib.calib.patterns import register
 
 
 SIZE = (600, 900)
@@ -42,7 +43,7 @@ def _panel_photo(shift=(0.0, 0.0), step=None, gain=1.0, noise=0.0, seed=0, size=
 
 
 def _reference(noise=0.01, room=0.0):
-    from lenticalib.calib.phase import demodulate
+    from lenticalib.calib.patterns.phase import demodulate
 
     photos = [_panel_photo(step=k, noise=noise, seed=10 + k, room=room) for k in range(3)]
     z, mean = demodulate(photos, [2 * math.pi * k / 3 for k in range(3)])
@@ -95,7 +96,7 @@ def test_shift_image_undoes_a_shift_without_quantising_it():
 def test_tone_curve_phase_error_is_measured_and_cancelled():
     """A 3-step fringe through a strong S-shaped tone curve: the phase error of the many-fringe
     group, tabulated by phase, cancels the error of a single-fringe group with the same curve."""
-    from lenticalib.calib.phase import coordinate_from_single_period, demodulate, phase_cycles
+    from lenticalib.calib.patterns.phase import coordinate_from_single_period, demodulate, phase_cycles
 
     h, w = 300, 1200
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)

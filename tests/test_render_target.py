@@ -17,16 +17,16 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import DisplayError, InputError
-from lenticalib.core.imageio import read_image
+from lenticalib.core.files.imageio import read_image
 from lenticalib.core.profile import PanelProfile, save_profile
-from lenticalib.render import diagnose
-from lenticalib.render.camera_models import arc_cameras, make_cameras, robust_box
-from lenticalib.render.cameras import empty_views, view_list
-from lenticalib.render.gaussians import SH_C0, Gaussians
-from lenticalib.render.ply import save_ply
+from lenticalib.render.diagnose import avatars as diagnose
+from lenticalib.render.cameras.models import arc_cameras, make_cameras, robust_box
+from lenticalib.render.cameras.view_cameras import empty_views, view_list
+from lenticalib.render.avatar.gaussians import SH_C0, Gaussians
+from lenticalib.render.avatar.ply import save_ply
 from lenticalib.render.renderers.common import MAX_VIEW_BYTES, check_view_memory
 from lenticalib.render.renderers.cpu import render_cpu
-from lenticalib.render.session import AvatarOptions, open_avatar_session
+from lenticalib.render.pipeline.session import AvatarOptions, open_avatar_session
 
 from .cli_support import refused, run_main
 from .memory_support import peak_traced
@@ -188,7 +188,7 @@ def test_the_renderers_refuse_views_too_large_before_allocation():
 
 
 def test_the_gl_renderer_refuses_views_too_large_and_past_the_drivers_framebuffer(monkeypatch):
-    from lenticalib.render.gl_context import headless_context
+    from lenticalib.render.gpu.gl_context import headless_context
     from lenticalib.render.renderers import gl_renderer
     from lenticalib.render.renderers.gl_renderer import GLSplatRenderer, render_gl
 

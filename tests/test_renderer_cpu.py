@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import BackendUnavailableError, InputError
-from lenticalib.render.gaussians import SH_C0, Gaussians
+from lenticalib.render.avatar.gaussians import SH_C0, Gaussians
 from lenticalib.render.renderers import available_renderers, get_renderer, render
 from lenticalib.render.renderers.cpu import render_cpu
 

@@ -79,10 +79,10 @@ def test_the_retargeter_rebuilds_only_when_the_routing_changes():
 
 
 def test_the_avatar_pipeline_retargets_per_frame():
-    from lenticalib.render.avatar import Avatar
-    from lenticalib.render.camera_models import make_cameras
-    from lenticalib.render.gaussians import Gaussians
-    from lenticalib.render.loop import AvatarPipeline
+    from lenticalib.render.avatar.sources import Avatar
+    from lenticalib.render.cameras.models import make_cameras
+    from lenticalib.render.avatar.gaussians import Gaussians
+    from lenticalib.render.pipeline.avatar_pipeline import AvatarPipeline
 
     optics = random_scene(8, width=384, height=216, distance=600).optics
     profile = _exact(optics, (0.0, 0.0, -600.0), views=8)

@@ -17,16 +17,17 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from lenticalib.core.errors import BackendUnavailableError, InputError  # noqa: E402
-from lenticalib.render.control_streams import (DEMO_JAW_RAD, DEMO_YAW_DEG, demo_controls,  # noqa: E402
+from lenticalib.render.controls.streams import (DEMO_JAW_RAD, DEMO_YAW_DEG, demo_controls,  # noqa: E402
                                                open_text_stream, open_udp)
-from lenticalib.render.controls import ControlTrack, load_controls, open_controls  # noqa: E402
-from lenticalib.render.demo_avatar import DEMO_EXPRESSIONS, make_demo_avatar  # noqa: E402
-from lenticalib.render.demo_avatar_parts import DEMO_BONES  # noqa: E402
-from lenticalib.render.drivers import load_driver  # noqa: E402
-from lenticalib.render.gaussians import SH_C0, Gaussians  # noqa: E402
-from lenticalib.render.rig import DEFAULT_LAYOUT  # noqa: E402
-from lenticalib.render.rig import envelope_arrays  # noqa: E402
-from lenticalib.render.rig_file import load_rig, rig_from_arrays, save_rig  # noqa: E402
+from lenticalib.render.controls.files import ControlTrack, load_controls
+from lenticalib.render.controls.sources import open_controls  # noqa: E402
+from lenticalib.render.avatar.demo_avatar import DEMO_EXPRESSIONS, make_demo_avatar  # noqa: E402
+from lenticalib.render.avatar.demo_avatar_parts import DEMO_BONES  # noqa: E402
+from lenticalib.render.avatar.drivers import load_driver  # noqa: E402
+from lenticalib.render.avatar.gaussians import SH_C0, Gaussians  # noqa: E402
+from lenticalib.render.avatar.rig import DEFAULT_LAYOUT  # noqa: E402
+from lenticalib.render.avatar.rig import envelope_arrays  # noqa: E402
+from lenticalib.render.avatar.rig_file import load_rig, rig_from_arrays, save_rig  # noqa: E402
 
 L = DEFAULT_LAYOUT
 D = L.dim

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from lenticalib.core.profile import PanelProfile
 from lenticalib.core.routing import routing_plan, rule_views, tie_mask, view_coordinate, view_map
 
-from lenticalib.render.sampling import NO_VIEW, sampling_tables
+from lenticalib.render.compose.sampling import NO_VIEW, sampling_tables
 
 from .exact import exact_view_map
 from .strategies import profiles, tie_profiles

@@ -1,4 +1,4 @@
-"""``lenticalib show --profile``: quilt images and quilt videos played on the panel (render/quilt_player.py).
+"""``lenticalib show --profile``: quilt images and quilt videos played on the panel (render/pipeline/quilt_player.py).
 
 The GL path runs on Mesa's llvmpipe through EGL (no window): the offscreen presenter keeps what it
 presented (``keep=True``), and every presented frame is held against ``lenticalib encode --quilt``
@@ -12,13 +12,13 @@ import json
 import numpy as np
 import pytest
 
-from lenticalib.core.imageio import read_image, write_image
+from lenticalib.core.files.imageio import read_image, write_image
 from lenticalib.core.profile import PanelProfile
 from lenticalib.render.encoders import encode
-from lenticalib.render.present_offscreen import MemoryPresenter, OffscreenPresenter
-from lenticalib.render.quilt_player import play_quilts
-from lenticalib.render.quilt_sources import quilt_items, tile_for_views
-from lenticalib.render.views import QuiltGrid, make_quilt, split_quilt
+from lenticalib.render.present.offscreen import MemoryPresenter, OffscreenPresenter
+from lenticalib.render.pipeline.quilt_player import play_quilts
+from lenticalib.render.pipeline.quilt_sources import quilt_items, tile_for_views
+from lenticalib.render.compose.views import QuiltGrid, make_quilt, split_quilt
 
 from .cli_support import one_error_line
 
@@ -214,7 +214,7 @@ def test_a_quilt_video_and_image_play_in_a_window_with_real_keys(xvfb, tmp_path)
 
 
 def test_a_video_faster_than_the_displays_refresh_is_said_to_drop_frames(tmp_path):
-    from lenticalib.render.monitors import Monitor
+    from lenticalib.render.gpu.monitors import Monitor
 
     _write_video(tmp_path / "fast_qs4x2a1.7778.avi", _quilt_frames(2), fps=120)
     with MemoryPresenter((96, 54)) as presenter:
@@ -227,7 +227,7 @@ def test_a_video_faster_than_the_displays_refresh_is_said_to_drop_frames(tmp_pat
 def test_the_next_image_of_a_show_is_read_while_one_is_shown(tmp_path, monkeypatch):
     import threading
 
-    from lenticalib.render import quilt_player
+    from lenticalib.render.pipeline import quilt_player
 
     frames = _quilt_frames(3, seed=5)
     for k, quilt in enumerate(frames):

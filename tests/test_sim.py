@@ -169,7 +169,7 @@ def test_crosstalk_profile_is_centred_on_the_camera(small_scene):
 
     A half-subpixel slip between the renderer and the truth would move the centroid by
     N / (2 Delta_r) ~ 0.75 views."""
-    from lenticalib.sim.render import render_radiance
+    from lenticalib.sim.panel_light import render_radiance
 
     profile = small_scene.truth_profile(N)
     cam, o = small_scene.camera, small_scene.optics
@@ -224,7 +224,7 @@ def simulate_main(monkeypatch, cli):
 
 @pytest.mark.slow
 def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
     # a 640x360 panel (nothing here depends on its size; the scene is drawn for the set's size) and
@@ -245,7 +245,7 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
     record = json.loads((tmp_path / "simulation.json").read_text())
     assert record["status"] == "complete" and record["seed"] == 3 and record["lenticalib_version"]
     assert Scene.from_dict(record) == random_scene(3, width=640, height=360, resolution=(1250, 800), subsamples=1)
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
 
     assert read_image(tmp_path / "captures" / "f16-0.jpg").shape == (800, 1250, 3)
 
@@ -262,7 +262,7 @@ def test_simulate_cli_writes_captures_truth_and_scene(tmp_path, simulate_main):
 
 @pytest.mark.slow
 def test_simulate_cli_reuses_a_scene_file(tmp_path, simulate_main):
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
     write_patterns(tmp_path / "set", design_patterns(640, 360, 8))

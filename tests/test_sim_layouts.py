@@ -10,7 +10,7 @@ from lenticalib.core.profile import load_profile
 from lenticalib.core.routing import view_coordinate
 from lenticalib.sim import Scene, random_scene, view_coordinate_truth
 from lenticalib.sim.layouts import NAMED_LAYOUTS, resolve_layout
-from lenticalib.sim.render import render_radiance
+from lenticalib.sim.panel_light import render_radiance
 
 from .cli_support import one_error_line
 
@@ -130,7 +130,7 @@ def simulate_main(monkeypatch, cli):
 
 
 def test_simulate_cli_layout_errors_are_one_line(tmp_path, simulate_main):
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
     write_patterns(tmp_path, design_patterns(64, 64, 8))
@@ -143,7 +143,7 @@ def test_simulate_cli_layout_errors_are_one_line(tmp_path, simulate_main):
 
 @pytest.mark.slow
 def test_simulate_cli_photographs_a_cell_panel(tmp_path, simulate_main):
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
     write_patterns(tmp_path, design_patterns(64, 64, 8))
@@ -159,8 +159,8 @@ def test_simulate_cli_photographs_a_cell_panel(tmp_path, simulate_main):
 
 
 def test_the_sim_capture_camera_takes_a_layout(tmp_path):
-    from lenticalib.calib.cameras import make_camera
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.capture.cameras import make_camera
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
     from .cli_support import refused

@@ -10,7 +10,7 @@ import pytest
 import lenticalib
 from lenticalib.cli import main
 from lenticalib.core.errors import ImageError, InputError, ProfileError
-from lenticalib.core.imageio import MAX_IMAGE_PIXELS, read_image, write_image
+from lenticalib.core.files.imageio import MAX_IMAGE_PIXELS, read_image, write_image
 from lenticalib.core.sizes import (MAX_SIDE, MIN_CAMERA_SIDE, MIN_PANEL_SIDE, check_raster, check_sides,
                                    parse_size)
 from .cli_support import raises_one_line as one_line
@@ -60,8 +60,8 @@ def test_the_lower_limit_is_the_callers():
 
 
 def test_every_size_option_parses_through_the_one_parser():
-    from lenticalib.sim.capture_camera import parse_resolution as sim_camera
-    from lenticalib.cli._avatar import _size as view_size
+    from lenticalib.sim.capture_backend import parse_resolution as sim_camera
+    from lenticalib.cli.shared.avatar_options import _size as view_size
     from lenticalib.cli.capture import _resolution as capture_resolution
     from lenticalib.device.emulator.config import parse_size as emulator_panel
 
@@ -94,7 +94,7 @@ def test_size_options_of_the_cli_are_one_line(tmp_path, capsys, argv, words):
 
 
 def test_profiles_and_visual_json_have_the_same_largest_side():
-    from lenticalib.core.lkg import profile_from_visual
+    from lenticalib.core.looking_glass.convert import profile_from_visual
     from lenticalib.core.profile import profile_from_dict
 
     constants = {"views": 8, "slant": 0.2, "period": 12.0, "offset": 0.0, "reference_view": 0.0,
@@ -123,7 +123,7 @@ def test_check_raster_accepts_the_panels_raster_and_names_what_does_not_fit():
 
 
 def test_the_simulator_and_the_image_reader_use_the_one_check(tmp_path):
-    from lenticalib.sim.render import check_raster as sim_check
+    from lenticalib.sim.panel_light import check_raster as sim_check
     from lenticalib.sim.scene import random_scene
 
     scene = random_scene(2, width=64, height=64, resolution=(320, 240), subsamples=1)
@@ -138,7 +138,7 @@ def test_the_simulator_and_the_image_reader_use_the_one_check(tmp_path):
 def test_quilt_grids_and_board_corners_parse_through_the_one_parser():
     from lenticalib.calib.intrinsics.board import parse_squares
     from lenticalib.core.errors import ImageError
-    from lenticalib.render.views import QuiltGrid, parse_grid
+    from lenticalib.render.compose.views import QuiltGrid, parse_grid
 
     assert parse_grid(" 8 x 4 ") == QuiltGrid(8, 4)
     with pytest.raises(ImageError, match=r"^--grid: must be COLSxROWS in tiles, e.g. 8x4, got '8by4'"):
@@ -180,4 +180,4 @@ def test_there_is_one_check_raster():
     """core/sizes owns the check; the simulator's is a one-line delegate for its scene's panel."""
     root = Path(lenticalib.__file__).parent
     owners = sorted(p.relative_to(root).as_posix() for p in root.rglob("*.py") if "def check_raster(" in p.read_text())
-    assert owners == ["core/sizes.py", "sim/render.py"]
+    assert owners == ["core/sizes.py", "sim/panel_light.py"]

@@ -18,8 +18,9 @@ torch = pytest.importorskip("torch")
 pytest.importorskip("torchvision")
 
 from lenticalib.core.errors import InputError  # noqa: E402
-from lenticalib.render.controls import ControlTrack, load_controls, open_controls  # noqa: E402
-from lenticalib.render.rig import DEFAULT_LAYOUT, ControlLayout  # noqa: E402
+from lenticalib.render.controls.files import ControlTrack, load_controls
+from lenticalib.render.controls.sources import open_controls  # noqa: E402
+from lenticalib.render.avatar.rig import DEFAULT_LAYOUT, ControlLayout  # noqa: E402
 from lenticalib.render.student.crop import parse_crop, to_input  # noqa: E402
 from lenticalib.render.student.distill import (SIZE_JITTER, DistillOptions, distill_student, group_weights,  # noqa: E402
                                                match_controls, split_blocks, training_side)
@@ -33,7 +34,7 @@ FAST = DistillOptions(epochs=2, batch=16, input_size=64, patience=2, threads=2)
 
 @pytest.fixture(scope="module")
 def video(tmp_path_factory):
-    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
     from lenticalib.sim.driver_video import make_driver_video
 
     root = tmp_path_factory.mktemp("driver")
@@ -79,7 +80,7 @@ def test_the_demo_face_holds_one_mouth_expression_at_a_time():
 
 def test_one_room_for_training_and_test_videos(tmp_path):
     """Two motions in one room share the background; another room has another one."""
-    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
     from lenticalib.sim.driver_video import make_driver_video
 
     avatar = make_demo_avatar(seed=2, count=2000)
@@ -278,10 +279,10 @@ def test_driver_commands(cli, video, student, tmp_path):
 def test_play_counts_the_students_prediction_in_the_drive_stage(student, video, tmp_path):
     import cv2
 
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.live import play_avatar
-    from lenticalib.render.rig_file import save_rig
-    from lenticalib.render.session import AvatarOptions
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.pipeline.live import play_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
+    from lenticalib.render.pipeline.session import AvatarOptions
 
     root, _ = video
     path, _ = student

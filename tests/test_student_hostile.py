@@ -24,11 +24,11 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("torchvision")
 
-from lenticalib.core.arrayfile import load_npz  # noqa: E402
+from lenticalib.core.files.arrayfile import load_npz  # noqa: E402
 from lenticalib.core.errors import InputError  # noqa: E402
-from lenticalib.core.imageio import write_image  # noqa: E402
-from lenticalib.render.controls import open_controls  # noqa: E402
-from lenticalib.render.rig import DEFAULT_LAYOUT  # noqa: E402
+from lenticalib.core.files.imageio import write_image  # noqa: E402
+from lenticalib.render.controls.sources import open_controls  # noqa: E402
+from lenticalib.render.avatar.rig import DEFAULT_LAYOUT  # noqa: E402
 from lenticalib.render.student.frames import CameraFrames, MAX_CAMERA_INDEX  # noqa: E402
 from lenticalib.render.student.live import parse_student_spec  # noqa: E402
 from lenticalib.render.student.model import build_student  # noqa: E402
@@ -238,7 +238,7 @@ def _claim(data: bytes, name: bytes, size: int) -> bytes:
 
 
 def test_an_npz_whose_directory_claims_gibs_is_refused_before_inflating(tmp_path):
-    from lenticalib.render.controls import load_controls
+    from lenticalib.render.controls.files import load_controls
 
     buf = io.BytesIO()
     np.savez_compressed(buf, t=np.arange(3.0), controls=np.zeros((3, D), np.float32))
@@ -271,8 +271,8 @@ def test_the_camera_index_is_bounded_before_opencv(record, tmp_path):
 
 def test_camera_minus_one_is_one_line_not_a_crash(record, tmp_path, cli_process):
     """Through ``play`` in a real process: OpenCV's V4L2 backend crashes on -1 (exit 139)."""
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     from .cli_support import REPO
 

@@ -149,14 +149,14 @@ def test_error_lines_quoting_a_file_are_escaped_and_short(case, tmp_path, cli):
 
 
 def test_names_monitors_report_and_warnings_are_escaped(cli, monkeypatch):
-    from lenticalib.cli._avatar import warning_line
-    from lenticalib.render import present
+    from lenticalib.cli.shared.avatar_options import warning_line
+    from lenticalib.render.gpu import monitors
 
     class Monitor:
         def describe(self):
             return f"0: {TITLE}Panel{BIDI} 3840x2160 at (0, 0)"
 
-    monkeypatch.setattr(present, "list_monitors", lambda: [Monitor()])
+    monkeypatch.setattr(monitors, "list_monitors", lambda: [Monitor()])
     code, out, err = cli("show", "--list-displays")
     assert code == 0 and raw_controls(out + err) == [] and r"0: \x1b]0;pwned title\x07Panel" in out
     assert warning_line(f"avatar {CLEAR}.ply: {'x' * 100_000}").startswith(r"avatar \x1b[2J\x1b[H.ply: xxx")

@@ -1,4 +1,4 @@
-"""Virtual cameras for the avatar renderer (lenticalib.render.cameras, .camera_models).
+"""Virtual cameras for the avatar renderer (lenticalib.render.cameras.view_cameras, .camera_models).
 
 The expected numbers are recomputed here from the arc equation of the LentiAvatar paper
 (c = c0 + 0.08 h e_up, o(theta) = c + r [sin theta e_side + cos theta e_forward]) and the
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import InputError
-from lenticalib.render.camera_models import CAMERA_MODELS, arc_cameras, make_cameras, shear_cameras
-from lenticalib.render.cameras import ViewCameras, camera_side, order_for_direction
-from lenticalib.render.gaussians import Gaussians
+from lenticalib.render.cameras.models import CAMERA_MODELS, arc_cameras, make_cameras, shear_cameras
+from lenticalib.render.cameras.view_cameras import ViewCameras, camera_side, order_for_direction
+from lenticalib.render.avatar.gaussians import Gaussians
 
 LO = np.array([-0.09, -0.12, -0.10])
 HI = np.array([0.09, 0.14, 0.11])

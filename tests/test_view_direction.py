@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lenticalib.core import lkg, lkg_rule
-from lenticalib.calib.direction import (DIRECTION_PATTERN_NAME, add_moved_right, direction_from_moved_right,
+from lenticalib.core.looking_glass import convert as lkg, vendor_rule as lkg_rule
+from lenticalib.calib.routing.direction import (DIRECTION_PATTERN_NAME, add_moved_right, direction_from_moved_right,
                                         direction_raster, direction_view, direction_views)
 from lenticalib.core.errors import InputError, ProfileError
 from lenticalib.core.profile import PanelProfile, load_profile, make_provenance, save_profile
@@ -368,7 +368,7 @@ def moved_sets(tmp_path_factory, capture_set):
     """A 640x360, 8-view virtual panel photographed from the calibration position (``first``) and
     from 1.5 view zones (about 7 cm) to the right at the same distance (``right``); the sets hold
     what a user has (no simulation.json)."""
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.scene import random_scene
 
@@ -389,7 +389,7 @@ def moved_sets(tmp_path_factory, capture_set):
 def moved_fit(moved_sets):
     """``fit_capture_sets(first, output=out/profile.json, moved_right=right)``: what ``lenticalib fit
     first -o out/profile.json --moved-right right`` runs."""
-    from lenticalib.calib.fit_pipeline import fit_capture_sets
+    from lenticalib.calib.routing.fit_pipeline import fit_capture_sets
 
     out = moved_sets.root / "out"
     out.mkdir()
@@ -438,7 +438,7 @@ def test_photos_taken_moving_left_instead_give_minus_one(moved_fit):
 
 @pytest.mark.slow
 def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_path, monkeypatch, cli):
-    import lenticalib.calib.fit as fit_module
+    import lenticalib.calib.routing.fit as fit_module
 
     real = fit_module.fit_capture_set
     calls = []
@@ -456,8 +456,8 @@ def test_fit_without_moved_right_says_the_direction_is_unknown(moved_sets, tmp_p
 
 @pytest.mark.slow
 def test_moved_right_is_checked_before_any_fit(moved_sets, tmp_path, monkeypatch, cli):
-    import lenticalib.calib.fit as fit_module
-    from lenticalib.calib.patterns import design_patterns
+    import lenticalib.calib.routing.fit as fit_module
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
 
     def no_fit(*args, **kwargs):
@@ -529,7 +529,7 @@ def test_patterns_direction_writes_the_raster_and_the_instruction(tmp_path, cli)
     out = tmp_path / "check"
     code, stdout, err = cli("patterns", "--direction", "--profile", profile_path, "-o", out)
     assert code == 0 and err == "", err
-    from lenticalib.core.imageio import read_image
+    from lenticalib.core.files.imageio import read_image
     from lenticalib.render.encoders import encode
 
     raster = read_image(out / DIRECTION_PATTERN_NAME)
@@ -565,7 +565,7 @@ def test_a_camera_to_the_right_of_the_calibration_position_sees_right(tmp_path):
     photo correlates with the RIGHT view on the right and the LEFT view on the left (the
     simulated panel runs +1)."""
     from lenticalib.render.encoders import encode
-    from lenticalib.sim.render import render_radiance
+    from lenticalib.sim.panel_light import render_radiance
     from lenticalib.sim.scene import random_scene
 
     scene = random_scene(5, width=SIM_W, height=SIM_H, resolution=CAMERA)

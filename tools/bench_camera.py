@@ -181,7 +181,7 @@ def run_set(name: str, seed: int, size, root: Path, radius: float | None, draws:
     import mrcal
     import numpy as np
 
-    from lenticalib.calib.camera_file import read_scale
+    from lenticalib.calib.camera.model_file import read_scale
     from lenticalib.calib.intrinsics.pipeline import calibrate_camera
     from lenticalib.calib.intrinsics.quality import compare_to_truth
     from lenticalib.sim.board_set import read_truth_poses, simulate_board_set

@@ -53,9 +53,9 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
 
     from lenticalib.core.errors import CaptureError
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
-    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
-    from lenticalib.calib.fit import fit_capture_set
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.patterns.crosstalk_patterns import design_crosstalk_patterns
+    from lenticalib.calib.routing.fit import fit_capture_set
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import CROSSTALK_TRUTH_NAME, simulate_capture_set
     from lenticalib.sim.scene import random_scene
@@ -141,7 +141,7 @@ def _complete(folder: Path, pattern_set) -> bool:
 def compensation_summary(rows) -> list[str]:
     import numpy as np
 
-    from lenticalib.render.compensation import Compensator, compensation_study, test_views
+    from lenticalib.render.compose.compensation import Compensator, compensation_study, test_views
 
     lines = []
     rng = np.random.default_rng(7)

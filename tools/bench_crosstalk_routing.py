@@ -73,15 +73,15 @@ def cases() -> dict:
 
 def run(name: str, scene, profile, raw: bool, root: Path) -> dict:
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
-    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
+    from lenticalib.calib.patterns.crosstalk_patterns import design_crosstalk_patterns
     from lenticalib.core.errors import LenticalibError
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.sim.capture import CROSSTALK_TRUTH_NAME, simulate_capture_set
 
     folder = root / name
     if profile == "fit":
-        from lenticalib.calib.fit import fit_capture_set
-        from lenticalib.calib.patterns import design_patterns
+        from lenticalib.calib.routing.fit import fit_capture_set
+        from lenticalib.calib.patterns.calibration_patterns import design_patterns
         from lenticalib.core.profile import load_profile, save_profile
 
         calibration = root / f"{name}-cal"

@@ -2,7 +2,7 @@
 """Benchmark ``lenticalib avatar diagnose`` on the demo avatar: what the diagnostics cost beyond the render.
 
 Makes the demo avatar (100k Gaussians, with its mesh) in a temporary folder, then runs
-:func:`lenticalib.render.diagnose.diagnose_avatars` ``--repeats`` times (after one warm-up run
+:func:`lenticalib.render.diagnose.avatars.diagnose_avatars` ``--repeats`` times (after one warm-up run
 that compiles the numba kernels) and prints the medians of its stages: loading and posing (the
 avatar file, its mesh, the checks), the render of every view with alpha, the mesh masks and the
 crop, the seven metrics of every view, and the total beyond the render.
@@ -27,9 +27,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def main() -> int:
     from lenticalib.core.sizes import parse_size
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.diagnose import DiagnoseOptions, diagnose_avatars
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.diagnose.avatars import DiagnoseOptions, diagnose_avatars
+    from lenticalib.render.avatar.rig_file import save_rig
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--views", type=int, default=32)

@@ -50,9 +50,9 @@ def rotation_angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def main() -> int:
     import torch
 
-    from lenticalib.render.controls import load_controls
-    from lenticalib.render.demo_avatar import DEMO_EXPRESSIONS
-    from lenticalib.render.rig import DEFAULT_LAYOUT
+    from lenticalib.render.controls.sources import load_controls
+    from lenticalib.render.avatar.demo_avatar import DEMO_EXPRESSIONS
+    from lenticalib.render.avatar.rig import DEFAULT_LAYOUT
     from lenticalib.render.student.distill import DistillOptions, distill_student
     from lenticalib.render.student.frames import open_frames
     from lenticalib.render.student.predict import StudentPredictor
@@ -76,7 +76,7 @@ def main() -> int:
     videos = [("train", args.frames, 0)] + [(name, args.test_frames, k + 1) for k, name in enumerate(tests)]
     missing = [v for v in videos if not (root / v[0] / "video.json").exists()]
     if missing:
-        from lenticalib.render.demo_avatar import make_demo_avatar
+        from lenticalib.render.avatar.demo_avatar import make_demo_avatar
         from lenticalib.sim.driver_video import make_driver_video
 
         root.mkdir(exist_ok=True)

@@ -50,9 +50,9 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def run_one(seed: int, root: Path, resolution, reuse: bool = False, conditions: str = "standard") -> dict:
-    from lenticalib.calib.compare import compare_profiles
-    from lenticalib.calib.fit import fit_capture_set
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.routing.compare import compare_profiles
+    from lenticalib.calib.routing.fit import fit_capture_set
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile
     from lenticalib.sim.capture import simulate_capture_set

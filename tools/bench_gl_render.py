@@ -44,10 +44,10 @@ def main() -> int:
 
     import numba
 
-    from lenticalib.render.camera_models import make_cameras
-    from lenticalib.render.control_streams import DemoControls
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.gl_context import headless_context
+    from lenticalib.render.cameras.models import make_cameras
+    from lenticalib.render.controls.streams import DemoControls
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.gpu.gl_context import headless_context
     from lenticalib.render.renderers.cpu import render_cpu
     from lenticalib.render.renderers.gl_renderer import GLSplatRenderer
 

@@ -8,7 +8,7 @@ a panel with the layout, photograph the calibration patterns with the cell patte
 
 Prints one row per set: the layout the fit found and whether it is the true one (stripe order,
 or the same grouping of cell classes into cells), the largest error of a slot shift
-(subpixels, in the layout's gauge: :func:`lenticalib.calib.layout_fit.shift_error`) and its ratio
+(subpixels, in the layout's gauge: :func:`lenticalib.calib.routing.layout_fit.shift_error`) and its ratio
 to the reported 1-sigma, and the routing error in views: non-uniformity RMS and worst, centring.
 Targets: RMS <= 0.05, worst <= 0.15, |centring| <= 0.25 view, layout recovered.
 
@@ -37,10 +37,10 @@ from bench_fit import parse_seeds  # tools/ is on sys.path when a tool runs as a
 
 def run_one(layout_name: str, seed: int, sign: float, root: Path, panel, resolution, subsamples: int,
             reuse: bool) -> dict:
-    from lenticalib.calib.compare import compare_profiles
-    from lenticalib.calib.fit import fit_capture_set
-    from lenticalib.calib.layout_fit import same_cells, shift_error
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.routing.compare import compare_profiles
+    from lenticalib.calib.routing.fit import fit_capture_set
+    from lenticalib.calib.routing.layout_fit import same_cells, shift_error
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.errors import LenticalibError
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile

@@ -5,7 +5,7 @@ sets of the same patterns from D1 (drawn in 450..650 mm) and 1.45 D1, one camera
 intrinsics); the camera model either the truth (``--model truth``) or calibrated by
 ``lenticalib.calib.intrinsics.pipeline.calibrate_camera`` (what ``lenticalib camera calibrate``
 runs) from simulated photos of a board shown on the same panel (``--model calibrated``, the
-user's path); both sets fitted with ``lenticalib.calib.fit_pipeline.fit_capture_sets`` (what
+user's path); both sets fitted with ``lenticalib.calib.routing.fit_pipeline.fit_capture_sets`` (what
 ``lenticalib fit --camera --pixel-pitch --second-distance`` runs).  Reports per seed and as medians / worst:
 
     distance error (mm, and in reported sigmas), lateral error (sigmas), gap error (% and
@@ -54,8 +54,8 @@ def _camera_model(kind: str, scene, root: Path, seed: int) -> Path:
 
 
 def one_seed(seed: int, model_kind: str) -> dict:
-    from lenticalib.calib.fit_pipeline import PhysicalOptions, fit_capture_sets
-    from lenticalib.calib.patterns import design_patterns
+    from lenticalib.calib.routing.fit_pipeline import PhysicalOptions, fit_capture_sets
+    from lenticalib.calib.patterns.calibration_patterns import design_patterns
     from lenticalib.core.pattern_sets import write_patterns
     from lenticalib.core.profile import load_profile
     from lenticalib.core.retarget import retarget_profile

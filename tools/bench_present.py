@@ -33,7 +33,7 @@ def main() -> int:
     import numpy as np
 
     from lenticalib.core.errors import LenticalibError
-    from lenticalib.render.present import open_presenter
+    from lenticalib.render.present.displays import open_presenter
 
     width, height = (int(v) for v in args.size.split("x"))
     rng = np.random.default_rng(0)

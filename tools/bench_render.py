@@ -42,11 +42,11 @@ def _pipeline_kind(device: str) -> tuple[str, str, str]:
 def bench_device(device: str, rig_path: Path, frames: int, warmup: int) -> str:
     from lenticalib.core.errors import LenticalibError
     from lenticalib.core.profile import load_profile
-    from lenticalib.render.avatar import load_avatar
-    from lenticalib.render.camera_models import make_cameras
-    from lenticalib.render.control_streams import DemoControls
-    from lenticalib.render.loop import AvatarPipeline
-    from lenticalib.render.present import open_presenter
+    from lenticalib.render.avatar.sources import load_avatar
+    from lenticalib.render.cameras.models import make_cameras
+    from lenticalib.render.controls.streams import DemoControls
+    from lenticalib.render.pipeline.avatar_pipeline import AvatarPipeline
+    from lenticalib.render.present.displays import open_presenter
 
     renderer, encoder, torch_device = _pipeline_kind(device)
     try:
@@ -94,8 +94,8 @@ def main() -> int:
     parser.add_argument("--count", type=int, default=100_000, help="Gaussians in the demo avatar")
     args = parser.parse_args()
 
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     with tempfile.TemporaryDirectory() as tmp:
         rig_path = Path(tmp) / "demo.npz"

@@ -51,7 +51,7 @@ def panel(width: int, height: int):
 
 def decode_fps(items, profile) -> float:
     """Frames per second of the reader alone (decode, colour conversion, split into views)."""
-    from lenticalib.render.quilt_sources import FrameReader, QuiltMapping
+    from lenticalib.render.pipeline.quilt_sources import FrameReader, QuiltMapping
 
     mapping = QuiltMapping(profile, items[0].grid, allow_stretch=True)
     count, start = 0, time.perf_counter()
@@ -74,10 +74,10 @@ def main() -> int:
     parser.add_argument("--display", default="offscreen")
     args = parser.parse_args()
 
-    from lenticalib.render.present import open_presenter
-    from lenticalib.render.quilt_player import play_quilts
-    from lenticalib.render.quilt_sources import quilt_items
-    from lenticalib.render.views import QuiltGrid
+    from lenticalib.render.present.displays import open_presenter
+    from lenticalib.render.pipeline.quilt_player import play_quilts
+    from lenticalib.render.pipeline.quilt_sources import quilt_items
+    from lenticalib.render.compose.views import QuiltGrid
 
     with tempfile.TemporaryDirectory() as folder:
         video = Path(folder) / f"bench_qs{COLS}x{ROWS}a0.75.mp4"

@@ -16,7 +16,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from lenticalib.calib.patterns import design_patterns
+from lenticalib.calib.patterns.calibration_patterns import design_patterns
 from lenticalib.core.pattern_sets import write_patterns
 from lenticalib.sim.capture import simulate_capture_set
 from lenticalib.sim.scene import random_scene

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Write the procedural demo avatar (lenticalib.render.demo_avatar) to a rig file.
+"""Write the procedural demo avatar (lenticalib.render.avatar.demo_avatar) to a rig file.
 
     python tools/make_demo_avatar.py demo-avatar.npz [--seed 0] [--count 100000] [--json]
 
@@ -25,8 +25,8 @@ def main(argv=None) -> int:
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
     from lenticalib.core.errors import LenticalibError
-    from lenticalib.render.demo_avatar import make_demo_avatar
-    from lenticalib.render.rig_file import save_rig
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.rig_file import save_rig
 
     try:
         started = time.perf_counter()

@@ -84,7 +84,7 @@ class Progress:
 def main(argv=None) -> int:
     args = parse_args(argv)
     from lenticalib.core.sizes import parse_size
-    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
     from lenticalib.sim.driver_video import make_driver_video
 
     size = parse_size(args.size, "--size")

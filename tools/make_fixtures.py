@@ -16,10 +16,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from lenticalib.core.imageio import write_image
+from lenticalib.core.files.imageio import write_image
 from lenticalib.core.profile import PanelProfile, make_provenance, save_profile
 from lenticalib.core.view_direction import with_direction
-from lenticalib.render.views import QuiltGrid, make_quilt
+from lenticalib.render.compose.views import QuiltGrid, make_quilt
 
 DIRECTION_WHY = ("the demo panel is the modelled panel of docs/simulator.md (raster x along world x, lenses "
                  "focused on the pixel plane), whose truth_view_direction is always +1")

@@ -20,7 +20,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from lenticalib.core.atomic import write_text_atomic
+from lenticalib.core.files.atomic import write_text_atomic
 from lenticalib.device.emulator.controller import DEFAULT_FIRMWARE, DEFAULT_MODEL, default_panel
 from lenticalib.device.emulator.firmware import Firmware
 from lenticalib.device.emulator.flash import FlashImage, create_image

@@ -3,35 +3,18 @@
 calib imports only core (and itself).  Importing this package loads nothing; each module
 imports numpy and OpenCV itself.
 
-Patterns and photos
-    patterns         the calibration test patterns and their manifest ``patterns.json``
-    pattern_folders  pattern folders written whole (``lenticalib patterns``, ``crosstalk patterns``)
-    direction        which way the view index runs: a LEFT/RIGHT pattern, or two fits compared
-    acquire          guided capture: show each pattern, photograph it, check it at once
-    captures         capture sets: one photo per pattern in ``DIR/captures/NAME.{jpg,png,tif}``
-    checks           per-photo and per-set checks, each naming the photo and what to do
+Stage packages, top to bottom (a layered import contract in ``pyproject.toml`` keeps the order:
+a package imports only the ones below it; packages on one line never import each other)
 
-The fit, in the order it runs
-    groups           photo groups: loaded, registered against camera shake, demodulated
-    register         camera shake between photos, measured on the registration frame and undone
-    phase            phase-shift demodulation, unwrapping and smoothing of the seen-coordinate maps
-    photometric      the camera's tone response, cancelled where it biases the fringe phase
-    model            the global model: the view-coordinate plane and the subpixel order
-    order_photos     the subpixel order (order photos) and the layout (cell photos) against the fitted plane
-    layout_fit       the subpixel layout (stripe or cells) from the cell photos, with its uncertainty
-    uncertainty      jackknife plus floors, propagated into the profile's constants
-    camera_file      a calibrated camera from a file (mrcal ``.cameramodel``, OpenCV YAML/JSON)
-    pose             where the camera was (mm), from the panel's own pixel grid
-    camera           the camera's intrinsics and pose estimated from the panel (or given by a file)
-    physical_fit     the panel's physical constants from routing constants and camera poses
-    fit              ``fit_capture_set``: one capture set -> a calibrated panel profile
-    fit_pipeline     ``fit_capture_sets``: the whole of ``lenticalib fit`` as one library call
-    report           the fit report: figures and ``summary.json`` next to a fitted profile
-    compare          how far one profile is from another, in views (``docs/optics.md``)
+    capture      guided capture: show each pattern on the panel, photograph it (capture cameras by
+                 name), pattern folders written whole
+    routing      the routing fit: photo groups, the global model, subpixel order and layout,
+                 uncertainty, physical constants, the fit pipeline, its report, profile comparison
+    crosstalk    per-view crosstalk: measurement from photos of the sweep, ``crosstalk.json``, checks
+    intrinsics   the camera's own calibration with mrcal, from photos of a chessboard or ChArUco board
+    camera       the calibration camera: the ``.cameramodel`` format, the estimate from the panel, the pose
+    patterns     the patterns drawn (calibration and crosstalk), capture sets of their photos, phase
+                 demodulation and registration of a photo
 
-Subpackages
-    cameras          the capture cameras ``lenticalib capture`` triggers (gphoto2, OpenCV,
-                     manual, the simulator's), behind one registry
-    crosstalk        per-view crosstalk: sweep patterns, measurement from photos, ``crosstalk.json``
-    intrinsics       the camera's own calibration with mrcal, from photos of a chessboard
+The layers and their rule: ``docs/architecture.md``.
 """

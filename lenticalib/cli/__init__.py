@@ -25,10 +25,9 @@ Subcommands (one module each)
                emulated Looking Glass unit)
 
 Helpers (not commands)
-    _avatar            the options ``play`` and ``render`` share, as ``AvatarOptions``
     _camera_calibrate  ``lenticalib camera calibrate``: its arguments and its run
-    _flags             library errors told in the command line's words (argument -> flag)
-    _progress          progress bars (tqdm on stderr, when it is installed and a terminal)
+    shared             what several subcommands share: the avatar options (``AvatarOptions``),
+                       library errors told in flags, progress bars
 
 ``__main__`` makes ``python -m lenticalib.cli`` the console script.
 
@@ -38,7 +37,7 @@ their run functions, so building the parser loads no third-party library and, of
 only ``core.errors`` and ``core.terminal_text``: ``--help`` is instant.  Every
 :class:`~lenticalib.core.errors.LenticalibError` ends as one line on stderr and exit status 2,
 told in the command's flags: a subcommand's parser may set a default ``flags`` (the library's
-argument names -> its flags, :mod:`._flags`), its control characters escaped and a long line cut
+argument names -> its flags, :mod:`.shared.flags`), its control characters escaped and a long line cut
 (:func:`~lenticalib.core.terminal_text.safe_line`: messages quote files and devices).  Text from
 outside that a command prints (a serial, a field, a name a device reports) goes through
 :func:`~lenticalib.core.terminal_text.terminal_safe` too.
@@ -53,7 +52,7 @@ import sys
 from .. import __version__
 from ..core.errors import LenticalibError
 from ..core.terminal_text import safe_line
-from ._flags import with_flags
+from .shared.flags import with_flags
 
 _COMMANDS = {
     "encode": ("lenticalib.cli.encode", "encode views or a quilt into the panel raster"),

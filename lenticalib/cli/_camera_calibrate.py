@@ -40,8 +40,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from ..calib.intrinsics.board import parse_charuco_squares, parse_squares
     from ..calib.intrinsics.pipeline import calibrate_camera
     from ..calib.intrinsics.report import summary_lines
-    from ._flags import flag_names
-    from ._progress import staged_bars
+    from .shared.flags import flag_names
+    from .shared.progress import staged_bars
 
     corners = parse_squares(args.board, "--board") if args.board is not None else None
     squares = parse_charuco_squares(args.charuco, "--charuco") if args.charuco is not None else None

@@ -5,9 +5,9 @@
              [--json] [--report DIR]
 
 Renders every view of the arc with alpha and computes the LentiAvatar side-view diagnostics per
-view (:mod:`lenticalib.render.side_metrics`): a table at -25 and +25 degrees and the worst view,
+view (:mod:`lenticalib.render.diagnose.side_metrics`): a table at -25 and +25 degrees and the worst view,
 or, for several avatars, one row each (the mean over the side views) with the best and second
-best marked.  Calls :func:`lenticalib.render.diagnose.diagnose_avatars`.
+best marked.  Calls :func:`lenticalib.render.diagnose.avatars.diagnose_avatars`.
 """
 
 from __future__ import annotations
@@ -55,9 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_diagnose(args: argparse.Namespace) -> int:
     from ..core.sizes import parse_size
-    from ..render.diagnose import DiagnoseOptions, diagnose_avatars
-    from ..render.diagnose_report import diagnose_table
-    from ._progress import staged_bars
+    from ..render.diagnose.avatars import DiagnoseOptions, diagnose_avatars
+    from ..render.diagnose.report import diagnose_table
+    from .shared.progress import staged_bars
 
     options = DiagnoseOptions(controls=args.controls, frame=args.frame, camera_model=args.camera_model,
                               n_views=args.views, yaw_range_deg=args.yaw_range, radius=args.radius, fov_deg=args.fov,

@@ -87,7 +87,7 @@ def run_patterns(args: argparse.Namespace) -> int:
 
     from ..calib.intrinsics.board import MANIFEST_NAME, PANEL_IMAGE, PRINT_FOLDER, PRINT_PDF, PRINT_PNG, parse_squares
     from ..calib.intrinsics.pipeline import board_panel, write_board_folder
-    from ._flags import flag_names
+    from .shared.flags import flag_names
 
     with flag_names(FLAGS):
         width, height, pitch, lens_px = board_panel(args.profile, args.panel, args.pixel_pitch)
@@ -122,8 +122,8 @@ def run_simulate(args: argparse.Namespace) -> int:
 
     from ..sim.board_set import CAPTURE_FOLDER, TRUTH_NAME
     from ..sim.simulate_folder import simulate_camera_set
-    from ._flags import flag_names
-    from ._progress import progress_bar
+    from .shared.flags import flag_names
+    from .shared.progress import progress_bar
 
     from ..core.sizes import MIN_CAMERA_SIDE, parse_size
 

@@ -40,68 +40,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--layout", metavar="NAME|FILE",
                         help="sim panel's subpixel layout: RGB, BGR, lkg-columns, lkg-checker, lkg-rows4 or a JSON "
                              "layout file (default: the seed's RGB or BGR stripe)")
-    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout"})  # library names -> flags
+    parser.set_defaults(run=run, flags={"camera": "--camera", "display": "--display", "layout": "--layout",
+                                       "settle": "--settle", "retakes": "--retakes", "subsamples": "--subsamples"})  # library names -> flags
 
 
 def run(args: argparse.Namespace) -> int:
+    import contextlib
     import sys
     from pathlib import Path
 
-    from ..calib.acquire import capture_set, wait_for_key
-    from ..calib.cameras import make_camera
+    from ..calib.capture.guided import guided_capture
     from ..core.pattern_sets import read_pattern_folder
-    from ..core.errors import DisplayError, InputError
-    from ..render.present import open_presenter
-    from ._progress import progress_bar
+    from ..render.present.displays import open_presenter
+    from .shared.flags import in_flags
+    from .shared.progress import progress_bar
 
-    if args.settle is not None and not 0 <= args.settle <= 60:
-        raise InputError(f"{args.settle} seconds is out of range", source="--settle", hint="use 0..60")
-    if not 0 <= args.retakes <= 20:
-        raise InputError(f"{args.retakes} is out of range", source="--retakes", hint="use 0..20")
     directory = Path(args.directory)
-    pattern_set = read_pattern_folder(directory)
-    size = (pattern_set.width, pattern_set.height)
-    kind = args.camera.split(":", 1)[0]
-    display = args.display if args.display is not None else ("offscreen" if kind == "sim" else None)
-    settle = args.settle if args.settle is not None else (0.0 if kind == "sim" else 0.5)
-    options = {"timeout": args.timeout}
-    if kind == "sim":
-        options.update(resolution=None if args.resolution is None else _resolution(args.resolution),
-                       conditions=args.conditions, folder=directory)  # the folder's virtual panel, named below
-        if args.layout is not None:
-            options["layout"] = args.layout
-        if args.subsamples is not None:
-            options["subsamples"] = args.subsamples
-    elif args.layout is not None:
-        raise InputError("applies only to --camera sim", source="--layout",
-                         hint="a real panel's layout is what it is; drop --layout")
-    elif args.subsamples is not None:
-        raise InputError("applies only to --camera sim", source="--subsamples",
-                         hint="a real camera takes one photo per pattern; drop --subsamples")
-    if kind == "manual" and ":" not in args.camera:
-        options["wait_for_user"] = lambda name: wait_for_key(presenter, name)
-    camera = make_camera(args.camera, **options)  # the spec and options checked; no hardware touched yet
-    presenter = open_presenter(display, size)
-    camera.open()
-    with camera:  # the camera first: a camera that will not open fails before the panel goes full screen
-        try:
-            presenter.open()
-        except DisplayError as exc:
-            if args.display is None and kind == "sim":  # no OpenGL here: the virtual panel needs none
-                print(f"note: {exc.message}; showing without graphics (--display none)")
-                presenter = open_presenter("none", size)
-                presenter.open()
-            else:
-                raise
-        try:
-            for line in camera.settings():
+    with contextlib.ExitStack() as stack:
+        def started(count: int, settings: list[str]):
+            for line in settings:
                 print(f"camera: {safe_line(line)}")  # names and values the camera reports
-            with progress_bar(len(pattern_set.patterns), "capturing") as bar:
-                report = capture_set(directory, presenter, camera, settle=settle, retakes=args.retakes,
-                                     restart=args.restart, progress=bar.update,
-                                     notify=lambda message: print(f"note: {safe_line(message)}", file=sys.stderr))
-        finally:
-            presenter.close()
+            return stack.enter_context(progress_bar(count, "capturing")).update
+
+        report = guided_capture(
+            directory, args.camera, open_presenter, display=args.display, settle=args.settle, retakes=args.retakes,
+            restart=args.restart, timeout=args.timeout,
+            resolution=None if args.resolution is None else _resolution(args.resolution),
+            conditions=args.conditions, subsamples=args.subsamples, layout=args.layout, on_start=started,
+            notify=lambda message: print(f"note: {safe_line(in_flags(message, args.flags))}", file=sys.stderr))
+    pattern_set = read_pattern_folder(directory)
     retaken = sum(report.retakes.values())
     print(f"captured {len(report.taken)} photo(s), kept {len(report.kept)} from before, {retaken} retaken, "
           f"in {report.seconds:.1f} s: {directory / 'captures'}")

@@ -87,11 +87,11 @@ def _eye_pair_fraction(text: str) -> float:
 
 
 def run_patterns(args: argparse.Namespace) -> int:
-    from ..calib.pattern_folders import write_crosstalk_pattern_folder
+    from ..calib.capture.pattern_folders import write_crosstalk_pattern_folder
     from ..core.pattern_sets import MANIFEST_NAME
     from ..core.profile import load_profile
-    from ._flags import flag_names
-    from ._progress import progress_bar
+    from .shared.flags import flag_names
+    from .shared.progress import progress_bar
 
     profile = load_profile(args.profile, "--profile")
     with progress_bar(0, "writing patterns") as bar, flag_names({"sweep": "--sweep"}):
@@ -115,9 +115,9 @@ def run_measure(args: argparse.Namespace) -> int:
 
     from ..calib.crosstalk.pipeline import EyeSeparation, measure_crosstalk_set
     from ..calib.crosstalk.result import FIGURES, HEADLINE, OVER_100, describe_figure
-    from ..render.compensation import PREDICTION_BLACK_LIFT, predict_compensation
-    from ._flags import flag_names
-    from ._progress import progress_bar
+    from ..render.compose.compensation import PREDICTION_BLACK_LIFT, predict_compensation
+    from .shared.flags import flag_names
+    from .shared.progress import progress_bar
 
     eye = EyeSeparation(views=args.eye_separation, mm=args.eye_separation_mm, distance_mm=args.distance,
                         cone_angle_deg=args.cone_angle)

@@ -153,7 +153,7 @@ def run_info(args) -> int:
 
 def run_read_looking_glass(args) -> int:
     from ..core.errors import InputError
-    from ..core.outputs import check_output_file
+    from ..core.files.outputs import check_output_file
     from ..core.profile import MAX_VIEWS, save_profile
     from ..core.view_defaults import default_views
     from ..device.looking_glass import read_calibration
@@ -183,7 +183,7 @@ def run_read_looking_glass(args) -> int:
 def run_read(args) -> int:
     from ..device import PanelController
     from ..core.errors import InputError
-    from ..core.outputs import check_output_file
+    from ..core.files.outputs import check_output_file
     from ..core.profile import save_profile
 
     if _looking_glass(args.url):
@@ -212,7 +212,7 @@ def _warn(line: str) -> None:
 def run_flash(args) -> int:
     from ..device import PanelController
     from ..core.profile import load_profile
-    from ._progress import progress_bar
+    from .shared.progress import progress_bar
 
     if _looking_glass(args.url):
         _refuse_looking_glass(args.url, "lenticalib only reads it and never writes its factory calibration")

@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_distill(args: argparse.Namespace) -> int:
     from ..render.student.distill import DistillOptions, distill_student
-    from ._progress import staged_bars
+    from .shared.progress import staged_bars
 
     options = DistillOptions(epochs=args.epochs, batch=args.batch, input_size=args.input_size, patience=args.patience,
                              device=args.device, minutes=args.minutes)
@@ -96,7 +96,7 @@ def group_error(group: str, entry: dict) -> str:
 
 def run_predict(args: argparse.Namespace) -> int:
     from ..render.student.predict import predict_controls
-    from ._progress import progress_bar
+    from .shared.progress import progress_bar
 
     with progress_bar(0, "predicting") as bar:
         summary = predict_controls(args.student, args.frames, args.output, device=args.device, step=bar.update)

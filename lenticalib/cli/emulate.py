@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from ..device.emulator.faults import FaultPlan
     from ..device.emulator.serve import runtime_dir, serve_pty, serve_tcp
     from ..core.errors import InputError
-    from ..core.outputs import check_output_file
+    from ..core.files.outputs import check_output_file
 
     if args.looking_glass is not None:
         return run_looking_glass(args)
@@ -120,8 +120,8 @@ def run_looking_glass(args: argparse.Namespace) -> int:
     import re
     from pathlib import Path
 
-    from ..core.input_files import read_input
-    from ..core.outputs import check_output_file
+    from ..core.files.input_files import read_input
+    from ..core.files.outputs import check_output_file
     from ..device.emulator.looking_glass import create_unit, unit_image
     from ..device.looking_glass.unit import MAX_CALIBRATION_BYTES
 

@@ -44,17 +44,17 @@ FLAGS = {**COMPENSATION_FLAGS, "profile": "--profile", "views_dir": "--views-dir
 
 
 def compensation_options(args: argparse.Namespace):
-    """The :class:`~lenticalib.render.encode_file.CompensationOptions` of ``--compensate`` and its knobs."""
-    from ..render.encode_file import CompensationOptions
+    """The :class:`~lenticalib.render.pipeline.encode_file.CompensationOptions` of ``--compensate`` and its knobs."""
+    from ..render.pipeline.encode_file import CompensationOptions
 
     return CompensationOptions(args.compensate, args.black_lift, args.regularisation, args.iterations, args.force)
 
 
 def compensator_from_args(args: argparse.Namespace, profile):
-    """The :class:`~lenticalib.render.compensation.Compensator` the options ask for the panel of
+    """The :class:`~lenticalib.render.compose.compensation.Compensator` the options ask for the panel of
     ``profile``, or None; InputError naming the flag for knobs without ``--compensate`` or out of
     range, or the file for a crosstalk file of another panel without ``--force``."""
-    from ._flags import flag_names
+    from .shared.flags import flag_names
 
     with flag_names(COMPENSATION_FLAGS):
         return compensation_options(args).compensator(profile)
@@ -64,9 +64,9 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from ..core.identity import forced_note
-    from ..render.encode_file import encode_to_file
-    from ..render.views import parse_grid
-    from ._flags import flag_names
+    from ..render.pipeline.encode_file import encode_to_file
+    from ..render.compose.views import parse_grid
+    from .shared.flags import flag_names
 
     grid = parse_grid(args.grid, "--grid") if args.grid else None
     with flag_names(FLAGS):

@@ -1,9 +1,9 @@
 """``lenticalib fit DIR -o profile.json``: fit a panel profile from photos of the test patterns.
 
-The work is :func:`lenticalib.calib.fit_pipeline.fit_capture_sets`; this module parses the
+The work is :func:`lenticalib.calib.routing.fit_pipeline.fit_capture_sets`; this module parses the
 options, shows the progress, prints the outcome and maps the library's argument names to its
 flags (:data:`FLAGS`).  Before the fit starts, the options are range-checked and the profile path and the report
-folder are checked (:mod:`lenticalib.core.outputs`: no missing folder is created, a folder is not a
+folder are checked (:mod:`lenticalib.core.files.outputs`: no missing folder is created, a folder is not a
 profile path, a folder holding anything but a report is not replaced).  The report is written
 into a hidden sibling and moved into place complete.  Outcomes:
 
@@ -11,18 +11,18 @@ into a hidden sibling and moved into place complete.  Outcomes:
 - not trustworthy (exit 3): the report (the user needs it to see why), no profile;
 - an error (exit 2): nothing at all; an earlier profile and report stay as they were.
 
-``--json`` prints the report's ``summary.json`` document (:func:`lenticalib.calib.report.fit_summary`).
+``--json`` prints the report's ``summary.json`` document (:func:`lenticalib.calib.routing.report.fit_summary`).
 
 ``--moved-right DIR2``: a second capture set of the same patterns, taken after moving the camera
 a few centimetres to the right at the same distance.  Both sets are fitted; the difference of
-the two fits gives the profile's ``view_direction`` (:mod:`lenticalib.calib.direction`), or
+the two fits gives the profile's ``view_direction`` (:mod:`lenticalib.calib.routing.direction`), or
 leaves it unknown with a one-line warning saying why.  The profile and report are those of
 ``DIR``.  ``DIR2`` is checked (a different folder, a complete capture set of the same pattern
 set) before the first fit starts.
 
 ``--camera MODEL --pixel-pitch MM``: with a calibrated camera (``lenticalib camera calibrate``)
-the fit also finds where the camera was, in mm (:mod:`lenticalib.calib.pose`), and writes the
-profile's physical block (:mod:`lenticalib.calib.physical_fit`).  The gap, and with it the
+the fit also finds where the camera was, in mm (:mod:`lenticalib.calib.camera.pose`), and writes the
+profile's physical block (:mod:`lenticalib.calib.routing.physical_fit`).  The gap, and with it the
 camera's distance to the lens surface, the lens pitch and the eye position that
 ``lenticalib profile retarget`` needs, comes from ``--second-distance DIR2`` (the same patterns
 photographed from another distance, fitted too) or from the data sheet (``--gap MM``).
@@ -88,11 +88,11 @@ def describe_physical(result) -> str:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..calib.fit_pipeline import PhysicalOptions, fit_capture_sets
-    from ..calib.layout_fit import describe as describe_layout
+    from ..calib.routing.fit_pipeline import PhysicalOptions, fit_capture_sets
+    from ..calib.routing.layout_fit import describe as describe_layout
     from ..core.view_direction import describe_direction
-    from ._flags import flag_names
-    from ._progress import progress_bar
+    from .shared.flags import flag_names
+    from .shared.progress import progress_bar
 
     physical = PhysicalOptions(camera_model=args.camera, pixel_pitch_mm=args.pixel_pitch,
                                second_distance=args.second_distance, gap_mm=args.gap)

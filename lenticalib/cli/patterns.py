@@ -8,7 +8,7 @@ of two sets.
 
 ``--direction --profile P -o DIR`` writes instead ``DIR/direction.png``: the panel raster of a
 pattern whose views say LEFT (index < N/2) or RIGHT (index >= N/2), to find the profile's
-``view_direction`` by looking (:mod:`lenticalib.calib.direction`).
+``view_direction`` by looking (:mod:`lenticalib.calib.routing.direction`).
 """
 
 from __future__ import annotations
@@ -66,10 +66,10 @@ FLAGS = {"width": "--width", "height": "--height", "width/height": "--width/--he
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..calib.pattern_folders import write_calibration_patterns
+    from ..calib.capture.pattern_folders import write_calibration_patterns
     from ..core.pattern_sets import MANIFEST_NAME
-    from ._flags import flag_names
-    from ._progress import progress_bar
+    from .shared.flags import flag_names
+    from .shared.progress import progress_bar
 
     check_options(args)
     if args.direction:
@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
 
 def run_direction(args: argparse.Namespace) -> int:
     """``--direction``: write DIR/direction.png and say how to read it."""
-    from ..calib.pattern_folders import write_direction_pattern
+    from ..calib.capture.pattern_folders import write_direction_pattern
     from ..render.encoders import encode
     from ..core.profile import load_profile
     from ..core.view_direction import describe_direction

@@ -6,7 +6,7 @@ centre view, for a desk without a panel) or ``--headless`` (no output: timing on
 or closing the window stops; ``--frames`` stops after that many.  On exit the stage table
 (drive, render, compose, present, total, fps; headless shows present as "-", not run, and its
 total leaves it out) is printed, and for live controls (stdin, UDP) the lines received and
-bad; ``--stats`` prints a line a second.  The loop: :func:`lenticalib.render.live.play_avatar`.
+bad; ``--stats`` prints a line a second.  The loop: :func:`lenticalib.render.pipeline.live.play_avatar`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ._avatar import add_avatar_arguments
+    from .shared.avatar_options import add_avatar_arguments
 
     add_avatar_arguments(parser)
     out = parser.add_mutually_exclusive_group()
@@ -30,9 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..render.live import play_avatar
-    from ._avatar import avatar_options, flags, warning_line
-    from ._flags import flag_names
+    from ..render.pipeline.live import play_avatar
+    from .shared.avatar_options import avatar_options, flags, warning_line
+    from .shared.flags import flag_names
 
     def warn(text: str) -> None:  # the views that show nothing of the avatar come before the first frame
         print(f"lenticalib: warning: {warning_line(text)}", file=sys.stderr, flush=True)

@@ -142,8 +142,8 @@ def run_validate(args) -> int:
 
 def run_import(args) -> int:
     from ..core.errors import InputError
-    from ..core.lkg import import_visual_json, read_visual_json
-    from ..core.outputs import check_output_file
+    from ..core.looking_glass.convert import import_visual_json, read_visual_json
+    from ..core.files.outputs import check_output_file
     from ..core.profile import MAX_VIEWS, save_profile
     from ..core.view_defaults import default_views
 
@@ -168,8 +168,8 @@ def run_import(args) -> int:
 
 
 def run_export(args) -> int:
-    from ..core.lkg import export_visual_json
-    from ..core.outputs import check_output_file
+    from ..core.looking_glass.convert import export_visual_json
+    from ..core.files.outputs import check_output_file
     from ..core.profile import load_profile
 
     profile = load_profile(args.profile, "PROFILE")
@@ -183,7 +183,7 @@ def run_export(args) -> int:
 
 
 def run_compare(args) -> int:
-    from ..calib.compare import AGREE_FRACTION, compare_profiles, load_pair
+    from ..calib.routing.compare import AGREE_FRACTION, compare_profiles, load_pair
 
     a, b = load_pair(args.profile, args.reference)
     diff = compare_profiles(a, b)
@@ -251,10 +251,10 @@ def run_set_physical(args) -> int:
 
 
 def run_retarget(args) -> int:
-    from ..core.outputs import check_output_file
+    from ..core.files.outputs import check_output_file
     from ..core.profile import format_constant, load_profile, save_profile
     from ..core.retarget import Eye, calibration_eye, retarget_profile, routing_difference
-    from ._flags import flag_names
+    from .shared.flags import flag_names
 
     eye = Eye.parse((args.lateral, args.vertical, args.distance), "--distance")
     output = check_output_file(args.output, "profile", example="profile-900mm.json", inputs=[args.profile])

@@ -3,7 +3,7 @@
 ``-o OUT.png`` (or ``.tif``, ``.npy``) for one frame, ``-o DIR`` for ``--frames N``
 (``DIR/frame-00000.png`` ...) or ``-o OUT.mkv`` for a lossless video, at ``--fps`` steps of the
 controls' time; ``--views-out VDIR`` also writes the N views of every frame and
-``VDIR/cameras.json``.  The work, outputs checked first: :func:`lenticalib.render.offline.render_avatar`.
+``VDIR/cameras.json``.  The work, outputs checked first: :func:`lenticalib.render.pipeline.offline.render_avatar`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ COMPILING = ("lenticalib: compiling the render kernels (a first run only, about 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ._avatar import add_avatar_arguments
+    from .shared.avatar_options import add_avatar_arguments
 
     add_avatar_arguments(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
@@ -29,10 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from ..render.offline import render_avatar
-    from ._avatar import avatar_options, flags, warning_line
-    from ._flags import flag_names
-    from ._progress import compile_notice, progress_bar
+    from ..render.pipeline.offline import render_avatar
+    from .shared.avatar_options import avatar_options, flags, warning_line
+    from .shared.flags import flag_names
+    from .shared.progress import compile_notice, progress_bar
 
     # on a terminal: a bar over the frames, and one line when the kernels compile (a first run only)
     with flag_names(flags()), compile_notice(COMPILING), progress_bar(args.frames, "rendering", "frame") as bar:

@@ -3,7 +3,7 @@ with ``--profile``, play quilt images, quilt videos and folders of them on the u
 
 Everything is checked before a window opens: the path, the rasters' size (or the quilts' grids
 and the profile), the display and the monitor (whose current mode must be the rasters' size:
-nothing is ever scaled).  Quilt playback: :mod:`lenticalib.render.quilt_player`.
+nothing is ever scaled).  Quilt playback: :mod:`lenticalib.render.pipeline.quilt_player`.
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
     import statistics
 
     from ..core.errors import InputError
-    from ..render.present import list_monitors, open_presenter
+    from ..render.gpu.monitors import list_monitors
+    from ..render.present.displays import open_presenter
     from ..core.slides import run_slideshow, slides_from_path
 
     if args.list_displays:
@@ -90,7 +91,7 @@ def _quilt_grid(args: argparse.Namespace):
     """The QuiltGrid the options give (None: from the names), refused in one line when partial."""
     from ..core.errors import InputError
     from ..core.profile import MAX_VIEWS
-    from ..render.views import QuiltGrid
+    from ..render.compose.views import QuiltGrid
 
     if (args.quilt_cols is None) != (args.quilt_rows is None):
         raise InputError("gives half a grid", source="--quilt-cols" if args.quilt_rows is None else "--quilt-rows",
@@ -113,10 +114,10 @@ def run_quilts(args: argparse.Namespace, offscreen: bool) -> int:
     from ..core.profile import load_profile
     from ..core.view_defaults import quilt_model
     from ..render.encoders import get_encoder
-    from ..render.present import open_presenter
-    from ..render.quilt_player import play_quilts
-    from ..render.quilt_sources import QuiltMapping, check_video, quilt_items
-    from ..render.views import QuiltGrid
+    from ..render.present.displays import open_presenter
+    from ..render.pipeline.quilt_player import play_quilts
+    from ..render.pipeline.quilt_sources import QuiltMapping, check_video, quilt_items
+    from ..render.compose.views import QuiltGrid
 
     if args.fps is not None and not 0.1 <= args.fps <= 1000:
         raise InputError(f"{args.fps} frames a second is out of range", source="--fps", hint="use 0.1 .. 1000")

@@ -78,8 +78,8 @@ def parse_resolution(text: str) -> tuple[int, int]:
 def run(args: argparse.Namespace) -> int:
     from ..sim.layouts import layout_label
     from ..sim.simulate_folder import SimulationOptions, simulate_folder
-    from ._flags import flag_names
-    from ._progress import progress_bar
+    from .shared.flags import flag_names
+    from .shared.progress import progress_bar
 
     options = SimulationOptions(seed=args.seed, resolution=parse_resolution(args.resolution) if args.resolution else None,
                                 scene=args.scene, slant=args.slant, period=args.period, order=args.order,

@@ -4,7 +4,7 @@
 from view ``j`` (N x N, rows sum to 1, black-corrected; ``docs/crosstalk.md`` has every key).
 The measurement that writes the document and the figures derived from the matrix live in
 :mod:`lenticalib.calib.crosstalk.result`; pre-compensation
-(:mod:`lenticalib.render.compensation`) reads only the matrix.
+(:mod:`lenticalib.render.compose.compensation`) reads only the matrix.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
-from .fields import is_finite_number
-from .documents import FORMATS, check_envelope, read_json_file
+from .files.fields import is_finite_number
+from .files.documents import FORMATS, check_envelope, read_json_file
 from .identity import identity_of_record, is_identity
 from .profile import MAX_VIEWS
 

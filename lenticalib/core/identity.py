@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .errors import InputError
-from .fields import is_finite_number
+from .files.fields import is_finite_number
 from .profile import profile_from_dict
 
 IDENTITY_PREFIX = "p-"
@@ -103,8 +103,8 @@ def virtual_panel_record(directory: str | os.PathLike) -> dict[str, Any] | None:
     dict: ``seed`` (int), ``truth_id`` (identity of the ideal profile, ``truth.json``), ``truth``
     (its constants as recorded), ``capture_folder`` (absolute path), ``optics_digest`` (16 hex
     digits of the SHA-256 of the scene's panel optics: the panel whatever the camera position).
-    Enough to photograph the same virtual panel again (:mod:`lenticalib.sim.capture_camera`)."""
-    from .documents import FORMATS, read_document
+    Enough to photograph the same virtual panel again (:mod:`lenticalib.sim.capture_backend`)."""
+    from .files.documents import FORMATS, read_document
 
     path = Path(directory) / SIMULATION_RECORD
     if not path.is_file():

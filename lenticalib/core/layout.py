@@ -35,7 +35,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import ProfileError
-from .fields import is_finite_number, short_repr
+from .files.fields import is_finite_number, short_repr
 
 CHANNELS = ("R", "G", "B")
 MAX_CELLS = 16

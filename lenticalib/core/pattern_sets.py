@@ -4,8 +4,8 @@ A pattern folder holds one PNG per pattern and ``patterns.json``, whose ``format
 *kind* of set; ``lenticalib show``, ``capture``, ``fit``, ``crosstalk measure`` and the
 simulated camera read every kind through :func:`read_pattern_folder`.  The kinds:
 
-    lenticalib.patterns            calibration patterns (:mod:`lenticalib.calib.patterns`)
-    lenticalib.crosstalk-patterns  crosstalk patterns (:mod:`lenticalib.calib.crosstalk.patterns`)
+    lenticalib.patterns            calibration patterns (:mod:`lenticalib.calib.patterns.calibration_patterns`)
+    lenticalib.crosstalk-patterns  crosstalk patterns (:mod:`lenticalib.calib.patterns.crosstalk_patterns`)
 
 Each kind is found by name in the registry :data:`PATTERN_SETS` (:mod:`.plugins`), so this
 module imports none of them; a third-party kind registers in the ``lenticalib.pattern_sets`` entry-point group
@@ -28,18 +28,18 @@ import os
 from pathlib import Path
 from typing import Any, Iterable
 
-from .atomic import write_text_atomic
+from .files.atomic import write_text_atomic
 from .errors import InputError
-from .imageio import write_image
+from .files.imageio import write_image
 from .plugins import Registry
-from .documents import read_json_file
+from .files.documents import read_json_file
 
 MANIFEST_NAME = "patterns.json"
 FREE_KEYS = ("created", "lenticalib_version", "note")  # manifest keys a person may add
 PATTERN_SET_GROUP = "lenticalib.pattern_sets"
 PATTERN_SETS = Registry("pattern set format", {
-    "lenticalib.patterns": "lenticalib.calib.patterns:pattern_set_from_manifest",
-    "lenticalib.crosstalk-patterns": "lenticalib.calib.crosstalk.patterns:crosstalk_set_from_manifest",
+    "lenticalib.patterns": "lenticalib.calib.patterns.calibration_patterns:pattern_set_from_manifest",
+    "lenticalib.crosstalk-patterns": "lenticalib.calib.patterns.crosstalk_patterns:crosstalk_set_from_manifest",
 }, PATTERN_SET_GROUP)
 
 

@@ -30,7 +30,7 @@ import math
 from typing import Any, Mapping
 
 from .errors import ProfileError
-from .fields import is_finite_number, unknown_key_message
+from .files.fields import is_finite_number, unknown_key_message
 
 NUMBER_FIELDS = ("pixel_pitch_mm", "lens_pitch_mm", "gap_mm", "slant_angle_deg", "lens_position_mm",
                  "design_distance_mm", "view_cone_deg")

@@ -9,9 +9,9 @@ backend).  Third parties add backends through the group; a built-in name cannot 
     renderers         lenticalib.renderers            module:function        lenticalib.render.renderers
     transports        lenticalib.transports           module:Class           lenticalib.device.transports
     Looking Glass     lenticalib.looking_glass_units  module:Class           lenticalib.device.looking_glass
-    capture cameras   lenticalib.capture_cameras      module:Class           lenticalib.calib.cameras
-    camera models     lenticalib.camera_models        module:function        lenticalib.render.camera_models
-    avatar drivers    lenticalib.avatar_drivers       module:callable        lenticalib.render.drivers
+    capture cameras   lenticalib.capture_cameras      module:Class           lenticalib.calib.capture.cameras
+    camera models     lenticalib.camera_models        module:function        lenticalib.render.cameras.models
+    avatar drivers    lenticalib.avatar_drivers       module:callable        lenticalib.render.avatar.drivers
     pattern sets      lenticalib.pattern_sets         module:function        lenticalib.core.pattern_sets
 
 What each backend must be (its signature, optional attributes such as a transport's

@@ -41,11 +41,11 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping
 
-from .atomic import write_text_atomic
-from .documents import FORMATS, MAX_PROFILE_BYTES, check_envelope, read_json_file
+from .files.atomic import write_text_atomic
+from .files.documents import FORMATS, MAX_PROFILE_BYTES, check_envelope, read_json_file
 from .errors import InputError, ProfileError
-from .input_files import UNBOUNDED, open_input
-from .fields import is_finite_number, is_number, short_repr, unknown_key_message
+from .files.input_files import UNBOUNDED, open_input
+from .files.fields import is_finite_number, is_number, short_repr, unknown_key_message
 from .layout import SubpixelLayout, layout_from_dict
 from .sizes import MAX_SIDE
 

@@ -9,7 +9,7 @@ arrays are ``(height, width, 3)``.
 LIMITS.  :data:`MAX_SIDE` (16384 pixels) is the largest side of any raster lenticalib makes or
 reads: panel rasters and profiles, views, camera photos.  It admits an 8K panel (7680 x 4320),
 every Looking Glass panel (the largest, 65-inch, is 7680 x 4320) and the 16K panels announced,
-and it is the side of :data:`lenticalib.core.imageio.MAX_IMAGE_PIXELS` (16384 x 16384), the
+and it is the side of :data:`lenticalib.core.files.imageio.MAX_IMAGE_PIXELS` (16384 x 16384), the
 largest image lenticalib reads, so a raster any command writes is one every command reads.
 The smallest sides are set by what the work needs: :data:`MIN_PANEL_SIDE` (64) pixels hold the
 calibration patterns' coarsest period; :data:`MIN_CAMERA_SIDE` (240) is the smallest camera

@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import ImageError
-from .imageio import read_image
+from .files.imageio import read_image
 from .pattern_sets import MANIFEST_NAME, read_pattern_folder
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy", ".jpg", ".jpeg", ".bmp")

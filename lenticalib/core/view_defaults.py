@@ -5,7 +5,7 @@ they would be stretched), so every default and every size proposed in a hint fol
 panel, never a fixed 16:9 size.
 
 VIEW SIZE (:func:`default_view_size`).  For a Looking Glass profile whose calibration serial
-names a model (:mod:`lenticalib.core.lkg_models`), the views are as tall as a tile of the quilt
+names a model (:mod:`lenticalib.core.looking_glass.models`), the views are as tall as a tile of the quilt
 Looking Glass's software renders for that model, and as wide as the panel's aspect makes them:
 420 x 560 on a Portrait (its 3360 x 3360 quilt of 8 x 6 tiles of 420 x 560).  Otherwise about
 the pixels of a 960 x 540 view at the panel's aspect, the height a multiple of 4: 960 x 540 on a
@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .lkg_models import QuiltModel, model_of
+from .looking_glass.models import QuiltModel, model_of
 from .profile import PanelProfile
 from .sizes import MAX_SIDE
 

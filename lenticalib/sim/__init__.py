@@ -10,13 +10,13 @@ never device or cli.
     camera           Camera (OpenCV intrinsics + distortion, pose, photometric settings)
     scene            Scene = optics + camera + seed; random_scene(); JSON form
     layouts          subpixel layouts of the virtual panel: RGB, BGR, named cell layouts, JSON files
-    render           the numba ray kernel: render_radiance(), the light reaching each camera pixel
+    panel_light      the numba ray kernel: render_radiance(), the light reaching each camera pixel
     gaussian_cover   a blurred point's light inside an aperture: Gaussian CDF tables for the kernel
     photo            the camera's photometric chain (develop) and photo files: photograph()
     capture          simulate_capture_set(): a pattern folder photographed into DIR/captures
     simulate_folder  simulate_folder(): what ``lenticalib simulate`` runs (pattern or board folder)
-    capture_camera   SimCamera: the capture camera ``--camera sim`` (registered in
-                     lenticalib.calib.cameras)
+    capture_backend  SimCamera: the capture camera ``--camera sim`` (registered in
+                     lenticalib.calib.capture.cameras)
     crosstalk_truth  the true mixing matrix and view cone, by ray tracing from an eye
     boards           chessboards and ChArUco boards (on the panel or printed) photographed by a
                      known camera
@@ -43,7 +43,7 @@ __all__ = ["Camera", "PanelOptics", "RANGES", "Scene", "photograph", "photograph
 
 def __getattr__(name):
     if name == "render_radiance":
-        from .render import render_radiance
+        from .panel_light import render_radiance
 
         return render_radiance
     if name in ("photograph", "photograph_jpeg"):

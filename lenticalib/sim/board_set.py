@@ -32,11 +32,12 @@ import numpy as np
 from .. import __version__
 from ..calib.intrinsics.board import PANEL_IMAGE, panel_board, print_board, write_manifest
 from ..calib.intrinsics.draw import panel_raster
-from ..calib.intrinsics.solve import import_mrcal, write_cameramodel
-from ..core.atomic import write_bytes_atomic
-from ..core.documents import FORMATS, read_document, write_document
+from ..calib.camera.model_file import write_cameramodel
+from ..calib.intrinsics.solve import import_mrcal
+from ..core.files.atomic import write_bytes_atomic
+from ..core.files.documents import FORMATS, read_document, write_document
 from ..core.errors import InputError
-from ..core.imageio import write_image
+from ..core.files.imageio import write_image
 from .board_poses import BoardPose, board_poses
 from .boards import calibration_camera, camera_for_pose, photograph_print_board
 

@@ -205,7 +205,7 @@ def print_board_radiance(camera: Camera, board, pose: BoardPose, rng: np.random.
 
     The light falls off across the board by up to +-8 % in a random direction drawn from ``rng``.
     """
-    from .render import undistortion_grid
+    from .panel_light import undistortion_grid
 
     gx, gy = undistortion_grid(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy,
                                 tuple(float(v) for v in camera.distortion), GRID_STEP)

@@ -18,7 +18,7 @@ holds files but no ``simulation.json`` (real photos, presumably) is never writte
 
 The per-photo step (:func:`photograph_pattern`, :func:`photo_record`) and the two records
 (:func:`write_truth`, :func:`write_simulation_record`) are shared with the virtual capture camera
-(:mod:`lenticalib.sim.capture_camera`), which photographs what ``lenticalib capture`` shows.
+(:mod:`lenticalib.sim.capture_backend`), which photographs what ``lenticalib capture`` shows.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from .. import __version__
-from ..core.atomic import write_bytes_atomic
-from ..core.documents import FORMATS, write_document
+from ..core.files.atomic import write_bytes_atomic
+from ..core.files.documents import FORMATS, write_document
 from ..core.errors import InputError
-from ..core.imageio import read_image
+from ..core.files.imageio import read_image
 from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.profile import make_provenance, save_profile
 from ..core.sizes import check_raster

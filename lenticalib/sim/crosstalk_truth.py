@@ -68,7 +68,7 @@ def _view_raster(views_map: np.ndarray, profile: PanelProfile, view: int) -> np.
 
 
 def _light(raster: np.ndarray, optics: PanelOptics, eye) -> float:
-    from .render import render_radiance
+    from .panel_light import render_radiance
 
     return float(render_radiance(raster, Scene(optics, eye_camera(optics, eye))).sum(axis=2).mean())
 

@@ -27,13 +27,13 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.atomic import write_bytes_atomic, write_text_atomic
-from ..core.outputs import staged_folder
-from ..render.camera_models import make_cameras
-from ..render.controls import write_controls_csv
-from ..render.demo_avatar import make_demo_avatar
+from ..core.files.atomic import write_bytes_atomic, write_text_atomic
+from ..core.files.outputs import staged_folder
+from ..render.cameras.models import make_cameras
+from ..render.controls.files import write_controls_csv
+from ..render.avatar.demo_avatar import make_demo_avatar
 from ..render.renderers import render
-from ..render.rig import DEFAULT_LAYOUT
+from ..render.avatar.rig import DEFAULT_LAYOUT
 
 FPS = 30.0
 YAW_DEG, PITCH_DEG, ROLL_DEG = 25.0, 12.0, 8.0

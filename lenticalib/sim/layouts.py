@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..core.documents import read_json_file
+from ..core.files.documents import read_json_file
 from ..core.errors import InputError, ProfileError
 from ..core.layout import SubpixelLayout, layout_from_dict
 

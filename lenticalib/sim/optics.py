@@ -39,7 +39,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.fields import unknown_key_message
+from ..core.files.fields import unknown_key_message
 from ..core.layout import SubpixelLayout, layout_from_dict
 from ..core.profile import SUBPIXEL_ORDERS, PanelProfile
 

@@ -20,7 +20,7 @@ import numpy as np
 from ..core.colour import srgb_encode
 from ..core.errors import ImageError
 from .camera import Camera
-from .render import render_radiance
+from .panel_light import render_radiance
 from .scene import Scene
 
 

@@ -69,7 +69,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..core.documents import FORMATS, check_envelope
+from ..core.files.documents import FORMATS, check_envelope
 from ..core.errors import InputError
 from ..core.layout import SubpixelLayout
 from ..core.profile import PanelProfile

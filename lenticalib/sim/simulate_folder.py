@@ -9,7 +9,7 @@ photographed as a camera-calibration set instead (:func:`lenticalib.sim.board_se
 
 Every option is checked, and the folder found writable, before the first photo is taken.  The
 results are all or nothing: a run that fails (or is interrupted) removes what it wrote and puts
-an earlier simulation of the folder back as it was (:func:`lenticalib.core.outputs.restored_on_failure`).
+an earlier simulation of the folder back as it was (:func:`lenticalib.core.files.outputs.restored_on_failure`).
 
 Errors name the argument at fault by its parameter name (``source="slant"``; in text
 ```seed``` ...); a command-line front end maps them to its flags.
@@ -25,12 +25,12 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from ..calib.captures import MIN_PHOTO_PIXELS
+from ..calib.patterns.capture_sets import MIN_PHOTO_PIXELS
 from ..calib.intrinsics.board import MANIFEST_NAME as BOARD_MANIFEST, PANEL_IMAGE, PATTERNS, read_board
 from ..calib.intrinsics.report import REPORT_FILES
-from ..core.documents import read_json_file
+from ..core.files.documents import read_json_file
 from ..core.errors import InputError
-from ..core.outputs import check_output_file, check_output_folder, restored_on_failure, staged_folder
+from ..core.files.outputs import check_output_file, check_output_folder, restored_on_failure, staged_folder
 from ..core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ..core.sizes import MAX_SIDE, MIN_CAMERA_SIDE, check_sides
 
@@ -138,7 +138,7 @@ class SimulationRun:
 def check_resolution(width: int, height: int, source: str) -> None:
     """InputError naming ``source`` unless a ``width`` x ``height`` camera makes photos the fit takes.
 
-    The lower limit is the fit's own (:data:`lenticalib.calib.captures.MIN_PHOTO_PIXELS`), so a
+    The lower limit is the fit's own (:data:`lenticalib.calib.patterns.capture_sets.MIN_PHOTO_PIXELS`), so a
     simulated set is never refused by the fit for its size; the upper limits bound memory.
     """
     pixels = width * height

@@ -6,7 +6,7 @@ views.  The method is in ``docs/crosstalk.md``; in short:
 1. photos -> linear light (camera JPEGs through the camera's tone curve, measured on the black,
    white and half photos (:mod:`.tone`); ``linear`` for 16-bit linear photos from RAW),
    summed over R, G, B and area-averaged to working pixels; every photo registered to white
-   on the panel's outline (:mod:`lenticalib.calib.register`), the black photo subtracted, the
+   on the panel's outline (:mod:`lenticalib.calib.patterns.register`), the black photo subtracted, the
    camera's veiling glare measured outside the panel and removed (:mod:`.photometry`);
 2. each band photo divided by white: ``r_k(p)``, the share of white's light that reaches the
    camera from a one-view band ``delta(p) + c_k`` views away;
@@ -41,7 +41,7 @@ from ...core.profile import PanelProfile
 from . import cone, photometry
 from .checks import check_band_photos, check_distinct, check_routing, routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
-from .patterns import CrosstalkPatternSet
+from ..patterns.crosstalk_patterns import CrosstalkPatternSet
 from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
 
 CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
@@ -96,8 +96,8 @@ class Measurement:
 def open_crosstalk_set(directory: str | os.PathLike, profile: PanelProfile | None = None,
                        profile_source: str = "profile"):
     """(pattern set, capture set) of a crosstalk folder; InputError/CaptureError naming the fault."""
-    from ..captures import match_captures
-    from ..patterns import PatternSet
+    from ..patterns.capture_sets import match_captures
+    from ..patterns.calibration_patterns import PatternSet
 
     directory = Path(directory)
     if not directory.is_dir():
@@ -167,7 +167,7 @@ def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, 
                         force=False) -> Measurement:
     """Steps 1-4 of the module docstring with the photos linearised through ``curve`` (None: plain
     sRGB decoding, or linear photos)."""
-    from ..patterns import FRAME_FRACTION
+    from ..patterns.calibration_patterns import FRAME_FRACTION
 
     luma, clipped, factor, noise = load_all(capture, pattern_set, photos, progress, None if curve is None else curve.lut())
     white_path = capture.photo("white")

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode
 from ...core.errors import CaptureError
-from ...core.imageio import read_header, read_image
+from ...core.files.imageio import read_header, read_image
 from . import dark, tiles, tone
 from .photometry import lit_region, working
 
@@ -48,7 +48,7 @@ def load_all(capture, pattern_set, mode, progress, lut=None):
     channels' noise sigma where the camera clips dark pixels at 0 (None: it does not; measured on
     the black photo, read first, and undone in every photo: :mod:`.dark`) (``lut``: the tone curve
     of 8-bit "srgb" photos, :func:`linear_channels`)."""
-    from ..captures import check_photo_size
+    from ..patterns.capture_sets import check_photo_size
 
     luma: dict[str, np.ndarray] = {}
     clipped = None
@@ -167,7 +167,7 @@ def panel_mask(lit: np.ndarray, white_path: Path) -> np.ndarray:
 
 def register_photos(luma, names, photos, lit, frame_fraction, warnings):
     """Undo shake: every photo aligned to white on the panel outline; CaptureError for a moved camera."""
-    from .. import register
+    from ..patterns import register
 
     reference = register.Reference.from_mean_image(luma["white"], lit.astype(np.complex64), frame_fraction)
     if reference is None:

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.outputs import check_output_file, check_output_folder, staged_folder
+from ...core.files.outputs import check_output_file, check_output_folder, staged_folder
 from ...core.pattern_sets import MANIFEST_NAME
 from ...core.profile import PanelProfile, load_profile, make_provenance
 
@@ -107,7 +107,7 @@ def measure_crosstalk_set(directory: str | os.PathLike, output: str | os.PathLik
     eye             :class:`EyeSeparation` for the eye-pair crosstalk
     photos          "srgb" (camera JPEGs) or "linear" (16-bit from RAW)
     predict         ``predict(matrix)`` -> a compensation study
-                    (:func:`lenticalib.render.compensation.predict_compensation`): its numbers go
+                    (:func:`lenticalib.render.compose.compensation.predict_compensation`): its numbers go
                     into the document as ``compensation_prediction``, its figure into the report
     progress        called once per step; ``progress_total`` once before, with the number of steps
     force           measure photos that do not follow the profile's routing anyway

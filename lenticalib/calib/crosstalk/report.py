@@ -19,7 +19,7 @@ Written into one folder (``lenticalib crosstalk measure --report DIR``, staged a
                       codes the black and white photos hold, and the model blended in, if any
 
 The numbers a figure states are those of ``crosstalk.json`` (the document), recorded in the PNG
-(:func:`lenticalib.calib.report.read_figure_record`).
+(:func:`lenticalib.calib.routing.report.read_figure_record`).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def write_crosstalk_report(measurement, directory: str | Path, document: dict,
                            compensation: dict | None = None) -> Path:
     """Write the figures of ``measurement`` (:class:`.measure.Measurement`) into ``directory``; the
     numbers they state come from ``document`` (:func:`.result.crosstalk_document`) and the
-    ``compensation`` study (:func:`lenticalib.render.compensation.compensation_study`)."""
+    ``compensation`` study (:func:`lenticalib.render.compose.compensation.compensation_study`)."""
     directory = Path(directory)
     directory.mkdir(exist_ok=True)
     drawings = [("view-cone.png", lambda fig, m: _cone(fig, m, document)), ("matrix.png", _matrix),

@@ -28,9 +28,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ...core.atomic import write_text_atomic
+from ...core.files.atomic import write_text_atomic
 from ...core.crosstalk_document import DOCUMENT, mixing_matrix, read_crosstalk_document
-from ...core.fields import is_finite_number
+from ...core.files.fields import is_finite_number
 from ...core.identity import profile_identity
 
 

@@ -56,7 +56,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
-from .patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
+from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
 from .tone_models import (KNOTS, PHOTOS, bend_gain, best_power, fitted_curve, half_residual, level_power,
                           log_slope)

@@ -57,7 +57,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ...core.documents import FORMATS, check_envelope, read_json_file, write_document
+from ...core.files.documents import FORMATS, check_envelope, read_json_file, write_document
 from ...core.errors import InputError
 from ...core.sizes import parse_pair
 from .charuco import MARKER_SHARE, check_dictionary, default_dictionary, marker_bits_count

@@ -69,7 +69,7 @@ from typing import Callable
 import numpy as np
 
 from ...core.colour import srgb_encode
-from ...core.imageio import read_image
+from ...core.files.imageio import read_image
 from . import corner_model
 from .corner_model import SUBPIX_LIMITS, axes, fit_corners, sample_bilinear
 
@@ -288,7 +288,7 @@ def detect_photos(paths: list[str | os.PathLike], board, jobs: int = 2,
     (:func:`.charuco_corners.find_charuco_corners`).
 
     ``progress`` is called once per finished photo.  An unreadable photo raises the
-    :class:`~lenticalib.core.errors.ImageError` of :func:`lenticalib.core.imageio.read_image`.  Threads, not
+    :class:`~lenticalib.core.errors.ImageError` of :func:`lenticalib.core.files.imageio.read_image`.  Threads, not
     processes: OpenCV releases the GIL in decoding, the corner search and the refinement, and
     threads need no ``__main__`` guard in a caller's script.
     """

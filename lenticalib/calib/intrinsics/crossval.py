@@ -15,7 +15,7 @@ squared Mahalanobis distance averages 2 (two coordinates); the scale
 
 is how much the reported uncertainty must grow to be honest.  It is written into the camera
 model's note (``lenticalib-uncertainty-scale: k``), read back by
-:func:`lenticalib.calib.camera_file.load_camera_model`, and applied to every uncertainty
+:func:`lenticalib.calib.camera.model_file.load_camera_model`, and applied to every uncertainty
 lenticalib derives from the model (the report's maps, intrinsics draws, camera poses).  mrcal's
 own tools do not read it.
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.atomic import write_bytes_atomic
+from ...core.files.atomic import write_bytes_atomic
 from ...core.colour import srgb_encode8
 from ...core.errors import InputError
 from .board import PAGE_MARGIN, PRINT_DPI, PRINT_PDF, PRINT_PNG, Board

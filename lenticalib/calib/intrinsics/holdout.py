@@ -16,7 +16,7 @@ import tempfile
 import numpy as np
 
 from ...core.errors import BackendUnavailableError
-from ..camera_file import MRCAL_INSTALL
+from ..camera.model_file import MRCAL_INSTALL
 
 MIN_FRAMES_PER_HALF = 5
 

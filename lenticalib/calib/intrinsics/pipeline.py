@@ -30,8 +30,8 @@ from pathlib import Path
 from typing import Callable
 
 from ...core.errors import ImageError, InputError
-from ...core.imageio import header_size, write_image
-from ...core.outputs import Inputs, check_output_file, check_output_folder, staged_folder
+from ...core.files.imageio import header_size, write_image
+from ...core.files.outputs import Inputs, check_output_file, check_output_folder, staged_folder
 from ...core.profile import load_profile
 from ...core.sizes import MIN_PANEL_SIDE, parse_size
 from .board import MANIFEST_NAME as BOARD_MANIFEST
@@ -98,7 +98,7 @@ def collect_photos(items) -> list[Path]:
 
 def photo_size(path) -> tuple[int, int]:
     """(width, height) of a photo as read with its EXIF orientation, from its header; ImageError when
-    it is not a readable image or has more pixels than :data:`lenticalib.core.imageio.MAX_IMAGE_PIXELS`."""
+    it is not a readable image or has more pixels than :data:`lenticalib.core.files.imageio.MAX_IMAGE_PIXELS`."""
     size = header_size(path, camera_orientation=True)
     if size is None:
         raise ImageError("not a readable photo (not an image format Pillow knows)", source=str(path),
@@ -181,6 +181,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     import numpy as np
 
     from . import solve as solve_module
+    from ..camera.model_file import write_cameramodel
     from .report import REPORT_FILES, calibration_summary, write_report
 
     start = time.perf_counter()
@@ -283,7 +284,7 @@ def calibrate_camera(photos, output: str | os.PathLike, *, board_corners: tuple[
     summary = calibration_summary(cal, qual, board, found, photos, output=output,
                                   report=None if report_dir is None else str(report_dir),
                                   manifest=manifest, seconds=time.perf_counter() - start, rectified=rectified)
-    solve_module.write_cameramodel(model, output, note=summary["note"])
+    write_cameramodel(model, output, note=summary["note"])
     if report_dir is not None:
         with staged_folder(report_dir, REPORT_WHAT, REPORT_FILES, inputs=inputs) as stage_dir:
             write_report(stage_dir, cal, qual, summary)

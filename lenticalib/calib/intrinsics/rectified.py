@@ -60,7 +60,7 @@ import math
 
 import numpy as np
 
-from ...core.imageio import read_image
+from ...core.files.imageio import read_image
 from .charuco_corners import MIN_CHARUCO_WINDOW, charuco_windows
 from .corner_model import corner_axes, fit_windows
 from .corners import SUBPIX_LIMITS, grey8

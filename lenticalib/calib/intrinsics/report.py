@@ -11,7 +11,7 @@
                       observed corners
     summary.json      :func:`calibration_summary`: what ``lenticalib camera calibrate --json`` prints
 
-Figures follow :mod:`lenticalib.calib.report`: title, axes with units, colour bars with units,
+Figures follow :mod:`lenticalib.calib.routing.report`: title, axes with units, colour bars with units,
 :data:`FIGURE_SIZES` pixels, fonts of at least 10 pt (drawn by its ``write_figures``).
 """
 
@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.documents import FORMATS, write_document
+from ...core.files.documents import FORMATS, write_document
 from ...core.profile import make_provenance
 from ...core.figures import write_figures
-from ..camera_file import note_line
+from ..camera.model_file import note_line
 from .solve import COVERAGE_GRID, covered_cells
 from .quality import IMAGE_CORNERS, weak_corner_keys, weak_corners
 

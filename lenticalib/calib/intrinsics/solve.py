@@ -41,15 +41,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import re
 import time
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from ...core.atomic import write_text_atomic
 from ...core.errors import CalibrationError, InputError
 from .holdout import (MIN_FRAMES_PER_HALF, board_residuals, frame_indices, halves, holdout_rss,  # noqa: F401
                       import_mrcal, optimize_quietly)
@@ -343,14 +340,3 @@ def calibrate(corners: np.ndarray, board, imagersize: tuple[int, int], lensmodel
                f"photos solved and the other predicted (RMS {scores}; a richer model must do better by more than "
                f"{HOLDOUT_T:g} standard errors, photo by photo){spline_note}")
     return Calibration(best, records, why, time.perf_counter() - start)
-
-
-def write_cameramodel(model, path: str | os.PathLike, note: str | None = None) -> Path:
-    """Write ``model`` with mrcal's writer (``note`` goes into the file's header comment) and put it
-    in place atomically (:func:`lenticalib.core.atomic.write_text_atomic`: an earlier file survives any
-    failure)."""
-    import io
-
-    text = io.StringIO()
-    model.write(text, note=note)
-    return write_text_atomic(path, text.getvalue())

@@ -60,7 +60,7 @@ def ensure_image(path: str | os.PathLike, *, serial: str | None = None, model: s
 
 def default_panel() -> PanelGeometry:
     """The panel of the default controller family's ``[panel]`` table (``drivers/lc32.toml``)."""
-    from ..drivers import family_for
+    from ..controller_families import family_for
 
     family = family_for()
     if family.panel is None:

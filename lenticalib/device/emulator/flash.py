@@ -26,7 +26,7 @@ import tempfile
 import zlib
 from pathlib import Path
 
-from ...core.atomic import current_umask
+from ...core.files.atomic import current_umask
 from ...core.errors import DeviceError, InputError
 
 FACTORY_MAGIC = b"LTFI"

@@ -26,7 +26,7 @@ import re
 import time
 from pathlib import Path
 
-from ...core.atomic import write_bytes_atomic
+from ...core.files.atomic import write_bytes_atomic
 from ...core.errors import InputError
 from ..looking_glass.hid import (HEADER_SIZE, LENGTH_BYTES, MAX_PAGE, PAGE_SIZE, PRODUCT_ID, PRODUCT_STRING,
                                  READ_COMMAND, VENDOR_ID)

@@ -23,8 +23,8 @@ import time
 import tty
 from pathlib import Path
 
-from ...core.atomic import write_text_atomic
-from ...core.documents import FORMATS, check_envelope, document_text
+from ...core.files.atomic import write_text_atomic
+from ...core.files.documents import FORMATS, check_envelope, document_text
 from ...core.errors import InputError
 from .controller import TRANSMIT_BUFFER, EmulatedController, LinkDown
 

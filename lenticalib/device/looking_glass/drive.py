@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Iterable
 
 from ...core.errors import DeviceNotFoundError, InputError, LenticalibError
-from ...core.input_files import UNBOUNDED, open_input
+from ...core.files.input_files import UNBOUNDED, open_input
 from ..transports.base import FoundDevice
 from ..url import parse_device_url
 from .unit import FAMILY, MAX_CALIBRATION_BYTES, LookingGlassUnit

@@ -18,10 +18,10 @@ import hashlib
 import os
 from typing import Any, Mapping
 
-from ...core.documents import MAX_VISUAL_JSON_BYTES, json_from_bytes
+from ...core.files.documents import MAX_VISUAL_JSON_BYTES, json_from_bytes
 from ...core.errors import DeviceDisconnectedError, DeviceProtocolError, InputError, \
     LenticalibError
-from ...core.lkg import normalize_visual, profile_from_visual
+from ...core.looking_glass.convert import normalize_visual, profile_from_visual
 from ...core.profile import PanelProfile
 from ..transports.base import Link, reason
 from ..url import DeviceURL
@@ -41,7 +41,7 @@ class LookingGlassCalibration:
     read from a folder); ``visual``: the visual.json object as parsed (values still wrapped as
     ``{"value": x}``); ``size``: its length in bytes; ``sha256``: of its bytes; ``path``: the
     file it was read from (a drive), else None; ``read``: when it was read (ISO 8601 UTC);
-    ``fields``: ``visual`` unwrapped and checked (:func:`~lenticalib.core.lkg.normalize_visual`:
+    ``fields``: ``visual`` unwrapped and checked (:func:`~lenticalib.core.looking_glass.convert.normalize_visual`:
     numbers as float, ``screenW``/``screenH`` as int, ``serial``/``configVersion`` as str), what
     :meth:`field` returns, or None for a calibration made by hand (then ``visual`` unwrapped).
     """
@@ -81,7 +81,7 @@ class LookingGlassCalibration:
     def to_profile(self, views: int) -> PanelProfile:
         """The panel profile of this calibration for ``views`` quilt views.
 
-        :func:`lenticalib.core.lkg.profile_from_visual` makes it (errors name the device URL);
+        :func:`lenticalib.core.looking_glass.convert.profile_from_visual` makes it (errors name the device URL);
         the provenance says it was read from this device: ``method`` "read from Looking Glass",
         ``device_url``, ``panel_serial``, ``read`` (when), ``calibration_sha256`` and, for a
         drive, the file in ``inputs``.
@@ -110,7 +110,7 @@ class LookingGlassUnit(Link):
     def read_calibration(self) -> LookingGlassCalibration:
         """The unit's calibration, checked: at most :data:`MAX_CALIBRATION_BYTES`, UTF-8 JSON text
         holding one object (each problem one DeviceError line naming the URL), and every field
-        (:func:`~lenticalib.core.lkg.normalize_visual`: one ProfileError line naming the URL and the
+        (:func:`~lenticalib.core.looking_glass.convert.normalize_visual`: one ProfileError line naming the URL and the
         field), before anything of it is shown or used."""
         if not self.is_open:
             self.open()

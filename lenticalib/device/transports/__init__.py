@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from ...core.errors import DeviceNotFoundError
 from ...core.plugins import Registry
-from ..drivers import family_for
+from ..controller_families import family_for
 from ..url import DeviceURL, parse_device_url
 from .base import FoundDevice, Transport
 

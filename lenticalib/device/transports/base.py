@@ -23,7 +23,7 @@ import time
 from typing import Iterator
 
 from ...core.errors import DeviceDisconnectedError, DeviceNotFoundError, DeviceTimeoutError, LenticalibError
-from ..drivers import ControllerFamily, TransportDescription, families
+from ..controller_families import ControllerFamily, TransportDescription, families
 from ..url import DeviceURL
 
 

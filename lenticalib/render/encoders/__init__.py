@@ -17,7 +17,7 @@ the view stack and the output raster).  Part of the render layer: imports only c
 
 All of them route by :func:`lenticalib.core.routing.view_map` (same view for every subpixel, ties
 included; subpixel layouts and reversed views included) and sample where
-:mod:`lenticalib.render.sampling` says (the image flips included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
+:mod:`lenticalib.render.compose.sampling` says (the image flips included).  ``tables`` and ``torch`` equal ``reference`` bit for bit; ``fast`` does too for uint16 and float
 views and is within 1 LSB for uint8 (fixed-point weights); ``gl`` is within 1 LSB (float32).
 
 Modules are imported only when an encoder is asked for, so ``lenticalib --help`` stays instant.
@@ -74,7 +74,7 @@ def encode(views: np.ndarray, profile: PanelProfile, method: str = DEFAULT_ENCOD
 
     The output has the views' dtype (uint8, uint16, float32 or float64).  ``out`` may supply a
     preallocated raster (honoured by the ``fast`` encoder, copied into otherwise).  ``compensator``
-    (a :class:`lenticalib.render.compensation.Compensator`, uint8 views): the views are
+    (a :class:`lenticalib.render.compose.compensation.Compensator`, uint8 views): the views are
     pre-compensated first, by the encoder on its device where it can (:func:`compensates_on_device`),
     else on the host (:meth:`Compensator.apply`).
     """

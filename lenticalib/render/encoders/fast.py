@@ -38,7 +38,7 @@ from numba import prange
 from ...core.jit import cached_njit
 from ...core.profile import PanelProfile
 from ...core.routing import RoutingPlan, routing_plan, view_map
-from ..sampling import column_sampling, row_sampling
+from ..compose.sampling import column_sampling, row_sampling
 from . import _permute, _simd
 
 _U64 = np.uint64

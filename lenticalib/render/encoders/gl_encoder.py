@@ -12,7 +12,7 @@ What lives on the GPU, uploaded once per profile and view size (OpenGL 3.3 core,
   :func:`lenticalib.core.routing.view_map` (ties, subpixel layouts and reversed views included),
   ``DARK`` where no view lights it;
 * ``column_taps``: RGB32F ``(W, 3)``, per output pixel and channel the left and right source column
-  and the right column's weight (:func:`lenticalib.render.sampling.column_sampling` at the
+  and the right column's weight (:func:`lenticalib.render.compose.sampling.column_sampling` at the
   channel's slot); ``row_taps``: RGB32F ``(H, 1)``, the same for rows (image flips included);
 * ``views``: an RGB8 texture array of N layers ``(W_v, H_v)``, rewritten each frame
   (:meth:`GLEncoder.upload_views`), or rendered into by a GL renderer in the same context.
@@ -36,8 +36,8 @@ import numpy as np
 from ...core.errors import DisplayError, ImageError
 from ...core.profile import PanelProfile
 from ...core.routing import view_map
-from ..gl_context import VIEWPORT_TRIANGLE, headless_context, headless_unavailable, offscreen_context
-from ..sampling import column_sampling, row_sampling
+from ..gpu.gl_context import VIEWPORT_TRIANGLE, headless_context, headless_unavailable, offscreen_context
+from ..compose.sampling import column_sampling, row_sampling
 from .common import output_like
 
 _HINT = "or use another encoder (fast)"
@@ -95,7 +95,7 @@ class GLEncoder:
 
     ``profile``; ``view_size`` ``(H_v, W_v)``; ``ctx`` a moderngl context to live in (None: an
     offscreen one of its own: :func:`headless_context`, or ``backend`` as
-    :func:`lenticalib.render.gl_context.offscreen_context`).
+    :func:`lenticalib.render.gpu.gl_context.offscreen_context`).
     DisplayError (one line) when there is no OpenGL 3.3 or the panel or the view stack exceeds
     the driver's texture limits."""
 
@@ -176,7 +176,7 @@ class GLEncoder:
         """Draw the raster into ``framebuffer`` (None: the offscreen one), whose size must be the
         panel's, from ``views``: a normalised 8-bit texture array of this context, N layers of
         (W_v, H_v), RGB or RGBA, texel row 0 the top of the image (a GPU views stage's,
-        :attr:`lenticalib.render.gl_views.GLViewStage.views`); None: the uploaded :attr:`views`."""
+        :attr:`lenticalib.render.compose.gl_views.GLViewStage.views`); None: the uploaded :attr:`views`."""
         views = self.views if views is None else views
         if views is None:
             raise DisplayError("no views to encode yet", hint="upload views first")
@@ -204,14 +204,14 @@ class GLEncoder:
 
     def encode(self, views: np.ndarray, out: np.ndarray | None = None, compensator=None) -> np.ndarray:
         """Upload ``views``, draw offscreen and read the raster back.  With ``compensator`` (a
-        :class:`lenticalib.render.compensation.Compensator`) the views are pre-compensated on the GPU
-        first (:class:`lenticalib.render.gl_views.GLViewStage`; needs OpenGL 4.3: DisplayError
+        :class:`lenticalib.render.compose.compensation.Compensator`) the views are pre-compensated on the GPU
+        first (:class:`lenticalib.render.compose.gl_views.GLViewStage`; needs OpenGL 4.3: DisplayError
         otherwise), within one level of :meth:`Compensator.apply`."""
         if compensator is None:
             self.upload_views(views)
             self.draw()
             return self.read(out)
-        from ..gl_views import GLViewStage
+        from ..compose.gl_views import GLViewStage
 
         n, hv, wv, _ = views.shape
         with self._current():

@@ -6,7 +6,7 @@
 :func:`lenticalib.core.routing.view_map` (the LentiAvatar routing rule in exact-tie-safe fixed point; the tests check
 it against exact rational arithmetic), which routes a subpixel layout's slots by their true
 positions and reverses the views where the profile says so; ``V_v(u_p)`` is view ``v`` bilinearly
-sampled in float64 at the subpixel's sample point (see :mod:`lenticalib.render.sampling`; mirrored
+sampled in float64 at the subpixel's sample point (see :mod:`lenticalib.render.compose.sampling`; mirrored
 by the profile's image flips), in the subpixel's colour channel (slot ``s`` is channel ``s`` with a
 subpixel layout), then rounded half up (integer views).  Slow (a few seconds for a 4K panel).
 """
@@ -17,7 +17,7 @@ import numpy as np
 
 from ...core.profile import PanelProfile
 from ...core.routing import view_map
-from ..sampling import column_sampling, row_sampling
+from ..compose.sampling import column_sampling, row_sampling
 from .common import finish
 
 

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.profile import PanelProfile
-from ..sampling import NO_VIEW, sampling_tables
+from ..compose.sampling import NO_VIEW, sampling_tables
 from .common import finish
 
 ROWS_PER_CHUNK = 64
 
 
 def encode_tables(views: np.ndarray, profile: PanelProfile) -> np.ndarray:
-    """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.render.sampling.SamplingTables`.
+    """Encode ``views`` ``(N, H_v, W_v, 3)`` with cached :class:`~lenticalib.render.compose.sampling.SamplingTables`.
 
     Returns the raster ``(height, width, 3)`` in the views' dtype.  Routing is the table's view
     (the canonical :func:`lenticalib.core.routing.view_map`); sampling is the reference encoder's

@@ -40,7 +40,7 @@ import numpy as np
 
 from ...core.errors import BackendUnavailableError, ConfigurationError, ImageError
 from ...core.profile import PanelProfile
-from ..sampling import NO_VIEW
+from ..compose.sampling import NO_VIEW
 
 try:
     import torch
@@ -48,7 +48,7 @@ except ImportError as exc:  # the registry passes this on as is
     raise BackendUnavailableError(f"the 'torch' encoder needs PyTorch, which does not import ({exc})",
                                   source="encoder", hint="pip install torch") from None
 
-from ..torch_devices import device_unavailable  # noqa: E402  (after the torch check)
+from ..gpu.torch_devices import device_unavailable  # noqa: E402  (after the torch check)
 from .torch_tables import TorchTables, build_tables, resolve_device  # noqa: E402
 
 __all__ = ["CACHE_SIZE", "CPU_ROWS_PER_CHUNK", "TorchEncoder", "TorchTables", "build_tables", "cached_encoder",

@@ -6,7 +6,7 @@
 Tables (:class:`TorchTables`, built by :func:`build_tables` with numpy on the host, then moved to
 the device), per panel subpixel in output order ``[y, 3 x + c]`` (``c`` the colour channel; the
 routing of a subpixel layout, reversed views and the image flips come with ``view_map`` and the
-sample points of :mod:`lenticalib.render.sampling`):
+sample points of :mod:`lenticalib.render.compose.sampling`):
 
 * ``primary_view`` uint8: the view the canonical routing (:func:`lenticalib.core.routing.view_map`)
   gives it, 255 where none (dark);
@@ -25,7 +25,7 @@ sample points of :mod:`lenticalib.render.sampling`):
   than two views on a subpixel is refused with a :class:`~lenticalib.core.errors.ConfigurationError`;
 * bilinear weights, separable and exact: ``fx`` and ``1 - fx`` per output column (``3 W``
   float64), ``fy`` and ``1 - fy`` per row (float64), the values of
-  :mod:`lenticalib.render.sampling`.
+  :mod:`lenticalib.render.compose.sampling`.
 
 Table memory for a 3840 x 2160 panel (24.9 M subpixels): 5 bytes per subpixel (int32 index +
 uint8 view), 124.4 MB, plus 0.2 MB of weights; a two-view table adds 9 bytes per subpixel.
@@ -39,8 +39,8 @@ import numpy as np
 
 from ...core.errors import BackendUnavailableError, ConfigurationError, ImageError
 from ...core.profile import PanelProfile
-from ..sampling import NO_VIEW, sampling_tables
-from ..torch_devices import device_unavailable
+from ..compose.sampling import NO_VIEW, sampling_tables
+from ..gpu.torch_devices import device_unavailable
 
 try:
     import torch

@@ -16,9 +16,8 @@ import numbers
 import numpy as np
 
 from ...core.errors import InputError
-from ..gaussians import Gaussians
+from ..avatar.gaussians import Gaussians
 
-NEAR_PLANE = 0.01  # camera-frame z, world units (gsplat's default)
 FAR_PLANE = 1e10
 EPS2D = 0.3  # px^2 added to the projected covariance's diagonal (gsplat's default)
 TILE_SIZE = 16

@@ -56,7 +56,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ...core.jit import cached_njit
-from ..gaussians import Gaussians
+from ..avatar.gaussians import Gaussians
 from .common import TILE_SIZE, check_finite_gaussians, check_render_inputs, jacobian_limits
 from .cpu_project import (ALPHA_MIN, BIN_CHUNKS, REC_B, REC_CA, REC_CB, REC_CC, REC_EXT_Y, REC_G, REC_MX, REC_MY,
                           REC_OP, REC_Q, REC_R, REC_SLOPE, RECORD_FIELDS, bin_tiles, front_to_back, project_view,
@@ -254,7 +254,7 @@ def render_cpu(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *,
     """Render N views of ``gaussians`` on the CPU; gsplat's forward pass (see the module docstring).
 
     ARGUMENTS
-        gaussians   :class:`~lenticalib.render.gaussians.Gaussians`, activated (numpy or torch)
+        gaussians   :class:`~lenticalib.render.avatar.gaussians.Gaussians`, activated (numpy or torch)
         viewmats    (N, 4, 4) world-to-camera, camera frame OpenCV (x right, y down, z forward)
         Ks          (N, 3, 3) intrinsics in pixels, OpenCV (pixel centres at integer coordinates)
         width, height   view size, pixels

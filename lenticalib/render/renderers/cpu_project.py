@@ -24,7 +24,8 @@ import numpy as np
 from numba import prange
 
 from ...core.jit import cached_njit
-from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE
+from ..cameras.view_cameras import NEAR_PLANE
+from .common import EPS2D, FAR_PLANE, TILE_SIZE
 
 ALPHA_MIN = 1.0 / 255.0  # gsplat's ALPHA_THRESHOLD
 SIGMA_MARGIN = 1e-3  # the visited ellipse reaches slightly past alpha = 1/255; alpha is tested exactly

@@ -76,8 +76,8 @@ import time
 import numpy as np
 
 from ...core.errors import DisplayError, InputError
-from ..gaussians import Gaussians
-from ..gl_context import headless_context, headless_unavailable
+from ..avatar.gaussians import Gaussians
+from ..gpu.gl_context import headless_context, headless_unavailable
 from . import gl_shaders as sh
 from .common import check_finite_gaussians, check_render_inputs, check_view_memory
 from .cpu_project import RECORD_FIELDS

@@ -29,7 +29,8 @@ Pixel frame: gsplat's (pixel (x, y) centred at (x + 0.5, y + 0.5), y down), whic
 
 from __future__ import annotations
 
-from .common import EPS2D, FAR_PLANE, NEAR_PLANE
+from ..cameras.view_cameras import NEAR_PLANE
+from .common import EPS2D, FAR_PLANE
 from .cpu import ALPHA_MAX
 from .cpu_project import ALPHA_MIN, COV_MAX, SIGMA_MARGIN
 

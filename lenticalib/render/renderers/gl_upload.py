@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gaussians import Gaussians
+from ..avatar.gaussians import Gaussians
 from .common import TILE_SIZE, jacobian_limits
 from .cpu_project import RECORD_FIELDS, front_to_back, project_view, world_covariances
 

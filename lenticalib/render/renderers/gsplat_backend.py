@@ -14,9 +14,10 @@ from __future__ import annotations
 import importlib.util
 
 from ...core.errors import BackendUnavailableError
-from ..gaussians import Gaussians
-from ..torch_devices import device_unavailable
-from .common import EPS2D, FAR_PLANE, NEAR_PLANE, TILE_SIZE, check_render_inputs
+from ..avatar.gaussians import Gaussians
+from ..gpu.torch_devices import device_unavailable
+from ..cameras.view_cameras import NEAR_PLANE
+from .common import EPS2D, FAR_PLANE, TILE_SIZE, check_render_inputs
 
 
 def gsplat_unavailable(device: str | None = None) -> str | None:

@@ -33,7 +33,7 @@ import warnings
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.fields import is_finite_number, short_repr
+from ...core.files.fields import is_finite_number, short_repr
 from ...core.sizes import MAX_SIDE
 
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)

@@ -44,10 +44,10 @@ from typing import Callable
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.outputs import check_output_file
+from ...core.files.outputs import check_output_file
 from ...core.profile import make_provenance
-from ..controls import load_controls
-from ..rig import DEFAULT_LAYOUT
+from ..controls.files import load_controls
+from ..avatar.rig import DEFAULT_LAYOUT
 from .crop import CropTracker, IMAGENET_MEAN, IMAGENET_STD, cut, find_face, parse_crop
 from .frames import open_frames
 from .model import MAX_CONTROLS, MAX_INPUT_SIZE, MIN_INPUT_SIZE
@@ -218,7 +218,7 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
     ``frames``, ``history``).  ``on_epoch(record)`` is called after every epoch."""
     import torch
 
-    from ..torch_devices import device_unavailable
+    from ..gpu.torch_devices import device_unavailable
     from .model import build_student
     from .student_file import save_student
 
@@ -236,7 +236,7 @@ def distill_student(frames: str | os.PathLike, controls: str | os.PathLike, outp
     output = check_output_file(output, "student driver", example="student.pt",
                                inputs=(frames, controls, rig, backbone_weights))
     if rig is not None:
-        from ..rig_file import load_rig
+        from ..avatar.rig_file import load_rig
 
         loaded = load_rig(rig)
         layout, names = loaded.layout, loaded.control_names

@@ -19,9 +19,9 @@ from typing import Iterator
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.imageio import IMAGE_SUFFIXES, read_image
-from ...core.video import open_video
-from ..views import natural_key
+from ...core.files.imageio import IMAGE_SUFFIXES, read_image
+from ...core.files.video import open_video
+from ..compose.views import natural_key
 
 FOLDER_FPS = 30.0  # a folder of images is taken as frames at this rate
 CAMERA_OPEN_S = 5.0  # a camera must deliver its first frame within this time

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.fields import short_repr
+from ...core.files.fields import short_repr
 from .frames import MAX_CAMERA_INDEX, CameraFrames
 from .predict import StudentPredictor
 from .student_file import load_student
@@ -113,3 +113,9 @@ class StudentControls:
         ms = f", {np.median(self.ms):.1f} ms a prediction (median)" if self.ms else ""
         return (f"student: {self.predicted} frames predicted{ms}, {self.repeated} loop frames repeated the last "
                 f"controls (no new camera frame), {self.frames.failures} camera reads failed")
+
+
+def open_student_source(spec: str, layout, names=None) -> StudentControls:
+    """The ``student`` control source (:mod:`lenticalib.render.controls.sources`): ``spec`` is
+    ``student:PATH?camera=K|video=FILE[&device=D]``."""
+    return StudentControls(spec, layout)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 
-from ...core.arrayfile import MIB, ZipLimits, open_zip
+from ...core.files.arrayfile import MIB, ZipLimits, open_zip
 from ...core.errors import InputError
 
 MIN_INPUT_SIZE = 32

@@ -4,7 +4,7 @@
 units: the crop rule applied (a tracker keeps its state from frame to frame), the network run on
 CPU or GPU, the output de-normalised with the subject's statistics (components that did not vary
 in training are their mean).  :func:`predict_controls` runs it over a video or a folder and writes
-the controls as a CSV that ``--controls`` reads (:func:`~lenticalib.render.control_records.write_controls_csv`).
+the controls as a CSV that ``--controls`` reads (:func:`~lenticalib.render.controls.records.write_controls_csv`).
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import time
 import numpy as np
 
 from ...core.errors import InputError
-from ...core.fields import short_repr
-from ...core.outputs import check_output_file
-from ..control_records import write_controls_csv
+from ...core.files.fields import short_repr
+from ...core.files.outputs import check_output_file
+from ..controls.records import write_controls_csv
 from .crop import CropTracker, to_input
 from .frames import open_frames
 from .student_file import Student, load_student
@@ -30,7 +30,7 @@ class StudentPredictor:
     def __init__(self, student: Student, device: str = "cpu"):
         import torch
 
-        from ..torch_devices import device_unavailable
+        from ..gpu.torch_devices import device_unavailable
 
         # a student runs on the CPU or a CUDA GPU: 'meta', 'mps' or 'cpu:1' would fail at the first frame
         if not re.fullmatch(r"cpu|cuda(:[0-9]{1,2})?", str(device)):

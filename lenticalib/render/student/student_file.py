@@ -39,11 +39,11 @@ from __future__ import annotations
 
 import os
 
-from ...core.atomic import write_bytes_atomic
-from ...core.documents import FORMATS, check_envelope
+from ...core.files.atomic import write_bytes_atomic
+from ...core.files.documents import FORMATS, check_envelope
 from ...core.errors import InputError
-from ...core.fields import short_repr
-from ..rig import ControlLayout
+from ...core.files.fields import short_repr
+from ..avatar.rig import ControlLayout
 from .crop import check_crop_rule
 from .model import MAX_CONTROLS, MAX_INPUT_SIZE, MIN_INPUT_SIZE, build_student, load_weights
 
