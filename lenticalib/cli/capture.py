@@ -67,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
             restart=args.restart, timeout=args.timeout,
             resolution=None if args.resolution is None else _resolution(args.resolution),
             conditions=args.conditions, subsamples=args.subsamples, layout=args.layout, on_start=started,
-            notify=lambda message: print(f"note: {safe_line(in_flags(message, args.flags))}", file=sys.stderr))
+            notify=lambda message: print(f"note: {safe_line(message)}", file=sys.stderr),
+            note=lambda message: print(f"note: {safe_line(in_flags(message, args.flags))}"))
     pattern_set = read_pattern_folder(directory)
     retaken = sum(report.retakes.values())
     print(f"captured {len(report.taken)} photo(s), kept {len(report.kept)} from before, {retaken} retaken, "

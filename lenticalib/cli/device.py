@@ -76,26 +76,9 @@ def _looking_glass(url: str) -> bool:
 
 
 def _url_file(url: str) -> str | None:
-    """The file behind a device URL that a command reads from (an emulator's image, a drive's
-    visual.json), for the output check; None for a port or a URL that does not parse (refused when opened)."""
-    from ..core.errors import LenticalibError
-    from ..device.emulator.controller import default_image_dir
-    from ..device.emulator.looking_glass import unit_image
-    from ..device.looking_glass.drive import calibration_file
-    from ..device.url import parse_device_url
+    from ..device.url_files import url_file
 
-    try:
-        parsed = parse_device_url(url)
-    except LenticalibError:
-        return None
-    if parsed.scheme == "emu":
-        return str(default_image_dir() / f"{parsed.target}.flash")
-    if parsed.scheme == "lkg-emu":
-        return str(unit_image(parsed.target))
-    if parsed.scheme == "lkg-drive":
-        found = calibration_file(parsed.target)
-        return str(found) if found is not None else parsed.target
-    return None
+    return url_file(url)
 
 
 def _refuse_looking_glass(url: str, message: str, then: str = "") -> None:

@@ -8,6 +8,7 @@ read the factory calibration of a Looking Glass unit.
 device imports only core (and itself).  Modules:
 
     url         device URLs: how a controller is named on the command line and in code
+    url_files   the file behind a device URL (an emulator's image, a drive's visual.json)
     controller_families  controller family descriptions: the TOML files in ``drivers/`` (data, not code)
     framing     protocol v1 frames (CRC-16) and the stream parser the host and firmware share
     protocol    protocol v1 (minor 1.1): command and status codes, payload layouts

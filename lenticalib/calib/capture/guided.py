@@ -33,7 +33,8 @@ def guided_capture(directory: str | os.PathLike, camera: str, open_presenter: Ca
                    restart: bool = False, timeout: float = 600.0, resolution: tuple[int, int] | None = None,
                    conditions: str = "standard", subsamples: int | None = None, layout: str | None = None,
                    on_start: Callable[[int, list[str]], Callable[[str], None] | None] | None = None,
-                   notify: Callable[[str], None] | None = None) -> CaptureReport:
+                   notify: Callable[[str], None] | None = None,
+                   note: Callable[[str], None] | None = None) -> CaptureReport:
     """Show every pattern of the folder ``directory`` on the panel and photograph it with the
     capture camera ``camera`` (a spec such as ``gphoto2``, ``opencv:0``, ``sim:7``).
 
@@ -42,8 +43,8 @@ def guided_capture(directory: str | os.PathLike, camera: str, open_presenter: Ca
     manual camera with a folder waits for each photo; ``resolution``, ``conditions``,
     ``subsamples``, ``layout``: the virtual panel's camera only.  ``on_start(count, settings)`` is
     called once everything is open, with the number of patterns and the camera's settings lines,
-    and may return the per-pattern progress callable; ``notify(message)`` gets each rejected photo
-    and the fallback to no graphics.  Every bad option is an InputError naming it, raised before
+    and may return the per-pattern progress callable; ``notify(message)`` gets each rejected photo,
+    ``note(message)`` what the run decided by itself (the fallback to no graphics).  Every bad option is an InputError naming it, raised before
     anything is opened.
     """
     if settle is not None and not 0 <= settle <= 60:
@@ -77,8 +78,8 @@ def guided_capture(directory: str | os.PathLike, camera: str, open_presenter: Ca
         except DisplayError as exc:
             if display is not None or kind != "sim":
                 raise
-            if notify is not None:  # no OpenGL here: the virtual panel needs none
-                notify(f"{exc.message}; showing without graphics (`display` none)")
+            if note is not None:  # no OpenGL here: the virtual panel needs none
+                note(f"{exc.message}; showing without graphics (`display` none)")
             presenter = open_presenter("none", size)
             presenter.open()
         try:
