@@ -221,6 +221,7 @@ class GLComputeRenderer:
                                hint="render fewer Gaussians or use the cpu renderer")
         self._buffer("gauss", data.nbytes).write(data)
         self._cams.write(camera_table(viewmats, Ks, self.width, self.height))
+        self._cmds.clear()  # PROJECT counts into it (the triangles' draw commands): kept from wrapping
         self._composite["background"].value = tuple(float(c) for c in (background if background is not None
                                                                           else (0.0, 0.0, 0.0)))
         self.views.bind_to_image(0, read=False, write=True)

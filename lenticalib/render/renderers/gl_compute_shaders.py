@@ -99,12 +99,14 @@ void main() {{
     uint total = 0u;
     for (uint c = first; c < end; ++c) total += sums[c];
     partial[t] = total;
+    memoryBarrierShared();
     barrier();
     if (t == 0u) {{
         uint run = 0u;
         for (uint k = 0u; k < {SCAN_GROUP}u; ++k) {{ uint n = partial[k]; partial[k] = run; run += n; }}
         sums[chunks] = run;
     }}
+    memoryBarrierShared();
     barrier();
     uint run = partial[t];
     for (uint c = first; c < end; ++c) {{ uint n = sums[c]; sums[c] = run; run += n; }}
@@ -206,15 +208,18 @@ void main() {{
     bool inside = px.x < size.x && px.y < size.y;
     bool done = !inside;
     if (lid == 0u) stopped = 0u;
+    memoryBarrierShared();
     barrier();
     if (done) atomicAdd(stopped, 1u);
     vec2 centre = vec2(px) + 0.5;  // gsplat's pixel centre, the records' frame
     float T = 1.0;
     vec3 C = vec3(0.0);
     for (uint first = range.x; first < range.y; first += STAGED) {{
+        memoryBarrierShared();
         barrier();  // the last batch is composited, and every stop counted
         if (stopped == STAGED) break;
         if (first + lid < range.y) stage(lid, 3u * tvals[first + lid]);
+        memoryBarrierShared();
         barrier();
         if (done) continue;
         uint n = min(STAGED, range.y - first);
