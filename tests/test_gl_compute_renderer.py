@@ -296,3 +296,28 @@ np.save({str(tmp_path / "out.npy")!r}, render_gl_compute(random_scene(3, n=80), 
             in done.stderr)
     _assert_close(np.load(tmp_path / "out.npy"), render_cpu(random_scene(3, n=80), *CAMERAS, W, H))
 
+
+
+def test_the_avatar_loop_renders_gl_compute_in_its_gl_frame_and_gl_with_the_triangles_on_llvmpipe(tmp_path,
+                                                                                                  monkeypatch):
+    from lenticalib.render.avatar import load_avatar
+    from lenticalib.render.demo_avatar import make_demo_avatar
+    from lenticalib.render.loop import AvatarPipeline
+    from lenticalib.render.rig_file import save_rig
+
+    save_rig(tmp_path / "demo.npz", make_demo_avatar(seed=1, count=3000))
+    avatar = load_avatar(tmp_path / "demo.npz")
+    profile = PanelProfile(views=4, slant=0.19, period=9.7, offset=3.2, reference_view=2, width=128, height=72,
+                           subpixel_order="RGB", view_direction=1)
+    cameras = make_cameras("arc", avatar.bounding_box(), 4, view_size=(64, 36))
+    calls = []
+    original = GLComputeRenderer.render
+    monkeypatch.setattr(GLComputeRenderer, "render", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
+    rasters = {}
+    for renderer in ("gl-compute", "gl"):
+        pipeline = AvatarPipeline(avatar, profile, cameras, renderer=renderer, encoder="gl")
+        assert pipeline.draws_on_gpu
+        rasters[renderer] = pipeline.frame(None)[0]
+        pipeline.close()
+        assert pipeline.notes == [] and len(calls) == 1  # gl: the triangles, on llvmpipe
+    assert np.abs(rasters["gl-compute"].astype(int) - rasters["gl"]).max() <= 1 and rasters["gl"].std() > 10
