@@ -298,8 +298,8 @@ np.save({str(tmp_path / "out.npy")!r}, render_gl_compute(random_scene(3, n=80), 
 
 
 
-def test_the_avatar_loop_renders_gl_compute_in_its_gl_frame_and_gl_with_the_triangles_on_llvmpipe(tmp_path,
-                                                                                                  monkeypatch):
+def test_the_avatar_loop_renders_gl_compute_in_its_gl_frame_never_reading_it_back(tmp_path, monkeypatch):
+    # and --renderer gl, on llvmpipe, with the triangles
     from lenticalib.render.avatar import load_avatar
     from lenticalib.render.demo_avatar import make_demo_avatar
     from lenticalib.render.loop import AvatarPipeline
@@ -313,6 +313,7 @@ def test_the_avatar_loop_renders_gl_compute_in_its_gl_frame_and_gl_with_the_tria
     calls = []
     original = GLComputeRenderer.render
     monkeypatch.setattr(GLComputeRenderer, "render", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
+    monkeypatch.setattr(GLComputeRenderer, "read", lambda self: pytest.fail("the float views were read back"))
     rasters = {}
     for renderer in ("gl-compute", "gl"):
         pipeline = AvatarPipeline(avatar, profile, cameras, renderer=renderer, encoder="gl")
