@@ -17,8 +17,8 @@ depth sort
     the ``gl`` renderer's stable radix sort (:class:`.gl_sort.GLSorter`) per view: front to back,
     ties by index, culled last.
 intersect
-    per depth-sorted splat, the 16 x 16 tiles its alpha >= 1/255 ellipse touches
-    (:mod:`.gl_compute_shaders`): counted per chunk, the counts scanned, then one (key, slot)
+    per depth-sorted splat, the 16 x 16 tiles its alpha >= 1/255 ellipse reaches on each tile
+    row (:mod:`.gl_compute_shaders`): counted per chunk, the counts scanned, then one (key, slot)
     pair written per (splat, tile) in depth order, key = local view x tiles + tile.
 tile sort
     the same stable radix sort of those keys (two 8-bit passes while they fit 16 bits): since the
