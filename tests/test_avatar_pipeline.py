@@ -206,7 +206,7 @@ def test_a_renderer_or_encoder_that_cannot_run_here_is_refused_before_anything_i
     cuda = torch.cuda.is_available()
     gsplat = importlib.util.find_spec("gsplat") is not None
     for options, words in ((["--renderer", "gsplat"], "renderer 'gsplat' cannot run here: it needs a CUDA GPU "
-                            "and torch sees none (renderers that can run here: cpu, gl)" if not cuda else
+                            "and torch sees none (renderers that can run here: cpu, gl, gl-compute)" if not cuda else
                             "none.json" if gsplat else "renderer 'gsplat' cannot run here: it needs gsplat"),
                            (["--encoder", "torch", "--device", "cuda"], "encoder 'torch' cannot run here: device "
                             "'cuda' requested but torch sees no CUDA device" if not cuda else "none.json")):

@@ -111,7 +111,7 @@ def test_the_gsplat_renderer_and_the_torch_encoder_say_whether_they_can_run_here
     with pytest.raises(BackendUnavailableError) as err:
         get_renderer("gsplat")
     assert str(err.value) == ("renderer: renderer 'gsplat' cannot run here: it needs a CUDA GPU and torch sees "
-                              "none (renderers that can run here: cpu, gl)")
+                              "none (renderers that can run here: cpu, gl, gl-compute)")
     with pytest.raises(BackendUnavailableError) as err:
         get_encoder("torch", device="cuda")
     assert "encoder 'torch' cannot run here: device 'cuda' requested but torch sees no CUDA device" in str(err.value)

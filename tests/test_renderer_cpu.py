@@ -225,7 +225,7 @@ def test_bad_inputs_are_one_line_input_errors(change, source):
 
 
 def test_the_registry_knows_the_renderers_and_refuses_others():
-    assert available_renderers() == ["cpu", "gl", "gsplat"]
+    assert available_renderers() == ["cpu", "gl", "gl-compute", "gsplat"]
     assert get_renderer("cpu") is render_cpu
     with pytest.raises(InputError, match="unknown renderer 'opengl'") as err:
         get_renderer("opengl")

@@ -17,7 +17,8 @@ def add_avatar_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--driver", metavar="SPEC", help="deformer: 'rig' (the rig's own, default) or "
                         "module:callable (your own, e.g. a FLAME-based avatar)")
     parser.add_argument("--renderer", default=None, help="cpu (default without a GPU), gl (OpenGL: any GPU, or "
-                        "Mesa) or gsplat (CUDA)")
+                        "Mesa; compute-shader tiles on a GPU), gl-compute (the tiles wherever OpenGL 4.3 is) or "
+                        "gsplat (CUDA)")
     parser.add_argument("--encoder", default=None, help="fast (default on the CPU), gl (default with the gl "
                         "renderer), torch (default with gsplat), reference, tables")
     parser.add_argument("--device", default=None, help="torch device for gsplat/torch (default cuda)")

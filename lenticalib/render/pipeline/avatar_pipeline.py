@@ -138,7 +138,7 @@ class AvatarPipeline:
         self.render_fn = get_renderer(renderer, device=device)  # refused here if it cannot run on this machine
         self.renderer, self.encoder, self.device = renderer, encoder, device
         self.on_gpu = renderer == "gsplat"
-        self.on_gl = renderer == "gl"  # render (and with the gl encoder, encode) in one OpenGL context
+        self.on_gl = renderer in ("gl", "gl-compute")  # render (and with the gl encoder, encode) in one OpenGL context
         self._gl = None  # its GLFrame, made by use_context or on the first frame
         self.edge_desaturation = float(edge_desaturation)
         self.compensator = compensator  # crosstalk pre-compensation (render.compensation), part of compose
@@ -194,7 +194,8 @@ class AvatarPipeline:
         from .gl_frame import GLFrame
 
         frame = GLFrame(self.profile, self.cameras, ctx=ctx, background=self._background,
-                        edge_desaturation=self.edge_desaturation, compensator=self.compensator)
+                        edge_desaturation=self.edge_desaturation, compensator=self.compensator,
+                        prefer="compute" if self.renderer == "gl-compute" else None)
         for note in frame.notes:
             self.notes.append(note)
         return frame

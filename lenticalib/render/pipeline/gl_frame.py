@@ -1,7 +1,8 @@
 """The avatar frame on the GPU: render, views stage and encode in one OpenGL context, no round trips.
 
 :class:`GLFrame` holds, in one moderngl context (a presenter's window or offscreen context, or a
-headless one of its own), the GL renderer (:class:`~.renderers.gl_renderer.GLSplatRenderer`: the
+headless one of its own), the GL renderer (:func:`~.renderers.gl_compute.gl_renderer_for`: the
+compute renderer, or the triangles of :class:`~.renderers.gl_renderer.GLSplatRenderer`; the
 Gaussians uploaded once per frame, N float RGBA layers), the views stage
 (:class:`~.gl_views.GLViewStage`: background, edge desaturation, 8-bit codes and crosstalk
 pre-compensation into N 8-bit layers) and the GL encoder (:class:`~.encoders.gl_encoder.GLEncoder`:
@@ -39,16 +40,18 @@ class GLFrame:
     profile), in ``ctx`` (None: a headless context of its own, released by :meth:`release`).
 
     ``background``: None, (3,) or (H_v, W_v, 3) float in 0..1; ``edge_desaturation`` 0..1;
-    ``compensator`` or None.  DisplayError (one line, naming what is missing and the fallback)
+    ``compensator`` or None; ``prefer``: the renderer's path, None, "compute" or "triangles"
+    (:func:`~.renderers.gl_compute.gl_renderer_for`; :attr:`renderer_kind` says which runs,
+    "gl-compute" or "gl triangles").  DisplayError (one line, naming what is missing and the fallback)
     when there is no OpenGL 3.3 context or the driver's textures are too small.
     """
 
     def __init__(self, profile: PanelProfile, cameras: ViewCameras, *, ctx=None, background=None,
-                 edge_desaturation: float = 0.0, compensator=None):
+                 edge_desaturation: float = 0.0, compensator=None, prefer: str | None = None):
         from ..encoders.gl_encoder import GLEncoder
         from ..gpu.gl_context import headless_context
         from ..compose.gl_views import GLViewStage
-        from ..renderers.gl_renderer import GLSplatRenderer
+        from ..renderers.gl_compute import gl_renderer_for
 
         self._own_ctx = ctx is None
         self.ctx = headless_context(hint=_HINT) if ctx is None else ctx
@@ -62,9 +65,10 @@ class GLFrame:
         with self._current():
             try:
                 n, w, h = profile.views, cameras.width, cameras.height
-                self.renderer = GLSplatRenderer(self.ctx, n, w, h)
-                if self.renderer.fallback_reason:
-                    self.notes.append(self.renderer.fallback_reason)
+                self.renderer, self.renderer_kind, reason = gl_renderer_for(self.ctx, n, w, h, prefer)
+                for note in (reason, self.renderer.fallback_reason):
+                    if note:
+                        self.notes.append(note)
                 if self.ctx.version_code >= 430:
                     self.stage = GLViewStage(self.ctx, n, w, h, background=background,
                                              edge_desaturation=edge_desaturation, compensator=compensator)

@@ -94,7 +94,7 @@ def open_avatar_session(avatar: str | os.PathLike, profile: PanelProfile | str |
 
     o = options or AvatarOptions()
     renderer = o.renderer or "cpu"
-    encoder = o.encoder or {"gsplat": "torch", "gl": "gl"}.get(renderer, "fast")
+    encoder = o.encoder or {"gsplat": "torch", "gl": "gl", "gl-compute": "gl"}.get(renderer, "fast")
     device = o.device or ("cuda" if renderer == "gsplat" else "cpu")
     get_renderer(renderer, device=device)  # one that cannot run here is refused before anything is loaded
     get_encoder(encoder, device=device)

@@ -4,13 +4,16 @@
     gsplat   gsplat's CUDA rasterizer, all views in one batched call (needs torch and a CUDA GPU)
     gl       OpenGL through moderngl: projection and sort in compute shaders (4.3; on the CPU where
              only 3.3 is there), a triangle per splat blended into a texture array (any GPU, Mesa)
+    gl-compute  OpenGL compute shaders built like gsplat: projection, tile intersection, sort and
+             per-tile compositing in shared memory (OpenGL 4.3; the ``gl`` triangles where it is missing)
 
 Modules: ``cpu`` (the ``cpu`` renderer) with ``cpu_project`` (its projection, colour and
 binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), ``gl_renderer`` (the ``gl``
 renderer; :class:`~.gl_renderer.GLSplatRenderer` draws into a caller's context) with
 ``gl_shaders`` (its GLSL), ``gl_sort`` (its GPU sort) and ``gl_upload`` (what it computes on the
-host), and ``common`` (the checks every renderer makes at its boundary and the conventions they
-share).  Part of the render layer: imports only core and render.
+host), ``gl_compute`` (the ``gl-compute`` renderer; :func:`~.gl_compute.gl_renderer_for` picks
+it, or the triangles, for a context) with ``gl_compute_shaders`` (its GLSL), and ``common`` (the
+checks every renderer makes at its boundary and the conventions they share).  Part of the render layer: imports only core and render.
 
 Every renderer has the signature of :func:`render` without ``renderer`` and returns
 (N, H, W, 4) float32 RGBA (numpy for ``cpu`` and ``gl``, a torch tensor on the GPU for
@@ -36,6 +39,7 @@ RENDERERS = Registry("renderer", {
     "cpu": "lenticalib.render.renderers.cpu:render_cpu",
     "gsplat": "lenticalib.render.renderers.gsplat_backend:render_gsplat",
     "gl": "lenticalib.render.renderers.gl_renderer:render_gl",
+    "gl-compute": "lenticalib.render.renderers.gl_compute:render_gl_compute",
 }, "lenticalib.renderers")
 
 

@@ -44,7 +44,7 @@ def _f(value: float) -> str:
     return f"{float(value):.9e}"
 
 
-_CONSTANTS = f"""
+CONSTANTS = f"""
 const float NEAR_PLANE = {_f(NEAR_PLANE)};
 const float FAR_PLANE = {_f(FAR_PLANE)};
 const float EPS2D = {_f(EPS2D)};
@@ -99,7 +99,7 @@ uniform int first_view;  // the batch's first view
 uniform int stride;    // floats per Gaussian in GAUSS
 uniform int degree;    // SH degree
 uniform vec2 size;     // (width, height), pixels
-{_CONSTANTS}
+{CONSTANTS}
 int base;
 vec3 sh(int k) {{ int o = base + 10 + 3 * k; return vec3(g[o], g[o + 1], g[o + 2]); }}
 {_SH}
@@ -247,9 +247,22 @@ void main() {{
 }}
 """
 
+# A splat's alpha at a pixel centre (the ``cpu`` renderer's compositing rule), shared by the
+# fragment shader here and the ``gl-compute`` renderer's tiles (:mod:`.gl_compute_shaders`):
+# ``d`` the pixel centre minus the mean (px), ``c`` the conic (a, b, c) and opacity; 0 where
+# sigma < 0 or alpha < 1/255 (the pixel skips the splat).  Needs ``CONSTANTS``.
+SPLAT_ALPHA = """
+float splat_alpha(vec2 d, vec4 c) {
+    float sigma = 0.5 * (c.x * d.x * d.x + c.z * d.y * d.y) + c.y * d.x * d.y;
+    float alpha = min(ALPHA_MAX, c.w * exp(-sigma));
+    return (sigma < 0.0 || alpha < ALPHA_MIN) ? 0.0 : alpha;
+}
+"""
+
 SPLAT_FRAGMENT = f"""
 #version 330 core
-{_CONSTANTS}
+{CONSTANTS}
+{SPLAT_ALPHA}
 in Splat {{
     flat vec2 mean;
     flat vec4 conic_op;
@@ -257,11 +270,8 @@ in Splat {{
 }} splat_in;
 out vec4 result;
 void main() {{
-    vec2 d = gl_FragCoord.xy - splat_in.mean;
-    vec4 c = splat_in.conic_op;
-    float sigma = 0.5 * (c.x * d.x * d.x + c.z * d.y * d.y) + c.y * d.x * d.y;
-    float alpha = min(ALPHA_MAX, c.w * exp(-sigma));
-    if (sigma < 0.0 || alpha < ALPHA_MIN) discard;
+    float alpha = splat_alpha(gl_FragCoord.xy - splat_in.mean, splat_in.conic_op);
+    if (alpha == 0.0) discard;
     result = vec4(splat_in.colour * alpha, alpha);  // blended: C += (1 - A) c alpha, A += (1 - A) alpha
 }}
 """

@@ -18,11 +18,13 @@ scatter     one invocation per chunk walks its pairs again in order and writes e
 
 Serial chunks suit Mesa's llvmpipe (invocations are SIMD lanes of a few CPU threads) and keep the
 sort stable without a per-work-group ranking; on a GPU the same dispatches run as they are.
-Passes ping-pong through the sorter's scratch buffers, ending (after 4) where they started.
+Passes ping-pong through the sorter's scratch buffers, ending (after 4, or 2 for 16-bit keys) where
+they started.
 """
 
 from __future__ import annotations
 
+from ...core.errors import InputError
 from . import gl_shaders as sh
 
 CHUNK = 1024  # pairs per invocation in the histogram and scatter dispatches
@@ -130,9 +132,12 @@ class GLSorter:
             buf = self._scratch[name] = self.ctx.buffer(reserve=max(nbytes, 16))
         return buf
 
-    def sort(self, keys, vals, length: int, runs: int) -> None:
+    def sort(self, keys, vals, length: int, runs: int, bits: int = 32) -> None:
         """Sort each of the ``runs`` runs of ``length`` pairs in ``keys`` / ``vals`` (moderngl
-        buffers of uint32, run r at [r length, (r + 1) length)) stably by key."""
+        buffers of uint32, run r at [r length, (r + 1) length)) stably by key.  ``bits`` 16: the
+        keys are below 2**16, and only their two low digits are sorted (half the passes)."""
+        if bits not in (16, 32):
+            raise InputError(f"must be 16 or 32, got {bits!r}", source="bits")  # an even number of passes ends in place
         if length <= 1 or runs <= 0:
             return
         chunks = -(-length // CHUNK)
@@ -146,7 +151,7 @@ class GLSorter:
                 if prog.get(name, None) is not None:  # a uniform a program does not use is not there
                     prog[name].value = value
         groups = -(-chunks // sh.GROUP)
-        for shift in range(0, 32, RADIX_BITS):
+        for shift in range(0, bits, RADIX_BITS):
             pair[0].bind_to_storage_buffer(_KEYS_IN)
             pair[1].bind_to_storage_buffer(_VALS_IN)
             other[0].bind_to_storage_buffer(_KEYS_OUT)
