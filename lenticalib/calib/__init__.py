@@ -33,5 +33,7 @@ Subpackages
     cameras          the capture cameras ``lenticalib capture`` triggers (gphoto2, OpenCV,
                      manual, the simulator's), behind one registry
     crosstalk        per-view crosstalk: sweep patterns, measurement from photos, ``crosstalk.json``
+    fleet            a fleet of panels fitted on a Dask cluster (``lenticalib batch fit``): the task,
+                     the inputs' identity for resuming, the summary and the fleet figure
     intrinsics       the camera's own calibration with mrcal, from photos of a chessboard
 """

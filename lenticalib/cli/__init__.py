@@ -12,6 +12,8 @@ Subcommands (one module each)
     simulate   photograph the test patterns on a virtual panel (a synthetic capture set)
     capture    show each calibration pattern on the panel and photograph it
     fit        fit a panel profile from photos of the test patterns
+    batch      a fleet of panels: ``batch fit`` fits every capture folder on a Dask cluster, with
+               one summary
     camera     calibrate the camera's lens with mrcal: chessboard patterns, calibrate, simulate
     crosstalk  verify per-view crosstalk: patterns, measure, check against limits
     show       show an image, a pattern set or a folder of rasters on the panel, pixel-exact
@@ -63,6 +65,8 @@ _COMMANDS = {
     "simulate": ("lenticalib.cli.simulate", "photograph patterns on a virtual panel (a synthetic capture set)"),
     "capture": ("lenticalib.cli.capture", "show each calibration pattern on the panel and photograph it"),
     "fit": ("lenticalib.cli.fit", "fit a panel profile from photos of the test patterns"),
+    "batch": ("lenticalib.cli.batch", "a fleet of panels: fit every capture folder on a Dask cluster, with one "
+              "summary"),
     "camera": ("lenticalib.cli.camera", "calibrate the camera's lens (mrcal): chessboard patterns, calibrate, "
                "simulate"),
     "crosstalk": ("lenticalib.cli.crosstalk", "verify per-view crosstalk: patterns from a profile, measure from "
