@@ -121,9 +121,22 @@ def _rows(summary: dict) -> dict:
     return {row["name"]: row for row in summary["panels"]}
 
 
+def _rounded(value):
+    """``value`` with every float to 9 significant digits: a fit in a Dask worker (one BLAS thread)
+    and one in this process differ in the last bits of their sums (1e-12 relative, where the
+    constants' own 1-sigma is 1e-5 relative and more)."""
+    if isinstance(value, float):
+        return float(f"{value:.9g}")
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_rounded(v) for v in value]
+    return value
+
+
 def _stable(document: dict) -> dict:
     """A profile's or report summary's JSON without what differs between two runs of one fit (when,
-    by which command, in how many seconds, the paths written)."""
+    by which command, in how many seconds, the paths written), its numbers :func:`_rounded`."""
     doc = json.loads(json.dumps(document))
     for holder in (doc, doc.get("profile") or {}):
         prov = holder.get("provenance") or {}
@@ -133,7 +146,7 @@ def _stable(document: dict) -> dict:
     for key in ("seconds", "output", "report"):
         doc.pop(key, None)
     (doc.get("quality") or {}).pop("seconds", None)
-    return doc
+    return _rounded(doc)
 
 
 def _check_against_truth(panel_dir: Path, capture: Path) -> None:
