@@ -255,6 +255,14 @@ CASES = {
                                        ["fit", _fit_set(made, tmp), "--camera", tmp / "c.cameramodel",
                                         "--pixel-pitch", 0.18, "-o", tmp / "c.cameramodel"])[1],
     },
+    "batch fit": {
+        "OUT the capture folder": lambda made, tmp: ["batch", "fit", _fit_set(made, tmp), "-o", tmp / "cal"],
+        "OUT in the capture folder": lambda made, tmp: ["batch", "fit", _fit_set(made, tmp), "-o",
+                                                        tmp / "cal" / "captures"],
+        "OUT holding the set as a panel folder": lambda made, tmp: (
+            (tmp / "fleet").mkdir(), shutil.copytree(FIXTURE, tmp / "fleet" / "cal"),
+            ["batch", "fit", tmp / "fleet" / "cal", "-o", tmp / "fleet"])[2],
+    },
     "camera patterns": {
         "profile": lambda made, tmp: (_copy(made, tmp, "p.json"),
                                       ["camera", "patterns", "--profile", tmp / "p.json", "--pixel-pitch", 0.18,

@@ -76,10 +76,11 @@ def plan_panels(captures: list[str | os.PathLike], out: str | os.PathLike) -> li
             what = "is not a folder" if os.path.exists(folder) else "does not exist"
             raise InputError(what, source=str(given), hint="give the capture folder of a panel (patterns.json, "
                                                            "captures/)")
-        if out_abs == folder or out_abs.startswith(folder.rstrip(os.sep) + os.sep):
-            raise InputError(f"is inside the capture folder {given}", source=str(out),
-                             hint="give the results a folder outside the capture folders")
     check_output_folder(out, "batch output folder", inputs=folders)
+    for given, folder in zip(captures, folders):  # one not made yet, inside a capture folder
+        if out_abs.startswith(folder.rstrip(os.sep) + os.sep):
+            raise InputError(f"is inside {given}, one of this command's inputs", source=str(out),
+                             hint="give the results a folder outside the capture folders")
     names: dict[str, str] = {}
     for given, folder in zip(captures, folders):
         name = Path(folder).name
