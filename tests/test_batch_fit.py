@@ -289,6 +289,10 @@ def test_inputs_and_outputs_are_refused_in_one_line_before_any_cluster_starts(tm
     (foreign / "notes.txt").write_text("mine")
     assert "notes.txt" in refused("batch", "fit", panel, "-o", tmp_path / "out", source=foreign)
     assert "--views" in refused("batch", "fit", panel, "-o", tmp_path / "out2", "--views", 1, source="--views")
+    assert "--workers" in refused("batch", "fit", panel, "-o", tmp_path / "out2", "--workers", 0, source="--workers")
+    line = refused("batch", "fit", panel, "-o", tmp_path / "out2", "--scheduler", "udp://10.0.0.1:8786",
+                   source="--scheduler")
+    assert "cannot reach the Dask scheduler" in line and "'dask scheduler'" in line
     assert (foreign / "notes.txt").read_text() == "mine" and not (tmp_path / "out2").exists()
     assert not (panel / "results").exists()
 
