@@ -94,7 +94,7 @@ def main() -> None:
         print(f"\na shift of {SHIFT_PANELS} panels at these sets' cost:")
         for n in counts:
             print(f"  {n} worker(s): {SHIFT_PANELS / per_hour[n]:.2f} h")
-        fit_s = statistics.median(f for n in counts for _, f in results[n][:1])
+        fit_s = statistics.median(f for _, f in results[counts[0]])  # one fit's time with the machine to itself
         needed = math.ceil(SHIFT_PANELS * args.fit_seconds / (SHIFT_HOURS * 3600))
         print(f"at {args.fit_seconds:.0f} s a panel (a 12 MP set; here {fit_s:.1f} s): {SHIFT_PANELS} panels need "
               f"{SHIFT_PANELS * args.fit_seconds / 3600:.1f} worker-hours, {needed} worker(s) for {SHIFT_HOURS:g} h")
