@@ -123,8 +123,10 @@ def fit_panel(capture_dir: str, panel_dir: str, options: FitOptions, command: st
     except LenticalibError as exc:  # this worker cannot read the folder: nothing written, tried again next run
         return failed_row(name, capture_dir, str(exc), worker=worker_name())
     record = read_record(panel)
-    if is_done(record, identity):
-        return {**record["row"], "fitted": False, "worker": worker_name()}
+    if is_done(record, identity):  # the earlier fit's row (its worker, its seconds), at this folder's paths
+        row = record["row"]
+        return {**row, "fitted": False, "capture_set": capture_dir, "report": str(panel / REPORT_NAME),
+                "profile": str(panel / PROFILE_NAME) if row.get("profile") else None}
     base = {"identity": identity, "worker": worker_name()}
     inputs = (capture_dir,)
     try:
