@@ -333,3 +333,38 @@ def test_the_identity_follows_the_photos_content_and_the_options_not_the_files_t
     assert input_identity(folder, FitOptions()) != first
     photo.rename(folder / "captures" / "x0-2.jpg")
     assert input_identity(folder, FitOptions()) not in (first, input_identity(folder, FitOptions(views=6)))
+
+
+def test_the_fleet_summary_names_the_panels_outside_the_limits_and_the_figure_draws_them(tmp_path):
+    from lenticalib.calib.fit import MAX_PREDICTED_ERROR
+    from lenticalib.calib.fleet.figure import write_fleet_figure
+    from lenticalib.calib.fleet.summary import CSV_NAME, fleet_summary, write_summary
+
+    def row(name, period, status="ok", worst=0.02, fitted=True, slant=0.2):
+        return {"name": name, "status": status, "error": None, "fitted": fitted, "period": period,
+                "period_sigma": 0.001, "slant": slant, "slant_sigma": 1e-5, "offset": 3.0, "offset_sigma": 0.02,
+                "block_residual_rms_views": 0.01, "predicted_error_worst_views": worst,
+                "predicted_error_centre_views": 0.01}
+
+    rows = [row("SN1", 10.0), row("SN2", 10.001), row("SN3", 9.999, fitted=False), row("SN4", 10.0005),
+            row("SN5", 10.5, slant=0.20002), row("SN6", 10.002, status="untrusted", worst=MAX_PREDICTED_ERROR + 0.05),
+            {"name": "SN7", "status": "failed", "error": "no photos", "fitted": False}]
+    summary = fleet_summary(rows, {"views": None, "force": False})
+    assert summary["counts"] == {"ok": 5, "untrusted": 1, "failed": 1, "fitted": 5, "reused": 1}
+    period = summary["quantities"]["period"]
+    assert period["median"] == pytest.approx(10.00075) and period["low"] < 9.999 and 10.002 < period["high"] < 10.5
+    assert period["outliers"] == ["SN5"]  # the spread is the panels' own sigma: the others are noise
+    assert summary["quantities"]["slant"]["outliers"] == []  # SN5 is 2 of its own sigmas off: noise
+    assert summary["quantities"]["predicted_error_worst_views"]["high"] == MAX_PREDICTED_ERROR
+    assert [(o["name"], o["quantity"]) for o in summary["outliers"]] == [("SN5", "period"),
+                                                                          ("SN6", "predicted_error_worst_views")]
+    assert fleet_summary(rows[:2], {})["quantities"]["period"]["low"] is None  # two panels set no fleet limit
+    write_summary(tmp_path, summary)
+    assert (tmp_path / CSV_NAME).read_text().splitlines()[7].startswith("SN7,failed,no photos,False,,")
+    record = read_figure_record(write_fleet_figure(tmp_path, summary))
+    axes = {a["title"]: a for a in record["axes"]}
+    assert "SN5" in axes["period"]["texts"] and "SN5" not in axes["slant"]["texts"]
+    assert "SN6" in axes["predicted error at the worst corner (1-sigma)"]["texts"]
+    assert "quality gate" in axes["predicted error at the worst corner (1-sigma)"]["legend"]
+    assert "failed panel (no fit)" in axes["period"]["legend"]
+    assert record["title"] == "Fleet of 7 panels: each constant across the panels (5 ok, 1 untrusted, 1 failed)"
