@@ -252,6 +252,9 @@ def test_a_local_run_gives_what_fit_gives_and_ctrl_c_keeps_the_finished_panels(f
     rows = _rows(_summary(out))
     assert not rows[fleet.panels[0].name]["fitted"]  # kept from the interrupted run
     assert [rows[p.name]["status"] for p in fleet.panels[:2]] == ["ok", "ok"]
+    code, stdout, stderr = _finish(_batch(*fleet.panels[:2], "-o", out, "--workers", 1, "--json"))
+    assert code == 0, stderr  # every panel ok (both kept, nothing fitted)
+    assert json.loads(stdout) == _summary(out) and _summary(out)["counts"]["reused"] == 2
 
     for capture in captures:  # lenticalib fit, one by one, gives the same profiles, reports and failure
         mine = tmp_path / "fit" / capture.name
