@@ -6,6 +6,8 @@ imports numpy and OpenCV itself.
 Stage packages, top to bottom (a layered import contract in ``pyproject.toml`` keeps the order:
 a package imports only the ones below it; packages on one line never import each other)
 
+    fleet        a fleet of panels fitted on a Dask cluster (``lenticalib batch fit``): the task,
+                 the inputs' identity for resuming, the summary and the fleet figure
     capture      guided capture: show each pattern on the panel, photograph it (capture cameras by
                  name), pattern folders written whole
     routing      the routing fit: photo groups, the global model, subpixel order and layout,

@@ -104,6 +104,8 @@ FORMATS: dict[str, DocumentFormat] = _formats(
     DocumentFormat("lenticalib.camera-calibration", 1, "camera calibration summary",
                    "calibrate the camera again with 'lenticalib camera calibrate'"),
     DocumentFormat("lenticalib.fit-report", 1, "fit summary", "fit the capture set again with 'lenticalib fit'"),
+    DocumentFormat("lenticalib.fleet-panel", 1, "panel record", "fit the panel again with 'lenticalib batch fit'"),
+    DocumentFormat("lenticalib.fleet-summary", 1, "fleet summary", "run 'lenticalib batch fit' again"),
     DocumentFormat("lenticalib.driver", 1, "controller description", "see drivers/lc32.toml for the format"),
     DocumentFormat("lenticalib.emulator-announcement", 1, "emulator announcement",
                    "start the emulator again with 'lenticalib emulate'", implicit=True),  # older ones had none
