@@ -247,7 +247,7 @@ def test_a_control_file_past_the_track_cap_is_refused_as_it_is_read(tmp_path, mo
     """Rows are stored as float32 as they are read and counted against MAX_TRACK_BYTES (256 MiB,
     made small here), in every format; the line that passes it is named."""
     from lenticalib.core.errors import InputError
-    from lenticalib.render.controls import sources as controls
+    from lenticalib.render.controls import files as controls
 
     monkeypatch.setattr(controls, "MAX_TRACK_BYTES", 64 * 1024)
     most = 64 * 1024 // (8 + 4 * D + 4)  # 224 samples of the 70 default controls
