@@ -12,7 +12,8 @@ binning kernels), ``gsplat_backend`` (the ``gsplat`` renderer), ``gl_renderer`` 
 renderer; :class:`~.gl_renderer.GLSplatRenderer` draws into a caller's context) with
 ``gl_shaders`` (its GLSL), ``gl_sort`` (its GPU sort) and ``gl_upload`` (what it computes on the
 host), ``gl_compute`` (the ``gl-compute`` renderer; :func:`~.gl_compute.gl_renderer_for` picks
-it, or the triangles, for a context) with ``gl_compute_shaders`` (its GLSL), and ``common`` (the
+it, or the triangles, for a context) with ``gl_compute_shaders`` (its GLSL), ``gl_resources`` (what
+the two OpenGL renderers share: their base class, the driver's limits, the registry's cache), and ``common`` (the
 checks every renderer makes at its boundary and the conventions they share).  Part of the render layer: imports only core and render.
 
 Every renderer has the signature of :func:`render` without ``renderer`` and returns

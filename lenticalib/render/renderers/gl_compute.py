@@ -47,23 +47,18 @@ Frames and layout as the ``gl`` renderer (:mod:`.gl_renderer`): OpenCV cameras, 
 
 from __future__ import annotations
 
-import collections
 import logging
-import numbers
-import threading
-import time
 
 import numpy as np
 
 from ...core.errors import DisplayError, InputError
 from ..avatar.gaussians import Gaussians
-from ..gpu.gl_context import headless_context, headless_unavailable
 from . import gl_compute_shaders as cs
 from . import gl_shaders as sh
-from .common import TILE_SIZE, check_finite_gaussians, check_render_inputs, check_view_memory
+from .common import TILE_SIZE
 from .cpu_project import RECORD_FIELDS
 from .gl_renderer import GLSplatRenderer
-from .gl_sort import GLSorter
+from .gl_resources import GLViewsRenderer, RendererCache, byte_size, gl_version
 from .gl_upload import camera_table, pack_gaussians
 
 __all__ = ["GLComputeRenderer", "compute_missing", "gl_renderer_for", "render_gl_compute"]
@@ -77,28 +72,11 @@ def compute_missing(ctx) -> str | None:
     """What the compute renderer needs and ``ctx``'s driver lacks (one phrase), or None: OpenGL 4.3
     compute shaders."""
     if ctx.version_code < 430:
-        return f"OpenGL {ctx.version_code // 100}.{ctx.version_code // 10 % 10} has no compute shaders (4.3 needed)"
+        return f"OpenGL {gl_version(ctx)} has no compute shaders (4.3 needed)"
     return None
 
 
-def _check_textures(ctx, n_views: int, width: int, height: int) -> None:
-    """One DisplayError when the views exceed the driver's texture size or array layers."""
-    largest = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 0) or 0)
-    layers = int(ctx.info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0)
-    hint = "render smaller views with `view_size`, for a panel with fewer views, or use the cpu renderer"
-    if largest and max(width, height) > largest:
-        raise DisplayError(f"the OpenGL driver takes textures up to {largest} pixels, the views are "
-                           f"{width}x{height}", hint=hint)
-    if layers and n_views > layers:
-        raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
-                           f"{n_views} views were asked for", hint=hint)
-
-
-def _bytes(size: int) -> str:
-    return f"{size >> 20} MiB" if size >= 1 << 20 else f"{size} bytes"
-
-
-class GLComputeRenderer:
+class GLComputeRenderer(GLViewsRenderer):
     """N views of Gaussians composited by compute shaders into a texture array of the caller's
     moderngl context (OpenGL 4.3; see the module docstring).
 
@@ -125,35 +103,24 @@ class GLComputeRenderer:
     fallback_reason = None
 
     def __init__(self, ctx, n_views: int, width: int, height: int, *, precision: str = "fp32"):
-        for name, value in (("n_views", n_views), ("width", width), ("height", height)):
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value <= 0:
-                raise InputError(f"must be a positive integer, got {value!r}", source=name)
+        super().__init__(ctx, n_views, width, height)
         if precision not in ("fp32", "fp16"):
             raise InputError(f"must be 'fp32' or 'fp16', got {precision!r}", source="precision")
         missing = compute_missing(ctx)
         if missing:
             raise DisplayError(f"the gl-compute renderer cannot run here: {missing}",
                                hint="use the gl renderer, which draws triangles")
-        self.ctx = ctx
-        self.n_views, self.width, self.height = int(n_views), int(width), int(height)
         self.precision = precision
         self.tiles = (-(-self.width // TILE_SIZE), -(-self.height // TILE_SIZE))
         if self.tiles[0] > _MAX_GROUPS or self.tiles[1] > _MAX_GROUPS or self.n_views > _MAX_GROUPS:
             raise DisplayError(f"{self.n_views} views of {self.width}x{self.height} exceed OpenGL's work-group "
                                "counts", hint="render smaller views with `view_size`")
-        check_view_memory(self.n_views, self.width, self.height)
-        _check_textures(ctx, self.n_views, self.width, self.height)
-        self.profile = False
-        self.stage_ms: dict[str, float] = {}
+        self._check_views()
         self.intersections = 0
-        self._objects: list = []
-        self._buffers: dict = {}
-        self._sorter = None
-        try:
+        with self._allocating("gl-compute", hint="use the gl renderer, which draws triangles"):
             self.views = self._keep(ctx.texture_array((self.width, self.height, self.n_views), 4, dtype="f4"))
             self.views.filter = (ctx.NEAREST, ctx.NEAREST)
-            self._project = self._keep(ctx.compute_shader(sh.PROJECT))
-            self._project["size"].value = (float(self.width), float(self.height))
+            self._make_projection()  # PROJECT's draw-command counts (CMDS) are unused here
             self._count = self._keep(ctx.compute_shader(cs.INTERSECT_COUNT))
             self._scan = self._keep(ctx.compute_shader(cs.SCAN))
             self._emit = self._keep(ctx.compute_shader(cs.INTERSECT_EMIT))
@@ -162,63 +129,19 @@ class GLComputeRenderer:
             self._composite["size"].value = (self.width, self.height)
             for prog in (self._count, self._emit):
                 prog["tiles"].value = self.tiles
-            self._sorter = GLSorter(ctx)
-            self._cams = self._keep(ctx.buffer(reserve=self.n_views * 6 * 16))
-            self._cmds = self._keep(ctx.buffer(reserve=self.n_views * 20))  # PROJECT's counts, unused here
-        except Exception as exc:
-            self.release()
-            if type(exc).__name__ != "Error":  # moderngl.Error: a shader the driver refused
-                raise
-            lines = [line.strip() for line in str(exc).splitlines() if line.strip() and not line.startswith("=")]
-            errors = [line for line in lines if "error" in line.lower()] or lines[-1:] or [repr(exc)]
-            raise DisplayError(f"the OpenGL driver refused the gl-compute renderer's shaders: {errors[0]}",
-                               hint="use the gl renderer, which draws triangles") from None
-
-    def _keep(self, obj):
-        self._objects.append(obj)
-        return obj
-
-    def _buffer(self, name: str, nbytes: int):
-        """The buffer ``name`` of at least ``nbytes`` (reallocated, larger, when it is smaller)."""
-        buf = self._buffers.get(name)
-        if buf is None or buf.size < nbytes:
-            if buf is not None:
-                buf.release()
-            buf = self._buffers[name] = self.ctx.buffer(reserve=max(nbytes, 16))
-        return buf
-
-    def _storage_limit(self) -> int:
-        return int(self.ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
 
     # -- rendering -----------------------------------------------------------------------------
 
     def render(self, gaussians: Gaussians, viewmats, Ks, background=None) -> None:
         """Render the N views of ``gaussians`` into :attr:`views` (see :func:`.cpu.render_cpu` for
         the arguments; N must be this renderer's ``n_views``)."""
-        viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, self.width, self.height, background)
-        if viewmats.shape[0] != self.n_views:
-            raise InputError(f"{viewmats.shape[0]} views, this renderer draws {self.n_views}", source="viewmats")
-        g = gaussians.to_numpy()
-        check_finite_gaussians(g)
+        g, viewmats, Ks, background, stage = self._begin(gaussians, viewmats, Ks, background,
+                                                         ("project", "sort", "intersect", "tile_sort", "composite"))
         ctx = self.ctx
-        self.stage_ms = {name: 0.0 for name in ("project", "sort", "intersect", "tile_sort", "composite")}
         self.intersections = 0
-        clock = [time.perf_counter()]
-
-        def stage(name: str) -> None:
-            if self.profile:
-                ctx.finish()
-                now = time.perf_counter()
-                self.stage_ms[name] += 1e3 * (now - clock[0])
-                clock[0] = now
-
         count = g.count
         data = pack_gaussians(g) if count else np.zeros((1, 13), np.float32)
-        limit = self._storage_limit()
-        if limit and count and (data.nbytes > limit or count * RECORD_FIELDS * 4 > limit):
-            raise DisplayError(f"{count} Gaussians exceed the OpenGL driver's shader storage block size "
-                               f"({_bytes(limit)})",
-                               hint="render fewer Gaussians or use the cpu renderer")
+        batch = self._batch(count, data.shape[1])
         self._buffer("gauss", data.nbytes).write(data)
         self._cams.write(camera_table(viewmats, Ks, self.width, self.height))
         self._cmds.clear()  # PROJECT counts into it (the triangles' draw commands): kept from wrapping
@@ -226,8 +149,6 @@ class GLComputeRenderer:
                                                                           else (0.0, 0.0, 0.0)))
         self.views.bind_to_image(0, read=False, write=True)
         stage("project")
-        per_view = count * RECORD_FIELDS * 4
-        batch = self.n_views if not (limit and count) else max(1, min(self.n_views, limit // per_view))
         first = 0
         while first < self.n_views:
             views = min(batch, self.n_views - first)
@@ -252,16 +173,7 @@ class GLComputeRenderer:
             splats = self._buffer("splats", entries * RECORD_FIELDS * 4)
             keys = self._buffer("keys", entries * 4)
             vals = self._buffer("vals", entries * 4)
-            for binding, buf in ((sh.GAUSS, self._buffers["gauss"]), (sh.CAMS, self._cams), (sh.SPLATS, splats),
-                                 (sh.KEYS, keys), (sh.VALS, vals), (sh.CMDS, self._cmds)):
-                buf.bind_to_storage_buffer(binding)
-            project = self._project
-            project["count"].value = count
-            project["stride"].value = stride
-            project["degree"].value = g.sh_degree
-            project["first_view"].value = first
-            project.run(-(-count // sh.GROUP), views)
-            ctx.memory_barrier()
+            self._run_projection(g, stride, first, views, (self._buffers["gauss"], splats, keys, vals))
             stage("project")
             self._sorter.sort(keys, vals, count, views)
             stage("sort")
@@ -285,7 +197,8 @@ class GLComputeRenderer:
                 if views > 1:
                     return False
                 raise DisplayError(f"one view's {total} splat-tile pairs exceed the OpenGL driver's shader storage "
-                                   f"block size ({_bytes(limit)})", hint="render smaller views or use the cpu renderer")
+                                   f"block size ({byte_size(limit)})",
+                                   hint="render smaller views or use the cpu renderer")
             tkeys = self._buffer("tkeys", 4 * total)
             tvals = self._buffer("tvals", 4 * total)
             tkeys.bind_to_storage_buffer(cs.TKEYS)
@@ -315,25 +228,6 @@ class GLComputeRenderer:
         stage("composite")
         return True
 
-    def read(self) -> np.ndarray:
-        """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""
-        out = np.empty((self.n_views, self.height, self.width, 4), dtype=np.float32)
-        self.views.read_into(out)
-        return out
-
-    def release(self) -> None:
-        """Free this renderer's GL objects (not the context)."""
-        for buf in self._buffers.values():
-            buf.release()
-        self._buffers = {}
-        if self._sorter is not None:
-            self._sorter.release()
-            self._sorter = None
-        for obj in reversed(self._objects):
-            obj.release()
-        self._objects = []
-
-
 # Drivers that rasterise on the CPU: there the triangles are faster (measured on llvmpipe, 2 cores,
 # demo avatar 20k Gaussians, 8 views of 320x180: triangles draw 458-473 ms, tiles composite
 # 1485-1612 ms: a tile evaluates all 256 of its pixels for every splat in it, 6.7 times the
@@ -362,10 +256,16 @@ def gl_renderer_for(ctx, n_views: int, width: int, height: int, prefer: str | No
     return GLSplatRenderer(ctx, n_views, width, height), "gl triangles", reason
 
 
-_CACHE: collections.OrderedDict = collections.OrderedDict()
-_CACHE_LOCK = threading.Lock()
-_CACHE_SIZE = 2
-_SHARED: list = []  # the one offscreen context of this renderer in the process
+def _make(ctx, n_views: int, width: int, height: int):
+    """A renderer for the registry's cache (:func:`gl_renderer_for`, compute preferred); the reason
+    it draws triangles, where it does, logged as a warning."""
+    renderer, _, reason = gl_renderer_for(ctx, n_views, width, height, prefer="compute")
+    if reason:
+        _log.warning(reason)
+    return renderer
+
+
+_RENDERERS = RendererCache(_make, _HINT)  # in the one offscreen context of this renderer in the process
 
 
 def render_gl_compute(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, background=None) -> np.ndarray:
@@ -373,27 +273,7 @@ def render_gl_compute(gaussians: Gaussians, viewmats, Ks, width: int, height: in
     :class:`GLComputeRenderer` per (N, width, height), kept in a small cache, in one headless
     context of the process.  Where that context lacks compute shaders the ``gl`` renderer's
     triangles run, and say so in a warning (once per renderer made)."""
-    viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
-    key = (viewmats.shape[0], int(width), int(height))
-    with _CACHE_LOCK:
-        if not _SHARED:
-            _SHARED.append(headless_context(require=330, hint=_HINT))
-        with _SHARED[0]:
-            renderer = _CACHE.pop(key, None)
-            if renderer is None:
-                renderer, _, reason = gl_renderer_for(_SHARED[0], *key, prefer="compute")
-                if reason:
-                    _log.warning(reason)
-            _CACHE[key] = renderer
-            while len(_CACHE) > _CACHE_SIZE:
-                _CACHE.popitem(last=False)[1].release()
-            renderer.render(gaussians, viewmats, Ks, background)
-            return renderer.read()
+    return _RENDERERS.render(gaussians, viewmats, Ks, width, height, background)
 
 
-def _unavailable(device=None) -> str | None:
-    """Why the renderer cannot run here (no OpenGL 3.3 context at all), or None (one probe per process)."""
-    return headless_unavailable(_HINT)
-
-
-render_gl_compute.unavailable = _unavailable
+render_gl_compute.unavailable = _RENDERERS.unavailable  # why not here (no OpenGL 3.3 context at all), or None

@@ -67,21 +67,15 @@ with pixel centres at integer coordinates (+ 0.5 to cx, cy as :mod:`.cpu` does).
 
 from __future__ import annotations
 
-import collections
 import logging
-import numbers
-import threading
-import time
 
 import numpy as np
 
 from ...core.errors import DisplayError, InputError
 from ..avatar.gaussians import Gaussians
-from ..gpu.gl_context import headless_context, headless_unavailable
 from . import gl_shaders as sh
-from .common import check_finite_gaussians, check_render_inputs, check_view_memory
 from .cpu_project import RECORD_FIELDS
-from .gl_sort import GLSorter
+from .gl_resources import VIEW_SIZE_HINT, GLViewsRenderer, RendererCache, gl_version
 from .gl_upload import camera_table, host_records, pack_gaussians, record_table
 
 __all__ = ["GLSplatRenderer", "render_gl"]
@@ -90,12 +84,6 @@ _log = logging.getLogger(__name__)
 
 _HINT = "or use the cpu renderer"
 _VERTEX_STORAGE_BLOCKS = 2  # the GPU-sort path's vertex shader reads SPLATS and VALS (gl_shaders)
-
-
-def _driver_limits(ctx) -> tuple[int, int]:
-    """(GL_MAX_TEXTURE_SIZE, GL_MAX_ARRAY_TEXTURE_LAYERS) of ``ctx``'s driver, 0 where unknown."""
-    info = ctx.info
-    return (int(info.get("GL_MAX_TEXTURE_SIZE", 0) or 0), int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 0) or 0))
 
 
 def _framebuffer_limits(ctx) -> dict[str, int]:
@@ -108,29 +96,16 @@ def _framebuffer_limits(ctx) -> dict[str, int]:
     return limits
 
 
-def _check_driver_limits(ctx, n_views: int, width: int, height: int) -> None:
-    """One DisplayError naming the first of the driver's limits that N views of ``width`` x
-    ``height`` exceed (:func:`_driver_limits`, :func:`_framebuffer_limits`), before anything is allocated."""
-    hint = "render smaller views with `view_size`, for a panel with fewer views, or use the cpu renderer"
-    largest, layers = _driver_limits(ctx)
-    if largest and max(width, height) > largest:
-        raise DisplayError(f"the OpenGL driver takes textures up to {largest} pixels, the views are "
-                           f"{width}x{height}", hint=hint)
-    if layers and n_views > layers:
-        raise DisplayError(f"the OpenGL driver takes texture arrays of up to {layers} layers, "
-                           f"{n_views} views were asked for", hint=hint)
+def _check_framebuffer_limits(ctx, n_views: int, width: int, height: int) -> None:
+    """One DisplayError naming the first of the driver's framebuffer limits (:func:`_framebuffer_limits`)
+    that N views of ``width`` x ``height`` exceed, before anything is allocated."""
     limits = _framebuffer_limits(ctx)
     asked = {"GL_MAX_FRAMEBUFFER_WIDTH": width, "GL_MAX_FRAMEBUFFER_HEIGHT": height,
              "GL_MAX_FRAMEBUFFER_LAYERS": n_views, "GL_MAX_VIEWPORT_DIMS": max(width, height)}
     for name, value in asked.items():
         if limits[name] and value > limits[name]:
             raise DisplayError(f"the OpenGL driver's {name} is {limits[name]}, {n_views} views of {width}x{height} "
-                               "were asked for", hint=hint)
-
-
-def _storage_limit(ctx) -> int:
-    """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of ``ctx``'s driver, bytes (0 where unknown)."""
-    return int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 0) or 0)
+                               "were asked for", hint=VIEW_SIZE_HINT)
 
 
 def _vertex_layer(ctx) -> bool:
@@ -142,18 +117,14 @@ def _gpu_sort_missing(ctx) -> str | None:
     """What the GPU-sort path needs and ``ctx``'s driver lacks (one phrase), or None: OpenGL 4.3
     compute shaders, and storage buffers in the vertex shader (4.3 allows a driver none)."""
     if ctx.version_code < 430:
-        return f"OpenGL {_gl_version(ctx)} has no compute shaders (4.3 needed)"
+        return f"OpenGL {gl_version(ctx)} has no compute shaders (4.3 needed)"
     blocks = int(ctx.info.get("GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS", 0) or 0)
     if blocks < _VERTEX_STORAGE_BLOCKS:
         return f"the driver allows {blocks} storage buffers in a vertex shader ({_VERTEX_STORAGE_BLOCKS} needed)"
     return None
 
 
-def _gl_version(ctx) -> str:
-    return f"{ctx.version_code // 100}.{ctx.version_code // 10 % 10}"
-
-
-class GLSplatRenderer:
+class GLSplatRenderer(GLViewsRenderer):
     """N views of Gaussians splatted into a texture array of the caller's moderngl context.
 
     ARGUMENTS
@@ -185,13 +156,9 @@ class GLSplatRenderer:
     """
 
     def __init__(self, ctx, n_views: int, width: int, height: int, *, sort: str | None = None):
-        for name, value in (("n_views", n_views), ("width", width), ("height", height)):
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value <= 0:
-                raise InputError(f"must be a positive integer, got {value!r}", source=name)
+        super().__init__(ctx, n_views, width, height)
         if sort not in (None, "gpu", "cpu"):
             raise InputError(f"must be 'gpu', 'cpu' or None, got {sort!r}", source="sort")
-        self.ctx = ctx
-        self.n_views, self.width, self.height = int(n_views), int(width), int(height)
         missing = _gpu_sort_missing(ctx)
         if sort == "gpu" and missing:
             raise DisplayError(f"the gpu sort cannot run here: {missing}", hint="use sort='cpu', which sorts on the host")
@@ -199,12 +166,10 @@ class GLSplatRenderer:
         self.fallback_reason = None
         if sort is None and missing:
             self.fallback_reason = f"the gl renderer projects and sorts on the CPU: {missing}"
-        check_view_memory(self.n_views, self.width, self.height)
-        _check_driver_limits(ctx, self.n_views, self.width, self.height)
-        self.profile = False
-        self.stage_ms: dict[str, float] = {}
-        self._objects: list = []
-        try:
+        self._check_views()
+        _check_framebuffer_limits(ctx, self.n_views, self.width, self.height)
+        self._vao = None
+        with self._allocating("gl", hint="use the cpu renderer"):
             self.views = self._keep(ctx.texture_array((self.width, self.height, self.n_views), 4, dtype="f4"))
             self.views.filter = (ctx.NEAREST, ctx.NEAREST)
             self._fbo = self._keep(ctx.framebuffer(color_attachments=[self.views]))
@@ -221,63 +186,24 @@ class GLSplatRenderer:
                 fragment_shader=sh.SPLAT_FRAGMENT))
             self._splat["size"].value = (float(self.width), float(self.height))
             if self.sort_kind == "gpu":
-                self._project = self._keep(ctx.compute_shader(sh.PROJECT))
-                self._project["size"].value = (float(self.width), float(self.height))
-                self._sorter = GLSorter(ctx)
-                self._cams = self._keep(ctx.buffer(reserve=self.n_views * 6 * 16))
-                self._cmds = self._keep(ctx.buffer(reserve=self.n_views * 20))
-            self._buffers: dict = {}
-            self._vao = None
-        except Exception as exc:
-            self.release()
-            if type(exc).__name__ != "Error":  # moderngl.Error: a shader or object the driver refused
-                raise
-            lines = [line.strip() for line in str(exc).splitlines() if line.strip() and not line.startswith("=")]
-            errors = [line for line in lines if "error" in line.lower()] or lines[-1:] or [repr(exc)]
-            raise DisplayError(f"the OpenGL driver refused the gl renderer's shaders: {errors[0]}",
-                               hint="use the cpu renderer") from None
-
-    def _keep(self, obj):
-        self._objects.append(obj)
-        return obj
+                self._make_projection()
 
     # -- buffers -------------------------------------------------------------------------------
 
-    def _buffer(self, name: str, nbytes: int):
-        """The buffer ``name`` of at least ``nbytes`` (reallocated, larger, when it is smaller)."""
-        buf = self._buffers.get(name)
-        if buf is None or buf.size < nbytes:
-            if buf is not None:
-                buf.release()
-            buf = self.ctx.buffer(reserve=max(nbytes, 16))
-            self._buffers[name] = buf
-            if self._vao is not None:
-                self._vao.release()
-                self._vao = None
-        return buf
+    def _buffer_grown(self) -> None:
+        """The vertex array is made again after a buffer was reallocated."""
+        if self._vao is not None:
+            self._vao.release()
+            self._vao = None
 
     # -- rendering -----------------------------------------------------------------------------
 
     def render(self, gaussians: Gaussians, viewmats, Ks, background=None) -> None:
         """Render the N views of ``gaussians`` into :attr:`views` (see :func:`.cpu.render_cpu` for
         the arguments; N must be this renderer's ``n_views``)."""
-        viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, self.width, self.height, background)
-        if viewmats.shape[0] != self.n_views:
-            raise InputError(f"{viewmats.shape[0]} views, this renderer draws {self.n_views}", source="viewmats")
-        g = gaussians.to_numpy()
-        check_finite_gaussians(g)
+        g, viewmats, Ks, background, stage = self._begin(gaussians, viewmats, Ks, background,
+                                                         ("project", "sort", "draw"))
         ctx = self.ctx
-        self.stage_ms = {"project": 0.0, "sort": 0.0, "draw": 0.0}
-        clock = [time.perf_counter()]
-
-        def stage(name: str) -> None:
-            """With ``profile``: the time since the last stage ended, added to ``name``'s."""
-            if self.profile:
-                ctx.finish()
-                now = time.perf_counter()
-                self.stage_ms[name] += 1e3 * (now - clock[0])
-                clock[0] = now
-
         self._fbo.use()
         self._fbo.clear(0.0, 0.0, 0.0, 0.0)
         ctx.disable(ctx.DEPTH_TEST | ctx.CULL_FACE)
@@ -296,17 +222,6 @@ class GLSplatRenderer:
             ctx.disable(ctx.BLEND)
             ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
 
-    def _batch(self, count: int, stride: int) -> int:
-        """Views per batch: as many as keep the per-view buffers within the driver's storage block
-        size.  DisplayError when even the Gaussians, or one view's records, do not fit."""
-        limit = _storage_limit(self.ctx)
-        per_view = count * RECORD_FIELDS * 4
-        if limit and (count * stride * 4 > limit or per_view > limit):
-            size = f"{limit >> 20} MiB" if limit >= 1 << 20 else f"{limit} bytes"
-            raise DisplayError(f"{count} Gaussians exceed the OpenGL driver's shader storage block size ({size})",
-                               hint="render fewer Gaussians or use the cpu renderer")
-        return self.n_views if not limit else max(1, min(self.n_views, limit // per_view))
-
     def _render_gpu(self, g: Gaussians, viewmats, Ks, stage) -> None:
         ctx, n, count = self.ctx, self.n_views, g.count
         data = pack_gaussians(g)
@@ -321,13 +236,7 @@ class GLSplatRenderer:
         cmds[:, 1] = 1
         cmds[:, 2] = 3 * count * (np.arange(n) % batch)
         self._cmds.write(cmds)
-        for binding, buf in ((sh.GAUSS, gauss), (sh.CAMS, self._cams), (sh.SPLATS, splats), (sh.KEYS, keys),
-                             (sh.VALS, vals), (sh.CMDS, self._cmds)):
-            buf.bind_to_storage_buffer(binding)
-        project, draw = self._project, self._splat
-        project["count"].value = count
-        project["stride"].value = data.shape[1]
-        project["degree"].value = g.sh_degree
+        draw = self._splat
         draw["count"].value = count
         if self._vao is None:
             self._vao = ctx.vertex_array(draw, [])
@@ -335,9 +244,7 @@ class GLSplatRenderer:
             views = min(batch, n - first)
             if first:  # the last batch's draw must have read the buffers this batch rewrites
                 ctx.memory_barrier()
-            project["first_view"].value = first
-            project.run(-(-count // sh.GROUP), views)
-            ctx.memory_barrier()
+            self._run_projection(g, data.shape[1], first, views, (gauss, splats, keys, vals))
             stage("project")
             self._sorter.sort(keys, vals, count, views)
             stage("sort")
@@ -348,7 +255,7 @@ class GLSplatRenderer:
 
     def _render_host(self, g: Gaussians, viewmats, Ks, stage) -> None:
         ctx, n = self.ctx, self.n_views
-        largest = _driver_limits(ctx)[0] or 1 << 14
+        largest = self._texture_limits()[0] or 1 << 14
         per_row = min(sh.RECORDS_PER_ROW, largest // 3)
         drawn = host_records(g, viewmats, Ks, self.width, self.height)
         stage("project")
@@ -379,32 +286,23 @@ class GLSplatRenderer:
                 self._vao.render(mode=ctx.TRIANGLES, vertices=3 * int(offsets[view + 1] - offsets[view]),
                                  first=3 * int(offsets[view]))
 
-    def read(self) -> np.ndarray:
-        """(N, height, width, 4) float32: the views of the last :meth:`render`, as render_cpu returns."""
-        out = np.empty((self.n_views, self.height, self.width, 4), dtype=np.float32)
-        self.views.read_into(out)
-        return out
-
     def release(self) -> None:
         """Free this renderer's GL objects (not the context)."""
-        for obj in [self._vao] + list(self._buffers.values()) if hasattr(self, "_buffers") else []:
-            if obj is not None:
-                obj.release()
-        self._buffers = {}
+        if getattr(self, "_vao", None) is not None:
+            self._vao.release()
         self._vao = None
-        sorter = getattr(self, "_sorter", None)
-        if sorter is not None:
-            sorter.release()
-            self._sorter = None
-        for obj in reversed(getattr(self, "_objects", [])):
-            obj.release()
-        self._objects = []
+        super().release()
 
 
-_CACHE: collections.OrderedDict = collections.OrderedDict()
-_CACHE_LOCK = threading.Lock()
-_CACHE_SIZE = 2
-_SHARED: list = []  # the one offscreen context of the registry's renderers
+def _make(ctx, n_views: int, width: int, height: int) -> GLSplatRenderer:
+    """A renderer for the registry's cache; its ``fallback_reason`` logged as a warning."""
+    renderer = GLSplatRenderer(ctx, n_views, width, height)
+    if renderer.fallback_reason:
+        _log.warning(renderer.fallback_reason)
+    return renderer
+
+
+_RENDERERS = RendererCache(_make, _HINT)  # in the one offscreen context of the registry's renderers
 
 
 def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, background=None) -> np.ndarray:
@@ -412,27 +310,7 @@ def render_gl(gaussians: Gaussians, viewmats, Ks, width: int, height: int, *, ba
     :class:`GLSplatRenderer` per (N, width, height), kept in a small cache, in one headless context
     of the process (OpenGL 3.3 or newer; made current for the call).  Where that context lacks
     OpenGL 4.3 the CPU sort is used, and its ``fallback_reason`` logged as a warning."""
-    viewmats, Ks, background = check_render_inputs(gaussians, viewmats, Ks, width, height, background)
-    key = (viewmats.shape[0], int(width), int(height))
-    with _CACHE_LOCK:
-        if not _SHARED:
-            _SHARED.append(headless_context(require=330, hint=_HINT))
-        with _SHARED[0]:
-            renderer = _CACHE.pop(key, None)
-            if renderer is None:
-                renderer = GLSplatRenderer(_SHARED[0], *key)
-                if renderer.fallback_reason:
-                    _log.warning(renderer.fallback_reason)
-            _CACHE[key] = renderer
-            while len(_CACHE) > _CACHE_SIZE:
-                _CACHE.popitem(last=False)[1].release()
-            renderer.render(gaussians, viewmats, Ks, background)
-            return renderer.read()
+    return _RENDERERS.render(gaussians, viewmats, Ks, width, height, background)
 
 
-def _unavailable(device=None) -> str | None:
-    """Why the gl renderer cannot run here (no OpenGL 3.3 context), or None (one probe per process)."""
-    return headless_unavailable(_HINT)
-
-
-render_gl.unavailable = _unavailable
+render_gl.unavailable = _RENDERERS.unavailable  # why not here (no OpenGL 3.3 context), or None
