@@ -13,43 +13,29 @@ import pytest
 from lenticalib.core.errors import DisplayError, InputError
 from lenticalib.core.profile import PanelProfile
 from lenticalib.render.cameras.models import make_cameras
-from lenticalib.render.gpu.gl_context import headless_context
-from lenticalib.render.renderers import get_renderer, render
+from lenticalib.render.renderers import get_renderer
 from lenticalib.render.renderers.cpu import render_cpu
 from lenticalib.render.renderers.gl_compute import GLComputeRenderer, gl_renderer_for, render_gl_compute
 from lenticalib.render.renderers.gl_renderer import GLSplatRenderer
 from lenticalib.render.renderers.gl_sort import GLSorter
 
-from .test_gl_renderer import _NoVertexStorage, _OpenGL41
-from .test_renderer_cpu import CAMERAS, H, SCENES, W, _gaussians, _psnr, _random_quats, _single, random_scene
-
-MIN_PSNR = 60.0
+from .gl_render_support import (NoVertexStorage, OpenGL41, assert_close, assert_refuses_other_view_counts,
+                                gl_test_context, render_with, run_under_opengl_41, scene_against_cpu)
+from .test_renderer_cpu import CAMERAS, H, SCENES, W, _gaussians, _random_quats, _single, random_scene
 
 
 @pytest.fixture(scope="module")
 def ctx():
-    context = headless_context(require=430)
-    yield context
-    context.release()
+    yield from gl_test_context()
 
 
 def _render(ctx, gaussians, viewmats, ks, width, height, background=None, precision="fp32", stats=None):
-    with ctx:
-        renderer = GLComputeRenderer(ctx, len(viewmats), width, height, precision=precision)
-        try:
-            renderer.render(gaussians, viewmats, ks, background)
-            if stats is not None:
-                stats["intersections"] = renderer.intersections
-            return renderer.read()
-        finally:
-            renderer.release()
+    def keep_stats(renderer):
+        if stats is not None:
+            stats["intersections"] = renderer.intersections
 
-
-def _assert_close(got, expected, min_psnr=MIN_PSNR):
-    assert got.shape == expected.shape and got.dtype == np.float32
-    for view in range(len(got)):
-        assert _psnr(got[view, ..., :3], expected[view, ..., :3]) >= min_psnr, f"view {view} RGB"
-        assert _psnr(got[view, ..., 3], expected[view, ..., 3]) >= min_psnr, f"view {view} alpha"
+    return render_with(ctx, lambda: GLComputeRenderer(ctx, len(viewmats), width, height, precision=precision),
+                       gaussians, viewmats, ks, background, after=keep_stats)
 
 
 def crowd_scene(n=1500, opacity=(0.05, 0.3), seed=8):
@@ -66,13 +52,7 @@ def test_gl_compute_is_a_registered_renderer_that_runs_here():
 
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_every_view_agrees_with_the_cpu_renderer(name):
-    gaussians = SCENES[name]()
-    background = (0.1, 0.2, 0.3) if name != "near" else None
-    width, height = (W, H) if name != "layered" else (50, 37)  # partial tiles
-    expected = render_cpu(gaussians, *CAMERAS, width, height, background=background)
-    assert expected[..., 3].max() > 0.5
-    got = render(gaussians, *CAMERAS, width, height, renderer="gl-compute", background=background)
-    _assert_close(got, expected)
+    got, expected = scene_against_cpu(name, "gl-compute")  # "layered": partial tiles
     if name == "layered":  # where pixels stop early the tiles agree with cpu to float rounding
         assert np.abs(got - expected).max() < 1e-4
 
@@ -81,7 +61,7 @@ def test_every_view_agrees_with_the_cpu_renderer(name):
 def test_splats_staged_as_float16_keep_60_db(ctx, name):
     gaussians = SCENES[name]()
     fp16 = _render(ctx, gaussians, *CAMERAS, W, H, precision="fp16")
-    _assert_close(fp16, render_cpu(gaussians, *CAMERAS, W, H))
+    assert_close(fp16, render_cpu(gaussians, *CAMERAS, W, H))
     assert np.abs(fp16 - _render(ctx, gaussians, *CAMERAS, W, H)).max() > 1e-5  # it is another staging
 
 
@@ -93,14 +73,14 @@ def test_many_overlapping_gaussians_fill_tiles_past_one_staging_batch(ctx, opaci
     expected = render_cpu(gaussians, *CAMERAS, W, H, background=(0.2, 0.1, 0.0))
     assert stats["intersections"] > 4 * 4 * 256  # 4 views, several tiles each above 256 splats
     assert (expected[..., 3] > 0.9).mean() > 0.1
-    _assert_close(got, expected)
+    assert_close(got, expected)
 
 
 def test_one_gaussian_lands_where_it_projects(ctx):
     viewmats, ks = CAMERAS
     point = np.array([0.05, -0.08, 0.1])
     out = _render(ctx, _single(point, 0.02), viewmats, ks, W, H)
-    _assert_close(out, render_cpu(_single(point, 0.02), viewmats, ks, W, H))
+    assert_close(out, render_cpu(_single(point, 0.02), viewmats, ks, W, H))
     for view in range(len(viewmats)):
         cam = viewmats[view, :3, :3] @ point + viewmats[view, :3, 3]
         u, v = (ks[view] @ cam)[:2] / cam[2]
@@ -116,7 +96,7 @@ def test_one_and_32_views_of_the_demo_avatar_agree_with_the_cpu_renderer(ctx, n_
     cameras = make_cameras("arc", gaussians, n_views, view_size=size)
     expected = render_cpu(gaussians, cameras.viewmats, cameras.K, *size)
     assert (expected[..., 3] > 0.5).mean() > 0.05
-    _assert_close(_render(ctx, gaussians, cameras.viewmats, cameras.K, *size), expected)
+    assert_close(_render(ctx, gaussians, cameras.viewmats, cameras.K, *size), expected)
 
 
 def test_splats_go_only_to_the_tiles_their_ellipse_reaches_on_each_tile_row(ctx):
@@ -135,7 +115,7 @@ def test_splats_go_only_to_the_tiles_their_ellipse_reaches_on_each_tile_row(ctx)
     stats = {}
     out = _render(ctx, gaussians, cameras.viewmats, cameras.K, 320, 180, stats=stats)
     assert stats["intersections"] < 0.9 * (columns * rows).sum()  # measured: 93445 against 109647
-    _assert_close(out, render_cpu(gaussians, cameras.viewmats, cameras.K, 320, 180))
+    assert_close(out, render_cpu(gaussians, cameras.viewmats, cameras.K, 320, 180))
 
 
 @pytest.mark.parametrize("gaussians", [
@@ -212,7 +192,7 @@ def test_the_sort_of_16_bit_keys_is_stable_in_two_passes(ctx, length, values):
     np.testing.assert_array_equal(got_v, vals[order])
 
 
-class _GPU(_OpenGL41):
+class _GPU(OpenGL41):
     """The test context as a GPU's driver would report it (OpenGL 4.6, not a CPU rasterizer)."""
 
     version_code = 460
@@ -227,10 +207,10 @@ class _GPU(_OpenGL41):
     (lambda c: c, None, "gl triangles", None),  # llvmpipe: the triangles are faster there
     (lambda c: c, "compute", "gl-compute", None),
     (lambda c: c, "triangles", "gl triangles", None),
-    (_OpenGL41, None, "gl triangles", None),
-    (_OpenGL41, "compute", "gl triangles",
+    (OpenGL41, None, "gl triangles", None),
+    (OpenGL41, "compute", "gl triangles",
      "the gl-compute renderer draws triangles (the gl renderer): OpenGL 4.1 has no compute shaders (4.3 needed)"),
-    (_NoVertexStorage, "compute", "gl-compute", None),  # compute needs no vertex storage buffers
+    (NoVertexStorage, "compute", "gl-compute", None),  # compute needs no vertex storage buffers
 ], ids=["gpu", "llvmpipe", "compute asked", "triangles asked", "gl 4.1", "gl 4.1 compute asked", "no vertex ssbo"])
 def test_the_path_is_chosen_by_the_driver_and_said(ctx, wrap, prefer, which, reason):
     with ctx:
@@ -243,16 +223,14 @@ def test_the_path_is_chosen_by_the_driver_and_said(ctx, wrap, prefer, which, rea
 def test_refusals_are_one_line_errors(ctx):
     with ctx:
         renderer = GLComputeRenderer(ctx, 2, W, H)
-        with pytest.raises(InputError, match="4 views, this renderer draws 2") as err:
-            renderer.render(random_scene(0, n=5), *CAMERAS)
-        assert err.value.source == "viewmats"
+        assert_refuses_other_view_counts(renderer)
         renderer.release()
         for kwargs, source in ((dict(precision="fp8"), "precision"), (dict(n_views=0), "n_views")):
             with pytest.raises(InputError) as err:
                 GLComputeRenderer(ctx, **{"n_views": 2, "width": W, "height": H, **kwargs})
             assert err.value.source == source
         with pytest.raises(DisplayError, match=r"cannot run here: OpenGL 4\.1 has no compute shaders") as err:
-            GLComputeRenderer(_OpenGL41(ctx), 2, W, H)
+            GLComputeRenderer(OpenGL41(ctx), 2, W, H)
         assert "\n" not in str(err.value)
         with pytest.raises(InputError) as err:
             gl_renderer_for(ctx, 2, W, H, prefer="tiles")
@@ -290,31 +268,13 @@ def test_the_live_pipeline_renders_with_compute_into_the_views_the_encoder_reads
 
 
 def test_on_a_real_opengl_41_context_the_triangles_run_and_say_so(tmp_path):
-    # Mesa told to offer OpenGL 4.1 (macOS's last): no compute shaders in that process at all
-    import os
-    import subprocess
-    import sys
-
-    script = f"""
-import logging, sys
-import numpy as np
-sys.path.insert(0, {str(os.getcwd())!r})
-from tests.test_renderer_cpu import CAMERAS, H, W, random_scene
+    done = run_under_opengl_41(f"""
 from lenticalib.render.renderers.gl_compute import render_gl_compute
-logging.basicConfig(level=logging.WARNING, format="%(message)s")
 np.save({str(tmp_path / "out.npy")!r}, render_gl_compute(random_scene(3, n=80), *CAMERAS, W, H))
-"""
-    env = dict(os.environ, MESA_GL_VERSION_OVERRIDE="4.1", MESA_GLSL_VERSION_OVERRIDE="410",
-               LIBGL_ALWAYS_SOFTWARE="1")
-    mesa_egl = "/usr/share/glvnd/egl_vendor.d/50_mesa.json"
-    if os.path.exists(mesa_egl):
-        env["__EGL_VENDOR_LIBRARY_FILENAMES"] = mesa_egl
-    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr[-2000:]
+""")
     assert ("the gl-compute renderer draws triangles (the gl renderer): OpenGL 4.1 has no compute shaders"
             in done.stderr)
-    _assert_close(np.load(tmp_path / "out.npy"), render_cpu(random_scene(3, n=80), *CAMERAS, W, H))
-
+    assert_close(np.load(tmp_path / "out.npy"), render_cpu(random_scene(3, n=80), *CAMERAS, W, H))
 
 
 def test_the_avatar_loop_renders_gl_compute_in_its_gl_frame_never_reading_it_back(tmp_path, monkeypatch):

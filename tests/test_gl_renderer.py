@@ -16,40 +16,25 @@ import numpy as np
 import pytest
 
 from lenticalib.core.errors import DisplayError, InputError
-from lenticalib.render.gpu.gl_context import headless_context
-from lenticalib.render.renderers import available_renderers, get_renderer, render
+from lenticalib.render.renderers import available_renderers, get_renderer
 from lenticalib.render.renderers import gl_renderer
 from lenticalib.render.renderers.cpu import render_cpu
 from lenticalib.render.renderers.gl_renderer import GLSplatRenderer, render_gl
 from lenticalib.render.renderers.gl_sort import GLSorter
 
-from .test_renderer_cpu import CAMERAS, H, SCENES, W, _bad, _gaussians, _psnr, _single, random_scene
-
-MIN_PSNR = 60.0
+from .gl_render_support import (NoVertexStorage, OpenGL41, assert_close, assert_refuses_other_view_counts,
+                                gl_test_context, render_with, run_under_opengl_41, scene_against_cpu)
+from .test_renderer_cpu import CAMERAS, H, SCENES, W, _bad, _gaussians, _single, random_scene
 
 
 @pytest.fixture(scope="module")
 def ctx():
-    context = headless_context(require=430)
-    yield context
-    context.release()
+    yield from gl_test_context()
 
 
 def _render(ctx, gaussians, viewmats, ks, width, height, background=None, sort=None):
-    with ctx:
-        renderer = GLSplatRenderer(ctx, len(viewmats), width, height, sort=sort)
-        try:
-            renderer.render(gaussians, viewmats, ks, background)
-            return renderer.read()
-        finally:
-            renderer.release()
-
-
-def _assert_close(got, expected, min_psnr=MIN_PSNR):
-    assert got.shape == expected.shape and got.dtype == np.float32
-    for view in range(len(got)):
-        assert _psnr(got[view, ..., :3], expected[view, ..., :3]) >= min_psnr, f"view {view} RGB"
-        assert _psnr(got[view, ..., 3], expected[view, ..., 3]) >= min_psnr, f"view {view} alpha"
+    return render_with(ctx, lambda: GLSplatRenderer(ctx, len(viewmats), width, height, sort=sort),
+                       gaussians, viewmats, ks, background)
 
 
 def test_gl_is_a_registered_renderer_that_runs_here():
@@ -60,12 +45,7 @@ def test_gl_is_a_registered_renderer_that_runs_here():
 
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_gl_agrees_with_the_cpu_renderer(name):
-    gaussians = SCENES[name]()
-    background = (0.1, 0.2, 0.3) if name != "near" else None
-    width, height = (W, H) if name != "layered" else (50, 37)
-    expected = render_cpu(gaussians, *CAMERAS, width, height, background=background)
-    assert expected[..., 3].max() > 0.5
-    _assert_close(render(gaussians, *CAMERAS, width, height, renderer="gl", background=background), expected)
+    scene_against_cpu(name, "gl")
 
 
 @pytest.mark.parametrize("name", sorted(SCENES))
@@ -73,8 +53,8 @@ def test_the_cpu_sort_agrees_with_the_cpu_renderer_and_the_gpu_sort(ctx, name):
     gaussians = SCENES[name]()
     expected = render_cpu(gaussians, *CAMERAS, W, H)
     host = _render(ctx, gaussians, *CAMERAS, W, H, sort="cpu")
-    _assert_close(host, expected)
-    _assert_close(host, _render(ctx, gaussians, *CAMERAS, W, H, sort="gpu"), min_psnr=80.0)
+    assert_close(host, expected)
+    assert_close(host, _render(ctx, gaussians, *CAMERAS, W, H, sort="gpu"), min_psnr=80.0)
 
 
 @pytest.mark.parametrize("sort", ["gpu", "cpu"])  # cpu: 18000 records, 18 rows of the record texture
@@ -87,7 +67,7 @@ def test_gl_agrees_with_the_cpu_renderer_on_the_demo_avatar(ctx, sort):
     cameras = make_cameras("arc", gaussians, 3, view_size=(120, 68))
     expected = render_cpu(gaussians, cameras.viewmats, cameras.K, 120, 68)
     assert (expected[..., 3] > 0.5).mean() > 0.05
-    _assert_close(_render(ctx, gaussians, cameras.viewmats, cameras.K, 120, 68, sort=sort), expected)
+    assert_close(_render(ctx, gaussians, cameras.viewmats, cameras.K, 120, 68, sort=sort), expected)
 
 
 def test_small_gaussians_land_where_they_project(ctx):
@@ -166,7 +146,7 @@ def test_huge_and_far_gaussians_render_like_the_cpu_renderers():
     g.means[4] = (1e25, 0.0, 0.0)
     out = render_gl(g, *CAMERAS, W, H)
     assert np.isfinite(out).all() and (out[..., 3] > 0).all()
-    _assert_close(out, render_cpu(g, *CAMERAS, W, H))
+    assert_close(out, render_cpu(g, *CAMERAS, W, H))
 
 
 @pytest.mark.parametrize("views_per_batch", [1, 3])
@@ -174,12 +154,12 @@ def test_views_are_rendered_in_batches_within_the_drivers_storage_block_size(ctx
     gaussians = random_scene(0, n=300)  # 52 bytes a Gaussian in the GAUSS buffer, 48 a record per view
     expected = _render(ctx, gaussians, *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
     limit = max(300 * 52, 300 * 48 * views_per_batch + 47)
-    monkeypatch.setattr(gl_renderer, "_storage_limit", lambda context: limit)
+    monkeypatch.setattr(GLSplatRenderer, "_storage_limit", lambda self: limit)
     np.testing.assert_array_equal(_render(ctx, gaussians, *CAMERAS, W, H, background=(0.1, 0.2, 0.3)), expected)
 
 
 def test_gaussians_beyond_the_drivers_storage_block_size_are_a_one_line_display_error(ctx, monkeypatch):
-    monkeypatch.setattr(gl_renderer, "_storage_limit", lambda context: 299 * 48)
+    monkeypatch.setattr(GLSplatRenderer, "_storage_limit", lambda self: 299 * 48)
     with pytest.raises(DisplayError, match=r"300 Gaussians exceed the OpenGL driver's shader storage block size "
                                            r"\(14352 bytes\)") as err:
         _render(ctx, random_scene(0, n=300), *CAMERAS, W, H)
@@ -216,7 +196,7 @@ def test_the_views_texture_holds_the_image_not_flipped(ctx):
     expected = render_cpu(gaussians, viewmats[:1], ks[:1], W, H)[0]
     peak = np.unravel_index(texels[..., 3].argmax(), (H, W))
     assert peak == np.unravel_index(expected[..., 3].argmax(), (H, W)) and peak[0] < H // 2 - 5
-    _assert_close(texels[None], expected[None])
+    assert_close(texels[None], expected[None])
 
 
 @pytest.mark.parametrize("change, source", [
@@ -242,9 +222,7 @@ def test_bad_inputs_are_one_line_input_errors(change, source):
 def test_a_renderer_refuses_other_view_counts_and_unknown_sorts(ctx):
     with ctx:
         renderer = GLSplatRenderer(ctx, 2, W, H)
-        with pytest.raises(InputError, match="4 views, this renderer draws 2") as err:
-            renderer.render(random_scene(0, n=5), *CAMERAS)
-        assert err.value.source == "viewmats"
+        assert_refuses_other_view_counts(renderer)
         renderer.release()
         with pytest.raises(InputError, match="must be 'gpu', 'cpu' or None") as err:
             GLSplatRenderer(ctx, 2, W, H, sort="radix")
@@ -258,18 +236,18 @@ def test_texture_limits_too_small_are_one_line_display_errors(ctx, monkeypatch):
     scene = random_scene(0, n=300)
     expected = _render(ctx, scene, *CAMERAS[:2], 16, 12, sort="cpu")
     with ctx:
-        monkeypatch.setattr(gl_renderer, "_driver_limits", lambda context: (4096, 16))
+        monkeypatch.setattr(GLSplatRenderer, "_texture_limits", lambda self: (4096, 16))
         with pytest.raises(DisplayError, match="texture arrays of up to 16 layers, 32 views") as err:
             GLSplatRenderer(ctx, 32, W, H)
         assert "\n" not in str(err.value) and "cpu renderer" in str(err.value)
-        monkeypatch.setattr(gl_renderer, "_driver_limits", lambda context: (960, 2048))
+        monkeypatch.setattr(GLSplatRenderer, "_texture_limits", lambda self: (960, 2048))
         with pytest.raises(DisplayError, match="textures up to 960 pixels, the views are 1920x1080") as err:
             GLSplatRenderer(ctx, 4, 1920, 1080)
         assert "\n" not in str(err.value)
         GLSplatRenderer(ctx, 4, 960, 540).release()  # at the limit: fine
     # the CPU sort's records (12 floats, 3 texels each) in a texture of at most 64 x 64 texels:
     # 21 records a row, 64 rows
-    monkeypatch.setattr(gl_renderer, "_driver_limits", lambda context: (64, 2048))
+    monkeypatch.setattr(GLSplatRenderer, "_texture_limits", lambda self: (64, 2048))
     np.testing.assert_array_equal(_render(ctx, scene, *CAMERAS[:2], 16, 12, sort="cpu"), expected)
     with pytest.raises(DisplayError, match="splats exceed the OpenGL driver's texture size \\(64 pixels\\)") as err:
         _render(ctx, random_scene(0, n=1500), *CAMERAS, W // 2, H // 2, sort="cpu")
@@ -295,23 +273,8 @@ def test_shaders_a_driver_refuses_are_a_one_line_display_error(ctx, monkeypatch)
     assert "\n" not in str(err.value) and "cpu renderer" in str(err.value)
 
 
-class _OpenGL41:
-    """The test context as a driver without compute shaders would report it (macOS stops at 4.1)."""
-
-    version_code = 410
-
-    def __init__(self, ctx):
-        object.__setattr__(self, "_ctx", ctx)
-
-    def __getattr__(self, name):
-        return getattr(self._ctx, name)
-
-    def __setattr__(self, name, value):  # blend_func and the like: the real context's state
-        setattr(self._ctx, name, value)
-
-
 def test_without_opengl_43_the_cpu_sort_is_used_and_said(ctx):
-    old = _OpenGL41(ctx)
+    old = OpenGL41(ctx)
     gaussians = random_scene(3, n=80)
     with ctx:
         with pytest.raises(DisplayError,
@@ -331,20 +294,10 @@ def test_without_opengl_43_the_cpu_sort_is_used_and_said(ctx):
     np.testing.assert_array_equal(out, _render(ctx, gaussians, *CAMERAS, W, H, sort="cpu"))
 
 
-class _NoVertexStorage(_OpenGL41):
-    """An OpenGL 4.5 context whose driver allows no storage buffers in vertex shaders (4.3 permits it)."""
-
-    version_code = 450
-
-    @property
-    def info(self):
-        return dict(self._ctx.info, GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS=0)
-
-
 def test_a_driver_without_vertex_storage_buffers_gets_the_cpu_sort_and_says_so(ctx):
     gaussians = random_scene(3, n=80)
     with ctx:
-        renderer = GLSplatRenderer(_NoVertexStorage(ctx), 4, W, H)
+        renderer = GLSplatRenderer(NoVertexStorage(ctx), 4, W, H)
         assert renderer.sort_kind == "cpu"
         assert renderer.fallback_reason == ("the gl renderer projects and sorts on the CPU: the driver allows 0 "
                                             "storage buffers in a vertex shader (2 needed)")
@@ -355,33 +308,15 @@ def test_a_driver_without_vertex_storage_buffers_gets_the_cpu_sort_and_says_so(c
 
 
 def test_on_a_real_opengl_41_context_render_gl_sorts_on_the_cpu_and_says_so(tmp_path):
-    # Mesa told to offer OpenGL 4.1 (macOS's last): no compute shaders in that process at all
-    import os
-    import subprocess
-    import sys
-
-    script = f"""
-import logging, sys
-import numpy as np
-sys.path.insert(0, {str(os.getcwd())!r})
-from tests.test_renderer_cpu import CAMERAS, H, W, random_scene
-from lenticalib.render.renderers.gl_renderer import render_gl, _SHARED
-logging.basicConfig(level=logging.WARNING, format="%(message)s")
+    done = run_under_opengl_41(f"""
+from lenticalib.render.renderers.gl_renderer import render_gl, _RENDERERS
 out = render_gl(random_scene(3, n=80), *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
-with _SHARED[0]:
-    print("version", _SHARED[0].version_code)
+with _RENDERERS.contexts[0]:
+    print("version", _RENDERERS.contexts[0].version_code)
 np.save({str(tmp_path / "out.npy")!r}, out)
-"""
-    env = dict(os.environ, MESA_GL_VERSION_OVERRIDE="4.1", MESA_GLSL_VERSION_OVERRIDE="410",
-               LIBGL_ALWAYS_SOFTWARE="1")  # Mesa's llvmpipe, also where a GPU driver is installed
-    mesa_egl = "/usr/share/glvnd/egl_vendor.d/50_mesa.json"
-    if os.path.exists(mesa_egl):
-        env["__EGL_VENDOR_LIBRARY_FILENAMES"] = mesa_egl
-    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr[-2000:]
+""")
     assert "version 410" in done.stdout
     assert ("the gl renderer projects and sorts on the CPU: OpenGL 4.1 has no compute shaders (4.3 needed)"
             in done.stderr)
     expected = render_cpu(random_scene(3, n=80), *CAMERAS, W, H, background=(0.1, 0.2, 0.3))
-    _assert_close(np.load(tmp_path / "out.npy"), expected)
-
+    assert_close(np.load(tmp_path / "out.npy"), expected)
