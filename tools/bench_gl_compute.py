@@ -25,13 +25,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
 import sys
-import time
 
-
-def _median_ms(samples: list[float]) -> float:
-    return statistics.median(samples) if samples else float("nan")
+# tools/ is on sys.path when a tool runs as a script
+from bench_support import add_demo_arguments, median_ms, posed_demo_frames, time_renderer, view_size
 
 
 def _worst_psnr(got, expected) -> float:
@@ -46,34 +43,20 @@ def _worst_psnr(got, expected) -> float:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=5)
-    parser.add_argument("--warmup", type=int, default=1)
-    parser.add_argument("--count", type=int, default=100_000, help="Gaussians in the demo avatar")
-    parser.add_argument("--views", type=int, default=32)
-    parser.add_argument("--size", default="960x540", help="view size WxH")
+    add_demo_arguments(parser)
     parser.add_argument("--precision", choices=("fp32", "fp16"), default="fp32", help="the compute path's staging")
     parser.add_argument("--paths", default="triangles,compute", help="which paths to time, comma-separated")
     parser.add_argument("--skip-cpu", action="store_true", help="no cpu reference (no PSNR column)")
     args = parser.parse_args()
-    width, height = (int(v) for v in args.size.lower().split("x"))
+    width, height = view_size(args.size)
     paths = [p.strip() for p in args.paths.split(",") if p.strip()]
 
-    from lenticalib.render.cameras.models import make_cameras
-    from lenticalib.render.controls.streams import DemoControls
-    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
     from lenticalib.render.gpu.gl_context import headless_context
     from lenticalib.render.renderers.cpu import render_cpu
     from lenticalib.render.renderers.gl_compute import GLComputeRenderer, compute_missing
     from lenticalib.render.renderers.gl_renderer import GLSplatRenderer
 
-    rig = make_demo_avatar(count=args.count)
-    controls = DemoControls(rig.layout)
-    posed = []
-    for k in range(args.warmup + args.frames):
-        _, vector = controls.latest(k / 30.0)
-        posed.append(rig.deform(vector).to_numpy())
-    cameras = make_cameras("arc", posed[0], args.views, view_size=(width, height))
-    vm, ks = cameras.viewmats, cameras.K
+    rig, posed, vm, ks = posed_demo_frames(args.count, args.warmup + args.frames, args.views, width, height)
     expected = None if args.skip_cpu else render_cpu(posed[0], vm, ks, width, height)
 
     ctx = headless_context()
@@ -95,30 +78,19 @@ def main() -> int:
                      else f"gl-compute {args.precision}")
             if getattr(renderer, "fallback_reason", None):
                 print(renderer.fallback_reason)
-            rows: dict[str, list[float]] = {}
-            psnr = float("nan")
-            for k, gaussians in enumerate(posed):
-                t0 = time.perf_counter()
-                renderer.render(gaussians, vm, ks)
-                ctx.finish()
-                t1 = time.perf_counter()
-                out = renderer.read()
-                t2 = time.perf_counter()
+            psnr = [float("nan")]
+
+            def first_psnr(k, out):
                 if k == 0 and expected is not None:
-                    psnr = _worst_psnr(out, expected)
-                renderer.profile = True
-                renderer.render(gaussians, vm, ks)
-                renderer.profile = False
-                if k >= args.warmup:
-                    rows.setdefault("render", []).append(1e3 * (t1 - t0))
-                    rows.setdefault("read", []).append(1e3 * (t2 - t1))
-                    for name, ms in renderer.stage_ms.items():
-                        rows.setdefault("draw" if name == "composite" else name, []).append(ms)
+                    psnr[0] = _worst_psnr(out, expected)
+
+            rows = time_renderer(ctx, renderer, posed, vm, ks, args.warmup, on_read=first_psnr)
             renderer.release()
-            cells = [_median_ms(rows.get(name, [])) for name in
+            rows.setdefault("draw", rows.get("composite", []))  # the column "draw/comp"
+            cells = [median_ms(rows.get(name, [])) for name in
                      ("render", "read", "project", "sort", "intersect", "tile_sort", "draw")]
             print(f"{label:<22}{cells[0]:9.1f}{cells[1]:8.1f}{cells[2]:9.1f}{cells[3]:8.1f}{cells[4]:10.1f}"
-                  f"{cells[5]:10.1f}{cells[6]:10.1f}{psnr:7.1f}")
+                  f"{cells[5]:10.1f}{cells[6]:10.1f}{psnr[0]:7.1f}")
     ctx.release()
     return 0
 

@@ -21,44 +21,28 @@ its renderer string is printed with the numbers.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 
-
-def _median_ms(samples: list[float]) -> float:
-    return 1e3 * statistics.median(samples)
+# tools/ is on sys.path when a tool runs as a script
+from bench_support import add_demo_arguments, median_ms, posed_demo_frames, time_renderer, view_size
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=5)
-    parser.add_argument("--warmup", type=int, default=1)
-    parser.add_argument("--count", type=int, default=100_000, help="Gaussians in the demo avatar")
-    parser.add_argument("--views", type=int, default=32)
-    parser.add_argument("--size", default="960x540", help="view size WxH")
+    add_demo_arguments(parser)
     parser.add_argument("--sort", choices=("gpu", "cpu"), default=None, help="default: gpu where OpenGL 4.3 is")
     parser.add_argument("--skip-cpu", action="store_true", help="time the gl renderer only")
     args = parser.parse_args()
-    width, height = (int(v) for v in args.size.lower().split("x"))
+    width, height = view_size(args.size)
 
     import numba
 
-    from lenticalib.render.cameras.models import make_cameras
-    from lenticalib.render.controls.streams import DemoControls
-    from lenticalib.render.avatar.demo_avatar import make_demo_avatar
     from lenticalib.render.gpu.gl_context import headless_context
     from lenticalib.render.renderers.cpu import render_cpu
     from lenticalib.render.renderers.gl_renderer import GLSplatRenderer
 
-    rig = make_demo_avatar(count=args.count)
-    controls = DemoControls(rig.layout)
-    posed = []
-    for k in range(args.warmup + args.frames):
-        _, vector = controls.latest(k / 30.0)
-        posed.append(rig.deform(vector).to_numpy())
-    cameras = make_cameras("arc", posed[0], args.views, view_size=(width, height))
-    vm, ks = cameras.viewmats, cameras.K
+    rig, posed, vm, ks = posed_demo_frames(args.count, args.warmup + args.frames, args.views, width, height)
 
     ctx = headless_context()
     with ctx:
@@ -68,36 +52,21 @@ def main() -> int:
               f"sort {renderer.sort_kind}")
         if renderer.fallback_reason:
             print(renderer.fallback_reason)
-        rows: dict[str, list[float]] = {"gl": [], "read": [], "project": [], "sort": [], "draw": [], "cpu": []}
-        for k, gaussians in enumerate(posed):
-            t0 = time.perf_counter()
-            renderer.render(gaussians, vm, ks)
-            ctx.finish()
-            t1 = time.perf_counter()
-            renderer.read()
-            t2 = time.perf_counter()
-            renderer.profile = True
-            renderer.render(gaussians, vm, ks)
-            renderer.profile = False
-            if k >= args.warmup:
-                rows["gl"].append(t1 - t0)
-                rows["read"].append(t2 - t1)
-                for name, ms in renderer.stage_ms.items():
-                    rows[name].append(ms / 1e3)
+        rows = time_renderer(ctx, renderer, posed, vm, ks, args.warmup)
         renderer.release()
+    rows["cpu"] = []
     if not args.skip_cpu:
         for k, gaussians in enumerate(posed):
             t0 = time.perf_counter()
             render_cpu(gaussians, vm, ks, width, height)
             if k >= args.warmup:
-                rows["cpu"].append(time.perf_counter() - t0)
-    n = len(rows["gl"])
+                rows["cpu"].append(1e3 * (time.perf_counter() - t0))
+    ms = {name: median_ms(rows.get(name, [])) for name in ("cpu", "render", "read", "project", "sort", "draw")}
+    n = len(rows.get("render", []))
     if rows["cpu"]:
-        print(f"cpu    render_ms {_median_ms(rows['cpu']):9.1f}                       ({n} frames)")
-    print(f"gl     render_ms {_median_ms(rows['gl']):9.1f}  read_ms {_median_ms(rows['read']):7.1f}"
-          f"        ({n} frames)")
-    print(f"gl split  project_ms {_median_ms(rows['project']):8.1f}  sort_ms {_median_ms(rows['sort']):8.1f}"
-          f"  draw_ms {_median_ms(rows['draw']):8.1f}")
+        print(f"cpu    render_ms {ms['cpu']:9.1f}                       ({n} frames)")
+    print(f"gl     render_ms {ms['render']:9.1f}  read_ms {ms['read']:7.1f}        ({n} frames)")
+    print(f"gl split  project_ms {ms['project']:8.1f}  sort_ms {ms['sort']:8.1f}  draw_ms {ms['draw']:8.1f}")
     return 0
 
 
