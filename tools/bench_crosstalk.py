@@ -53,8 +53,7 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          # share about 0.5); "optics" changes the panel after the draw (lenticalib.sim.optics), "truth":
          # "camera" takes the truth from the camera's own position with the views shifted
          # (lenticalib.sim.camera_truth) instead of from an eye at the zone centre.  Their profile is
-         # fitted on the unvaried panel's calibration photos (the routing is the same; a wide blur's
-         # twelve Gaussians would make the calibration photos a quarter of an hour each)
+         # fitted on the varied panel's calibration photos drawn with a Gaussian blur (run_case)
          (113, 0.40, +1, "RGB", 700.0, {}),  # 13: the base panel, a Gaussian blur
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "disc"}}),  # 14: a defocused lens
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian"}}),  # 15: a long tail
@@ -92,13 +91,19 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     changes = {k: v for k, v in zip(("tone_gamma", "tone_contrast"), tone) if v is not None}
     if changes:
         scene = scene.replace_camera(**changes)
-    calibration_scene = scene
+    # the profile is fitted on the varied panel (vignetting across a lenticule pulls the view
+    # coordinate towards each lens' axis: a routing of its own), but with a Gaussian blur: a
+    # symmetric blur's shape leaves the routing as it is, and twelve Gaussians would make the
+    # calibration photos a quarter of an hour each
+    calibration_scene = dataclasses.replace(scene, optics=dataclasses.replace(
+        scene.optics, **{k: v for k, v in optics_changes.items() if k != "blur_shape"}))
     if optics_changes:
         scene = dataclasses.replace(scene, optics=dataclasses.replace(scene.optics, **optics_changes))
     folder = root / f"case-{index}"
     # cases that differ only in optics_changes / truth share one fit
+    routing_changes = {k: v for k, v in optics_changes.items() if k != "blur_shape"}
     cal = root / ("fit-" + "-".join(str(v) for v in (seed, blur, sign, order, distance, conditions, *tone))
-                  + "".join(f"-{k}{v}" for k, v in sorted(fixed.items())).replace(" ", ""))
+                  + "".join(f"-{k}{v}" for k, v in sorted({**fixed, **routing_changes}.items())).replace(" ", ""))
     t0 = time.perf_counter()
     fitted = cal / "fitted-profile.json"
     run_id = os.environ.get("LENTICALIB_BENCH_RUN", "")
