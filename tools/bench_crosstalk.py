@@ -133,6 +133,10 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
             continue
         folder_k = folder / f"xt-{kind}"
         if not (reuse and _complete(folder_k, pattern_set)):
+            if folder_k.is_dir():  # this bench's own folder, photographed for another profile
+                import shutil
+
+                shutil.rmtree(folder_k)
             write_patterns(folder_k, pattern_set)
             simulate_capture_set(folder_k, scene, raw=raw)
         t2 = time.perf_counter()
