@@ -58,11 +58,11 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "disc"}}),  # 14: a defocused lens
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian"}}),  # 15: a long tail
          (113, 0.40, +1, "RGB", 700.0, {"blur_growth": 4.0}),  # 16: blur growing fast with the angle
-         (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.35}}),  # 17: vignetting across a lens
+         (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.8}}),  # 17: vignetting across a lens (0.35: refused, docs)
          (113, 0.40, +1, "RGB", 700.0, {"crosstalk": 0.3, "white_balance": (0.85, 1.15)}),  # 18: strong colour mixing
          (113, 0.40, +1, "RGB", 700.0, {"truth": "camera"}),  # 19: truth from the camera's position
          # 20: all at once, on a sharper sheet (own-view share about 0.4, like issue 51's panel)
-         (113, 0.25, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian", "lenticule_aperture": 0.35},
+         (113, 0.25, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian", "lenticule_aperture": 0.8},
                                         "blur_growth": 3.0, "crosstalk": 0.25, "vignetting": 0.3}),
          ]
 
