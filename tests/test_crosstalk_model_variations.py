@@ -69,7 +69,7 @@ def test_the_variations_are_off_by_default_and_a_scene_reads_as_before(scene):
 
 def test_a_lorentzian_tail_sends_light_to_the_far_views_and_the_aperture_dims_the_steep_rays(scene, profile):
     from lenticalib.sim.crosstalk_truth import true_mixing_matrix
-    from lenticalib.sim.render import render_radiance
+    from lenticalib.sim.panel_light import render_radiance
 
     rows = {}
     for name, change in (("gaussian", {}), ("lorentzian", {"blur_shape": "lorentzian"})):
@@ -114,7 +114,7 @@ def test_a_blur_that_grows_fast_with_the_angle_is_carried_in_the_uncertainty(cap
     camera 60 mm off axis) the first neighbour comes out 0.008 off: 2.4 sigma without the term
     for the cone's change across the region, 1.8 with it."""
     from lenticalib.calib.crosstalk.measure import measure_crosstalk
-    from lenticalib.calib.crosstalk.patterns import design_crosstalk_patterns
+    from lenticalib.calib.patterns.crosstalk_patterns import design_crosstalk_patterns
 
     scene = random_scene(31, width=1280, height=720, resolution=(1500, 1000), subsamples=2, distance=620.0,
                          blur_growth=4.0, offset=60.0)

@@ -32,7 +32,7 @@ def shifted_views(profile: PanelProfile, shift: float) -> np.ndarray:
 def camera_mixing_matrix(optics: PanelOptics, camera_eye, profile: PanelProfile) -> np.ndarray:
     """The true ``M`` (float64 ``(N, N)``, circulant, rows sum to 1) seen by an eye at ``camera_eye``
     (world mm) through the centre region, the views shifted so that it sits at a zone centre."""
-    from .render import render_radiance  # lazy: numba
+    from .panel_light import render_radiance  # lazy: numba
 
     n = profile.views
     views = shifted_views(profile, profile_error(optics, camera_eye, profile) - 0.5)
