@@ -3,7 +3,10 @@
 
 For every case of ``CASES`` (sharp and blurry lens sheets, both slant signs, both subpixel
 orders, camera distances from 400 to 1100 mm; cases 9-12 (issue 23): soft sheets with own-view
-shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, a far one): draw the scene, photograph the calibration
+shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, a far one; cases
+13-20 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
+shape, its growth with the angle, vignetting across a lenticule, the camera's colour mixing, the
+truth's eye position), and all at once): draw the scene, photograph the calibration
 patterns, **fit** a profile, draw the crosstalk patterns from that fitted profile (not the true
 one), photograph them from the same camera position (same scene), measure, and compare with the
 truth (``lenticalib.sim.crosstalk_truth``: the light an eye at each zone centre receives).
@@ -20,7 +23,7 @@ both, and no case may be refused (every photo is right).  ``--photos raw`` measu
 photos only.  ``--tone-gamma G`` / ``--tone-contrast S`` give every case's camera another tone
 curve (a gamma on the sRGB encoding; a phone's S-curve of strength S, 0..1), as a phone would.
 
-    python tools/bench_crosstalk.py [--cases 1-12] [--resolution 3000x2000] [--conditions standard]
+    python tools/bench_crosstalk.py [--cases 1-20] [--resolution 3000x2000] [--conditions standard]
                                     [--keep DIR [--reuse]] [--jobs J] [--photos raw,jpeg]
                                     [--tone-gamma G] [--tone-contrast S]
 """
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import tempfile
@@ -44,7 +48,23 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          (109, 0.60, +1, "RGB", 850.0, {}),  # blurry, far
          (110, 0.70, -1, "BGR", 700.0, {"blur_growth": 1.5}),  # blurry, the cone broadening fast off axis
          (111, 0.50, +1, "BGR", 800.0, {"offset": 180.0}),  # blurry, a steep camera (180 mm off axis)
-         (112, 0.35, -1, "RGB", 1100.0, {})]  # far
+         (112, 0.35, -1, "RGB", 1100.0, {}),  # far
+         # issue 51: one assumption of the simulator varied at a time on one panel (case 13, own-view
+         # share about 0.5); "optics" changes the panel after the draw (lenticalib.sim.optics), "truth":
+         # "camera" takes the truth from the camera's own position with the views shifted
+         # (lenticalib.sim.camera_truth) instead of from an eye at the zone centre.  Their profile is
+         # fitted on the varied panel's calibration photos drawn with a Gaussian blur (run_case)
+         (113, 0.40, +1, "RGB", 700.0, {}),  # 13: the base panel, a Gaussian blur
+         (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "disc"}}),  # 14: a defocused lens
+         (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian"}}),  # 15: a long tail
+         (113, 0.40, +1, "RGB", 700.0, {"blur_growth": 4.0}),  # 16: blur growing fast with the angle
+         (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.8}}),  # 17: vignetting across a lens (0.35: refused, docs)
+         (113, 0.40, +1, "RGB", 700.0, {"crosstalk": 0.3, "white_balance": (0.85, 1.15)}),  # 18: strong colour mixing
+         (113, 0.40, +1, "RGB", 700.0, {"truth": "camera"}),  # 19: truth from the camera's position
+         # 20: all at once, on a sharper sheet (own-view share about 0.4, like issue 51's panel)
+         (113, 0.25, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian", "lenticule_aperture": 0.8},
+                                        "blur_growth": 3.0, "crosstalk": 0.25, "vignetting": 0.3}),
+         ]
 
 
 def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = False,
@@ -60,19 +80,35 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     from lenticalib.sim.capture import CROSSTALK_TRUTH_NAME, simulate_capture_set
     from lenticalib.sim.scene import random_scene
 
+    import dataclasses
+
     seed, blur, sign, order, distance, *more = CASES[index - 1]
-    fixed = more[0] if more else {}
+    fixed = dict(more[0]) if more else {}
+    optics_changes, truth_mode = fixed.pop("optics", {}), fixed.pop("truth", "zone")
     draw = random_scene(seed, resolution=resolution, conditions=conditions)
     scene = random_scene(seed, resolution=resolution, conditions=conditions, blur=(blur, blur), order=order,
                          distance=distance, slant=sign * abs(draw.optics.slant), **fixed)
     changes = {k: v for k, v in zip(("tone_gamma", "tone_contrast"), tone) if v is not None}
     if changes:
         scene = scene.replace_camera(**changes)
+    # the profile is fitted on the varied panel (vignetting across a lenticule pulls the view
+    # coordinate towards each lens' axis: a routing of its own), but with a Gaussian blur: a
+    # symmetric blur's shape leaves the routing as it is, and twelve Gaussians would make the
+    # calibration photos a quarter of an hour each
+    calibration_scene = dataclasses.replace(scene, optics=dataclasses.replace(
+        scene.optics, **{k: v for k, v in optics_changes.items() if k != "blur_shape"}))
+    if optics_changes:
+        scene = dataclasses.replace(scene, optics=dataclasses.replace(scene.optics, **optics_changes))
     folder = root / f"case-{index}"
-    cal = folder / "cal"
+    # cases that differ only in optics_changes / truth share one fit
+    routing_changes = {k: v for k, v in optics_changes.items() if k != "blur_shape"}
+    cal = root / ("fit-" + "-".join(str(v) for v in (seed, blur, sign, order, distance, conditions, *tone))
+                  + "".join(f"-{k}{v}" for k, v in sorted({**fixed, **routing_changes}.items())).replace(" ", ""))
     t0 = time.perf_counter()
-    fitted = folder / "fitted-profile.json"
-    if reuse and fitted.exists():
+    fitted = cal / "fitted-profile.json"
+    run_id = os.environ.get("LENTICALIB_BENCH_RUN", "")
+    ran = (cal / "run-id").read_text() if (cal / "run-id").exists() else None
+    if fitted.exists() and (reuse or ran == run_id):
         from lenticalib.core.profile import load_profile
 
         profile = load_profile(fitted)
@@ -80,21 +116,27 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
         from lenticalib.core.profile import save_profile
 
         write_patterns(cal, design_patterns(3840, 2160, 32))
-        simulate_capture_set(cal, scene)
+        simulate_capture_set(cal, calibration_scene)
         profile = fit_capture_set(cal).profile
         save_profile(profile, fitted)
+        (cal / "run-id").write_text(run_id)
     t1 = time.perf_counter()
     pattern_set = design_crosstalk_patterns(profile)
     out = {"case": index, "seed": seed, "blur": blur, "slant": scene.optics.slant, "order": order,
            "distance": distance, "period": scene.optics.period_at(scene.camera.distance),
            "tone_gamma": scene.camera.tone_gamma, "tone_contrast": scene.camera.tone_contrast,
            "glare_true": scene.camera.glare_fraction, "fit_s": t1 - t0}
-    out["fixed"] = fixed
+    out["fixed"] = {**fixed, **({"optics": optics_changes} if optics_changes else {}),
+                    **({"truth": truth_mode} if truth_mode != "zone" else {})}
     for kind, raw in (("raw", True), ("jpeg", False)):
         if kind not in kinds:
             continue
         folder_k = folder / f"xt-{kind}"
         if not (reuse and _complete(folder_k, pattern_set)):
+            if folder_k.is_dir():  # this bench's own folder, photographed for another profile
+                import shutil
+
+                shutil.rmtree(folder_k)
             write_patterns(folder_k, pattern_set)
             simulate_capture_set(folder_k, scene, raw=raw)
         t2 = time.perf_counter()
@@ -105,6 +147,11 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
             continue
         t3 = time.perf_counter()
         truth = np.asarray(json.loads((folder_k / CROSSTALK_TRUTH_NAME).read_text())["matrix"])
+        zone_own = float(truth[0, 0])
+        if truth_mode == "camera":
+            from lenticalib.sim.camera_truth import camera_mixing_matrix
+
+            truth = camera_mixing_matrix(scene.optics, scene.eye, profile)
         n = m.views
         sigma = m.row_sigma[(np.arange(n)[None, :] - np.arange(n)[:, None]) % n]
         err = m.matrix - truth
@@ -115,6 +162,7 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
                      "glare": m.photometry["glare"]["fraction"], "measure_s": t3 - t2,
                      "tone": _tone_model(m.photometry.get("tone_curve")),
                      "truth_row": truth[0].tolist(), "row": m.row.tolist(), "refused": None,
+                     "row_sigma": m.row_sigma.tolist(), "zone_eye_own_true": zone_own,
                      "column_average": any("moire" in w for w in m.warnings)}
     return out
 
@@ -169,6 +217,8 @@ def compensation_summary(rows) -> list[str]:
 
 
 def main() -> int:
+    import numpy as np
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", default=f"1-{len(CASES)}")
     parser.add_argument("--resolution", default="3000x2000")
@@ -179,7 +229,8 @@ def main() -> int:
     parser.add_argument("--keep", metavar="DIR")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--reuse", action="store_true", help="with --keep: reuse each case's fitted profile "
-                        "(fitted-profile.json) and its crosstalk photos instead of photographing and fitting again")
+                        "(fit-*/fitted-profile.json, one per panel: cases 13-20 share one) and its crosstalk photos "
+                        "instead of photographing and fitting again")
     parser.add_argument("--photos", default="raw,jpeg", help="which photos to measure each case from: raw "
                         "(16-bit linear), jpeg (camera JPEGs), or both (raw,jpeg)")
     args = parser.parse_args()
@@ -189,9 +240,9 @@ def main() -> int:
     kinds = tuple(k for k in ("raw", "jpeg") if k in args.photos.split(","))
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench-crosstalk-"))
     root.mkdir(parents=True, exist_ok=True)
+    os.environ["LENTICALIB_BENCH_RUN"] = f"{os.getpid()}-{time.time()}"  # fits shared within this run
     if args.jobs > 1:
         import concurrent.futures
-        import os
 
         os.environ.setdefault("NUMBA_NUM_THREADS", "1")
         with concurrent.futures.ProcessPoolExecutor(args.jobs) as pool:
@@ -227,6 +278,20 @@ def main() -> int:
                 continue
             print(f"{r['case']:4d}  {r['tone_gamma']:.3f}, {r['tone_contrast']:.2f}          {kind:6s}  {k['tone']:16s}  "
                   f"{k['max_err']:.4f}              {k['max_z']:5.2f}      {'yes' if k['max_z'] <= 3 else 'NO'}")
+    print("\ncase  photos  own: true   measured  sigma   err/sigma  neighbours: true  measured  "
+          "far views (|m| >= 2): true  measured  sigma  err/sigma  varied")
+    for r in rows:
+        for kind in kinds:
+            k = r[kind]
+            if k["refused"]:
+                continue
+            t, m, sg = (np.asarray(k[key]) for key in ("truth_row", "row", "row_sigma"))
+            far = slice(2, len(t) - 1)
+            far_sigma = float(np.sqrt(np.sum(sg[far] ** 2)))  # as if independent: a guide only
+            print(f"{r['case']:4d}  {kind:6s}  {t[0]:.4f}  {m[0]:.4f}    {sg[0]:.4f}  {(m[0] - t[0]) / sg[0]:+6.2f}     "
+                  f"{t[1] + t[-1]:.4f}            {m[1] + m[-1]:.4f}    {t[far].sum():.4f}                 "
+                  f"{m[far].sum():.4f}    {far_sigma:.4f}  {(m[far].sum() - t[far].sum()) / far_sigma:+6.2f}     "
+                  f"{json.dumps(r.get('fixed') or {})}")
     ok = True
     for kind in kinds:
         done = [r for r in rows if not r[kind]["refused"]]

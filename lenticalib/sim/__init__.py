@@ -18,6 +18,7 @@ never device or cli.
     capture_backend  SimCamera: the capture camera ``--camera sim`` (registered in
                      lenticalib.calib.capture.cameras)
     crosstalk_truth  the true mixing matrix and view cone, by ray tracing from an eye
+    camera_truth     the true mixing matrix from the camera's own position, the views shifted
     boards           chessboards and ChArUco boards (on the panel or printed) photographed by a
                      known camera
     board_poses      where the simulated boards stand: spread over the image, some cut by the frame

@@ -44,6 +44,7 @@ from ..core.layout import SubpixelLayout, layout_from_dict
 from ..core.profile import SUBPIXEL_ORDERS, PanelProfile
 
 BACKLIGHT_TERMS = ("x", "y", "xx", "yy", "xy")
+BLUR_SHAPES = ("gaussian", "disc", "lorentzian")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +77,16 @@ class PanelOptics:
     subpixel_layout     None (a stripe panel by ``subpixel_order``) or a cell layout: channel c
                         of pixel (x, y) has its centre at (x + 0.5 + dx_c, y + 0.5 + dy_c) pixels,
                         (dx_c, dy_c) of the pixel's cell (:mod:`lenticalib.core.layout`)
+    blur_shape          profile of the blur across the lens (``BLUR_SHAPES``, docs/crosstalk.md "What the
+                        measurement assumes"): "gaussian" (the default), "disc" (a defocused lens:
+                        a uniform disc's projection across u, a semicircle of radius 2 sigma_u, the
+                        Gaussian's variance) or "lorentzian" (a Cauchy profile of half width
+                        sigma_u sqrt(2 ln 2), the Gaussian's half maximum, its tail cut at 20
+                        half widths); each drawn as a sum of Gaussians (:meth:`blur_components`)
+    lenticule_aperture  vignetting across a lenticule: the light of a pixel-plane point ``o`` mm
+                        (across the lens) from its lens' axis is weighted ``exp(-o^2 / (2 a^2))``,
+                        ``a`` this fraction of the lens pitch P_u (its aperture cuts the steep
+                        rays); 0 (the default) = no vignetting
     bezel_width         dark frame around the sheet (mm on every side)
     bezel_level         bezel radiance, relative to a fully open white subpixel
     background_level    radiance of everything outside the bezel (a dim room), same unit
@@ -101,6 +112,8 @@ class PanelOptics:
     bezel_level: float = 0.005
     background_level: float = 0.03
     subpixel_layout: SubpixelLayout | None = None
+    blur_shape: str = "gaussian"
+    lenticule_aperture: float = 0.0
 
     def __post_init__(self):
         def fail(field, message):
@@ -129,7 +142,9 @@ class PanelOptics:
             fail("scatter", f"must be a fraction in [0, 1), got {self.scatter!r}")
         if len(self.backlight) != len(BACKLIGHT_TERMS):
             fail("backlight", f"needs {len(BACKLIGHT_TERMS)} coefficients ({', '.join(BACKLIGHT_TERMS)})")
-        for key in ("blur_growth", "angular_falloff", "sheet_margin", "bezel_width", "bezel_level",
+        if self.blur_shape not in BLUR_SHAPES:
+            fail("blur_shape", f"must be one of {', '.join(BLUR_SHAPES)}, got {self.blur_shape!r}")
+        for key in ("lenticule_aperture", "blur_growth", "angular_falloff", "sheet_margin", "bezel_width", "bezel_level",
                     "background_level"):
             value = getattr(self, key)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
@@ -202,6 +217,30 @@ class PanelOptics:
         ``P_u (D + g) / (g N cos(phi)) = P_h (D + g) / (g N)``.
         """
         return self.lens_pitch * (distance + self.gap) / (self.gap * views)
+
+    def blur_components(self) -> np.ndarray:
+        """The blur profile as a sum of Gaussians: float64 ``(K, 3)`` rows ``(weight, offset, scale)``,
+        weights summing to 1, offset and scale in units of sigma_u (the component is centred
+        ``offset sigma_u`` from the seen point, ``scale sigma_u`` wide).  ``[[1, 0, 1]]`` for
+        "gaussian"; "disc": 9 Gaussians 0.2 R wide at even offsets over ``[-0.75 R, 0.75 R]``, R = 2
+        sigma_u, weighted by the semicircle (variance 0.98 sigma_u^2, within 0.05 / sigma_u of the
+        semicircle's density); "lorentzian": the Cauchy profile as its Gaussian scale mixture
+        (precision ``1/s^2`` Gamma-distributed, shape 1/2), 12 scales from 0.1 to 20 half widths
+        (within 0.01 / sigma_u of the Cauchy density)."""
+        if self.blur_shape == "disc":
+            offsets = np.linspace(-1.5, 1.5, 9)
+            weights = np.sqrt(4.0 - offsets ** 2)
+            scales = np.full_like(offsets, 0.4)
+        elif self.blur_shape == "lorentzian":
+            half = math.sqrt(2.0 * math.log(2.0))  # the half width gamma, in sigma_u
+            log_s = np.linspace(math.log(0.1), math.log(20.0), 12)
+            # density of log s when 1/s^2 ~ Gamma(1/2, rate gamma^2 / 2) (s in half widths)
+            weights = np.exp(-log_s - 0.5 * np.exp(-2.0 * log_s))
+            scales = half * np.exp(log_s)
+            offsets = np.zeros_like(scales)
+        else:
+            return np.array([[1.0, 0.0, 1.0]])
+        return np.column_stack([weights / weights.sum(), offsets, scales])
 
     # --- coordinates ---------------------------------------------------------------------------
     def raster_to_world(self, X, Y) -> tuple[np.ndarray, np.ndarray]:
@@ -296,6 +335,9 @@ class PanelOptics:
         """JSON-ready mapping of every field."""
         data = dataclasses.asdict(self)
         data["backlight"] = list(self.backlight)
+        for key, default in (("blur_shape", "gaussian"), ("lenticule_aperture", 0.0)):
+            if data[key] == default:  # a scene without them reads as before they existed
+                del data[key]
         if self.subpixel_layout is None:  # a stripe panel's scene reads as before layouts existed
             del data["subpixel_layout"]
         else:

@@ -6,7 +6,8 @@ Radiance (:func:`render_radiance`)
     every ``GRID_STEP`` pixels, bilinear in between: < 0.001 px); the rays inside the pixel are
     bilinear between the corners' lens-plane points.  Every ray that lands on the lens sheet
     shows its seen point (:mod:`.optics`), blurred across the lens by a Gaussian
-    ``sigma_u(theta)``.  The light of the neighbouring subpixels' open apertures is integrated
+    ``sigma_u(theta)`` (or the sum of Gaussians of another blur shape, each weighted by the
+    lenticule's aperture: :meth:`.optics.PanelOptics.blur_components`).  The light of the neighbouring subpixels' open apertures is integrated
     analytically (the Gaussian CDF, from a table):
 
     * across x: the blur, taken along x with ``sigma_x = sigma_u / cos(phi)`` (approximation:
@@ -71,9 +72,9 @@ def _corner_ray(gx, gy, grid_step, jc, ic, rot, cam, plane):
 
 
 @njit(cache=True, inline="always")
-def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, bmh, bmv, big_h, nsub,
+def _seen_light(sx, sy, h_y, sig2, weight, acc, raster, lut, chan_of_pos, table, slope, bmh, bmv, big_h, nsub,
                 shifts, reach):
-    """Add the light seen around raster point (sx, sy) to ``acc`` (per panel primary).
+    """Add ``weight`` times the light seen around raster point (sx, sy) to ``acc`` (per panel primary).
 
     The seen point sweeps a stretch ``h_y`` rows long along the lens axis (dX = slope dY); each
     row's open aperture is cut out of it exactly, and the Gaussian blur (variance ``sig2``,
@@ -84,7 +85,7 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
     true centre.
     """
     if reach > 0.0:
-        _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach)
+        _layout_seen(sx, sy, h_y, sig2, weight, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach)
         return
     half_bmh = 0.5 * bmh
     open_w = 1.0 - bmh
@@ -99,7 +100,7 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
         seg = a1 - a0
         if seg <= 0.0:
             continue
-        wr = seg / h_y
+        wr = seg / h_y * weight
         xm = sx + (0.5 * (a0 + a1) - sy) * slope
         ext = abs(seg * slope)
         # subpixels whose aperture meets [xm - 4 s - ext/2, xm + 4 s + ext/2]
@@ -124,7 +125,7 @@ def _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope, 
 
 
 @njit(cache=True, inline="always")
-def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach):
+def _layout_seen(sx, sy, h_y, sig2, weight, acc, raster, lut, table, slope, bmh, bmv, big_h, nsub, shifts, reach):
     """:func:`_seen_light` on a panel with a subpixel layout.
 
     ``shifts`` float64 ``(2, rows, 3 columns)``: for slot ``c`` of pixel ``px`` in row ``r``, at
@@ -173,19 +174,21 @@ def _layout_seen(sx, sy, h_y, sig2, acc, raster, lut, table, slope, bmh, bmv, bi
             xm = sx + (0.5 * (a0 + a1) - sy) * slope
             cov = coverage(q + shifts[0, srow, col] + half_bmh - xm, open_w, abs(seg * slope), s, table)
             if cov > 0.0:
-                acc[c] += seg / h_y * cov * value
+                acc[c] += seg / h_y * weight * cov * value
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, table, scatter_map, shifts, reach,
-                   out):
+                   mix, out):
     """Linear light per panel primary for every sensor pixel into ``out`` (h, w, 3) float32.
 
     ``prm`` (float64): cos phi, sin phi, P_u, x0 cos phi, g, p, W, H, black matrix h, v,
     sigma0 (subpixel widths, across u), blur growth, sheet half-width, half-height, bezel
     half-width, half-height, bezel level, background level, angular falloff, scatter,
-    5 backlight coefficients, subsamples n.  ``shifts``/``reach``: the channel offsets of a
-    subpixel layout (reach 0 on a stripe panel, see :func:`_layout_seen`).
+    5 backlight coefficients, subsamples n, the lenticule aperture (subpixel widths along x; 0 =
+    none).  ``shifts``/``reach``: the channel offsets of a subpixel layout (reach 0 on a stripe
+    panel, see :func:`_layout_seen`).  ``mix`` ``(K, 3)``: the blur's Gaussians (weight, offset,
+    scale; :meth:`.optics.PanelOptics.blur_components`).
     """
     h, w = out.shape[0], out.shape[1]
     dist = -cam[2]
@@ -205,12 +208,12 @@ def _render_kernel(raster, lut, chan_of_pos, gx, gy, grid_step, rot, cam, prm, t
             for jc in range(w + 1):
                 bot_x[jc], bot_y[jc] = _corner_ray(gx, gy, grid_step, jc, i + 1, rot, cam, dist)
             _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table,
-                        scatter_map, shifts, reach, out)
+                        scatter_map, shifts, reach, mix, out)
 
 
 @njit(cache=True, error_model="numpy")
 def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, cam, prm, table, scatter_map, shifts,
-                reach, out):
+                reach, mix, out):
     """Sensor row ``i`` given the lens-plane points of its top and bottom pixel corners."""
     w = out.shape[1]
     cphi, sphi, pu, x0u, gap, pitch = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5]
@@ -220,6 +223,8 @@ def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, ca
     bezel_level, background, falloff, scatter = prm[16], prm[17], prm[18], prm[19]
     b_x, b_y, b_xx, b_yy, b_xy = prm[20], prm[21], prm[22], prm[23], prm[24]
     n = int(prm[25])
+    aperture2 = prm[26] * prm[26]  # lenticule vignetting, subpixel widths squared (0: none)
+    x_per_u = 3.0 / (pitch * cphi)  # subpixel widths along x per mm across the lens
     big_h = int(n_h)
     nsub = 3 * int(n_w)
     dist = -cam[2]
@@ -285,8 +290,20 @@ def _render_row(i, top_x, top_y, bot_x, bot_y, acc, raster, lut, chan_of_pos, ca
                 on_panel += 1.0
                 sum_x += sx
                 sum_y += sy
-                _seen_light(sx, sy, h_y, sig2, acc, raster, lut, chan_of_pos, table, slope,
-                            bmh, bmv, big_h, nsub, shifts, reach)
+                for q in range(mix.shape[0]):
+                    wq = mix[q, 0]
+                    mu = mix[q, 1] * sigma_x
+                    vq = sig2 * mix[q, 2] * mix[q, 2]
+                    if aperture2 > 0.0:
+                        # Gaussian blur times the lens' Gaussian aperture weight exp(-(o + d)^2 / 2a^2)
+                        # (o the seen point's offset from its lens' axis): again a Gaussian
+                        o = (u_p - u_c) * x_per_u
+                        den = vq + aperture2
+                        wq *= math.sqrt(aperture2 / den) * math.exp(-0.5 * (o + mu) ** 2 / den)
+                        mu = (mu * aperture2 - o * vq) / den
+                        vq = vq * aperture2 / den
+                    _seen_light(sx + mu, sy, h_y, vq, wq, acc, raster, lut, chan_of_pos, table, slope,
+                                bmh, bmv, big_h, nsub, shifts, reach)
         if on_panel > 0 and scatter > 0.0:
             # scattered light: the raster around the mean seen point, wide and dim
             mx = min(max(sum_x / on_panel / (3.0 * SCATTER_BLOCK) - 0.5, 0.0), sc_w - 1.0)
@@ -340,7 +357,8 @@ def _kernel_params(scene: Scene) -> np.ndarray:
     return np.array([cphi, sphi, o.lens_pitch_u, o.x0 * cphi, o.gap, o.pixel_pitch, o.width, o.height,
                      o.black_matrix_h, o.black_matrix_v, o.blur_sigma / (o.pixel_pitch / 3.0), o.blur_growth,
                      sheet_w, sheet_h, sheet_w + o.bezel_width, sheet_h + o.bezel_width, o.bezel_level,
-                     o.background_level, o.angular_falloff, o.scatter, *o.backlight, cam.subsamples],
+                     o.background_level, o.angular_falloff, o.scatter, *o.backlight, cam.subsamples,
+                     o.lenticule_aperture * o.lens_pitch_u * 3.0 / (o.pixel_pitch * cphi)],
                     dtype=np.float64)
 
 
@@ -375,5 +393,6 @@ def render_radiance(raster: np.ndarray, scene: Scene) -> np.ndarray:
     reach = 0.0 if scene.optics.subpixel_layout is None else float(np.abs(shifts[0]).max()) + 1.0
     out = np.empty((cam.height, cam.width, 3), dtype=np.float32)
     _render_kernel(raster, lut, chan_of_pos, gx, gy, float(GRID_STEP), rot, position,
-                   _kernel_params(scene), PHI_TABLE, scatter, shifts, reach, out)
+                   _kernel_params(scene), PHI_TABLE, scatter, shifts, reach,
+                   np.ascontiguousarray(scene.optics.blur_components(), dtype=np.float64), out)
     return out

@@ -14,7 +14,8 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    (:mod:`.cone`); ``h`` of the centre region at integer offsets, normalised, is the row of the
    circulant ``M``;
 4. uncertainties: the spread between 16 strips of rows of the centre region (noise, moire, local
-   non-uniformity; a robust spread) and, in quadrature, what the photometric assumptions could
+   non-uniformity; a robust spread), a quarter of the difference between its left and right halves
+   (the cone's change across it, ``ACROSS_SHARE``) and, in quadrature, what the photometric assumptions could
    move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the linearised light:
    ``d`` the measured curve's own 1-sigma for camera JPEGs, 0.05 where it could not be measured
    (cameras are sRGB only to about +-8 %); 0.005 for linear photos), the light of the codes just
@@ -55,6 +56,7 @@ LINEAR_TONE_SIGMA = 0.005  # the same for linear photos (sensor non-linearity)
 PHOTO_MODES = ("srgb", "linear")
 FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
 FLOOR_GLARE_SHARE = 0.2  # ... plus this share of the glare fraction, spread over the N views
+ACROSS_SHARE = 0.25  # of the difference between the centre region's left and right halves: the cone's change across it
 CLIP_SCALE = 2.5  # the dark clipping's sigma read on a JPEG's pixels is up to this much too small (_interpolated_clip_sigma)
 
 
@@ -295,6 +297,13 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     stat_sigma = _robust_spread(block_rows) / math.sqrt(independent) if k > 1 else np.zeros(n)
     cone_stat = (_robust_spread(np.array(block_cones)) / math.sqrt(independent) if k > 1
                  else np.zeros_like(cone_values))
+    # the cone's change across the region (a blur that grows with the angle sharpens one side): the
+    # pixels' average is not quite the light an eye receives (bench case 16: 0.0036 for a left-right
+    # difference of 0.017), so a quarter of the halves' difference is carried (docs/crosstalk.md)
+    middle = c0 + 0.5 * width
+    across = ACROSS_SHARE * np.subtract(*(
+        _row_from(fit, ratios[centre][side], rr[side], cc[side], band_shifts, n)[0] for side in (cc >= middle, cc < middle)))
+    across_sigma = np.abs(across)
     # systematic: the glare's size, the tone curve's power (its 1-sigma relative to the curve the
     # photos were linearised with) and its toe (camera JPEGs with a measured curve: tone._toe_sigma)
     tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
@@ -337,11 +346,12 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     model_sigma = np.sqrt((0.5 * eps2 * curvature) ** 2 + (row - panel_row) ** 2)
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
     floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
-    row_sigma = np.sqrt(stat_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + clip_sig ** 2
+    row_sigma = np.sqrt(stat_sigma ** 2 + across_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + clip_sig ** 2
                         + floor_sigma ** 2 + model_sigma ** 2)
     cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
                          + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "clip")))
-    samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()}}
+    samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()},
+               "across-": row - across, "across+": row + across}  # half their difference: across_sigma
     # uniformity map: own-view share per region
     cols_n, rows_n = REGION_GRID
     regions = np.full((rows_n, cols_n), np.nan)
@@ -374,7 +384,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                          "dark_clipping_sites": None if noise is None else [[list(p) for p in s] for s in noise.sites]}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
-                   "sigma_statistical": stat_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
+                   "sigma_statistical": stat_sigma, "sigma_across_region": across_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
                    "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2),

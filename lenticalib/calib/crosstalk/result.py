@@ -98,7 +98,8 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
         for k in base:
             variance[k] += float(np.var([v[k] for v in values], ddof=1)) / min(independent or len(values),
                                                                                 len(values))
-    for low, high in (("glare-", "glare+"), ("tone-", "tone+"), ("toe-", "toe+"), ("clip-", "clip+")):
+    for low, high in (("glare-", "glare+"), ("tone-", "tone+"), ("toe-", "toe+"), ("clip-", "clip+"),
+                      ("across-", "across+")):
         if low in samples and high in samples:
             a, b = derived_figures(samples[low], eye_separation), derived_figures(samples[high], eye_separation)
             for k in base:
