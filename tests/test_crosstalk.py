@@ -20,20 +20,17 @@ from lenticalib.core.routing import view_coordinate
 from lenticalib.sim.scene import random_scene
 
 from .cli_support import one_error_line, refused, run_main
-
-VIEWS = 32
-
+from .crosstalk_support import VIEWS, crosstalk_scene, fitted_profile
 
 @pytest.fixture(scope="module")
 def scene():
-    return random_scene(31, width=1280, height=720, resolution=(1500, 1000), subsamples=2, distance=620.0)
+    return crosstalk_scene()
 
 
 @pytest.fixture(scope="module")
 def profile(scene):
-    truth = scene.truth_profile(VIEWS)
     # a fitted profile is never exact: 0.05 view of centring error and a slight period error
-    return truth.replace(offset=truth.offset + 0.05 * truth.period / VIEWS, period=truth.period * (1 + 2e-6))
+    return fitted_profile(scene, period_error=2e-6)
 
 
 @pytest.fixture(scope="module")

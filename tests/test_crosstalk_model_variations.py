@@ -19,18 +19,16 @@ from lenticalib.core.errors import InputError
 from lenticalib.sim.optics import BLUR_SHAPES, PanelOptics
 from lenticalib.sim.scene import Scene, random_scene
 
-VIEWS = 32
-
+from .crosstalk_support import VIEWS, crosstalk_scene, fitted_profile
 
 @pytest.fixture(scope="module")
 def scene():
-    return random_scene(31, width=1280, height=720, resolution=(1500, 1000), subsamples=2, distance=620.0)
+    return crosstalk_scene()
 
 
 @pytest.fixture(scope="module")
 def profile(scene):
-    truth = scene.truth_profile(VIEWS)
-    return truth.replace(offset=truth.offset + 0.05 * truth.period / VIEWS)
+    return fitted_profile(scene)
 
 
 def _density(components, x):
