@@ -27,7 +27,6 @@ Subcommands (one module each)
                emulated Looking Glass unit)
 
 Helpers (not commands)
-    _camera_calibrate  ``lenticalib camera calibrate``: its arguments and its run
     shared             what several subcommands share: the avatar options (``AvatarOptions``),
                        library errors told in flags, progress bars
 
