@@ -170,7 +170,7 @@ def add_calibrate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the summary as JSON instead of sentences")
 
 
-FLAGS = {"photos": "PHOTOS", "board_corners": "--board COLSxROWS", "square_mm": "--square MM", "jobs": "--jobs",
+CALIBRATE_FLAGS = {"photos": "PHOTOS", "board_corners": "--board COLSxROWS", "square_mm": "--square MM", "jobs": "--jobs",
          "lensmodel": "--lensmodel", "board_squares": "--charuco COLSxROWS", "marker_mm": "--marker MM",
          "dictionary": "--dictionary NAME"}  # the library's argument names, as this command's flags
 
@@ -186,7 +186,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     corners = parse_squares(args.board, "--board") if args.board is not None else None
     squares = parse_charuco_squares(args.charuco, "--charuco") if args.charuco is not None else None
-    with staged_bars() as stage, flag_names(FLAGS):
+    with staged_bars() as stage, flag_names(CALIBRATE_FLAGS):
         run = calibrate_camera(args.photos, args.output, board_corners=corners, square_mm=args.square,
                                report_dir=args.report, lensmodel=args.lensmodel, jobs=args.jobs, stage=stage,
                                board_squares=squares, marker_mm=args.marker, dictionary=args.dictionary)
