@@ -41,16 +41,21 @@ CONTROL_SOURCES = Registry("control source", {
 }, ENTRY_POINT_GROUP)
 
 
+EXACT_SPECS = {"demo": "demo", "-": "stdin", "stdin": "stdin"}  # built-in specs that take no argument
+BUILTIN_PREFIXES = {"udp://": "udp", "student:": "student"}  # built-in specs with an argument
+
+
 def control_scheme(spec: str) -> str:
-    """The registry name that serves ``spec`` (the table in the module docstring)."""
-    if spec in ("-", "stdin"):
-        return "stdin"
-    if spec == "demo":
-        return "demo"
+    """The registry name that serves ``spec`` (the table in the module docstring): a built-in spec
+    as written, ``NAME:...`` for a plug-in ``NAME``, anything else a control file's path."""
+    if spec in EXACT_SPECS:
+        return EXACT_SPECS[spec]
+    for prefix, scheme in BUILTIN_PREFIXES.items():
+        if spec.startswith(prefix):
+            return scheme
     scheme, colon, _ = spec.partition(":")
-    if colon and scheme.isidentifier() and scheme != "file" and scheme in CONTROL_SOURCES:
-        return scheme
-    return "file"
+    plugin = colon and scheme.isidentifier() and scheme not in CONTROL_SOURCES.builtin
+    return scheme if plugin and scheme in CONTROL_SOURCES else "file"
 
 
 def open_controls(spec: str, layout: ControlLayout = DEFAULT_LAYOUT, names: Sequence[str] | None = None):
