@@ -30,7 +30,7 @@ import numpy as np
 from ..core.files.atomic import write_bytes_atomic, write_text_atomic
 from ..core.files.outputs import staged_folder
 from ..render.cameras.models import make_cameras
-from ..render.controls.files import write_controls_csv
+from ..render.controls.records import write_controls_csv
 from ..render.avatar.demo_avatar import make_demo_avatar
 from ..render.renderers import render
 from ..render.avatar.rig import DEFAULT_LAYOUT

@@ -44,7 +44,6 @@ from ...core.files.arrayfile import GIB, MIB, load_npz, size_text
 from ...core.files.input_files import bounded_lines
 from ...core.errors import InputError
 from .records import FLOAT32_MAX, FLOAT64_MAX, number_problem, parse_control_line, within_range
-from .records import write_controls_csv  # noqa: F401  (public API: control files are written from here too)
 from ..avatar.rig import DEFAULT_LAYOUT, ControlLayout
 
 _JSONL_SUFFIXES = (".jsonl", ".ndjson", ".json")
