@@ -40,12 +40,12 @@ from ...core.errors import CaptureError, InputError
 from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import cone, photometry
-from .checks import check_band_photos, check_distinct, check_routing, routing_diagnostics
+from .band_check import check_bands
+from .checks import routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from ..patterns.crosstalk_patterns import CrosstalkPatternSet
-from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box
+from .ratios import CENTRE_FRACTION, band_ratios, bounding_box, centre_region
 
-CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
 CENTRE_DEGREE = 3  # of the centre region's own sweep model
 SWEEP_BLUR_PIXELS = 1.5  # working pixels: the camera's blur of the sweep (defocus, demosaicing, averaging)
 REGION_GRID = (6, 4)  # columns x rows of the uniformity map
@@ -181,7 +181,7 @@ def _measure_linearised(capture, pattern_set, profile, photos, curve, warnings, 
         raise CaptureError(f"is overexposed: {100 * clip_fraction:.0f}% of the panel is clipped", source=str(white_path),
                            hint="lower the exposure until white is not pure white, lock it, and retake every photo")
     shifts = register_photos(luma, pattern_set.names, capture.photos, lit0, FRAME_FRACTION, warnings)
-    column_average, routing = _check_bands(luma, mask, pattern_set, capture, warnings, force)
+    column_average, routing = check_bands(luma, mask, pattern_set, capture, warnings, force)
     if progress:
         progress("band photos checked")
     if progress:
@@ -210,45 +210,6 @@ def _blend(main: Measurement, other: Measurement, weight: float, undecided: floa
     return dataclasses.replace(main, **mixed, **sigmas, samples=samples, diagnostics=diagnostics, seconds=other.seconds)
 
 
-def _check_bands(luma, mask, pattern_set, capture, warnings, force=False) -> tuple[float, dict]:
-    """The band photos' checks (:mod:`.checks`), right after the photos are read and registered and
-    before any of the measurement's own work (glare, cone fits, uncertainties): (the column average
-    to measure with (0 or ``COLUMN_AVERAGE``), the routing check's record
-    (:func:`.checks.check_routing`, on the first check's fit; ``force``: a refusal overridden)), or
-    CaptureError naming the photo (or the set).
-
-    The checks judge the ratios without the glare correction: the glare adds a smooth floor the
-    cone model holds, and its fit and removal would take as long as the checks."""
-    bands = pattern_set.bands
-    shifts = np.array([p.shift for p in bands])
-    no_glare = photometry.Glare(0.0, 0.0, math.nan)
-    ratios, rows, cols, _ = band_ratios(luma, mask, pattern_set, no_glare, column_average=0.0)
-    check_distinct(ratios, bands, capture)
-    routing: dict = {}
-
-    def judge(fit):
-        routing.update(check_routing(fit, bounding_box(mask), pattern_set, capture, warnings, force))
-
-    try:
-        check_band_photos(ratios, rows, cols, shifts, bands, capture, pattern_set.views, mask.shape, judge)
-        return 0.0, routing
-    except CaptureError as refusal:
-        if not routing:  # refused by the routing check (judge), which runs before the band check refuses
-            raise
-        # a close camera may resolve the moire of a one-view band (which subpixel each lens shows):
-        # the same photos averaged along the panel's columns, where the sweep stays put, must then
-        # agree.  If they do not either, a photo the first check named stays named; otherwise the
-        # averaged photos' verdict stands (their misfits hold neither noise nor moire)
-        averaged = band_ratios(luma, mask, pattern_set, no_glare, column_average=COLUMN_AVERAGE)
-        try:
-            check_band_photos(*averaged[:3], shifts, bands, capture, pattern_set.views, mask.shape)
-        except CaptureError as second:
-            raise (second if refusal.source == str(capture.directory / "captures") else refusal) from None
-    warnings.append("the band photos show a moire of the lit subpixels (a close camera): they were averaged "
-                    f"along the panel's columns (sigma {COLUMN_AVERAGE:.3f} of the panel's height)")
-    return COLUMN_AVERAGE, routing
-
-
 def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve, photos,
              factor, start, progress, column_average, noise=None, routing=None) -> Measurement:
     import cv2
@@ -266,15 +227,18 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
         progress("view cone")
     height, width = r1 - r0, c1 - c0
     lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
-    centre = ((rows >= r0 + lo * height) & (rows <= r0 + hi * height)
-              & (cols >= c0 + lo * width) & (cols <= c0 + hi * width))
+    centre = centre_region(rows, cols, (r0, r1, c0, c1))
     # the centre region gets its own, lower-degree sweep model: a whole-panel polynomial leaves
     # errors of a tenth of a view here and there, which smear (broaden) the cone
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                         degree=CENTRE_DEGREE, start=panel_fit)
     row, cone_values, counts = _row_from(fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
-    # the sweep model itself: the row as the whole-panel model would have it (its own smear included)
-    panel_row, panel_cone, _ = _row_from(panel_fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
+    # the sweep model itself: the row as the whole-panel model would have it (its own smear included);
+    # where the whole panel does not follow one cone (band_check judged the centre region alone) that
+    # model is not one of the region's, and the region's own fit of the whole panel's degree stands in
+    alternative = panel_fit if (routing or {}).get("region") != "centre" else cone.fit_cone(
+        ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape, start=panel_fit)
+    panel_row, panel_cone, _ = _row_from(alternative, ratios[centre], rows[centre], cols[centre], band_shifts, n)
     samples: dict[str, np.ndarray] = {}
     # statistical spread: blocks of the centre region
     block_rows, block_cones = [], []
