@@ -14,6 +14,7 @@ uses them:
     photometry   the camera's veiling glare, from the photos
     ratios       the band photos over white (relinearised for the tone curve's uncertainty, glare removed)
     checks       duplicate photos, band photos that do not fit the others, photos of another panel
+    band_check   the checks as the measurement runs them: the whole panel, then its centre region
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps
     measure      the measurement: the mixing matrix and the view cone from the photos
     result       ``crosstalk.json``: the mixing matrix, derived figures, writing, reading, checking

@@ -28,6 +28,7 @@ from . import cone
 MAX_DISAGREEMENT = 0.5  # a photo's misfit beyond noise, over what a photo of another band shows (photo_disagreement)
 EXPOSURE_RANGE = (0.6, 1.6)  # a band photo's exposure relative to white, as the cone fit finds it
 NOISE_STEP = 2  # rows between the pixels whose residuals give a photo's noise (1: neighbours share the camera's blur)
+SEEN_SHARE = 0.25  # of the median band's model energy: a band seen enough to tell its exposure (band_seen)
 CHECK_SAMPLES = 6000  # working pixels the band-photo check fits (a fifth of the cone fit's: seconds, not minutes)
 
 
@@ -102,8 +103,21 @@ def photo_disagreement(fit, ratios, rows, cols, shifts, below=None,
     return np.array(own) / max(scale, 1e-12), np.array(exposure), scale
 
 
-def _exposure_ok(a) -> np.ndarray:
-    return (np.asarray(a) > EXPOSURE_RANGE[0]) & (np.asarray(a) < EXPOSURE_RANGE[1])
+def _exposure_ok(a, seen) -> np.ndarray:
+    """bool (K,): exposure ``a`` (K,) within ``EXPOSURE_RANGE``, or a band not ``seen`` (K,) enough to tell."""
+    return ((np.asarray(a) > EXPOSURE_RANGE[0]) & (np.asarray(a) < EXPOSURE_RANGE[1])) | ~np.asarray(seen)
+
+
+def band_seen(fit, rows, cols, shifts) -> np.ndarray:
+    """bool (K,): which bands the pixels (``rows``, ``cols``) show enough of to tell their exposure:
+    the model's energy (mean of ``h(delta + c_k)^2``) at least ``SEEN_SHARE`` of the median band's.
+    A part of the panel narrower than the sweep sees some bands only in the cone's tails, where a
+    cone that changes across the panel (a lens aperture that cuts steep rays) puts their scale
+    anywhere: the centre region of bench case 17 with an aperture of 0.35 gave one such band an
+    exposure of 9.9 times the others'."""
+    t = fit.delta(rows, cols)[:, None] + np.asarray(shifts, np.float64)[None, :]
+    energy = np.mean(cone.profile_at(fit.grid, fit.profile, t, fit.views) ** 2, axis=0)
+    return energy >= SEEN_SHARE * float(np.median(energy))
 
 
 def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape, judge=None) -> None:
@@ -129,7 +143,7 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape, 
     judge = judge or (lambda fit: None)
     fit = cone.fit_cone(ratios, rows, cols, shifts, views, shape)
     disagreement, _, _ = photo_disagreement(fit, ratios, rows, cols, shifts, below)
-    if disagreement.max() <= MAX_DISAGREEMENT and np.all(_exposure_ok(fit.gains)):
+    if disagreement.max() <= MAX_DISAGREEMENT and np.all(_exposure_ok(fit.gains, band_seen(fit, rows, cols, shifts))):
         judge(fit)
         return
     best = None
@@ -140,7 +154,8 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape, 
                                             (below[0][:, keep], below[1], below[2]))
         alone, a, _ = photo_disagreement(others, ratios[:, [j]], rows, cols, shifts[[j]],
                                          (below[0][:, [j]], below[1], below[2]), scale)
-        if rest.max() <= MAX_DISAGREEMENT and (alone[0] > MAX_DISAGREEMENT or not _exposure_ok(a)[0]):
+        seen = band_seen(others, rows, cols, shifts)
+        if rest.max() <= MAX_DISAGREEMENT and (alone[0] > MAX_DISAGREEMENT or not _exposure_ok(a, seen[[j]])[0]):
             if best is None or alone[0] > best[1]:
                 best = (j, float(alone[0]), float(a[0]), others)
     if best is not None:
@@ -162,7 +177,8 @@ def check_band_photos(ratios, rows, cols, shifts, bands, capture, views, shape, 
                             "profile's (docs/crosstalk.md, 'Photos that do not follow the profile')")
 
 
-def sweep_geometry(fit, box, views: int, width: int, sweep: float, edge: float = 0.05) -> dict[str, float]:
+def sweep_geometry(fit, box, views: int, width: int, sweep: float, edge: float = 0.05,
+                   span=None) -> dict[str, float]:
     """Where the photos put the bands against where the profile drew them (views).
 
     ``fit``: the whole panel's :class:`.cone.ConeFit`; ``box``: (r0, r1, c0, c1) the panel's outline in
@@ -180,17 +196,25 @@ def sweep_geometry(fit, box, views: int, width: int, sweep: float, edge: float =
                         views per unit of slant)
     sweep_centre_views  delta at the outline's centre less what was drawn there, modulo N into
                         -N/2..N/2 (an offset not the panel's; the photo's perspective moves it too)
+
+    ``span``: (r0, r1, c0, c1) inside ``box``, the part of the panel the fit was made on (None:
+    the whole outline); the change across and down is then read ``edge`` in from its edges and
+    scaled to the outline's extent, so the fit is not extrapolated to parts it did not see.
     """
     r0, r1, c0, c1 = box
+    s0, s1, t0, t1 = box if span is None else span
     middle = np.linspace(0.3, 0.7, 5)
-    rows, cols = r0 + middle * (r1 - r0), c0 + middle * (c1 - c0)
+    rows, cols = s0 + middle * (s1 - s0), t0 + middle * (t1 - t0)
     ones = np.ones_like(middle)
-    across = fit.delta(rows, (c1 - edge * (c1 - c0)) * ones) - fit.delta(rows, (c0 + edge * (c1 - c0)) * ones)
-    down = fit.delta((r1 - edge * (r1 - r0)) * ones, cols) - fit.delta((r0 + edge * (r1 - r0)) * ones, cols)
+    across = fit.delta(rows, (t1 - edge * (t1 - t0)) * ones) - fit.delta(rows, (t0 + edge * (t1 - t0)) * ones)
+    down = fit.delta((s1 - edge * (s1 - s0)) * ones, cols) - fit.delta((s0 + edge * (s1 - s0)) * ones, cols)
     centre = float(fit.delta(np.array([(r0 + r1) / 2.0]), np.array([(c0 + c1) / 2.0]))[0])
+    share_across = max(t1 - t0, 1e-9) / max(c1 - c0, 1e-9)  # of the outline: 1 without a span
+    share_down = max(s1 - s0, 1e-9) / max(r1 - r0, 1e-9)
     drawn = views * width * (1 - 2 * edge) / sweep
-    drift = float(np.mean(across)) - drawn
-    return {"sweep_drift_views": drift, "sweep_rate_error": drift / drawn, "sweep_tilt_views": float(np.mean(down)),
+    drift = float(np.mean(across)) / share_across - drawn
+    return {"sweep_drift_views": drift, "sweep_rate_error": drift / drawn,
+            "sweep_tilt_views": float(np.mean(down)) / share_down,
             "sweep_centre_views": (centre - views * (width / 2.0) / sweep + views / 2.0) % views - views / 2.0}
 
 
@@ -237,16 +261,17 @@ def routing_verdict(diagnostics: dict) -> tuple[str, list[str]]:
     return verdict, reasons
 
 
-def routing_diagnostics(fit, box, pattern_set) -> dict[str, float]:
-    """What :func:`routing_verdict` judges, from a whole-panel cone fit ``fit``: ``cone_contrast``
-    (the cone's peak to peak, share of white), ``cone_residual_relative`` (the fit's residual over
-    it) and :func:`sweep_geometry`'s (``box``: the panel's outline in working pixels)."""
+def routing_diagnostics(fit, box, pattern_set, span=None) -> dict[str, float]:
+    """What :func:`routing_verdict` judges, from a cone fit ``fit`` of the whole panel (or of
+    ``span``, a part of it): ``cone_contrast`` (the cone's peak to peak, share of white),
+    ``cone_residual_relative`` (the fit's residual over it) and :func:`sweep_geometry`'s (``box``:
+    the panel's outline in working pixels)."""
     contrast = float(fit.profile.max() - fit.profile.min())
     return {"cone_contrast": contrast, "cone_residual_relative": fit.rms / contrast if contrast > 0 else math.inf,
-            **sweep_geometry(fit, box, pattern_set.views, pattern_set.width, pattern_set.sweep)}
+            **sweep_geometry(fit, box, pattern_set.views, pattern_set.width, pattern_set.sweep, span=span)}
 
 
-def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bool = False) -> dict:
+def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bool = False, span=None) -> dict:
     """Do the photos follow the routing of the profile the patterns were drawn from?  Judged
     (:func:`routing_verdict`) on the band-photo check's quick fit of the whole panel (``fit``, see
     :func:`check_band_photos`: the fit of all photos, or of the others where one is out of place),
@@ -258,7 +283,7 @@ def check_routing(fit, box, pattern_set, capture, warnings: list[str], force: bo
     {"verdict": "ok" | "warn" | "refuse", "reasons": [...], "forced": a refusal overridden by
     ``force``, "judged": :func:`routing_diagnostics` of ``fit``} (``routing_check`` in the
     measurement's diagnostics)."""
-    found = routing_diagnostics(fit, box, pattern_set)
+    found = routing_diagnostics(fit, box, pattern_set, span)
     verdict, reasons = routing_verdict(found)
     if verdict == "refuse" and not force:
         raise CaptureError("the photos do not follow the routing of the profile the patterns were drawn from: "

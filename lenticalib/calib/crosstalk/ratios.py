@@ -17,10 +17,22 @@ COLUMN_AVERAGE = 1 / 16  # sigma of the average along the panel's columns, of th
 TOE_END = 0.25  # share of white's light where the toe's uncertainty has faded out (it is whole at black)
 
 
+CENTRE_FRACTION = 0.4  # the centre region: this share of the panel's extent in the photo, each way
+
+
 def bounding_box(mask: np.ndarray) -> tuple[int, int, int, int]:
     """(first row, last row, first column, last column) of the true pixels of ``mask``."""
     rows, cols = np.nonzero(mask)
     return int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())
+
+
+def centre_region(rows: np.ndarray, cols: np.ndarray, box) -> np.ndarray:
+    """bool (n,): which working pixels (``rows``, ``cols``: int (n,)) lie in the centre region, the
+    middle ``CENTRE_FRACTION`` of the panel outline ``box`` (:func:`bounding_box`) each way."""
+    r0, r1, c0, c1 = box
+    lo, hi = 0.5 - CENTRE_FRACTION / 2, 0.5 + CENTRE_FRACTION / 2
+    return ((rows >= r0 + lo * (r1 - r0)) & (rows <= r0 + hi * (r1 - r0))
+            & (cols >= c0 + lo * (c1 - c0)) & (cols <= c0 + hi * (c1 - c0)))
 
 
 def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: float = 0.0) -> np.ndarray:
