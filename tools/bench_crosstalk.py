@@ -4,9 +4,9 @@
 For every case of ``CASES`` (sharp and blurry lens sheets, both slant signs, both subpixel
 orders, camera distances from 400 to 1100 mm; cases 9-12 (issue 23): soft sheets with own-view
 shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, a far one; cases
-13-20 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
+13-22 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
 shape, its growth with the angle, vignetting across a lenticule, the camera's colour mixing, the
-truth's eye position), and all at once): draw the scene, photograph the calibration
+truth's eye position), and all at once (20; 21 and 22 are 17 and 20 with a milder aperture)): draw the scene, photograph the calibration
 patterns, **fit** a profile, draw the crosstalk patterns from that fitted profile (not the true
 one), photograph them from the same camera position (same scene), measure, and compare with the
 truth (``lenticalib.sim.crosstalk_truth``: the light an eye at each zone centre receives).
@@ -23,7 +23,7 @@ both, and no case may be refused (every photo is right).  ``--photos raw`` measu
 photos only.  ``--tone-gamma G`` / ``--tone-contrast S`` give every case's camera another tone
 curve (a gamma on the sRGB encoding; a phone's S-curve of strength S, 0..1), as a phone would.
 
-    python tools/bench_crosstalk.py [--cases 1-20] [--resolution 3000x2000] [--conditions standard]
+    python tools/bench_crosstalk.py [--cases 1-22] [--resolution 3000x2000] [--conditions standard]
                                     [--keep DIR [--reuse]] [--jobs J] [--photos raw,jpeg]
                                     [--tone-gamma G] [--tone-contrast S]
 """
@@ -58,10 +58,15 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "disc"}}),  # 14: a defocused lens
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian"}}),  # 15: a long tail
          (113, 0.40, +1, "RGB", 700.0, {"blur_growth": 4.0}),  # 16: blur growing fast with the angle
-         (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.8}}),  # 17: vignetting across a lens (0.35: refused, docs)
+         (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.35}}),  # 17: a lens that cuts steep rays
          (113, 0.40, +1, "RGB", 700.0, {"crosstalk": 0.3, "white_balance": (0.85, 1.15)}),  # 18: strong colour mixing
          (113, 0.40, +1, "RGB", 700.0, {"truth": "camera"}),  # 19: truth from the camera's position
-         # 20: all at once, on a sharper sheet (own-view share about 0.4, like issue 51's panel)
+         # 20: all at once, on a sharper sheet (own-view share about 0.3)
+         (113, 0.25, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian", "lenticule_aperture": 0.35},
+                                        "blur_growth": 3.0, "crosstalk": 0.25, "vignetting": 0.3}),
+         # 21, 22: 17 and 20 with a milder aperture (0.8 of the pitch: the sides of the panel as bright
+         # as a Gaussian blur leaves them)
+         (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.8}}),
          (113, 0.25, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian", "lenticule_aperture": 0.8},
                                         "blur_growth": 3.0, "crosstalk": 0.25, "vignetting": 0.3}),
          ]
