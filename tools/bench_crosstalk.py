@@ -234,7 +234,7 @@ def main() -> int:
     parser.add_argument("--keep", metavar="DIR")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--reuse", action="store_true", help="with --keep: reuse each case's fitted profile "
-                        "(fit-*/fitted-profile.json, one per panel: cases 13-20 share one) and its crosstalk photos "
+                        "(fit-*/fitted-profile.json, one per panel: cases 13, 14, 15 and 19 share one) and its crosstalk photos "
                         "instead of photographing and fitting again")
     parser.add_argument("--photos", default="raw,jpeg", help="which photos to measure each case from: raw "
                         "(16-bit linear), jpeg (camera JPEGs), or both (raw,jpeg)")
