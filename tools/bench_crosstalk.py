@@ -4,9 +4,10 @@
 For every case of ``CASES`` (sharp and blurry lens sheets, both slant signs, both subpixel
 orders, camera distances from 400 to 1100 mm; cases 9-12 (issue 23): soft sheets with own-view
 shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, a far one; cases
-13-22 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
+13-23 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
 shape, its growth with the angle, vignetting across a lenticule, the camera's colour mixing, the
-truth's eye position), and all at once (20; 21 and 22 are 17 and 20 with a milder aperture)): draw the scene, photograph the calibration
+truth's eye position), and all at once (20; 21 and 22 are 17 and 20 with a milder aperture); 23:
+issue 51's panel as described): draw the scene, photograph the calibration
 patterns, **fit** a profile, draw the crosstalk patterns from that fitted profile (not the true
 one), photograph them from the same camera position (same scene), measure, and compare with the
 truth (``lenticalib.sim.crosstalk_truth``: the light an eye at each zone centre receives).
@@ -23,7 +24,7 @@ both, and no case may be refused (every photo is right).  ``--photos raw`` measu
 photos only.  ``--tone-gamma G`` / ``--tone-contrast S`` give every case's camera another tone
 curve (a gamma on the sRGB encoding; a phone's S-curve of strength S, 0..1), as a phone would.
 
-    python tools/bench_crosstalk.py [--cases 1-22] [--resolution 3000x2000] [--conditions standard]
+    python tools/bench_crosstalk.py [--cases 1-23] [--resolution 3000x2000] [--conditions standard]
                                     [--keep DIR [--reuse]] [--jobs J] [--photos raw,jpeg]
                                     [--tone-gamma G] [--tone-contrast S]
 """
@@ -69,6 +70,9 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          (113, 0.40, +1, "RGB", 700.0, {"optics": {"lenticule_aperture": 0.8}}),
          (113, 0.25, +1, "RGB", 700.0, {"optics": {"blur_shape": "lorentzian", "lenticule_aperture": 0.8},
                                         "blur_growth": 3.0, "crosstalk": 0.25, "vignetting": 0.3}),
+         # 23: issue 51's panel as described: a sharp sheet (own-view share 0.47, neighbours 0.24, the
+         # far views 0.0017 each), blur growing with the angle, camera vignetting, colour mixing
+         (113, 0.20, +1, "RGB", 700.0, {"blur_growth": 2.0, "vignetting": 0.3, "crosstalk": 0.2, "scatter": 0.005}),
          ]
 
 
