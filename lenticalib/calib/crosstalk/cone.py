@@ -352,6 +352,32 @@ def values_at_integers(grid: np.ndarray, profile: np.ndarray, counts: np.ndarray
     return out
 
 
+def photo_jackknife(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+                    shifts: np.ndarray) -> np.ndarray:
+    """float (N,): the 1-sigma, over the band photos, of the row (h at the integers, normalised to
+    sum 1): the jackknife ``sqrt((K - 1) / K sum_k (row_k - mean)^2)`` of the rows with photo ``k``
+    left out.  What differs from photo to photo and not from pixel to pixel shows here and not in
+    a spread over parts of the panel: an exposure that drifted by ``e_k`` adds ``e_k`` times black's
+    light over white's to each of the photo's ratios, a floor of its own (bench case 23 under a
+    phone's conditions: far views up to 3.5 sigma off with the spread over strips of rows alone).
+    ``ratios`` (n, K), ``rows``/``cols`` (n,) working pixels, ``shifts`` (K,) views; ``fit`` gives
+    delta and the photos' exposures."""
+    t = fit.delta(rows, cols)[:, None] + np.asarray(shifts, np.float64)[None, :]
+    scaled = ratios / fit.gains[None, :]
+    count = t.shape[1]
+    left_out = []
+    for k in range(count):
+        keep = np.arange(count) != k
+        grid, profile, counts = binned_profile(t[:, keep].ravel(), scaled[:, keep].ravel(), fit.views)
+        row = values_at_integers(grid, profile, counts, fit.views)
+        if row.sum() > 0:
+            left_out.append(row / row.sum())
+    if len(left_out) < 2:
+        return np.zeros(fit.views)
+    left_out = np.array(left_out)
+    return np.sqrt((len(left_out) - 1) / len(left_out) * np.sum((left_out - left_out.mean(axis=0)) ** 2, axis=0))
+
+
 def local_offsets(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.ndarray,
                   tile: int = 16) -> np.ndarray:
     """How far the sweep model is off, tile by tile: for each ``tile`` x ``tile`` block of working

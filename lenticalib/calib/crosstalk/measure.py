@@ -14,7 +14,8 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    (:mod:`.cone`); ``h`` of the centre region at integer offsets, normalised, is the row of the
    circulant ``M``;
 4. uncertainties: the spread between 16 strips of rows of the centre region (noise, moire, local
-   non-uniformity; a robust spread), a quarter of the difference between its left and right halves
+   non-uniformity; a robust spread) or, where larger, the jackknife over the band photos (what
+   differs from photo to photo: :func:`.cone.photo_jackknife`), a quarter of the difference between its left and right halves
    (the cone's change across it, ``ACROSS_SHARE``) and, in quadrature, what the photometric assumptions could
    move: the glare's size (+-30 %), the tone curve (a power ``1 +- d`` on the linearised light:
    ``d`` the measured curve's own 1-sigma for camera JPEGs, 0.05 where it could not be measured
@@ -259,6 +260,12 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     independent = (max(1.0, min(k, CENTRE_FRACTION / (2 * math.sqrt(math.pi) * column_average))) if column_average
                    else float(k))
     stat_sigma = _robust_spread(block_rows) / math.sqrt(independent) if k > 1 else np.zeros(n)
+    # what differs from photo to photo is common to every strip (an exposure that drifted by e_k
+    # adds e_k times black's light over white's to each of the photo's ratios: a floor of its own):
+    # the rows with one band photo left out show it (a jackknife over the photos; it holds their
+    # noise too, so the larger of the two spreads is taken)
+    photo_sigma = cone.photo_jackknife(fit, ratios[centre], rr, cc, band_shifts)
+    stat_sigma = np.maximum(stat_sigma, photo_sigma)
     cone_stat = (_robust_spread(np.array(block_cones)) / math.sqrt(independent) if k > 1
                  else np.zeros_like(cone_values))
     # the cone's change across the region (a blur that grows with the angle sharpens one side): the
@@ -348,7 +355,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                          "dark_clipping_sites": None if noise is None else [[list(p) for p in s] for s in noise.sites]}
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
-                   "sigma_statistical": stat_sigma, "sigma_across_region": across_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
+                   "sigma_statistical": stat_sigma, "sigma_photos": photo_sigma, "sigma_across_region": across_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
                    "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2),
