@@ -44,14 +44,31 @@ def test_a_floor_of_each_photo_is_in_the_jackknife_over_the_photos_not_in_the_sp
     strips = [_normalised_row(fit, ratios[rows // 10 == s], rows[rows // 10 == s], cols[rows // 10 == s], shifts)
               for s in range(16)]
     strip_sigma = np.std(np.array(strips), axis=0, ddof=1) / math.sqrt(16)
-    photo_sigma = cone.photo_jackknife(fit, ratios, rows, cols, shifts)
+    photo_sigma = cone.jackknife_sigma(cone.photo_jackknife(fit, ratios, rows, cols, shifts))
     assert np.max(error / strip_sigma) > 4.0  # the strips share every photo's floor
     assert np.max(error / np.maximum(strip_sigma, photo_sigma)) < 3.0
     # without floors the jackknife is the noise, about what the strips show
     clean = _cone(delta[:, None] + shifts[None, :]) + rng.normal(0, 0.01, (rows.size, K))
     fit = cone.fit_cone(clean, rows, cols, shifts, N, (160, 320))
-    jk = cone.photo_jackknife(fit, clean, rows, cols, shifts)
+    jk = cone.jackknife_sigma(cone.photo_jackknife(fit, clean, rows, cols, shifts))
     strips = [_normalised_row(fit, clean[rows // 10 == s], rows[rows // 10 == s], cols[rows // 10 == s], shifts)
               for s in range(16)]
     spread = np.std(np.array(strips), axis=0, ddof=1) / math.sqrt(16)
     assert 0.3 < np.median(jk / spread) < 3.0
+
+
+def test_the_figures_carry_the_jackknife_over_the_photos_as_the_row_does():
+    from lenticalib.calib.crosstalk.result import figures_with_sigma
+
+    rng = np.random.default_rng(4)
+    row = _cone(np.arange(N))
+    row = row / row.sum()
+    blocks = row[None, :] * (1 + rng.normal(0, 1e-4, (16, N)))
+    left_out = row[None, :] * (1 + rng.normal(0, 0.01, (K, N)))
+    left_out /= left_out.sum(axis=1, keepdims=True)
+    quiet = figures_with_sigma(row, {"blocks": blocks}, None)
+    photos = figures_with_sigma(row, {"blocks": blocks, "photos-left-out": left_out}, None)
+    own = [r[0] for r in left_out]
+    expected = math.sqrt((K - 1) / K * np.sum((np.array(own) - np.mean(own)) ** 2))
+    assert quiet["own_view_share"]["sigma"] < 0.2 * expected
+    assert abs(photos["own_view_share"]["sigma"] - expected) < 1e-9

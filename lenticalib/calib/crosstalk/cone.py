@@ -352,11 +352,21 @@ def values_at_integers(grid: np.ndarray, profile: np.ndarray, counts: np.ndarray
     return out
 
 
+def jackknife_sigma(values: np.ndarray) -> np.ndarray:
+    """The jackknife's 1-sigma ``sqrt((K - 1) / K sum_k (v_k - mean)^2)`` of leave-one-out values
+    ``values`` (K, ...) along their first axis; zeros where fewer than 2."""
+    values = np.asarray(values, np.float64)
+    if values.shape[0] < 2:
+        return np.zeros(values.shape[1:])
+    count = values.shape[0]
+    return np.sqrt((count - 1) / count * np.sum((values - values.mean(axis=0)) ** 2, axis=0))
+
+
 def photo_jackknife(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray,
                     shifts: np.ndarray) -> np.ndarray:
-    """float (N,): the 1-sigma, over the band photos, of the row (h at the integers, normalised to
-    sum 1): the jackknife ``sqrt((K - 1) / K sum_k (row_k - mean)^2)`` of the rows with photo ``k``
-    left out.  What differs from photo to photo and not from pixel to pixel shows here and not in
+    """float (K', N): the row (h at the integers, normalised to sum 1) with each band photo ``k``
+    left out in turn (K' of the K: a left-out row with no light is dropped); its spread
+    (:func:`jackknife_sigma`) is the row's 1-sigma over the photos.  What differs from photo to photo and not from pixel to pixel shows here and not in
     a spread over parts of the panel: an exposure that drifted by ``e_k`` adds ``e_k`` times black's
     light over white's to each of the photo's ratios, a floor of its own (bench case 23 under a
     phone's conditions: far views up to 3.5 sigma off with the spread over strips of rows alone).
@@ -372,10 +382,7 @@ def photo_jackknife(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np
         row = values_at_integers(grid, profile, counts, fit.views)
         if row.sum() > 0:
             left_out.append(row / row.sum())
-    if len(left_out) < 2:
-        return np.zeros(fit.views)
-    left_out = np.array(left_out)
-    return np.sqrt((len(left_out) - 1) / len(left_out) * np.sum((left_out - left_out.mean(axis=0)) ** 2, axis=0))
+    return np.array(left_out).reshape(len(left_out), fit.views)
 
 
 def local_offsets(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.ndarray, shifts: np.ndarray,

@@ -264,7 +264,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # adds e_k times black's light over white's to each of the photo's ratios: a floor of its own):
     # the rows with one band photo left out show it (a jackknife over the photos; it holds their
     # noise too, so the larger of the two spreads is taken)
-    photo_sigma = cone.photo_jackknife(fit, ratios[centre], rr, cc, band_shifts)
+    photo_rows = cone.photo_jackknife(fit, ratios[centre], rr, cc, band_shifts)
+    photo_sigma = cone.jackknife_sigma(photo_rows)
     stat_sigma = np.maximum(stat_sigma, photo_sigma)
     cone_stat = (_robust_spread(np.array(block_cones)) / math.sqrt(independent) if k > 1
                  else np.zeros_like(cone_values))
@@ -321,7 +322,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                         + floor_sigma ** 2 + model_sigma ** 2)
     cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
                          + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "clip")))
-    samples = {"blocks": block_rows, **{k2: v[0] for k2, v in perturbed.items()},
+    samples = {"blocks": block_rows, "photos-left-out": photo_rows, **{k2: v[0] for k2, v in perturbed.items()},
                "across-": row - across, "across+": row + across}  # half their difference: across_sigma
     # uniformity map: own-view share per region
     cols_n, rows_n = REGION_GRID

@@ -32,6 +32,7 @@ from ...core.files.atomic import write_text_atomic
 from ...core.crosstalk_document import DOCUMENT, mixing_matrix, read_crosstalk_document
 from ...core.files.fields import is_finite_number
 from ...core.identity import profile_identity
+from .cone import jackknife_sigma
 
 
 # key in crosstalk.json "figures": (name, what it is, in a few words), and the unit it is quoted in
@@ -84,7 +85,9 @@ def derived_figures(row: np.ndarray, eye_separation: float | None) -> dict[str, 
 def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
                        eye_separation: float | None, independent: float | None = None) -> dict[str, dict[str, float]]:
     """Each derived figure with its 1-sigma: the block spread and the photometric perturbations
-    propagated (the block rows' spread / sqrt(independent), the perturbed rows' half differences).
+    propagated (the block rows' spread / sqrt(independent) or, where larger, the jackknife over the
+    rows with one band photo left out (``samples["photos-left-out"]``, as the row's own sigma has
+    it), the perturbed rows' half differences).
 
     ``independent``: how many of the blocks are independent of each other (the measurement's
     ``diagnostics['independent_strips']``: its column average ties neighbouring strips); None:
@@ -98,6 +101,11 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
         for k in base:
             variance[k] += float(np.var([v[k] for v in values], ddof=1)) / min(independent or len(values),
                                                                                 len(values))
+    left_out = samples.get("photos-left-out")
+    if left_out is not None and len(left_out) > 1:
+        values = [derived_figures(r, eye_separation) for r in left_out if np.all(np.isfinite(r))]
+        for k in base:
+            variance[k] = max(variance[k], float(jackknife_sigma(np.array([v[k] for v in values]))) ** 2)
     for low, high in (("glare-", "glare+"), ("tone-", "tone+"), ("toe-", "toe+"), ("clip-", "clip+"),
                       ("across-", "across+")):
         if low in samples and high in samples:
