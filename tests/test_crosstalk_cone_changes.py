@@ -18,7 +18,7 @@ import pytest
 from lenticalib.calib.crosstalk import cone
 from lenticalib.core.errors import CaptureError
 
-from .crosstalk_support import VIEWS, crosstalk_scene, fitted_profile
+from .crosstalk_support import crosstalk_scene, fitted_profile
 
 N = 32
 
