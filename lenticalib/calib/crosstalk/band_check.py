@@ -24,6 +24,8 @@ from . import photometry
 from .checks import check_band_photos, check_distinct, check_routing
 from .ratios import COLUMN_AVERAGE, band_ratios, bounding_box, centre_region
 
+NO_GLARE = photometry.Glare(0.0, 0.0, math.nan)  # the checks judge the ratios as photographed (see check_bands)
+
 
 def check_bands(luma, mask, pattern_set, capture, warnings, force=False) -> tuple[float, dict]:
     """The band photos' checks, right after the photos are read and registered and before any of
@@ -44,10 +46,8 @@ def check_bands(luma, mask, pattern_set, capture, warnings, force=False) -> tupl
     The checks judge the ratios without the glare correction: the glare adds a smooth floor the
     cone model holds, and its fit and removal would take as long as the checks.
     """
-    bands = pattern_set.bands
-    no_glare = photometry.Glare(0.0, 0.0, math.nan)
-    ratios, rows, cols, _ = band_ratios(luma, mask, pattern_set, no_glare, column_average=0.0)
-    check_distinct(ratios, bands, capture)
+    ratios, rows, cols, _ = band_ratios(luma, mask, pattern_set, NO_GLARE, column_average=0.0)
+    check_distinct(ratios, pattern_set.bands, capture)
     box = bounding_box(mask)
     found: list[str] = []
     try:
@@ -56,13 +56,14 @@ def check_bands(luma, mask, pattern_set, capture, warnings, force=False) -> tupl
         return result[0], dict(result[1], region="panel")
     except CaptureError as refusal:
         whole = refusal
-    rr, cc = np.nonzero(mask)
+    # the centre region's samples are the whole panel's that lie in it (read once)
+    inside = centre_region(rows, cols, box)
     centre = np.zeros_like(mask)
-    inside = centre_region(rr, cc, box)
-    centre[rr[inside], cc[inside]] = True
+    centre[rows[inside], cols[inside]] = True
     found = []
     try:
-        result = _check_region(luma, centre, box, bounding_box(centre), pattern_set, capture, found, force)
+        result = _check_region(luma, centre, box, bounding_box(centre), pattern_set, capture, found, force,
+                               (ratios[inside], rows[inside], cols[inside]))
     except CaptureError:
         raise whole from None
     warnings.extend(found)
@@ -73,16 +74,13 @@ def check_bands(luma, mask, pattern_set, capture, warnings, force=False) -> tupl
     return result[0], dict(result[1], region="centre")
 
 
-def _check_region(luma, region, box, span, pattern_set, capture, warnings, force, ratios=None) -> tuple[float, dict]:
+def _check_region(luma, region, box, span, pattern_set, capture, warnings, force, ratios) -> tuple[float, dict]:
     """The band-photo and routing checks (:mod:`.checks`) on the pixels of ``region`` (bool (h, w)):
     (column average, routing record) or CaptureError.  ``box``: the panel's outline; ``span``: the
     region's own box where it is a part of the panel (None: the whole panel); ``ratios``: the
-    region's (ratios, rows, cols) without glare correction, when already computed."""
+    region's (ratios (n, K), rows (n,), cols (n,)) without glare correction."""
     bands = pattern_set.bands
     shifts = np.array([p.shift for p in bands])
-    no_glare = photometry.Glare(0.0, 0.0, math.nan)
-    if ratios is None:
-        ratios = band_ratios(luma, region, pattern_set, no_glare, column_average=0.0)[:3]
     routing: dict = {}
 
     def judge(fit):
@@ -98,7 +96,7 @@ def _check_region(luma, region, box, span, pattern_set, capture, warnings, force
         # the same photos averaged along the panel's columns, where the sweep stays put, must then
         # agree.  If they do not either, a photo the first check named stays named; otherwise the
         # averaged photos' verdict stands (their misfits hold neither noise nor moire)
-        averaged = band_ratios(luma, region, pattern_set, no_glare, column_average=COLUMN_AVERAGE)
+        averaged = band_ratios(luma, region, pattern_set, NO_GLARE, column_average=COLUMN_AVERAGE)
         try:
             check_band_photos(*averaged[:3], shifts, bands, capture, pattern_set.views, region.shape)
         except CaptureError as second:
