@@ -6,7 +6,9 @@ views.  The method is in ``docs/crosstalk.md``; in short:
 1. photos -> linear light (camera JPEGs through the camera's tone curve, measured on the black,
    white and half photos (:mod:`.tone`); ``linear`` for 16-bit linear photos from RAW),
    summed over R, G, B and area-averaged to working pixels; every photo registered to white
-   on the panel's outline (:mod:`lenticalib.calib.patterns.register`), the black photo subtracted, the
+   on the panel's outline (:mod:`lenticalib.calib.patterns.register`), the black and band photos'
+   exposures read on the registration frame and, where they drift, undone (:mod:`.closure`,
+   :mod:`.exposure`), the black photo subtracted, the
    camera's veiling glare measured outside the panel and removed (:mod:`.photometry`);
 2. each band photo divided by white: ``r_k(p)``, the share of white's light that reaches the
    camera from a one-view band ``delta(p) + c_k`` views away;
@@ -23,7 +25,9 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
    ``ratios.TOE_END`` of white's light), a camera JPEG's noise sigma where the sensor clips it at
    black (read too small on interpolated pixels: the photos as unclipped with ``CLIP_SCALE`` times
-   it, :func:`.dark.reclipped`) and the dark floor every entry sits on.
+   it, :func:`.dark.reclipped`), the dark floor every entry sits on and, for camera JPEGs, the whole
+   change of the row when the toe is set so that the band photos' light adds up to white's (the
+   light's closure, :mod:`.closure`).
 """
 
 from __future__ import annotations
@@ -40,8 +44,9 @@ import numpy as np
 from ...core.errors import CaptureError, InputError
 from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
-from . import cone, photometry
+from . import closure, cone, photometry
 from .band_check import check_bands
+from .closure import band_exposures, close_toe
 from .checks import routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from ..patterns.crosstalk_patterns import CrosstalkPatternSet
@@ -216,6 +221,14 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     import cv2
 
     n = pattern_set.views
+    # each photo's exposure read on the registration frame and, where it drifted,
+    # undone (exposure.Exposures.applied): a band photo whose exposure is e_k of black's keeps
+    # (e_k - 1) times black's light in its light above black, an offset under every view that the
+    # cone's exposures cannot take out (bench hard case 13: black 3.8 % of white, a drift of 4 %)
+    exposures = band_exposures(capture, pattern_set, None if curve is None else curve.lut(), photos)
+    if exposures is not None:
+        applied = exposures.applied()
+        luma = {name: image / applied[name] if name in applied else image for name, image in luma.items()}
     lit = luma["white"] - luma["black"]
     outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
@@ -233,6 +246,19 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # errors of a tenth of a view here and there, which smear (broaden) the cone
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                         degree=CENTRE_DEGREE, start=panel_fit)
+    # camera JPEGs: how far the band photos' light is from adding up to white's in the centre region,
+    # and the toe that would close it (closure.py; its row change is carried in the uncertainty, not
+    # applied).  The region, not the whole panel: a panel whose sides show another cone (a lens that
+    # cuts steep rays, bench case 17) is not binned into one cone there (1.114 over the whole panel)
+    closed = None
+    if photos == "srgb":
+        closed = close_toe(lambda toe: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, toe)[0][centre],
+                           fit, rows[centre], cols[centre], band_shifts, exposures, bands)
+        if closed.clamped:
+            warnings.append(f"the band photos' light adds up to {closed.integral:.3f} of white's, further from it than "
+                            "a camera's tone curve explains: photos of another pattern set, or a camera that "
+                            "processed them unevenly (the uncertainty carries it, up to a toe of "
+                            f"{closure.MAX_TOE})")
     row, cone_values, counts = _row_from(fit, ratios[centre], rows[centre], cols[centre], band_shifts, n)
     # the sweep model itself: the row as the whole-panel model would have it (its own smear included);
     # where the whole panel does not follow one cone (band_check judged the centre region alone) that
@@ -286,6 +312,9 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                   "tone-": (1.0, 1.0 - tone_sigma, 0.0, None), "tone+": (1.0, 1.0 + tone_sigma, 0.0, None)}
     if toe_sigma:
         variations.update({"toe-": (1.0, 1.0, -toe_sigma, None), "toe+": (1.0, 1.0, toe_sigma, None)})
+    if closed is not None and closed.pinned and closed.toe:
+        # the toe that would make the light add up: its whole change is carried ("closure-" mirrors it)
+        variations["closure+"] = (1.0, 1.0, closed.toe, None)
     clip_sigma = _interpolated_clip_sigma(noise)
     if clip_sigma:
         # the noise sigma read on pixels that are not the sensor's own (a camera JPEG) is a lower
@@ -297,6 +326,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
         r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
+    if "closure+" in perturbed:
+        perturbed["closure-"] = (2 * row - perturbed["closure+"][0], 2 * cone_values - perturbed["closure+"][1], counts)
 
     def half_change(name: str, part: int):
         """Half the change of the row (part 0) or the cone (1) between ``name``'s two variations (0: none)."""
@@ -305,6 +336,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
         return (perturbed[f"{name}+"][part] - perturbed[f"{name}-"][part]) / 2
 
     glare_sigma, tone_sig, toe_sig, clip_sig = (np.abs(half_change(name, 0)) for name in ("glare", "tone", "toe", "clip"))
+    closure_sig = np.abs(half_change("closure", 0))
     # the sweep model: its local error (tile by tile) smears the cone by eps^2 / 2 h''; and how the
     # row changes with the whole-panel model instead
     offsets = cone.local_offsets(fit, ratios[centre], rr, cc, band_shifts)
@@ -319,9 +351,10 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
     floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
     row_sigma = np.sqrt(stat_sigma ** 2 + across_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + clip_sig ** 2
+                        + closure_sig ** 2
                         + floor_sigma ** 2 + model_sigma ** 2)
     cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
-                         + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "clip")))
+                         + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "closure", "clip")))
     samples = {"blocks": block_rows, "photos-left-out": photo_rows, **{k2: v[0] for k2, v in perturbed.items()},
                "across-": row - across, "across+": row + across}  # half their difference: across_sigma
     # uniformity map: own-view share per region
@@ -343,10 +376,13 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
             regions[j, i] = own
             regions_sigma[j, i] = math.sqrt(stat_sigma[0] ** 2 + (halves[0] - halves[1]) ** 2 / 4
                                             + glare_sigma[0] ** 2 + tone_sig[0] ** 2 + toe_sig[0] ** 2
+                                            + closure_sig[0] ** 2
                                             + clip_sig[0] ** 2 + model_sigma[0] ** 2)
     photometry_record = {"photos": photos, "working_factor": factor, "glare": glare.to_dict(),
                          "tone_curve": None if curve is None else curve.to_dict(),
                          "tone_power_sigma": round(tone_sigma, 4), "tone_toe_sigma": round(toe_sigma, 4),
+                         "closure": None if closed is None else closed.to_dict(),
+                         "frame_exposures": None if exposures is None else exposures.to_dict(),
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts,
                          # the camera's noise sigma per channel (share of full scale) where it clips dark pixels
@@ -357,7 +393,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_photos": photo_sigma, "sigma_across_region": across_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
-                   "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig,
+                   "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig, "sigma_closure": closure_sig,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2),
                    "sweep_model_offset_rms": float(np.sqrt(np.mean(offsets ** 2))) if offsets.size else 0.0,

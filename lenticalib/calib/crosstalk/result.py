@@ -106,7 +106,7 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
         values = [derived_figures(r, eye_separation) for r in left_out if np.all(np.isfinite(r))]
         for k in base:
             variance[k] = max(variance[k], float(jackknife_sigma(np.array([v[k] for v in values]))) ** 2)
-    for low, high in (("glare-", "glare+"), ("tone-", "tone+"), ("toe-", "toe+"), ("clip-", "clip+"),
+    for low, high in (("glare-", "glare+"), ("tone-", "tone+"), ("toe-", "toe+"), ("closure-", "closure+"), ("clip-", "clip+"),
                       ("across-", "across+")):
         if low in samples and high in samples:
             a, b = derived_figures(samples[low], eye_separation), derived_figures(samples[high], eye_separation)
