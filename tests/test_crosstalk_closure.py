@@ -1,5 +1,5 @@
 """The light's closure (``calib/crosstalk/closure.py``): the band photos' light adds up to white's,
-which sets the tone curve's toe; and each band photo's exposure, read on the frame, undone.
+and the toe that would close it; each band photo's exposure, read on the frame.
 
 Synthetic ground truth with fixed seeds: a view cone that integrates to 1 over one period, swept
 across a panel of working pixels, its dark light read short as a camera whose tone curve's toe
@@ -86,25 +86,23 @@ def test_a_camera_that_read_the_light_right_closes_it_without_a_toe():
 
 
 def test_the_frame_s_exposures_set_the_integral_the_light_must_close_to():
-    """Black and band photos taken at 3 % more exposure than white: read on the frame, the drift
-    is undone only in part (``Exposures.applied``: a drift about the median near the range's
-    start), so the band photos' light integrates to more than 1, and the closure asks for what
-    is left, keeping the toe at 0; told nothing, it would take that for a toe."""
+    """Band photos taken at 3 % more exposure than white: their light integrates to 1.03, and with
+    the exposures read on the frame the closure asks for that, keeping the toe at 0; told nothing,
+    it would take the 3 % for a toe."""
     relative = {f"band-{k:02d}": 1.03 for k in range(BANDS)} | {"black": 1.03, "white": 1.0}
     read = exposure.Exposures(relative, {name: 0.002 for name in relative}, 0.01, 5000, 1)
-    assert 0.2 < read.applied_weight() < 0.8
     ratios, rows, cols = _samples(0.0)
-    ratios = ratios * 1.03 / read.applied()["band-00"]  # the photos as the measurement divides them
+    ratios = ratios * 1.03
     fit = cone.fit_cone(ratios, rows, cols, SHIFTS, VIEWS, (40, 400))
 
     def with_toe(t):
         return toe_lifted(ratios, 1.0, t)
 
     found = closure.close_toe(with_toe, fit, rows, cols, SHIFTS, read, _bands())
-    assert found.exposures_read and abs(found.toe) < 0.02
+    assert found.exposures_read and abs(found.toe) < 0.02 and abs(found.integral - 1.0) < 0.003
     assert found.toe_sigma < 0.3 * closure.UNKNOWN_EXPOSURE_SIGMA / found.slope
     blind = closure.close_toe(with_toe, fit, rows, cols, SHIFTS, None, _bands())
-    assert blind.toe < -0.05
+    assert blind.toe < -0.1 and blind.integral > 1.02
 
 
 def test_too_little_dark_light_pins_no_toe():
@@ -118,9 +116,9 @@ def test_too_little_dark_light_pins_no_toe():
     assert not found.pinned and found.toe == 0.0 and found.slope < closure.MIN_SLOPE
 
 
-def test_the_toe_lifts_only_the_light_above_black_below_its_end():
-    """``toe_lifted``: light above black at or beyond ``end`` of the reference unchanged; just above
-    black lifted by the whole toe, half-way by half of it."""
+def test_the_lift_moves_only_the_light_above_black_below_its_end():
+    """``toe_lifted``: light above black at or beyond ``TOE_END`` of the reference unchanged; just
+    above black lifted by the whole lift, half-way by half of it."""
     above = np.array([1e-6, TOE_END / 2, TOE_END, 0.8])
     out = toe_lifted(above, 1.0, 0.2)
     assert out[2:] == pytest.approx(above[2:])
@@ -169,7 +167,16 @@ def test_each_band_photo_s_exposure_is_read_with_black_and_white_alone():
     assert found is not None and found.relative["white"] == 1.0
     for name, value in truth.items():
         assert found.relative[name] == pytest.approx(value, abs=0.006), name
-    assert found.applied_weight() == 1.0  # a drift of a few per cent: undone
     photos["band-02"] = np.zeros_like(photos["band-02"])  # a photo with nothing on it
     assert exposure.measure_each(photos, srgb_decode_lut().astype(np.float64),
                                  [f"band-{k:02d}" for k in range(4)]) is None
+
+
+def test_only_the_toe_the_closure_pins_beyond_its_sigma_is_carried():
+    """``Closure.pinned_toe``: the closing toe less its own 1-sigma, 0 where that is larger or the
+    closure pins nothing."""
+    base = dict(integral=1.03, integral_sigma=0.005, expected_sigma=0.02, slope=0.033)
+    assert closure.Closure(**base, toe=-0.9, toe_sigma=0.63, pinned=True).pinned_toe() == pytest.approx(-0.27)
+    assert closure.Closure(**base, toe=0.14, toe_sigma=0.04, pinned=True).pinned_toe() == pytest.approx(0.10)
+    assert closure.Closure(**base, toe=0.02, toe_sigma=0.03, pinned=True).pinned_toe() == 0.0
+    assert closure.Closure(**base, toe=0.5, toe_sigma=0.1, pinned=False).pinned_toe() == 0.0

@@ -190,14 +190,18 @@ def test_a_power_camera_s_toe_is_left_open_by_a_few_per_cent_only():
     assert curve.to_dict()["toe_sigma"] == pytest.approx(curve.toe_sigma, abs=1e-4)
 
 
-def test_the_power_perturbation_raises_the_light_to_the_power_and_clamps_negatives():
-    """``ratios.relinearised``: ``max(light, 0) ** power`` (the toe acts on the light above black:
-    ``ratios.toe_lifted``, tests/test_crosstalk_closure.py)."""
-    from lenticalib.calib.crosstalk.ratios import relinearised
+def test_the_toe_perturbation_changes_only_light_below_its_end_and_most_at_black():
+    """``ratios.relinearised``: light at or above ``TOE_END`` of white's is only raised to the
+    power; at black it changes by the whole ``toe``, half-way to TOE_END by half of it."""
+    from lenticalib.calib.crosstalk.ratios import TOE_END, relinearised
 
-    light = np.array([-1e-3, 0.0, 0.1, 0.8])
-    assert relinearised(light) == pytest.approx([0.0, 0.0, 0.1, 0.8])
-    assert relinearised(light, 1.1) == pytest.approx([0.0, 0.0, 0.1 ** 1.1, 0.8 ** 1.1])
+    white = np.full(4, 2.0)
+    light = white * np.array([0.0, TOE_END / 2, TOE_END, 0.8])
+    assert relinearised(light, white) == pytest.approx(light)
+    out = relinearised(light + 1e-12, white, toe=0.2)
+    assert out[1] == pytest.approx(light[1] * 1.1) and out[2:] == pytest.approx(light[2:])
+    assert relinearised(np.array([1e-3]), np.array([2.0]), toe=0.2)[0] == pytest.approx(1e-3 * (1 + 0.2 * (1 - 5e-4 / TOE_END)))
+    assert relinearised(light, white, power=1.1, toe=0.0) == pytest.approx(light ** 1.1)
 
 
 def test_the_toe_s_perturbed_rows_enter_the_derived_figures_sigma():

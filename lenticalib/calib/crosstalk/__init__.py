@@ -16,7 +16,7 @@ uses them:
     checks       duplicate photos, band photos that do not fit the others, photos of another panel
     band_check   the checks as the measurement runs them: the whole panel, then its centre region
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps
-    closure      the band photos' exposures from the frame, and how far their light is from adding up to white's
+    closure      how far the band photos' light is from adding up to white's (their exposures read on the frame)
     measure      the measurement: the mixing matrix and the view cone from the photos
     result       ``crosstalk.json``: the mixing matrix, derived figures, writing, reading, checking
     report       the report's figures (titles, axes with units, legends)

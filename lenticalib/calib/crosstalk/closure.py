@@ -17,7 +17,7 @@ region with each band photo divided by its exposure over white's (read on the re
 band photo whose light is not its frame's exposure left out: :func:`consistent_photos`).
 
 From camera JPEGs it does not: 0.992-1.026 on the standard bench, 0.980 under a phone's S-curve
-(hard case 13, with the exposures undone).  The row's normalisation hands the missing light to
+(hard case 13).  The row's normalisation hands the missing light to
 every view in proportion, so a tone curve whose toe reads the far views' light short (hard case
 13: the curve's slope 5-16 % short a few codes above black) puts the own view high.  The toe that
 would close the light (:func:`close_toe`, a toe of :func:`.ratios.toe_lifted`; the integral is
@@ -26,8 +26,9 @@ linear in it: two evaluations) is not applied: the same shortfall comes from a p
 right without a toe) or from the JPEG's processing of the bright, textured views; applied, it put
 standard case 5's own view 0.014 high and hard cases 21 and 22 further off; shared between the
 power and the toe by their uncertainties, hard case 20 0.018 off.  The row measured with the
-closing toe is what the light's shortfall could mean: its whole change is carried in the
-uncertainty (``diagnostics.sigma_closure``) and the integral is reported (``photometry.closure``).
+closing toe, less its own 1-sigma (:meth:`Closure.pinned_toe`), is what the light's shortfall
+could mean: its whole change is carried in the uncertainty (``diagnostics.sigma_closure``) and
+the integral is reported (``photometry.closure``).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ import numpy as np
 from ...core.colour import srgb_decode
 from ...core.files.imageio import read_image
 from . import cone
-from .exposure import CODE_RANGE, LINEAR16_RANGE, Exposures, measure_each
+from .exposure import CODE_RANGE, Exposures, measure_each
 from .tone import decode_lut
 
 TRIAL_TOE = 0.2  # the second evaluation of the integral (it is linear in the toe)
@@ -76,21 +77,31 @@ class Closure:
     photos: int = 0
     clamped: bool = False
 
+    def pinned_toe(self) -> float:
+        """The part of the closing toe beyond its own 1-sigma (0 where the closure does not pin
+        one): what the shortfall says about the toe beyond what unknown exposures and the
+        integral's spread could make of it (hard case 3: a crushed bezel, exposures taken as
+        locked to 2 %, a closing toe of -0.9 +- 0.63 and a row change of 0.025 on the own view
+        whose error was 0.002)."""
+        if not self.pinned:
+            return 0.0
+        return math.copysign(max(0.0, abs(self.toe) - self.toe_sigma), self.toe)
+
     def to_dict(self) -> dict:
         return {"integral": round(self.integral, 5), "integral_sigma": round(self.integral_sigma, 5),
                 "expected": 1.0, "expected_sigma": round(self.expected_sigma, 5),
                 "exposures": "read on the registration frame" if self.exposures_read else "taken as locked",
                 "band_photos_used": self.photos, "slope_per_toe": round(self.slope, 5),
                 "closing_toe": round(self.toe, 4), "closing_toe_sigma": round(self.toe_sigma, 4),
+                "pinned_toe": round(self.pinned_toe(), 4),
                 "pinned": bool(self.pinned), "clamped": bool(self.clamped)}
 
 
-def band_exposures(capture, pattern_set, table: np.ndarray | None, photos: str = "srgb") -> Exposures | None:
+def band_exposures(capture, pattern_set, table: np.ndarray | None) -> Exposures | None:
     """The black and band photos' exposures over white's, read on the registration frame
-    (:func:`.exposure.measure_each`): 8-bit photos through ``table`` (float (256,), the tone
-    curve's light of each code; None: sRGB decoding), 16-bit ones through linear or sRGB decoding
-    as ``photos`` says ("linear" or "srgb"); None where the photos are neither or the frame cannot
-    be read on every band photo."""
+    (:func:`.exposure.measure_each`) of camera photos: 8-bit ones through ``table`` (float (256,),
+    the tone curve's light of each code; None: sRGB decoding), 16-bit ones through sRGB decoding;
+    None where the photos are neither or the frame cannot be read on every band photo."""
     names = ["black", "white"] + [p.name for p in pattern_set.bands]
     images = {}
     for name in names:
@@ -103,20 +114,17 @@ def band_exposures(capture, pattern_set, table: np.ndarray | None, photos: str =
     if images["white"].dtype == np.uint8:
         table = decode_lut() if table is None else np.asarray(table, np.float64)
         return measure_each(images, table, names[2:])
-    codes = np.arange(65536) / 65535.0
-    if photos == "linear":
-        return measure_each(images, codes, names[2:], LINEAR16_RANGE)
-    return measure_each(images, srgb_decode(codes), names[2:], (CODE_RANGE[0] * 257, CODE_RANGE[1] * 257))
+    decoded = srgb_decode(np.arange(65536) / 65535.0)
+    return measure_each(images, decoded, names[2:], (CODE_RANGE[0] * 257, CODE_RANGE[1] * 257))
 
 
-def residual_exposures(exposures: Exposures | None, bands) -> tuple[np.ndarray, float, bool]:
-    """(each band photo's exposure over white's (K,) left after the photos were brought to white's
-    by ``exposures.applied()``, the 1-sigma of their mean, whether read): the exposures the
-    closure's integral is taken with (None: taken as locked, all 1, with ``UNKNOWN_EXPOSURE_SIGMA``)."""
+def frame_exposures(exposures: Exposures | None, bands) -> tuple[np.ndarray, float, bool]:
+    """(each band photo's exposure over white's (K,), the 1-sigma of their mean, whether read): the
+    exposures the closure's integral is taken with (None: taken as locked, all 1, with
+    ``UNKNOWN_EXPOSURE_SIGMA``)."""
     if exposures is None:
         return np.ones(len(bands)), UNKNOWN_EXPOSURE_SIGMA, False
-    applied = exposures.applied()
-    each = np.array([exposures.relative[p.name] / applied[p.name] for p in bands])
+    each = np.array([exposures.relative[p.name] for p in bands])
     sigma = np.array([exposures.sigma[p.name] for p in bands])
     return each, math.hypot(float(np.sqrt(np.mean(sigma ** 2))) / math.sqrt(each.size), EXPOSURE_FLOOR), True
 
@@ -157,9 +165,9 @@ def close_toe(ratios_with_toe: Callable[[float], np.ndarray], fit: cone.ConeFit,
     ``ratios_with_toe(toe)``: float (n, K) band ratios at the working pixels ``rows``, ``cols``
     with the photos' light above black lifted by ``toe`` (:func:`.ratios.toe_lifted`); ``fit``:
     a cone fit of those pixels on the ratios with toe 0 (its delta is kept; the band photos'
-    exposures are the frame's, :func:`residual_exposures`, over the photos that agree with them,
+    exposures are the frame's, :func:`frame_exposures`, over the photos that agree with them,
     :func:`consistent_photos`).  The integral is linear in the toe: two evaluations."""
-    gains, expected_sigma, read = residual_exposures(exposures, bands)
+    gains, expected_sigma, read = frame_exposures(exposures, bands)
     keep = consistent_photos(fit.gains, gains)
     fit = dataclasses.replace(fit, gains=gains[keep])
     shifts = np.asarray(shifts)[keep]

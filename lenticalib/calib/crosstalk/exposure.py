@@ -48,7 +48,6 @@ OUTER = 1.0  # ... and this share of it outside
 SECTORS = 32  # sectors around the panel, each with its own smooth light
 MIN_PIXELS = 400  # pixels across the outer edge at least (fewer: no estimate)
 CODE_RANGE = (8, 247)  # codes between which each channel of a pixel is read (its mean over the pixel's photo pixels)
-LINEAR16_RANGE = (32, 63000)  # the same for 16-bit linear photos (their dark end is not crushed: black reads there)
 MAX_RESIDUAL = 0.05  # relative RMS of the sectors' steps about one scale per photo above which there is no estimate
 DRIFT_RANGE = (0.006, 0.012)  # RMS drift over which the exposures go from ignored to undone (Exposures.applied)
 BIN = 0.5  # frame pixels: the bins of the distance to the edge the light is averaged in

@@ -6,9 +6,7 @@ views.  The method is in ``docs/crosstalk.md``; in short:
 1. photos -> linear light (camera JPEGs through the camera's tone curve, measured on the black,
    white and half photos (:mod:`.tone`); ``linear`` for 16-bit linear photos from RAW),
    summed over R, G, B and area-averaged to working pixels; every photo registered to white
-   on the panel's outline (:mod:`lenticalib.calib.patterns.register`), the black and band photos'
-   exposures read on the registration frame and, where they drift, undone (:mod:`.closure`,
-   :mod:`.exposure`), the black photo subtracted, the
+   on the panel's outline (:mod:`lenticalib.calib.patterns.register`), the black photo subtracted, the
    camera's veiling glare measured outside the panel and removed (:mod:`.photometry`);
 2. each band photo divided by white: ``r_k(p)``, the share of white's light that reaches the
    camera from a one-view band ``delta(p) + c_k`` views away;
@@ -221,14 +219,12 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     import cv2
 
     n = pattern_set.views
-    # each photo's exposure read on the registration frame and, where it drifted,
-    # undone (exposure.Exposures.applied): a band photo whose exposure is e_k of black's keeps
-    # (e_k - 1) times black's light in its light above black, an offset under every view that the
-    # cone's exposures cannot take out (bench hard case 13: black 3.8 % of white, a drift of 4 %)
-    exposures = band_exposures(capture, pattern_set, None if curve is None else curve.lut(), photos)
-    if exposures is not None:
-        applied = exposures.applied()
-        luma = {name: image / applied[name] if name in applied else image for name, image in luma.items()}
+    # camera JPEGs: the band photos' exposures over white's, read on the registration frame, for the
+    # light's closure below.  Not undone on the photos: a drifted photo's light above black holds
+    # (e_k - e_black) times black's panel light, but dividing each photo by its exposure scales a
+    # black level that does not follow the exposure as well (hard case 7's linear photos: the own
+    # view 0.135 for 0.618; docs/crosstalk.md, "The light adds up")
+    exposures = band_exposures(capture, pattern_set, None if curve is None else curve.lut()) if photos == "srgb" else None
     lit = luma["white"] - luma["black"]
     outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
@@ -252,7 +248,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # cuts steep rays, bench case 17) is not binned into one cone there (1.114 over the whole panel)
     closed = None
     if photos == "srgb":
-        closed = close_toe(lambda toe: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, toe)[0][centre],
+        closed = close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, None,
+                                                    lift)[0][centre],
                            fit, rows[centre], cols[centre], band_shifts, exposures, bands)
         if closed.clamped:
             warnings.append(f"the band photos' light adds up to {closed.integral:.3f} of white's, further from it than "
@@ -307,23 +304,25 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     tone_sigma = (LINEAR_TONE_SIGMA if photos == "linear" else TONE_FLOOR if curve is None
                   else curve.sigma)
     toe_sigma = 0.0 if curve is None else curve.toe_sigma  # no curve for linear photos
-    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, None),
-                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, None),
-                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, None), "tone+": (1.0, 1.0 + tone_sigma, 0.0, None)}
+    # (glare scale, power, toe, clip, lift): band_ratios' variations
+    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, None, 0.0),
+                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, None, 0.0),
+                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, None, 0.0), "tone+": (1.0, 1.0 + tone_sigma, 0.0, None, 0.0)}
     if toe_sigma:
-        variations.update({"toe-": (1.0, 1.0, -toe_sigma, None), "toe+": (1.0, 1.0, toe_sigma, None)})
-    if closed is not None and closed.pinned and closed.toe:
-        # the toe that would make the light add up: its whole change is carried ("closure-" mirrors it)
-        variations["closure+"] = (1.0, 1.0, closed.toe, None)
+        variations.update({"toe-": (1.0, 1.0, -toe_sigma, None, 0.0), "toe+": (1.0, 1.0, toe_sigma, None, 0.0)})
+    if closed is not None and closed.pinned_toe():
+        # the lift that would make the light add up, less its own 1-sigma: its whole change is
+        # carried ("closure-" mirrors it)
+        variations["closure+"] = (1.0, 1.0, 0.0, None, closed.pinned_toe())
     clip_sigma = _interpolated_clip_sigma(noise)
     if clip_sigma:
         # the noise sigma read on pixels that are not the sensor's own (a camera JPEG) is a lower
         # bound: half the change of the row with CLIP_SCALE times it is its 1-sigma (dark.reclipped)
-        variations["clip+"] = (1.0, 1.0, 0.0, (clip_sigma, CLIP_SCALE))
+        variations["clip+"] = (1.0, 1.0, 0.0, (clip_sigma, CLIP_SCALE), 0.0)
     perturbed = {"clip-": (row, cone_values, counts)} if clip_sigma else {}  # the main pass: as unclipped
-    for label, (g_scale, p, t, clip) in variations.items():
+    for label, (g_scale, p, t, clip, lift) in variations.items():
         g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
-        r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip)
+        r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip, lift)
         sel = np.isin(rows_p * mask.shape[1] + cols_p, rr * mask.shape[1] + cc)
         perturbed[label] = _row_from(fit, r_p[sel], rows_p[sel], cols_p[sel], band_shifts, n)
     if "closure+" in perturbed:

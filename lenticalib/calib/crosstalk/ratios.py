@@ -1,8 +1,9 @@
 """The band photos over white, as the measurement reads them (working pixels, linear light).
 
-Each photo relinearised as a tone curve that differs by a power would have it (:func:`relinearised`),
-less black, its light above black as a curve with another toe would have it (:func:`toe_lifted`: how
-the measurement sets the toe, :mod:`.closure`, and propagates the tone curve's uncertainty), the
+Each photo relinearised as a tone curve that differs by a power or by its toe would have it
+(:func:`relinearised`: how the measurement propagates the tone curve's uncertainty), less black,
+its light above black lifted as a curve with another slope just above black would have it
+(:func:`toe_lifted`: the light's closure, :mod:`.closure`), the
 camera's veiling glare removed (:mod:`.photometry`), divided by white; inside the eroded panel
 mask, optionally averaged along the panel's columns (:func:`.cone.average_along_columns`: a close
 camera's moire of the lit subpixels).
@@ -36,56 +37,61 @@ def centre_region(rows: np.ndarray, cols: np.ndarray, box) -> np.ndarray:
             & (cols >= c0 + lo * (c1 - c0)) & (cols <= c0 + hi * (c1 - c0)))
 
 
-def relinearised(light: np.ndarray, power: float = 1.0) -> np.ndarray:
-    """``light`` (working pixels, linearised) as a tone curve that differs by ``power`` would have it:
-    ``max(light, 0) ** power``."""
-    return np.maximum(light, 0.0) ** power
+def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: float = 0.0) -> np.ndarray:
+    """``light`` (working pixels, linearised) as a tone curve that differs by ``power`` and by ``toe`` would
+    have it: ``light ** power``, times ``1 + toe (1 - x / TOE_END)`` where ``x``, the light over ``white``'s
+    at the same pixel, is below ``TOE_END`` (the curve's toe: whole at black, none from TOE_END up).
+    Black's own light moves with it: where the black code's light sits against white's is as
+    uncertain as the slope just above it (the uncertainty the measurement propagates)."""
+    positive = np.maximum(light, 0.0)
+    out = positive ** power
+    if toe:
+        share = positive / np.maximum(white, 1e-9)
+        out = out * (1.0 + toe * np.clip(1.0 - share / TOE_END, 0.0, 1.0))
+    return out
 
 
-def toe_lifted(above: np.ndarray, reference: float, toe: float, end: float = TOE_END) -> np.ndarray:
-    """The light above black ``above`` (working pixels) as a tone curve whose toe differs by ``toe``
-    would have it: times ``1 + toe (1 - x / end)`` where ``x = above / reference`` (``reference``:
-    white's typical light above black on the panel) is below ``end``: whole just above black, none
-    from ``end`` of white's light up.  A tone curve maps codes to light whatever the place, so ``x``
-    is the light on one scale for the whole photo (not over white's at the same pixel, which a
-    panel's vignetting changes by tens of per cent).  It acts on the light above black, not on the
-    light itself: black's own light, which every photo holds, stays what it is (a toe that scaled
-    it would take it off the bright views too: the own view of bench hard case 13 moved by 4 % for
-    a toe of 0.9)."""
-    if not toe:
+def toe_lifted(above: np.ndarray, reference: float, lift: float) -> np.ndarray:
+    """The light above black ``above`` (working pixels) as a tone curve whose slope just above black
+    differs by ``lift`` would have it: times ``1 + lift (1 - x / TOE_END)`` where ``x = above /
+    reference`` (``reference``: white's typical light above black on the panel) is below ``TOE_END``:
+    whole just above black, none from ``TOE_END`` of white's light up.  Unlike :func:`relinearised`'s
+    toe it leaves black's own light and the bright views as they are: it moves only the dark light,
+    which is what the light's closure asks about (:mod:`.closure`)."""
+    if not lift:
         return above
     share = above / max(float(reference), 1e-12)
-    return above * (1.0 + toe * np.clip(1.0 - share / end, 0.0, 1.0))
+    return above * (1.0 + lift * np.clip(1.0 - share / TOE_END, 0.0, 1.0))
 
 
 def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE, toe=0.0, clip=None,
-                toe_end=TOE_END):
+                lift=0.0):
     """(float64 (n, K) band ratios, rows, cols, corrected white) inside the eroded panel mask.
 
     ``column_average``: sigma of the average along the panel's columns, as a share of the panel's
-    height in the photo (0: none); ``power``: the photos relinearised (:func:`relinearised`); ``toe``,
-    ``toe_end``: their light above black lifted (:func:`toe_lifted`);
-    ``clip`` (sigma, scale): the photos as unclipped with ``scale`` times the noise sigma they were
-    unclipped with (:func:`.dark.reclipped`; None: as they are)."""
+    height in the photo (0: none); ``power``, ``toe``: the photos relinearised (:func:`relinearised`);
+    ``lift``: their light above black lifted (:func:`toe_lifted`); ``clip`` (sigma, scale): the
+    photos as unclipped with ``scale`` times the noise sigma they were unclipped with
+    (:func:`.dark.reclipped`; None: as they are)."""
     import cv2
 
     from .dark import reclipped
 
     def linear(name):
-        return relinearised(luma[name] if clip is None else reclipped(luma[name], *clip), power)
+        light = luma[name] if clip is None else reclipped(luma[name], *clip)
+        return relinearised(light, luma["white"], power, toe)
 
     black = linear("black")  # once, not once per photo
-    plain_white = linear("white") - black
-    reference = float(np.median(plain_white[mask])) if toe else 1.0
+    reference = float(np.median((luma["white"] - luma["black"])[mask])) if lift else 1.0
 
     def corrected(name):
-        img = toe_lifted(linear(name) - black, reference, toe, toe_end)
+        img = toe_lifted(linear(name) - black, reference, lift)
         return photometry.remove_glare(img.astype(np.float32), glare)
 
-    plain = photometry.remove_glare(plain_white.astype(np.float32), glare)
-    white = corrected("white") if toe else plain  # the same where white is lit
-    if power != 1.0 or clip is not None:  # the pixels used: the same whatever the variation
-        plain = photometry.remove_glare((luma["white"] - luma["black"]).astype(np.float32), glare)
+    white = corrected("white")
+    # the pixels used: the same whatever the variation
+    plain = (white if power == 1.0 and not toe and clip is None and not lift
+             else photometry.remove_glare((luma["white"] - luma["black"]).astype(np.float32), glare))
 
     def over_white(name):
         return corrected(name) / np.maximum(white, 1e-6)
