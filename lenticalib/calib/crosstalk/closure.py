@@ -16,7 +16,7 @@ region with each band photo divided by its exposure over white's (read on the re
 1 (:func:`cone_integral`).  From linear photos of the bench it does, within 0.011 (a close camera's
 band photo whose light is not its frame's exposure left out: :func:`consistent_photos`).
 
-From camera JPEGs it does not: 0.992-1.026 on the standard bench, 0.980 under a phone's S-curve
+From camera JPEGs it does not: 0.992-1.026 on the standard bench, 0.974 under a phone's S-curve
 (hard case 13).  The row's normalisation hands the missing light to
 every view in proportion, so a tone curve whose toe reads the far views' light short (hard case
 13: the curve's slope 5-16 % short a few codes above black) puts the own view high.  The toe that
