@@ -180,3 +180,19 @@ def test_only_the_toe_the_closure_pins_beyond_its_sigma_is_carried():
     assert closure.Closure(**base, toe=0.14, toe_sigma=0.04, pinned=True).pinned_toe() == pytest.approx(0.10)
     assert closure.Closure(**base, toe=0.02, toe_sigma=0.03, pinned=True).pinned_toe() == 0.0
     assert closure.Closure(**base, toe=0.5, toe_sigma=0.1, pinned=False).pinned_toe() == 0.0
+
+
+def test_16_bit_photos_exposures_are_read_through_their_own_code_range():
+    """16-bit sRGB-encoded photos (a raw converter's): the same exposures as the 8-bit ones, read
+    through the 65536-code decoding with the readable range scaled to 16 bits."""
+    from lenticalib.core.colour import srgb_decode
+
+    rng = np.random.default_rng(4)
+    truth = {"black": 0.98, "white": 1.0} | {f"band-{k:02d}": 1 + rng.uniform(-0.04, 0.04) for k in range(3)}
+    photos16 = {k: v.astype(np.uint16) * 257 for k, v in _frame_photos(truth).items()}
+    found = exposure.measure_each(photos16, srgb_decode(np.arange(65536) / 65535.0),
+                                  [f"band-{k:02d}" for k in range(3)],
+                                  (exposure.CODE_RANGE[0] * 257, exposure.CODE_RANGE[1] * 257))
+    assert found is not None
+    for name, value in truth.items():
+        assert found.relative[name] == pytest.approx(value, abs=0.006), name

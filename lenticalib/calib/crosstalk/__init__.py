@@ -12,7 +12,7 @@ uses them:
     tone_choice  the power, the bent curve or a blend of the two: the curve's weight, the blend
     dark         dark pixels clipped at zero: their bias, measured on the black photo and undone
     photometry   the camera's veiling glare, from the photos
-    ratios       the band photos over white (relinearised, toe lifted for the tone curve's uncertainty, glare removed)
+    ratios       the band photos over white (relinearised for the tone curve's uncertainty, lifted for the closure, glare removed)
     checks       duplicate photos, band photos that do not fit the others, photos of another panel
     band_check   the checks as the measurement runs them: the whole panel, then its centre region
     cone         the angular profile of a view (light vs. eye position, in views) from the sweeps

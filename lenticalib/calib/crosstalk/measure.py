@@ -44,7 +44,6 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import closure, cone, photometry
 from .band_check import check_bands
-from .closure import band_exposures, close_toe
 from .checks import routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from ..patterns.crosstalk_patterns import CrosstalkPatternSet
@@ -223,8 +222,11 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # light's closure below.  Not undone on the photos: a drifted photo's light above black holds
     # (e_k - e_black) times black's panel light, but dividing each photo by its exposure scales a
     # black level that does not follow the exposure as well (hard case 7's linear photos: the own
-    # view 0.135 for 0.618; docs/crosstalk.md, "The light adds up")
-    exposures = band_exposures(capture, pattern_set, None if curve is None else curve.lut()) if photos == "srgb" else None
+    # view 0.135 for 0.618; docs/crosstalk.md, "The light adds up").  Read from the photo files once
+    # per pass (twice where two tone models are measured): holding the full-size photos from one
+    # pass to the next would cost more memory than reading 12 of them again costs time
+    exposures = closure.band_exposures(capture, pattern_set, None if curve is None else curve.lut()) \
+        if photos == "srgb" else None
     lit = luma["white"] - luma["black"]
     outside = ~(cv2.dilate(mask.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0)
     glare = photometry.fit_glare(np.where(outside | mask, lit, 0.0).astype(np.float32), outside)
@@ -248,7 +250,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # cuts steep rays, bench case 17) is not binned into one cone there (1.114 over the whole panel)
     closed = None
     if photos == "srgb":
-        closed = close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, None,
+        closed = closure.close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, None,
                                                     lift)[0][centre],
                            fit, rows[centre], cols[centre], band_shifts, exposures, bands)
         if closed.clamped:

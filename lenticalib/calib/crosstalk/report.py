@@ -259,11 +259,9 @@ def _tone_curve(fig, curve: dict) -> dict:
         return np.maximum(light, 1e-12) / max(float(light[white]), 1e-12)
 
     main = normalised(_tone_light(curve))
-    # the band the measurement propagates: the power's and the toe's (on the light above black,
-    # whole just above it, none from TOE_END of white's light up: ratios.toe_lifted), in
-    # quadrature on the log light
-    above = np.maximum(main - main[black], 0.0)
-    spread = np.hypot(sigma * np.log(main), toe * np.clip(1.0 - above / TOE_END, 0.0, 1.0) * above / main)
+    # the band the measurement propagates: the power's and the toe's (whole at black, none from
+    # TOE_END of white's light up: ratios.relinearised), in quadrature on the log light
+    spread = np.hypot(sigma * np.log(main), toe * np.clip(1.0 - main / TOE_END, 0.0, 1.0))
     band_label = f"1-sigma: a power 1 ± {sigma:.3f} on the light" + (f", the toe ± {100 * toe:.0f} %" if toe else "")
     label = (f"measured: sRGB decoding ** {curve['power']:.3f}" if "power" in curve
              else "measured: sRGB decoding x a bent factor")
