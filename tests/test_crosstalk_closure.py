@@ -196,3 +196,63 @@ def test_16_bit_photos_exposures_are_read_through_their_own_code_range():
     assert found is not None
     for name, value in truth.items():
         assert found.relative[name] == pytest.approx(value, abs=0.006), name
+
+
+def _clipped_set(read_share: float, seed: int = 5):
+    """(ratios at a scale of the sigma -> (n, K), fit, rows, cols, the true far light): a camera whose
+    sensor clips its noise (sigma 0.004 of white per channel) at 0 over a black of 0.002, the
+    photos unclipped with ``read_share`` times that sigma (what a JPEG's interpolated pixels show)."""
+    from lenticalib.calib.crosstalk.dark import reclipped
+
+    sigma, black = 0.004, 0.002
+    rng = np.random.default_rng(seed)
+    rows, cols = np.mgrid[0:40, 0:400]
+    rows, cols = rows.ravel(), cols.ravel()
+    delta = VIEWS * cols / 200.0 + 0.3 * rows / 40.0
+    true = _cone(delta[:, None] + SHIFTS[None, :])  # share of white's light, per working pixel
+
+    def photo(light):  # working light (3 channels) as the camera clipped it and the photos were unclipped
+        return reclipped(light + rng.normal(0.0, 2e-6, light.shape), sigma, read_share)
+
+    read_black, read_white = photo(np.full(rows.shape, 3 * black)), photo(np.full(rows.shape, 3 * black + 1.0))
+    read_bands = photo(3 * black + true)
+
+    def at_scale(scale):
+        lit = [reclipped(v, sigma * read_share, scale) for v in (read_bands, read_black[:, None], read_white[:, None])]
+        return (lit[0] - lit[1]) / (lit[2] - lit[1])
+
+    fit = cone.fit_cone(at_scale(1.0), rows, cols, SHIFTS, VIEWS, (40, 400))
+    return at_scale, fit, rows, cols
+
+
+@pytest.mark.parametrize("true_scale", [1.0, 1.8, 2.5])
+def test_the_clipping_scale_that_closes_the_light_is_the_sigma_the_jpeg_hid(true_scale, monkeypatch):
+    """Photos unclipped with a sigma ``true_scale`` times too small read the far views short and the
+    light does not add up; with the integral's 1-sigma made small (a floor of 0.002, exposures known)
+    the scale found is the true one (within 0.15) and gives the far views' light back (within 5 %)."""
+    monkeypatch.setattr(closure, "CLOSURE_FLOOR", 0.002)
+    monkeypatch.setattr(closure, "UNKNOWN_EXPOSURE_SIGMA", 0.0)
+    at_scale, fit, rows, cols = _clipped_set(1.0 / true_scale)
+    found = closure.close_clip(at_scale, fit, rows, cols, SHIFTS, None, _bands(), 2.5)
+    assert found.scales[0] == 1.0 and found.scales[-1] == 2.5
+    assert list(found.integrals) == sorted(found.integrals)  # more light the larger the sigma
+    assert true_scale == 1.0 or found.integrals[0] < 0.99
+    assert found.scale == pytest.approx(true_scale, abs=0.15)
+    assert found.spread < 0.15 and found.low <= found.scale <= found.high
+    grid, profile, _ = cone.profile_for(fit, at_scale(found.scale), rows, cols, SHIFTS)
+    far = np.abs(grid) > 6
+    assert np.mean(profile[far]) == pytest.approx(np.mean(_cone(grid[far])), rel=0.05)
+    assert found.to_dict()["scale"] == pytest.approx(found.scale, abs=0.001)
+
+
+def test_a_loose_closure_leaves_the_scale_to_its_range_and_says_so():
+    """With the floor's 1-sigma of 0.05 the integral barely tells the scales apart: the evidence's
+    mean moves the right way (a sigma hidden more gives a larger scale) and its spread covers the
+    true scale within 2 sigma."""
+    found = {}
+    for true_scale in (1.0, 2.5):
+        at_scale, fit, rows, cols = _clipped_set(1.0 / true_scale)
+        found[true_scale] = closure.close_clip(at_scale, fit, rows, cols, SHIFTS, None, _bands(), 2.5)
+        assert found[true_scale].sigma >= closure.CLOSURE_FLOOR
+        assert abs(found[true_scale].scale - true_scale) <= 2 * found[true_scale].spread
+    assert found[2.5].scale > found[1.0].scale + 0.1

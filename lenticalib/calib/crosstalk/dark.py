@@ -216,3 +216,14 @@ def reclipped(light: np.ndarray, sigma: float, scale: float, channels: int = 3) 
     wider = np.where(u < table[-1], scale * sigma * np.interp(u, table, t), clipped)  # f(t) = t far above 0
     near = x < REACH * max(sigma, scale * sigma)
     return np.where(near, channels * wider, light).astype(np.asarray(light).dtype)
+
+
+def interpolated_clip_sigma(noise) -> float:
+    """The mean noise sigma of the channels (linear light, per channel) where the photos were
+    unclipped (:func:`unclip`) with a sigma read on every pixel, no sensor sites found (a camera
+    JPEG: demosaicing and compression average a pixel over several sensor sites, so fewer of
+    its pixels sit at 0 than of the sensor's and the sigma read is too small: on the bench's
+    phone JPEGs 0.4-0.7 of the raw photos' sigma); 0 where none was needed or the sites were found."""
+    if noise is None or any(tuple(sites) != ALL_PHASES for sites in noise.sites):
+        return 0.0
+    return float(np.mean(noise.sigma))

@@ -42,7 +42,7 @@ import numpy as np
 from ...core.errors import CaptureError, InputError
 from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
-from . import closure, cone, photometry
+from . import closure, cone, dark, photometry
 from .band_check import check_bands
 from .checks import routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
@@ -60,7 +60,7 @@ PHOTO_MODES = ("srgb", "linear")
 FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
 FLOOR_GLARE_SHARE = 0.2  # ... plus this share of the glare fraction, spread over the N views
 ACROSS_SHARE = 0.25  # of the difference between the centre region's left and right halves: the cone's change across it
-CLIP_SCALE = 2.5  # the dark clipping's sigma read on a JPEG's pixels is up to this much too small (_interpolated_clip_sigma)
+CLIP_SCALE = 2.5  # the dark clipping's sigma read on a JPEG's pixels is up to this much too small (dark.interpolated_clip_sigma)
 
 
 @dataclasses.dataclass
@@ -248,10 +248,22 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # and the toe that would close it (closure.py; its row change is carried in the uncertainty, not
     # applied).  The region, not the whole panel: a panel whose sides show another cone (a lens that
     # cuts steep rays, bench case 17) is not binned into one cone there (1.114 over the whole panel)
+    # a camera JPEG's clipping sigma (read too small on its pixels): the scale of it that makes the
+    # band photos' light add up is the one the photos are measured with (closure.close_clip)
+    clip_sigma, clipping, main_clip = dark.interpolated_clip_sigma(noise), None, None
+    if photos == "srgb" and clip_sigma:
+        clipping = closure.close_clip(lambda scale: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0,
+                                                                (clip_sigma, scale))[0][centre],
+                                      fit, rows[centre], cols[centre], band_shifts, exposures, bands, CLIP_SCALE)
+        if clipping.scale > 1.0:
+            main_clip = (clip_sigma, clipping.scale)
+            ratios = band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, main_clip)[0]
+            fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
+                                degree=CENTRE_DEGREE, start=fit)
     closed = None
     if photos == "srgb":
-        closed = closure.close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, None,
-                                                    lift)[0][centre],
+        closed = closure.close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0,
+                                                            main_clip, lift)[0][centre],
                            fit, rows[centre], cols[centre], band_shifts, exposures, bands)
         if closed.clamped:
             warnings.append(f"the band photos' light adds up to {closed.integral:.3f} of white's, further from it than "
@@ -307,21 +319,27 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                   else curve.sigma)
     toe_sigma = 0.0 if curve is None else curve.toe_sigma  # no curve for linear photos
     # (glare scale, power, toe, clip, lift): band_ratios' variations
-    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, None, 0.0),
-                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, None, 0.0),
-                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, None, 0.0), "tone+": (1.0, 1.0 + tone_sigma, 0.0, None, 0.0)}
+    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, main_clip, 0.0),
+                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, main_clip, 0.0),
+                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, main_clip, 0.0),
+                  "tone+": (1.0, 1.0 + tone_sigma, 0.0, main_clip, 0.0)}
     if toe_sigma:
-        variations.update({"toe-": (1.0, 1.0, -toe_sigma, None, 0.0), "toe+": (1.0, 1.0, toe_sigma, None, 0.0)})
+        variations.update({"toe-": (1.0, 1.0, -toe_sigma, main_clip, 0.0), "toe+": (1.0, 1.0, toe_sigma, main_clip, 0.0)})
     if closed is not None and closed.pinned_toe():
         # the lift that would make the light add up, less its own 1-sigma: its whole change is
         # carried ("closure-" mirrors it)
-        variations["closure+"] = (1.0, 1.0, 0.0, None, closed.pinned_toe())
-    clip_sigma = _interpolated_clip_sigma(noise)
-    if clip_sigma:
+        variations["closure+"] = (1.0, 1.0, 0.0, main_clip, closed.pinned_toe())
+    perturbed = {}
+    if clipping is not None:
+        # the scales of the noise sigma that leave the light's closure within its 1-sigma: half the
+        # change of the row between them is its 1-sigma (dark.reclipped)
+        variations.update({"clip-": (1.0, 1.0, 0.0, (clip_sigma, clipping.low), 0.0),
+                           "clip+": (1.0, 1.0, 0.0, (clip_sigma, clipping.high), 0.0)})
+    elif clip_sigma:
         # the noise sigma read on pixels that are not the sensor's own (a camera JPEG) is a lower
         # bound: half the change of the row with CLIP_SCALE times it is its 1-sigma (dark.reclipped)
         variations["clip+"] = (1.0, 1.0, 0.0, (clip_sigma, CLIP_SCALE), 0.0)
-    perturbed = {"clip-": (row, cone_values, counts)} if clip_sigma else {}  # the main pass: as unclipped
+        perturbed["clip-"] = (row, cone_values, counts)  # the main pass: as unclipped
     for label, (g_scale, p, t, clip, lift) in variations.items():
         g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
         r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip, lift)
@@ -383,6 +401,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                          "tone_curve": None if curve is None else curve.to_dict(),
                          "tone_power_sigma": round(tone_sigma, 4), "tone_toe_sigma": round(toe_sigma, 4),
                          "closure": None if closed is None else closed.to_dict(),
+                         "clipping_closure": None if clipping is None else clipping.to_dict(),
                          "frame_exposures": None if exposures is None else exposures.to_dict(),
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts,
@@ -407,19 +426,6 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     return Measurement(n, row, row_sigma, fit.grid.copy(), cone_values, cone_sigma, regions, regions_sigma, samples,
                        photometry_record, diagnostics, warnings, capture.inputs, profile, pattern_set,
                        time.perf_counter() - start, images)
-
-
-def _interpolated_clip_sigma(noise) -> float:
-    """The mean noise sigma of the channels (linear light, per channel) where the photos were
-    unclipped (:mod:`.dark`) with a sigma read on every pixel, no sensor sites found (a camera
-    JPEG: demosaicing and compression average a pixel over several sensor sites, so fewer of
-    its pixels sit at 0 than of the sensor's and the sigma read is too small: on the bench's
-    phone JPEGs 0.4-0.7 of the raw photos' sigma); 0 where none was needed or the sites were found."""
-    from .dark import ALL_PHASES
-
-    if noise is None or any(tuple(sites) != ALL_PHASES for sites in noise.sites):
-        return 0.0
-    return float(np.mean(noise.sigma))
 
 
 def _robust_spread(values: np.ndarray) -> np.ndarray:
