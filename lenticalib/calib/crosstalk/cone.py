@@ -32,6 +32,7 @@ BINS_PER_VIEW = 16
 DEGREE = 6
 MAX_SAMPLES = 40_000
 ROUNDS = 6
+FAR_FROM = 3  # views: the far views (|m| >= FAR_FROM) whose scatter about a smooth floor is judged (far_scatter)
 
 
 @dataclasses.dataclass
@@ -409,3 +410,26 @@ def local_offsets(fit: ConeFit, ratios: np.ndarray, rows: np.ndarray, cols: np.n
                 best, best_err = c, err
         out.append(best)
     return np.array(out)
+
+
+def far_scatter(row: np.ndarray) -> float:
+    """The scatter of the row's views about a smooth cone, read on its far views (offsets
+    ``|m| >= FAR_FROM``): a 1-sigma of every view (share of white's light).
+
+    ``row`` (N,): h at the integer offsets (m and m - N the same).  The far views' light comes from
+    the lens' blur tails, scatter and glare, all smooth in the offset; what the sampling of each
+    offset (which photos and pixels reached it, their floors) leaves there is common to every
+    strip of rows and every band photo, so neither spread shows it (bench hard cases 13-23: view
+    23 read -0.0012 for 0.0011, 2.5-3.2 times its sigma, from linear photos and JPEGs alike), and
+    it is the same at every offset, the own view's too.  Each far view's second difference
+    ``h(m) - (h(m - 1) + h(m + 1)) / 2`` is that scatter times sqrt(3/2) where the cone is smooth;
+    their robust spread (1.4826 times the median absolute value: the steep flank of a long-tailed
+    cone next to the core does not count) over sqrt(3/2) is the 1-sigma."""
+    row = np.asarray(row, np.float64)
+    n = row.size
+    signed = np.where(np.arange(n) < n / 2, np.arange(n), np.arange(n) - n)
+    far = np.abs(signed) >= FAR_FROM
+    second = row - 0.5 * (np.roll(row, 1) + np.roll(row, -1))
+    if np.count_nonzero(far) < 8 or not np.all(np.isfinite(second[far])):
+        return 0.0
+    return float(1.4826 * np.median(np.abs(second[far])) / math.sqrt(1.5))

@@ -369,9 +369,9 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     model_sigma = np.sqrt((0.5 * eps2 * curvature) ** 2 + (row - panel_row) ** 2)
     # the dark floor: what a glare halo that is not Gaussian (real lenses have long tails) leaves
     floor_sigma = np.full(n, FLOOR_SIGMA + FLOOR_GLARE_SHARE * glare.fraction / n)
+    far_sigma = np.full(n, cone.far_scatter(row))  # what the sampling of each offset left (neither spread shows it)
     row_sigma = np.sqrt(stat_sigma ** 2 + across_sigma ** 2 + glare_sigma ** 2 + tone_sig ** 2 + toe_sig ** 2 + clip_sig ** 2
-                        + closure_sig ** 2
-                        + floor_sigma ** 2 + model_sigma ** 2)
+                        + closure_sig ** 2 + far_sigma ** 2 + floor_sigma ** 2 + model_sigma ** 2)
     cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
                          + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "closure", "clip")))
     samples = {"blocks": block_rows, "photos-left-out": photo_rows, **{k2: v[0] for k2, v in perturbed.items()},
@@ -413,7 +413,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     diagnostics = {"cone_residual_rms": panel_fit.rms, "centre_cone_residual_rms": fit.rms, "centre_pixels": int(centre.sum()), "blocks": int(k),
                    "independent_strips": float(independent),
                    "sigma_statistical": stat_sigma, "sigma_photos": photo_sigma, "sigma_across_region": across_sigma, "sigma_glare": glare_sigma, "sigma_tone": tone_sig,
-                   "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig, "sigma_closure": closure_sig,
+                   "sigma_tone_toe": toe_sig, "sigma_dark_clipping": clip_sig, "sigma_closure": closure_sig, "sigma_far_scatter": far_sigma,
                    "sigma_floor": floor_sigma, "sigma_sweep_model": model_sigma,
                    "sweep_smear_views": math.sqrt(eps2),
                    "sweep_model_offset_rms": float(np.sqrt(np.mean(offsets ** 2))) if offsets.size else 0.0,
