@@ -22,10 +22,12 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    (cameras are sRGB only to about +-8 %); 0.005 for linear photos), the light of the codes just
    above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
    ``ratios.TOE_END`` of white's light), a camera JPEG's noise sigma where the sensor clips it at
-   black (read too small on interpolated pixels: the photos as unclipped with ``CLIP_SCALE`` times
-   it, :func:`.dark.reclipped`), the dark floor every entry sits on and, for camera JPEGs, the whole
-   change of the row when the toe is set so that the band photos' light adds up to white's (the
-   light's closure, :mod:`.closure`).
+   black (read too small on interpolated pixels: the photos are measured unclipped with the scale
+   of it, 1 to ``CLIP_SCALE``, that the light's closure makes likely, :func:`.closure.close_clip`,
+   and that scale's spread is carried, :func:`.dark.reclipped`), the far views' scatter about a
+   smooth cone (:func:`.cone.far_scatter`), the dark floor every entry sits on and, for camera
+   JPEGs, the whole change of the row when the toe is set so that the band photos' light adds up
+   to white's (the light's closure, :mod:`.closure`).
 """
 
 from __future__ import annotations
