@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from lenticalib.calib.crosstalk import cone
 
@@ -72,3 +73,21 @@ def test_the_figures_carry_the_jackknife_over_the_photos_as_the_row_does():
     expected = math.sqrt((K - 1) / K * np.sum((np.array(own) - np.mean(own)) ** 2))
     assert quiet["own_view_share"]["sigma"] < 0.2 * expected
     assert abs(photos["own_view_share"]["sigma"] - expected) < 1e-9
+
+
+def test_the_figures_carry_each_views_scatter_independently():
+    """A scatter of 0.001 on every view (``samples["far-scatter"]``) adds, to the non-adjacent
+    crosstalk (the far views' sum over the own view), about sqrt(number of far views) x 0.001 /
+    own in quadrature, and to the own-view share 0.001."""
+    from lenticalib.calib.crosstalk.result import figures_with_sigma
+
+    row = _cone(np.arange(N))
+    row = row / row.sum()
+    blocks = np.tile(row, (16, 1))
+    quiet = figures_with_sigma(row, {"blocks": blocks}, None)
+    scattered = figures_with_sigma(row, {"blocks": blocks, "far-scatter": np.full(N, 0.001)}, None)
+    assert quiet["non_adjacent_crosstalk"]["sigma"] < 1e-9
+    far = N - 3
+    own = row[0]
+    assert scattered["non_adjacent_crosstalk"]["sigma"] == pytest.approx(math.sqrt(far) * 0.001 / own, rel=0.05)
+    assert scattered["own_view_share"]["sigma"] == pytest.approx(0.001, rel=1e-6)

@@ -83,7 +83,7 @@ class Measurement:
     cone_sigma: np.ndarray
     regions: np.ndarray
     regions_sigma: np.ndarray
-    samples: dict[str, np.ndarray]  # label -> (N,) rows of the perturbed / block evaluations
+    samples: dict[str, np.ndarray]  # label -> (N,) rows of the perturbed / block evaluations ("far-scatter": a sigma per view)
     photometry: dict[str, Any]
     diagnostics: dict[str, Any]
     warnings: list[str]
@@ -376,7 +376,8 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                         + closure_sig ** 2 + far_sigma ** 2 + floor_sigma ** 2 + model_sigma ** 2)
     cone_sigma = np.sqrt(cone_stat ** 2 + floor_sigma[0] ** 2 + (cone_values - panel_cone) ** 2
                          + sum(half_change(name, 1) ** 2 for name in ("glare", "tone", "toe", "closure", "clip")))
-    samples = {"blocks": block_rows, "photos-left-out": photo_rows, **{k2: v[0] for k2, v in perturbed.items()},
+    samples = {"blocks": block_rows, "photos-left-out": photo_rows, "far-scatter": far_sigma,
+               **{k2: v[0] for k2, v in perturbed.items()},
                "across-": row - across, "across+": row + across}  # half their difference: across_sigma
     # uniformity map: own-view share per region
     cols_n, rows_n = REGION_GRID

@@ -87,7 +87,8 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
     """Each derived figure with its 1-sigma: the block spread and the photometric perturbations
     propagated (the block rows' spread / sqrt(independent) or, where larger, the jackknife over the
     rows with one band photo left out (``samples["photos-left-out"]``, as the row's own sigma has
-    it), the perturbed rows' half differences).
+    it), the perturbed rows' half differences, and each view's own scatter
+    (``samples["far-scatter"]``, (N,), independent from view to view)).
 
     ``independent``: how many of the blocks are independent of each other (the measurement's
     ``diagnostics['independent_strips']``: its column average ties neighbouring strips); None:
@@ -112,6 +113,15 @@ def figures_with_sigma(row: np.ndarray, samples: Mapping[str, np.ndarray],
             a, b = derived_figures(samples[low], eye_separation), derived_figures(samples[high], eye_separation)
             for k in base:
                 variance[k] += ((a[k] - b[k]) / 2.0) ** 2
+    scatter = samples.get("far-scatter")  # (N,): each view's own 1-sigma, independent of the others' (cone.far_scatter)
+    if scatter is not None:
+        for m, s in enumerate(np.asarray(scatter, np.float64)):
+            if s > 0:
+                moved = np.array(row, np.float64)
+                moved[m] += s
+                changed = derived_figures(moved, eye_separation)
+                for k in base:
+                    variance[k] += (changed[k] - base[k]) ** 2
     if "tone-other" in samples:  # two tone models blended (measure._blend): the mixture's spread, and the undecided share
         from .tone_choice import blended_sigma
 
