@@ -328,3 +328,27 @@ def test_s_curve_tone_lut():
     quarter, three_q = np.searchsorted(plain, 0.25), np.searchsorted(plain, 0.75)
     assert strong[quarter] < plain[quarter] - 0.05 and strong[three_q] > plain[three_q] + 0.05
     assert np.all(np.diff(strong) >= 0)
+
+
+def test_the_cameras_jpeg_chroma_is_half_or_full_resolution_as_set():
+    """A red/blue checkerboard of single pixels keeps its colours through a 4:4:4 JPEG and loses
+    most of them through a 4:2:0 one (its chroma averaged over 2 x 2 pixels); an unknown chroma is
+    refused, naming the field."""
+    import cv2
+
+    from lenticalib.sim.camera import JPEG_CHROMA
+    from lenticalib.sim.photo import encode_jpeg
+
+    assert JPEG_CHROMA == ("4:2:0", "4:4:4")
+    yy, xx = np.mgrid[0:64, 0:64]
+    red = (yy + xx) % 2 == 0  # one-pixel checks: the chroma alternates pixel by pixel
+    photo = np.where(red[..., None], np.array([200, 30, 30], np.uint8), np.array([30, 30, 200], np.uint8))
+    spread = {}
+    for chroma in JPEG_CHROMA:
+        back = cv2.imdecode(np.frombuffer(encode_jpeg(photo, 95, chroma), np.uint8), cv2.IMREAD_COLOR)[:, :, ::-1]
+        spread[chroma] = float(np.mean(np.abs(back[..., 0].astype(int) - back[..., 2].astype(int))))
+    assert spread["4:4:4"] > 120 and spread["4:2:0"] < 60
+    scene = random_scene(5, width=320, height=180, resolution=(160, 120), subsamples=1)
+    assert scene.camera.jpeg_chroma == "4:2:0"
+    with pytest.raises(InputError, match="jpeg_chroma"):
+        scene.replace_camera(jpeg_chroma="4:2:2")

@@ -7,7 +7,7 @@ shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, 
 13-23 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
 shape, its growth with the angle, vignetting across a lenticule, the camera's colour mixing, the
 truth's eye position), and all at once (20; 21 and 22 are 17 and 20 with a milder aperture); 23:
-issue 51's panel as described): draw the scene, photograph the calibration
+issue 51's panel as described; 24: case 13 with the camera's JPEG chroma at full resolution): draw the scene, photograph the calibration
 patterns, **fit** a profile, draw the crosstalk patterns from that fitted profile (not the true
 one), photograph them from the same camera position (same scene), measure, and compare with the
 truth (``lenticalib.sim.crosstalk_truth``: the light an eye at each zone centre receives).
@@ -73,6 +73,10 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          # 23: issue 51's panel as described: a sharp sheet (own-view share 0.47, neighbours 0.24, the
          # far views 0.0017 each), blur growing with the angle, camera vignetting, colour mixing
          (113, 0.20, +1, "RGB", 700.0, {"blur_growth": 2.0, "vignetting": 0.3, "crosstalk": 0.2, "scatter": 0.005}),
+         # 24: case 13 with the camera's JPEG chroma at full resolution ("camera" changes the camera
+         # after the draw; a 4:2:0 JPEG hides the sensor's sites on the black photo: docs/crosstalk.md,
+         # "The phone's JPEGs, found")
+         (113, 0.40, +1, "RGB", 700.0, {"camera": {"jpeg_chroma": "4:4:4"}}),
          ]
 
 
@@ -94,10 +98,11 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
     seed, blur, sign, order, distance, *more = CASES[index - 1]
     fixed = dict(more[0]) if more else {}
     optics_changes, truth_mode = fixed.pop("optics", {}), fixed.pop("truth", "zone")
+    camera_changes = fixed.pop("camera", {})
     draw = random_scene(seed, resolution=resolution, conditions=conditions)
     scene = random_scene(seed, resolution=resolution, conditions=conditions, blur=(blur, blur), order=order,
                          distance=distance, slant=sign * abs(draw.optics.slant), **fixed)
-    changes = {k: v for k, v in zip(("tone_gamma", "tone_contrast"), tone) if v is not None}
+    changes = {**camera_changes, **{k: v for k, v in zip(("tone_gamma", "tone_contrast"), tone) if v is not None}}
     if changes:
         scene = scene.replace_camera(**changes)
     # the profile is fitted on the varied panel (vignetting across a lenticule pulls the view
@@ -136,6 +141,7 @@ def run_case(index: int, root: Path, resolution, conditions: str, reuse: bool = 
            "tone_gamma": scene.camera.tone_gamma, "tone_contrast": scene.camera.tone_contrast,
            "glare_true": scene.camera.glare_fraction, "fit_s": t1 - t0}
     out["fixed"] = {**fixed, **({"optics": optics_changes} if optics_changes else {}),
+                    **({"camera": camera_changes} if camera_changes else {}),
                     **({"truth": truth_mode} if truth_mode != "zone" else {})}
     for kind, raw in (("raw", True), ("jpeg", False)):
         if kind not in kinds:

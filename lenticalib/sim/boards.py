@@ -228,7 +228,7 @@ def photograph_print_board(camera: Camera, board, pose: BoardPose, rng: np.rando
     shot, _ = camera.for_photo(rng)
     shot = shot.replace(exposure=shot.exposure * 0.8 / REFLECTANCE["white"])
     photo = develop(print_board_radiance(camera, board, pose, rng), shot, rng)
-    return encode_jpeg(photo, camera.jpeg_quality or 95)
+    return encode_jpeg(photo, camera.jpeg_quality or 95, camera.jpeg_chroma)
 
 
 def panel_board_origin(optics, board) -> np.ndarray:

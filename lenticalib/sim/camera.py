@@ -29,6 +29,7 @@ import numpy as np
 from ..core.errors import InputError
 from .optics import fields_from
 
+JPEG_CHROMA = ("4:2:0", "4:4:4")  # the JPEG chroma resolutions the camera writes (Camera.jpeg_chroma)
 UNDISTORT_CRITERIA = (3, 100, 1e-13)  # cv2.TERM_CRITERIA_COUNT | EPS, iterations, epsilon
 
 
@@ -69,6 +70,8 @@ class Camera:
                       v -> (1 - s) v + s (3 v^2 - 2 v^3)  (0 = none, 1 = a strong S)
     sharpen           unsharp-mask amount of the camera's processing (0 = none)
     jpeg_quality      JPEG quality (1..100); None = no JPEG compression
+    jpeg_chroma       the JPEG's chroma resolution: "4:2:0" (half in both directions, what
+                      phones and most cameras write) or "4:4:4" (full)
 
     PER PHOTO (drawn afresh for every photo by :meth:`for_photo`; 0 = a locked, still camera)
     exposure_jitter   bound of the relative exposure change from photo to photo (auto
@@ -105,6 +108,7 @@ class Camera:
     tone_contrast: float = 0.0
     exposure_jitter: float = 0.0
     shake: float = 0.0
+    jpeg_chroma: str = "4:2:0"
 
     def __post_init__(self):
         def fail(field, message, hint=None):
@@ -130,6 +134,8 @@ class Camera:
         if self.jpeg_quality is not None and not (isinstance(self.jpeg_quality, int)
                                                   and 1 <= self.jpeg_quality <= 100):
             fail("jpeg_quality", f"must be a whole number 1..100 or null, got {self.jpeg_quality!r}")
+        if self.jpeg_chroma not in JPEG_CHROMA:
+            fail("jpeg_chroma", f"must be one of {', '.join(JPEG_CHROMA)}, got {self.jpeg_chroma!r}")
         if self.full_well is not None and not self.full_well > 0:
             fail("full_well", f"must be > 0 electrons or null, got {self.full_well!r}")
         for key in ("exposure", "tone_gamma", "glare_sigma"):

@@ -116,11 +116,17 @@ def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator, line
     return cv2.convertScaleAbs(cv2.max(enc, 0.0), alpha=255.0)  # rounded, saturated to 0..255
 
 
-def encode_jpeg(photo: np.ndarray, quality: int) -> bytes:
-    """uint8 RGB ``(h, w, 3)`` -> JPEG bytes (OpenCV, 4:2:0 chroma like most cameras)."""
+def encode_jpeg(photo: np.ndarray, quality: int, chroma: str = "4:2:0") -> bytes:
+    """uint8 RGB ``(h, w, 3)`` -> JPEG bytes (OpenCV; ``chroma`` "4:2:0", half resolution as most
+    cameras write it, or "4:4:4")."""
     import cv2
 
-    ok, data = cv2.imencode(".jpg", np.ascontiguousarray(photo[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    params = [cv2.IMWRITE_JPEG_QUALITY, int(quality)]
+    if chroma == "4:4:4":
+        params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
+    elif chroma != "4:2:0":
+        raise ImageError(f"unknown JPEG chroma {chroma!r}", source="photo", hint="use 4:2:0 or 4:4:4")
+    ok, data = cv2.imencode(".jpg", np.ascontiguousarray(photo[:, :, ::-1]), params)
     if not ok:
         raise ImageError("JPEG encoding failed", source="photo")
     return data.tobytes()
@@ -142,7 +148,7 @@ def photograph_jpeg(raster: np.ndarray, scene: Scene, rng: np.random.Generator) 
     """The camera's JPEG file of the panel showing ``raster`` (quality ``scene.camera.jpeg_quality``,
     95 when that is None)."""
     photo = develop(render_radiance(raster, scene), scene.camera, rng)
-    return encode_jpeg(photo, scene.camera.jpeg_quality or 95)
+    return encode_jpeg(photo, scene.camera.jpeg_quality or 95, scene.camera.jpeg_chroma)
 
 
 def photograph(raster: np.ndarray, scene: Scene, rng: np.random.Generator) -> np.ndarray:
@@ -161,5 +167,5 @@ def photograph(raster: np.ndarray, scene: Scene, rng: np.random.Generator) -> np
         return photo
     import cv2
 
-    data = encode_jpeg(photo, scene.camera.jpeg_quality)
+    data = encode_jpeg(photo, scene.camera.jpeg_quality, scene.camera.jpeg_chroma)
     return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)[:, :, ::-1].copy()
