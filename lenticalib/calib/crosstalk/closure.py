@@ -38,11 +38,15 @@ on its interpolated pixels is too small (hard case 13: 0.0030 against 0.0054 fro
 written 4:4:4, where the sites show): the far views come out short, the own view 0.011 high.  The
 JPEG's processing was not the cause: the same photos at 4:4:4 measured 0.004 off, with the true
 tone curve the 4:2:0 photos' light was right to 0.1 %.  Unclipping with a larger sigma adds light
-only where the photos are dark, so the integral rises with the scale of the sigma (0.974, 0.995,
-1.026 at 1, 1.5 and 2 times it on hard case 13): :func:`close_clip` takes the scale, from 1 up to
-the most a JPEG's interpolation explains, that closes the light, and the scales that put the
-integral ``CLOSURE_FLOOR`` either side of 1 as its range (what the tone curve's power and the
-JPEG's processing move the integral by where the noise is right: 1.030 on those 4:4:4 photos).
+only where the photos are dark, so the integral rises with the scale of the sigma (0.974, 0.993,
+1.018, 1.041 at 1, 1.5, 2 and 2.5 times it on hard case 13).  :func:`close_clip` weighs each
+scale from 1 up to the most a JPEG's interpolation explains by the likelihood of its integral
+against 1, with a 1-sigma of ``CLOSURE_FLOOR`` (what the tone curve's power, the optics and the
+JPEG's processing move the integral by where the noise is right: 1.030 on those 4:4:4 photos), and
+takes the mean and standard deviation.  A weak pin (hard case 13: 1.73 +- 0.42): the tone curve's
+toe, fitted on the clipped photos, takes up part of the clipping by an amount that depends on the
+camera, so that on other cameras (hard cases 3 and 7) the sigma read did best
+(``docs/crosstalk.md``, "The phone's JPEGs, found").
 """
 
 from __future__ import annotations

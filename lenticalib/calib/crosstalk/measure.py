@@ -246,22 +246,22 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # errors of a tenth of a view here and there, which smear (broaden) the cone
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                         degree=CENTRE_DEGREE, start=panel_fit)
-    # camera JPEGs: how far the band photos' light is from adding up to white's in the centre region,
-    # and the toe that would close it (closure.py; its row change is carried in the uncertainty, not
-    # applied).  The region, not the whole panel: a panel whose sides show another cone (a lens that
-    # cuts steep rays, bench case 17) is not binned into one cone there (1.114 over the whole panel)
-    # a camera JPEG's clipping sigma (read too small on its pixels): the scale of it that makes the
-    # band photos' light add up is the one the photos are measured with (closure.close_clip)
+    # a camera JPEG's clipping sigma (read too small on its pixels): the scale of it that the band
+    # photos' light adding up makes likely is the one the photos are measured with (closure.close_clip)
     clip_sigma, clipping, main_clip = dark.interpolated_clip_sigma(noise), None, None
     if photos == "srgb" and clip_sigma:
-        clipping = closure.close_clip(lambda scale: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0,
-                                                                (clip_sigma, scale))[0][centre],
+        clipping = closure.close_clip(lambda scale: ratios[centre] if scale == 1.0 else band_ratios(  # 1: as they are
+            luma, mask, pattern_set, glare, 1.0, column_average, 0.0, (clip_sigma, scale))[0][centre],
                                       fit, rows[centre], cols[centre], band_shifts, exposures, bands, CLIP_SCALE)
         if clipping.scale > 1.0:
             main_clip = (clip_sigma, clipping.scale)
             ratios = band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, main_clip)[0]
             fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                                 degree=CENTRE_DEGREE, start=fit)
+    # camera JPEGs: how far the band photos' light is from adding up to white's in the centre region,
+    # and the toe that would close it (closure.py; its row change is carried in the uncertainty, not
+    # applied).  The region, not the whole panel: a panel whose sides show another cone (a lens that
+    # cuts steep rays, bench case 17) is not binned into one cone there (1.114 over the whole panel)
     closed = None
     if photos == "srgb":
         closed = closure.close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0,
