@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.colour import srgb_encode
 from ..core.errors import ImageError
-from .camera import Camera
+from .camera import JPEG_CHROMA, Camera
 from .panel_light import render_radiance
 from .scene import Scene
 
@@ -124,8 +124,8 @@ def encode_jpeg(photo: np.ndarray, quality: int, chroma: str = "4:2:0") -> bytes
     params = [cv2.IMWRITE_JPEG_QUALITY, int(quality)]
     if chroma == "4:4:4":
         params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
-    elif chroma != "4:2:0":
-        raise ImageError(f"unknown JPEG chroma {chroma!r}", source="photo", hint="use 4:2:0 or 4:4:4")
+    elif chroma not in JPEG_CHROMA:
+        raise ImageError(f"unknown JPEG chroma {chroma!r}", source="photo", hint="use " + " or ".join(JPEG_CHROMA))
     ok, data = cv2.imencode(".jpg", np.ascontiguousarray(photo[:, :, ::-1]), params)
     if not ok:
         raise ImageError("JPEG encoding failed", source="photo")

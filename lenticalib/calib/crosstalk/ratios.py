@@ -37,6 +37,12 @@ def centre_region(rows: np.ndarray, cols: np.ndarray, box) -> np.ndarray:
             & (cols >= c0 + lo * (c1 - c0)) & (cols <= c0 + hi * (c1 - c0)))
 
 
+def _toe_factor(share: np.ndarray, amount: float) -> np.ndarray:
+    """``1 + amount (1 - share / TOE_END)`` below ``TOE_END``, 1 from there up: a toe's change of the
+    light, whole at black and none from ``TOE_END`` of white's light (``share``: the light over white's)."""
+    return 1.0 + amount * np.clip(1.0 - share / TOE_END, 0.0, 1.0)
+
+
 def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: float = 0.0) -> np.ndarray:
     """``light`` (working pixels, linearised) as a tone curve that differs by ``power`` and by ``toe`` would
     have it: ``light ** power``, times ``1 + toe (1 - x / TOE_END)`` where ``x``, the light over ``white``'s
@@ -46,8 +52,7 @@ def relinearised(light: np.ndarray, white: np.ndarray, power: float = 1.0, toe: 
     positive = np.maximum(light, 0.0)
     out = positive ** power
     if toe:
-        share = positive / np.maximum(white, 1e-9)
-        out = out * (1.0 + toe * np.clip(1.0 - share / TOE_END, 0.0, 1.0))
+        out = out * _toe_factor(positive / np.maximum(white, 1e-9), toe)
     return out
 
 
@@ -60,8 +65,7 @@ def toe_lifted(above: np.ndarray, reference: float, lift: float) -> np.ndarray:
     which is what the light's closure asks about (:mod:`.closure`)."""
     if not lift:
         return above
-    share = above / max(float(reference), 1e-12)
-    return above * (1.0 + lift * np.clip(1.0 - share / TOE_END, 0.0, 1.0))
+    return above * _toe_factor(above / max(float(reference), 1e-12), lift)
 
 
 def band_ratios(luma, mask, pattern_set, glare, power=1.0, column_average=COLUMN_AVERAGE, toe=0.0, clip=None,
