@@ -143,3 +143,20 @@ def test_a_photo_unclipped_with_too_small_a_sigma_is_restored_by_reclipping_with
     np.testing.assert_array_equal(dark.reclipped(3 * too_small, sigma, 1.0), 3 * too_small)
     far = np.array([0.2, 0.5])
     np.testing.assert_array_equal(dark.reclipped(far, sigma, 2.0), far)
+
+
+def test_a_channel_seldom_at_zero_takes_the_other_channels_sigma():
+    """A JPEG's green, averaged over two sensor sites of every four, sits at 0 in a few blocks only:
+    the photo is still measured (red's and blue's sigma, green the median of theirs), where it was
+    left clipped as a whole before (bench hard case 1: the far views 25 % short)."""
+    y, x = np.mgrid[0:480, 0:640]
+    light = np.stack([np.full((480, 640), 0.002), 0.0135 + 0.004 * (x > 600), np.full((480, 640), 0.002)], axis=2)
+    sigma = np.array([0.004, 0.004, 0.005])
+    rng = np.random.default_rng(6)
+    black = np.maximum(light + rng.normal(0.0, 1.0, light.shape) * sigma, 0.0).astype(np.float32)
+    zero = black == 0
+    assert 0 < np.count_nonzero(zero[..., 1]) < 0.001 * zero[..., 1].size  # green: a handful of pixels at 0
+    found = dark.clipping_noise(black, zero)
+    assert found is not None
+    assert np.allclose(found.sigma[[0, 2]], sigma[[0, 2]], rtol=0.05)
+    assert found.sigma[1] == pytest.approx(np.median(found.sigma[[0, 2]]))

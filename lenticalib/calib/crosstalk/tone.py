@@ -56,6 +56,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
+from .level_texture import TEXTURE_LOSS, expected_shares, level_modulations
 from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
 from .tone_models import (KNOTS, PHOTOS, bend_gain, best_power, fitted_curve, half_residual, level_power,
@@ -90,7 +91,9 @@ class ToneCurve:
     the other model, to be blended in with ``alternative_weight`` (0..0.5; 0: not used), and the
     evidence for the curve, ``bend_gain`` and ``level_bias`` (:mod:`.tone_choice`); ``exposures`` the
     photos' exposures the relations were brought to white's with (:mod:`.exposure`; None: taken as locked);
-    ``toe_sigma`` the 1-sigma of the light of the codes just above black, relative (:func:`_toe_sigma`)."""
+    ``toe_sigma`` the 1-sigma of the light of the codes just above black, relative (:func:`_toe_sigma`);
+    ``level_modulations`` each level photo's rows as the camera resolved them and ``texture_sigma``
+    what the light its demosaicing may have taken off them leaves open, as a power (:mod:`.level_texture`)."""
 
     model: str
     table: np.ndarray
@@ -108,6 +111,8 @@ class ToneCurve:
     level_bias: float = math.nan
     exposures: Exposures | None = None
     toe_sigma: float = 0.0
+    level_modulations: tuple[float, ...] = ()
+    texture_sigma: float = 0.0
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
@@ -145,6 +150,11 @@ class ToneCurve:
             data["light_of_code"] = [round(float(v), 6) for v in self.table]
         if self.levels:
             data["level_residuals"] = [round(v, 4) for v in self.level_residuals]
+        if self.level_modulations:
+            data["level_texture"] = {"modulations": [round(v, 4) for v in self.level_modulations],
+                                     "expected_shares": [round(max(0.5, 1.0 - TEXTURE_LOSS * v), 4)
+                                                         for v in self.level_modulations],
+                                     "power_sigma": round(self.texture_sigma, 4)}
         if math.isfinite(self.bend_gain):
             data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
         if self.exposures is not None:
@@ -159,11 +169,12 @@ def decode_lut(power: float = 1.0) -> np.ndarray:
     return (srgb_decode_lut() ** power).astype(np.float32)
 
 
-def _relations(hist, mixed, levels=LEVELS) -> list:
+def _relations(hist, mixed, levels=LEVELS, shares=None) -> list:
     """The linear relations of the curve's 256 values, as (sparse (rows, 256) relation, sparse (rows,
     256) white - black, counts (rows,)) triples, each row the mean over ``count`` tiles: the half
     relation tile by tile on the ``mixed`` tiles, and the ``levels``' on ``BINS`` bins of tiles of
-    similar white code (their means).
+    similar white code (their means), each level's light ``shares[name]`` (default 1) of its ``1/K``
+    of white's (the light the camera's demosaicing takes off resolved rows: :mod:`.level_texture`).
 
     The half relation holds pixel by pixel.  A level's holds only over whole periods of its rows
     and only where the camera does not resolve them: a tile holds a lit row more or less than its
@@ -187,7 +198,8 @@ def _relations(hist, mixed, levels=LEVELS) -> list:
     lit_bins = mean @ lit
     for name in levels:
         k = LEVEL_PERIODS[LEVELS.index(name)]
-        relations.append((mean @ (hist[name] - hist["black"]) - lit_bins / k, lit_bins, counts))
+        share = 1.0 if shares is None else shares.get(name, 1.0)
+        relations.append((mean @ (hist[name] - hist["black"]) - lit_bins * (share / k), lit_bins, counts))
     return relations
 
 
@@ -241,7 +253,8 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         sigma = math.sqrt(spread ** 2 + POWER_FLOOR ** 2) / power
         return ToneCurve("power", decode_lut(power), sigma, residual, int(picked.size), power, tuple(strips),
                          code_range=(black, white))
-    fitted = _fit_with_levels(hist, mixed, group, codes)
+    modulations = level_modulations(images)  # the level rows as the camera resolved them
+    fitted = _fit_with_levels(hist, mixed, group, codes, modulations=modulations)
     if math.isnan(fitted.sigma):
         return dataclasses.replace(fitted, code_range=(black, white))  # a level photo of another pattern
     # the exposures from the registration frame (exposure.py), under the curve fitted so far, and
@@ -262,27 +275,37 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         applied = exposures.applied()
         if all(v == 1.0 for v in applied.values()):
             break  # an exposure that held: the fit stands as it is
-        fitted = _fit_with_levels({k: v / applied[k] for k, v in hist.items()}, mixed, group, codes, weight)
+        fitted = _fit_with_levels({k: v / applied[k] for k, v in hist.items()}, mixed, group, codes, weight,
+                                  modulations)
     return dataclasses.replace(fitted, code_range=(black, white), exposures=exposures)
 
 
-def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None) -> ToneCurve:
+def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
+                     modulations: dict[str, float] | None = None) -> ToneCurve:
     """The power and the bent curve fitted to the half and level relations of ``hist`` (each photo's
     tile histograms, at one exposure), the main model and its blend weight (:mod:`.tone_choice`;
     ``weight``: the curve's weight given instead); model "power" with a NaN sigma where a level
-    photo is too far from its share of white."""
+    photo is too far from its share of white.  ``modulations``: the level rows as the camera
+    resolved them (:func:`.level_texture.level_modulations`; None: taken as unresolved)."""
     # a level photo of another pattern would bend the fit: each is judged first under the halves' power
     halves_power, halves_residual = best_power({k: v[mixed] for k, v in hist.items()})
     biases = _level_biases(hist, srgb_decode_lut() ** halves_power)
     if max(abs(b) for b in biases) > MAX_LEVEL_BIAS:
         return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(hist["white"].shape[0]),
                          halves_power, level_residuals=biases, levels=True)
-    relations = _relations(hist, mixed)
-    finest = _relations(hist, mixed, PINNING)
+    modulations = modulations or {}
+    shares = expected_shares(modulations)
+    relations = _relations(hist, mixed, shares=shares)
+    finest = _relations(hist, mixed, PINNING, shares)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
     # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
     power = level_power(relations[:1])
     curve = fitted_curve(relations)
+    # the light the camera's demosaicing may have taken off the level rows: none to twice the
+    # expected loss, half the curves' difference (as a power) in the bent curve's uncertainty
+    bounds = [fitted_curve(_relations(hist, mixed, shares=expected_shares(modulations, loss)))
+              for loss in (0.0, 2.0 * TEXTURE_LOSS)]
+    texture = 0.5 * abs(log_slope(bounds[1], bounds[0], codes)) if modulations else 0.0
     # the curve's weight (tone_choice): by how much a bend of the mid-tones fits the halves better
     # than the power and how far the levels lie from their shares under the halves' power (a
     # camera's S-curve); the curve's freedom otherwise follows the level photos' texture more than
@@ -293,13 +316,16 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None) -> 
         weight = curve_weight(gain, level_bias)
     weight = weight if np.all(np.diff(curve[codes]) > 0) else 0.0
     # both models, whatever the weight: the other one's distance says how undecided the photos are
-    fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest)
+    fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest, shares,
+                               texture if model == "curve" else 0.0)
               for model, table in (("power", srgb_decode_lut() ** power), ("curve", curve))}
     main, other = ("curve", "power") if weight > 0.5 else ("power", "curve")
     toe = _toe_sigma(fitted[main], fitted[other], codes)
-    return dataclasses.replace(fitted[main], alternative=dataclasses.replace(fitted[other], toe_sigma=toe),
+    textured = tuple(modulations.get(name, 0.0) for name in LEVELS) if modulations else ()
+    return dataclasses.replace(fitted[main], alternative=dataclasses.replace(fitted[other], toe_sigma=toe,
+                                                                             level_modulations=textured),
                                alternative_weight=min(weight, 1.0 - weight), bend_gain=gain, level_bias=level_bias,
-                               toe_sigma=toe)
+                               toe_sigma=toe, level_modulations=textured)
 
 
 def _toe_sigma(main: ToneCurve, other: ToneCurve, codes) -> float:
@@ -328,16 +354,18 @@ def _other_share(main: ToneCurve, other: ToneCurve) -> float:
     return min(1.0, main.sigma / max(other.sigma, 1e-12))
 
 
-def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest) -> ToneCurve:
+def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest, shares=None,
+              texture: float = 0.0) -> ToneCurve:
     """The :class:`ToneCurve` of ``model`` ("power" of ``power``, or "curve") with ``table`` (256,),
-    its residuals and its 1-sigma: the strips' spread and what the relations leave open."""
+    its residuals and its 1-sigma: the strips' spread, what the relations leave open and ``texture``
+    (a power: what the level rows' expected ``shares`` leave open)."""
     residual = half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
     level_residuals = _level_biases(hist, table)
     strips = []
     for g in range(GROUPS):
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
-            part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel])
+            part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel], shares=shares)
             fitted = fitted_curve(part) if model == "curve" else srgb_decode_lut() ** level_power(part[:1])
             strips.append(log_slope(fitted, table, codes))
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
@@ -346,6 +374,6 @@ def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, c
     # coarser levels' texture bias and by what the power family cannot follow)
     reference = srgb_decode_lut() ** level_power(finest) if model == "power" else fitted_curve(finest)
     spread = math.sqrt(spread ** 2 + log_slope(reference, table, codes) ** 2)
-    return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + POWER_FLOOR ** 2), residual,
-                     int(hist["white"].shape[0]), power if model == "power" else math.nan, tuple(strips),
-                     level_residuals, levels=True)
+    return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + texture ** 2 + POWER_FLOOR ** 2),
+                     residual, int(hist["white"].shape[0]), power if model == "power" else math.nan, tuple(strips),
+                     level_residuals, levels=True, texture_sigma=texture)
