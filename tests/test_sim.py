@@ -352,3 +352,31 @@ def test_the_cameras_jpeg_chroma_is_half_or_full_resolution_as_set():
     assert scene.camera.jpeg_chroma == "4:2:0"
     with pytest.raises(InputError, match="jpeg_chroma"):
         scene.replace_camera(jpeg_chroma="4:2:2")
+
+
+def test_the_cameras_demosaicing_is_edge_aware_or_bilinear_as_set():
+    """Panel rows one in eight lit, 3 photo pixels apart, coloured as a lens sheet's subpixels are:
+    the bilinear demosaicing keeps their light (within 0.5 %), the edge-aware one takes some off (the
+    level photos' loss, lenticalib.calib.crosstalk.level_texture); an unknown kind is refused."""
+    import dataclasses
+
+    from lenticalib.sim.camera import DEMOSAICING
+    from lenticalib.sim.photo import develop
+
+    assert DEMOSAICING == ("edge-aware", "bilinear")
+    scene = random_scene(5, width=320, height=180, resolution=(240, 240), subsamples=1)
+    camera = dataclasses.replace(scene.camera.clean(), colour_matrix=(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+                                 exposure=1.0, defocus_sigma=0.0, chromatic=(0.0, 0.0))
+    yy, xx = np.mgrid[0:240, 0:240]
+    rows = ((yy // 3) % 8 == 0).astype(np.float32)
+    colour = np.stack([(xx // 2) % 3 == k for k in range(3)], axis=2).astype(np.float32)  # subpixel colours
+    radiance = 0.6 * rows[..., None] * colour
+    kept = {}
+    for kind in DEMOSAICING:
+        photo = develop(radiance, camera.replace(demosaicing=kind), np.random.default_rng(0), linear=True)
+        kept[kind] = float(photo[8:-8, 8:-8].astype(np.float64).sum() / 65535.0 / radiance[8:-8, 8:-8].sum())
+    assert abs(kept["bilinear"] - 1.0) < 0.005
+    assert kept["edge-aware"] < kept["bilinear"] - 0.01
+    assert scene.camera.demosaicing == "edge-aware"
+    with pytest.raises(InputError, match="demosaicing"):
+        scene.replace_camera(demosaicing="vng")

@@ -7,7 +7,8 @@ shares about 0.3, a cone that broadens fast off axis, a camera 180 mm off axis, 
 13-23 (issue 51): one panel with one assumption of the simulator varied at a time (the blur's
 shape, its growth with the angle, vignetting across a lenticule, the camera's colour mixing, the
 truth's eye position), and all at once (20; 21 and 22 are 17 and 20 with a milder aperture); 23:
-issue 51's panel as described; 24: case 13 with the camera's JPEG chroma at full resolution): draw the scene, photograph the calibration
+issue 51's panel as described; 24: case 13 with the camera's JPEG chroma at full resolution; 25: case 13
+with a bilinear demosaicing): draw the scene, photograph the calibration
 patterns, **fit** a profile, draw the crosstalk patterns from that fitted profile (not the true
 one), photograph them from the same camera position (same scene), measure, and compare with the
 truth (``lenticalib.sim.crosstalk_truth``: the light an eye at each zone centre receives).
@@ -77,6 +78,9 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          # after the draw; a 4:2:0 JPEG hides the sensor's sites on the black photo: docs/crosstalk.md,
          # "The phone's JPEGs, found")
          (113, 0.40, +1, "RGB", 700.0, {"camera": {"jpeg_chroma": "4:4:4"}}),
+         # 25: case 13 with a linear (bilinear) demosaicing: the level rows keep their light, where the
+         # measurement expects the edge-aware loss (docs/crosstalk.md, "The level rows' demosaicing loss")
+         (113, 0.40, +1, "RGB", 700.0, {"camera": {"demosaicing": "bilinear"}}),
          ]
 
 

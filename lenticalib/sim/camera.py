@@ -30,6 +30,7 @@ from ..core.errors import InputError
 from .optics import fields_from
 
 JPEG_CHROMA = ("4:2:0", "4:4:4")  # the JPEG chroma resolutions the camera writes (Camera.jpeg_chroma)
+DEMOSAICING = ("edge-aware", "bilinear")  # how the camera fills in each pixel's missing colours (Camera.demosaicing)
 UNDISTORT_CRITERIA = (3, 100, 1e-13)  # cv2.TERM_CRITERIA_COUNT | EPS, iterations, epsilon
 
 
@@ -72,6 +73,9 @@ class Camera:
     jpeg_quality      JPEG quality (1..100); None = no JPEG compression
     jpeg_chroma       the JPEG's chroma resolution: "4:2:0" (half in both directions, what
                       phones and most cameras write) or "4:4:4" (full)
+    demosaicing       how the colours missing at each Bayer site are filled in: "edge-aware"
+                      (OpenCV's, not linear: it takes light off rows the camera resolves, as
+                      most cameras' do) or "bilinear" (linear: every area keeps its light)
 
     PER PHOTO (drawn afresh for every photo by :meth:`for_photo`; 0 = a locked, still camera)
     exposure_jitter   bound of the relative exposure change from photo to photo (auto
@@ -109,6 +113,7 @@ class Camera:
     exposure_jitter: float = 0.0
     shake: float = 0.0
     jpeg_chroma: str = "4:2:0"
+    demosaicing: str = "edge-aware"
 
     def __post_init__(self):
         def fail(field, message, hint=None):
@@ -136,6 +141,8 @@ class Camera:
             fail("jpeg_quality", f"must be a whole number 1..100 or null, got {self.jpeg_quality!r}")
         if self.jpeg_chroma not in JPEG_CHROMA:
             fail("jpeg_chroma", f"must be one of {', '.join(JPEG_CHROMA)}, got {self.jpeg_chroma!r}")
+        if self.demosaicing not in DEMOSAICING:
+            fail("demosaicing", f"must be one of {', '.join(DEMOSAICING)}, got {self.demosaicing!r}")
         if self.full_well is not None and not self.full_well > 0:
             fail("full_well", f"must be > 0 electrons or null, got {self.full_well!r}")
         for key in ("exposure", "tone_gamma", "glare_sigma"):

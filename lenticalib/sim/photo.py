@@ -6,9 +6,9 @@ radiance (:func:`.render.render_radiance`) and develop it (:func:`develop`).
 Photometric chain (:func:`develop`)
     colour mixing -> exposure -> vignetting -> defocus -> lateral chromatic aberration ->
     veiling glare + flare -> Bayer RGGB mosaic -> shot (Gaussian approximation of Poisson) +
-    read noise -> 16-bit raw -> demosaicing (OpenCV, edge-aware) -> sRGB tone curve with the
-    camera's gamma tweak and S-curve -> sharpening -> 8 bit; then JPEG (:func:`photograph_jpeg`, OpenCV,
-    4:2:0 chroma).
+    read noise -> 16-bit raw -> demosaicing (OpenCV: edge-aware, or bilinear) -> sRGB tone curve
+    with the camera's gamma tweak and S-curve -> sharpening -> 8 bit; then JPEG
+    (:func:`photograph_jpeg`, OpenCV, 4:2:0 or 4:4:4 chroma).
 """
 
 from __future__ import annotations
@@ -106,7 +106,8 @@ def develop(radiance: np.ndarray, camera: Camera, rng: np.random.Generator, line
         sigma = np.sqrt(electrons + np.float32(camera.read_noise) ** 2)
         raw = (electrons + rng.standard_normal((h, w), dtype=np.float32) * sigma) / fw
     raw16 = np.clip(raw * np.float32(65535.0) + np.float32(0.5), 0.0, 65535.0).astype(np.uint16)
-    rgb16 = cv2.demosaicing(raw16, cv2.COLOR_BayerRGGB2RGB_EA)
+    rgb16 = cv2.demosaicing(raw16, cv2.COLOR_BayerRGGB2RGB_EA if camera.demosaicing == "edge-aware"
+                            else cv2.COLOR_BayerRGGB2RGB)
     if linear:
         return rgb16
     enc = _tone_lut(float(camera.tone_gamma), float(camera.tone_contrast))[rgb16]
