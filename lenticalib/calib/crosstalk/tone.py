@@ -77,6 +77,7 @@ POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve 
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
 MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
 MAX_TOE_SIGMA = 0.5  # the toe's 1-sigma at most (its light moved by half: the perturbation stays positive)
+MONOTONE_TOLERANCE = 0.001  # a bent curve's light may fall this share from one code to the next (noise), no more
 EXPOSURE_ROUNDS = 2  # fits with the frame's exposures (each reads the frame through the curve before it)
 
 
@@ -314,7 +315,9 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
     level_bias = max(abs(b) for b in biases)
     if weight is None:
         weight = curve_weight(gain, level_bias)
-    weight = weight if np.all(np.diff(curve[codes]) > 0) else 0.0
+    # a curve that folds back (light falling with the code) is no camera's; a step flat to within
+    # MONOTONE_TOLERANCE of the light is noise (hard case 17: code 23 a 1e-4 below code 22)
+    weight = weight if np.all(np.diff(curve[codes]) > -MONOTONE_TOLERANCE * curve[codes[:-1]]) else 0.0
     # both models, whatever the weight: the other one's distance says how undecided the photos are
     fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest, shares,
                                texture if model == "curve" else 0.0)
