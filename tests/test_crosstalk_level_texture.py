@@ -93,4 +93,6 @@ def test_a_bent_curve_fitted_with_the_levels_expected_loss_follows_the_camera_cl
     assert corrected.texture_sigma > 0 and exact.texture_sigma == 0
     record = corrected.to_dict()["level_texture"]
     assert record["power_sigma"] == pytest.approx(corrected.texture_sigma, abs=1e-4)
+    assert record["levels"][0] == "level-1in8"
     assert record["modulations"][0] == pytest.approx(level_texture.level_modulations(photos)["level-1in8"], abs=1e-4)
+    assert record["expected_shares"][0] == pytest.approx(1 - level_texture.TEXTURE_LOSS * record["modulations"][0], abs=2e-4)

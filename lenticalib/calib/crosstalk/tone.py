@@ -20,7 +20,8 @@ curve's 256 values.  The half relation holds pixel by pixel; a level's only over
 its rows and only as far as the camera's demosaicing leaves resolved rows alone (a close camera's
 came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
 averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
-(:func:`_relations`).
+(:func:`_relations`), each expected to hold its share less the light the camera's demosaicing
+takes off rows it resolves (:mod:`.level_texture`).
 
 The relations hold at one exposure.  A phone's drifts from photo to photo, so each photo's exposure
 is read on the registration frame every pattern carries (:mod:`.exposure`), under the curve fitted
@@ -152,9 +153,9 @@ class ToneCurve:
         if self.levels:
             data["level_residuals"] = [round(v, 4) for v in self.level_residuals]
         if self.level_modulations:
-            data["level_texture"] = {"modulations": [round(v, 4) for v in self.level_modulations],
-                                     "expected_shares": [round(max(0.5, 1.0 - TEXTURE_LOSS * v), 4)
-                                                         for v in self.level_modulations],
+            shares = expected_shares(dict(zip(LEVELS, self.level_modulations)))
+            data["level_texture"] = {"levels": list(shares), "modulations": [round(v, 4) for v in self.level_modulations],
+                                     "expected_shares": [round(v, 4) for v in shares.values()],
                                      "power_sigma": round(self.texture_sigma, 4)}
         if math.isfinite(self.bend_gain):
             data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
