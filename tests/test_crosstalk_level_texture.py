@@ -11,15 +11,9 @@ from lenticalib.calib.crosstalk import level_texture, tiles, tone
 from lenticalib.calib.crosstalk.tone_models import log_slope
 from lenticalib.core.colour import srgb_encode
 
+from .crosstalk_support import tone_photo_light
+
 CONTRAST = 0.5  # the camera's S-curve on the sRGB encoding: v + CONTRAST (3 v^2 - 2 v^3 - v)
-
-
-def _rows_lit(height: int, period: int, pitch: float) -> np.ndarray:
-    """float (height,): the share of each photo row covered by panel rows ``r`` with ``r % period == 0``,
-    ``pitch`` photo pixels per panel row."""
-    fine = (np.arange(height * 20) + 0.5) / 20.0
-    lit = (np.floor(fine / pitch).astype(int) % period) == 0
-    return lit.reshape(height, 20).mean(axis=1)
 
 
 def _encode(light: np.ndarray) -> np.ndarray:
@@ -37,17 +31,10 @@ def _true_table() -> np.ndarray:
 
 
 def _photos(losses: dict[int, float], pitch: float = 0.6, seed: int = 5, size=(600, 400)) -> dict[str, np.ndarray]:
-    """uint8 RGB photos of a virtual panel through the S-curve camera: white with vignetting, black,
-    the halves, the levels (rows ``pitch`` photo pixels apart, ``losses[K]`` taken off their light)."""
+    """uint8 RGB photos of a virtual panel (:func:`crosstalk_support.tone_photo_light`: the levels'
+    rows ``pitch`` photo pixels apart, ``losses[K]`` taken off their light) through the S-curve camera."""
     w, h = size
-    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
-    r2 = ((x - w / 2) ** 2 + (y - h / 2) ** 2) / (w * w / 4 + h * h / 4)
-    white, black = 0.55 * (1 - 0.35 * r2), np.full((h, w), 0.008)
-    share = np.clip(0.5 + 0.8 * np.sin(2 * np.pi * (x + 0.3 * y) / 60.0), 0.0, 1.0)
-    light = {"white": white, "black": black, "half-0": black + share * (white - black),
-             "half-1": black + (1 - share) * (white - black)}
-    for name, k in zip(tone.LEVELS, tone.LEVEL_PERIODS):
-        light[name] = black + (white - black) * _rows_lit(h, k, pitch)[:, None] * (1 - losses.get(k, 0.0))
+    light = tone_photo_light(losses, pitch, size)
     rng = np.random.default_rng(seed)
     return {name: np.clip(np.rint(_encode(value)[:, :, None] + rng.normal(0, 0.5, (h, w, 3))), 0, 255).astype(np.uint8)
             for name, value in light.items()}

@@ -12,31 +12,19 @@ import pytest
 from lenticalib.calib.crosstalk import tiles, tone
 from lenticalib.core.colour import srgb_encode
 
+from .crosstalk_support import tone_photo_light
+
 POWER = 1.05  # the camera's light of code c: sRGB decoding ** POWER
 ROW_PITCH = 0.6  # photo pixels per panel row: a close camera resolves 1-in-8 rows (4.8 pixels apart)
 DEMOSAIC_SHORTFALL = {8: 0.065, 4: 0.03, 2: 0.008}  # resolved rows' light short of 1/K (OpenCV's EA demosaicing)
 
 
-def _rows_lit(height: int, period: int) -> np.ndarray:
-    """float (height,): the share of each photo row covered by panel rows ``r`` with ``r % period == 0``."""
-    fine = (np.arange(height * 20) + 0.5) / 20.0  # 20 samples per photo row
-    lit = (np.floor(fine / ROW_PITCH).astype(int) % period) == 0
-    return lit.reshape(height, 20).mean(axis=1)
-
-
 def _photos(shortfall: dict[int, float], seed: int = 3, size=(600, 400)) -> dict[str, np.ndarray]:
-    """uint8 RGB photos of a virtual panel: white with vignetting, black, the halves (a band edge
-    every 30 pixels), the levels (resolved rows, ``shortfall`` taken off their light); codes of a
-    camera whose light is ``D(c) ** POWER``, with noise of half a code."""
+    """uint8 RGB photos of a virtual panel (:func:`crosstalk_support.tone_photo_light`, rows
+    ``ROW_PITCH`` apart, ``shortfall`` taken off the levels' light); codes of a camera whose light
+    is ``D(c) ** POWER``, with noise of half a code."""
     w, h = size
-    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
-    r2 = ((x - w / 2) ** 2 + (y - h / 2) ** 2) / (w * w / 4 + h * h / 4)
-    white, black = 0.55 * (1 - 0.35 * r2), np.full((h, w), 0.008)
-    share = np.clip(0.5 + 0.8 * np.sin(2 * np.pi * (x + 0.3 * y) / 60.0), 0.0, 1.0)
-    light = {"white": white, "black": black, "half-0": black + share * (white - black),
-             "half-1": black + (1 - share) * (white - black)}
-    for name, k in zip(tone.LEVELS, tone.LEVEL_PERIODS):
-        light[name] = black + (white - black) * _rows_lit(h, k)[:, None] * (1 - shortfall.get(k, 0.0))
+    light = tone_photo_light(shortfall, ROW_PITCH, size)
     rng = np.random.default_rng(seed)
     photos = {}
     for name, value in light.items():
