@@ -20,8 +20,8 @@ curve's 256 values.  The half relation holds pixel by pixel; a level's only over
 its rows and only as far as the camera's demosaicing leaves resolved rows alone (a close camera's
 came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
 averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
-(:func:`_relations`), each expected to hold its share less the light the camera's demosaicing
-takes off rows it resolves (:mod:`.level_texture`).
+(:func:`_relations`); what the camera's demosaicing may take off rows it resolves is in the
+curve's uncertainty (:mod:`.level_texture`).
 
 The relations hold at one exposure.  A phone's drifts from photo to photo, so each photo's exposure
 is read on the registration frame every pattern carries (:mod:`.exposure`), under the curve fitted
@@ -57,7 +57,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
-from .level_texture import TEXTURE_LOSS, expected_shares, level_modulations
+from .level_texture import level_modulations, shares_after_loss
 from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
 from .tone_models import (KNOTS, PHOTOS, bend_gain, best_power, fitted_curve, half_residual, level_power,
@@ -153,9 +153,9 @@ class ToneCurve:
         if self.levels:
             data["level_residuals"] = [round(v, 4) for v in self.level_residuals]
         if self.level_modulations:
-            shares = expected_shares(dict(zip(LEVELS, self.level_modulations)))
+            shares = shares_after_loss(dict(zip(LEVELS, self.level_modulations)))
             data["level_texture"] = {"levels": list(shares), "modulations": [round(v, 4) for v in self.level_modulations],
-                                     "expected_shares": [round(v, 4) for v in shares.values()],
+                                     "shares_at_loss_bound": [round(v, 4) for v in shares.values()],
                                      "power_sigma": round(self.texture_sigma, 4)}
         if math.isfinite(self.bend_gain):
             data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
@@ -296,18 +296,16 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
         return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(hist["white"].shape[0]),
                          halves_power, level_residuals=biases, levels=True)
     modulations = modulations or {}
-    shares = expected_shares(modulations)
-    relations = _relations(hist, mixed, shares=shares)
-    finest = _relations(hist, mixed, PINNING, shares)
+    relations = _relations(hist, mixed)
+    finest = _relations(hist, mixed, PINNING)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
     # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
     power = level_power(relations[:1])
     curve = fitted_curve(relations)
-    # the light the camera's demosaicing may have taken off the level rows: none to twice the
-    # expected loss, half the curves' difference (as a power) in the bent curve's uncertainty
-    bounds = [fitted_curve(_relations(hist, mixed, shares=expected_shares(modulations, loss)))
-              for loss in (0.0, 2.0 * TEXTURE_LOSS)]
-    texture = 0.5 * abs(log_slope(bounds[1], bounds[0], codes)) if modulations else 0.0
+    # the light the camera's demosaicing may have taken off the level rows (level_texture): half the
+    # curve's change (as a power) when each loses LOSS_BOUND times its modulation, in its uncertainty
+    texture = (0.5 * abs(log_slope(fitted_curve(_relations(hist, mixed, shares=shares_after_loss(modulations))),
+                                   curve, codes)) if modulations else 0.0)
     # the curve's weight (tone_choice): by how much a bend of the mid-tones fits the halves better
     # than the power and how far the levels lie from their shares under the halves' power (a
     # camera's S-curve); the curve's freedom otherwise follows the level photos' texture more than
@@ -320,7 +318,7 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
     # MONOTONE_TOLERANCE of the light is noise (hard case 17: code 23 a 1e-4 below code 22)
     weight = weight if np.all(np.diff(curve[codes]) > -MONOTONE_TOLERANCE * curve[codes[:-1]]) else 0.0
     # both models, whatever the weight: the other one's distance says how undecided the photos are
-    fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest, shares,
+    fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest,
                                texture if model == "curve" else 0.0)
               for model, table in (("power", srgb_decode_lut() ** power), ("curve", curve))}
     main, other = ("curve", "power") if weight > 0.5 else ("power", "curve")
@@ -358,18 +356,18 @@ def _other_share(main: ToneCurve, other: ToneCurve) -> float:
     return min(1.0, main.sigma / max(other.sigma, 1e-12))
 
 
-def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest, shares=None,
+def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest,
               texture: float = 0.0) -> ToneCurve:
     """The :class:`ToneCurve` of ``model`` ("power" of ``power``, or "curve") with ``table`` (256,),
     its residuals and its 1-sigma: the strips' spread, what the relations leave open and ``texture``
-    (a power: what the level rows' expected ``shares`` leave open)."""
+    (a power: what the light the level rows may have lost leaves open)."""
     residual = half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
     level_residuals = _level_biases(hist, table)
     strips = []
     for g in range(GROUPS):
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
-            part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel], shares=shares)
+            part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel])
             fitted = fitted_curve(part) if model == "curve" else srgb_decode_lut() ** level_power(part[:1])
             strips.append(log_slope(fitted, table, codes))
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
