@@ -43,10 +43,10 @@ only where the photos are dark, so the integral rises with the scale of the sigm
 scale from 1 up to the most a JPEG's interpolation explains by the likelihood of its integral
 against 1, with a 1-sigma of ``CLOSURE_FLOOR`` (what the tone curve's power, the optics and the
 JPEG's processing move the integral by where the noise is right: 1.030 on those 4:4:4 photos), and
-takes the mean and standard deviation.  A weak pin (hard case 13: 1.73 +- 0.42): the tone curve's
-toe, fitted on the clipped photos, takes up part of the clipping by an amount that depends on the
-camera, so that on other cameras (hard cases 3 and 7) the sigma read did best
-(``docs/crosstalk.md``, "The phone's JPEGs, found").
+takes the mean and standard deviation.  A weak pin (hard case 13: 1.73 +- 0.42), but the
+sensor's scale where it could be checked (hard cases 3 and 7: the linear photos' sigma over the
+JPEGs' 1.69 and 1.70, 1.65 and 1.71 taken; their own views were off through the tone curve's
+level rows, ``docs/crosstalk.md``, "The level rows' demosaicing loss").
 """
 
 from __future__ import annotations

@@ -39,12 +39,16 @@ LIT_LEVEL = 0.3  # the lit area: white's codes above this share of their 95th pe
 ERODE = 15  # ... shrunk by this many photo pixels (the panel's edge is not row texture)
 
 
-def row_variation(image: np.ndarray, area: np.ndarray) -> tuple[float, float]:
-    """(mean square of the row-to-row variation, mean) of the grey codes of ``image`` (uint8 (h, w, 3))
-    over ``area`` (bool (h, w)): codes less their running mean over ``ROW_WINDOW`` rows."""
+def grey_codes(image: np.ndarray) -> np.ndarray:
+    """float32 (h, w): the mean of the three channels' codes of ``image`` (uint8 (h, w, 3))."""
+    return image.astype(np.float32).mean(axis=2)
+
+
+def row_variation(grey: np.ndarray, area: np.ndarray) -> tuple[float, float]:
+    """(mean square of the row-to-row variation, mean) of the ``grey`` codes (float32 (h, w),
+    :func:`grey_codes`) over ``area`` (bool (h, w)): codes less their running mean over ``ROW_WINDOW`` rows."""
     import cv2
 
-    grey = image.astype(np.float32).mean(axis=2)
     variation = grey - cv2.blur(grey, (1, ROW_WINDOW), borderType=cv2.BORDER_REFLECT)
     return float(np.mean(variation[area].astype(np.float64) ** 2)), float(np.mean(grey[area]))
 
@@ -55,15 +59,15 @@ def level_modulations(images: dict[str, np.ndarray]) -> dict[str, float]:
     import cv2
 
     names = [f"level-1in{k}" for k in LEVEL_ROW_PERIODS if f"level-1in{k}" in images]
-    white = images["white"].astype(np.float32).mean(axis=2)
+    white = grey_codes(images["white"])
     lit = white > LIT_LEVEL * np.percentile(white, 95)
     area = cv2.erode(lit.astype(np.uint8), np.ones((ERODE, ERODE), np.uint8)) > 0
     if not names or np.count_nonzero(area) < ROW_WINDOW ** 2:
         return {}
-    white_power, _ = row_variation(images["white"], area)
+    white_power, _ = row_variation(white, area)
     modulations = {}
     for name in names:
-        power, mean = row_variation(images[name], area)
+        power, mean = row_variation(grey_codes(images[name]), area)
         modulations[name] = float(np.sqrt(max(power - white_power, 0.0)) / max(mean, 1e-6))
     return modulations
 
