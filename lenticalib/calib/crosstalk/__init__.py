@@ -9,6 +9,7 @@ uses them:
     tone_models  the tone curve's two models (power, bent curve) fitted to the photos' relations
     tiles        photo tiles for the tone curve: the tile side, each tile's mean and largest code, histograms
     level_texture the level photos' rows as the camera resolved them: the light its demosaicing takes off them
+    level_channels the level photos' colour channels: those that agree carry each level's relation
     exposure     each photo's exposure, read on the registration frame's step down to the bezel
     tone_choice  the power, the bent curve or a blend of the two: the curve's weight, the blend
     dark         dark pixels clipped at zero: their bias, measured on the black photo and undone

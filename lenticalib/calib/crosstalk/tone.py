@@ -21,7 +21,8 @@ its rows and only as far as the camera's demosaicing leaves resolved rows alone 
 came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
 averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
 (:func:`_relations`); what the camera's demosaicing may take off rows it resolves is in the
-curve's uncertainty (:mod:`.level_texture`).
+curve's uncertainty (:mod:`.level_texture`), and a level whose one channel lost light (or gained
+it) rests on the other two (:mod:`.level_channels`).
 
 The relations hold at one exposure.  A phone's drifts from photo to photo, so each photo's exposure
 is read on the registration frame every pattern carries (:mod:`.exposure`), under the curve fitted
@@ -57,6 +58,7 @@ import numpy as np
 
 from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
+from .level_channels import channel_key, photo_of, with_level_channels
 from .level_texture import level_modulations, shares_after_loss
 from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
@@ -95,7 +97,9 @@ class ToneCurve:
     photos' exposures the relations were brought to white's with (:mod:`.exposure`; None: taken as locked);
     ``toe_sigma`` the 1-sigma of the light of the codes just above black, relative (:func:`_toe_sigma`);
     ``level_modulations`` each level photo's rows as the camera resolved them and ``texture_sigma``
-    what the light its demosaicing may have taken off them leaves open, as a power (:mod:`.level_texture`)."""
+    what the light its demosaicing may have taken off them leaves open, as a power (:mod:`.level_texture`);
+    ``level_channels`` the channel each level's relation rests on and the three channels' shares
+    (:mod:`.level_channels`)."""
 
     model: str
     table: np.ndarray
@@ -115,6 +119,7 @@ class ToneCurve:
     toe_sigma: float = 0.0
     level_modulations: tuple[float, ...] = ()
     texture_sigma: float = 0.0
+    level_channels: dict = dataclasses.field(default_factory=dict)
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
@@ -157,6 +162,8 @@ class ToneCurve:
             data["level_texture"] = {"levels": list(shares), "modulations": [round(v, 4) for v in self.level_modulations],
                                      "shares_at_loss_bound": [round(v, 4) for v in shares.values()],
                                      "power_sigma": round(self.texture_sigma, 4)}
+        if self.level_channels:
+            data["level_channels"] = self.level_channels
         if math.isfinite(self.bend_gain):
             data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
         if self.exposures is not None:
@@ -201,7 +208,12 @@ def _relations(hist, mixed, levels=LEVELS, shares=None) -> list:
     for name in levels:
         k = LEVEL_PERIODS[LEVELS.index(name)]
         share = 1.0 if shares is None else shares.get(name, 1.0)
-        relations.append((mean @ (hist[name] - hist["black"]) - lit_bins * (share / k), lit_bins, counts))
+        if channel_key(name, name) in hist:  # the channels that agree (level_channels)
+            level, white, dark = (hist[channel_key(p, name)] for p in (name, "white", "black"))
+            lit_level = mean @ (white - dark)
+            relations.append((mean @ (level - dark) - lit_level * (share / k), lit_level, counts))
+        else:
+            relations.append((mean @ (hist[name] - hist["black"]) - lit_bins * (share / k), lit_bins, counts))
     return relations
 
 
@@ -259,6 +271,11 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     fitted = _fit_with_levels(hist, mixed, group, codes, modulations=modulations)
     if math.isnan(fitted.sigma):
         return dataclasses.replace(fitted, code_range=(black, white))  # a level photo of another pattern
+    # each level's relation on the channels that agree, judged under the curve fitted on the three pooled
+    # (level_channels: a camera's demosaicing can take a quarter of one channel's light off resolved rows)
+    hist, channels = with_level_channels(hist, images, fitted.table, tile, picked, LEVELS, LEVEL_PERIODS)
+    if any(len(v["channels"]) < 3 for v in channels.values()):
+        fitted = _fit_with_levels(hist, mixed, group, codes, modulations=modulations)
     # the exposures from the registration frame (exposure.py), under the curve fitted so far, and
     # the curve fitted again with every photo brought to white's exposure (twice: the exposures
     # read the frame's codes through the curve).  The blend of the two models stays what the
@@ -266,7 +283,7 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     # of the halves (bench hard case 6: a bend gain of 0.42 became 0.02, the power was taken, and
     # its dark end put the glare fit off and the own view 0.024 high; the curve refitted with the
     # exposures is 0.006 off)
-    photos = {k: images[k] for k in hist}
+    photos = {photo_of(k): images[photo_of(k)] for k in hist}
     edge = frame_edge(photos, fitted.table) if EXPOSURE_ROUNDS else None  # where to read them: found once
     exposures, weight = None, fitted.curve_weight
     for _ in range(EXPOSURE_ROUNDS if edge is not None else 0):
@@ -277,9 +294,9 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         applied = exposures.applied()
         if all(v == 1.0 for v in applied.values()):
             break  # an exposure that held: the fit stands as it is
-        fitted = _fit_with_levels({k: v / applied[k] for k, v in hist.items()}, mixed, group, codes, weight,
-                                  modulations)
-    return dataclasses.replace(fitted, code_range=(black, white), exposures=exposures)
+        fitted = _fit_with_levels({k: v / applied[photo_of(k)] for k, v in hist.items()}, mixed, group, codes,
+                                  weight, modulations)
+    return dataclasses.replace(fitted, code_range=(black, white), exposures=exposures, level_channels=channels)
 
 
 def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
