@@ -7,9 +7,11 @@ from __future__ import annotations
 import numpy as np
 
 from lenticalib.calib.crosstalk.tone import LEVEL_PERIODS, LEVELS
+from lenticalib.core.colour import srgb_encode
 from lenticalib.sim.scene import random_scene
 
 VIEWS = 32
+PHONE_CONTRAST = 0.5  # the tests' phone S-curve on the sRGB encoding: v + PHONE_CONTRAST (3 v^2 - 2 v^3 - v)
 
 
 def crosstalk_scene():
@@ -46,3 +48,10 @@ def tone_photo_light(losses: dict[int, float], pitch: float, size=(600, 400)) ->
     for name, k in zip(LEVELS, LEVEL_PERIODS):
         light[name] = black + (white - black) * rows_lit(h, k, pitch)[:, None] * (1 - losses.get(k, 0.0))
     return light
+
+
+def phone_codes(light: np.ndarray) -> np.ndarray:
+    """float codes (0..255, same shape as ``light``) of a phone-like camera: the sRGB encoding of the
+    linear ``light`` (clipped to 0..1) bent by an S-curve of strength ``PHONE_CONTRAST``."""
+    v = srgb_encode(np.clip(light, 0.0, 1.0))
+    return 255.0 * (v + PHONE_CONTRAST * (3 * v ** 2 - 2 * v ** 3 - v))

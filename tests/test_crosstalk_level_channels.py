@@ -11,8 +11,7 @@ import pytest
 
 from lenticalib.calib.crosstalk import level_channels, tiles, tone
 
-from .crosstalk_support import tone_photo_light
-from .test_crosstalk_level_texture import _encode
+from .crosstalk_support import phone_codes, tone_photo_light
 
 GREEN_LOSS = {8: 0.25, 4: 0.04, 2: 0.02}  # of each level's light in green (bench hard case 7: 0.23, 0.035, 0.02)
 
@@ -29,7 +28,7 @@ def _photos(green_loss: dict[int, float], seed: int = 5, size=(600, 400)) -> dic
         if name in tone.LEVELS:
             loss = green_loss.get(tone.LEVEL_PERIODS[tone.LEVELS.index(name)], 0.0)
             rgb[:, :, 1] = light["black"] + (value - light["black"]) * (1.0 - loss)
-        photos[name] = np.clip(np.rint(_encode(rgb) + rng.normal(0, 0.5, (h, w, 3))), 0, 255).astype(np.uint8)
+        photos[name] = np.clip(np.rint(phone_codes(rgb) + rng.normal(0, 0.5, (h, w, 3))), 0, 255).astype(np.uint8)
     return photos
 
 

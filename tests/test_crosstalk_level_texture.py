@@ -9,22 +9,14 @@ import pytest
 
 from lenticalib.calib.crosstalk import level_texture, tiles, tone
 from lenticalib.calib.crosstalk.tone_models import log_slope
-from lenticalib.core.colour import srgb_encode
 
-from .crosstalk_support import tone_photo_light
-
-CONTRAST = 0.5  # the camera's S-curve on the sRGB encoding: v + CONTRAST (3 v^2 - 2 v^3 - v)
-
-
-def _encode(light: np.ndarray) -> np.ndarray:
-    v = srgb_encode(np.clip(light, 0.0, 1.0))
-    return 255.0 * (v + CONTRAST * (3 * v ** 2 - 2 * v ** 3 - v))
+from .crosstalk_support import phone_codes, tone_photo_light
 
 
 def _true_table() -> np.ndarray:
     """float (256,): the light of each code of the S-curve camera (its mean over the code's range)."""
     light = np.linspace(0.0, 1.0, 200001)
-    code = np.clip(np.rint(_encode(light)).astype(int), 0, 255)
+    code = np.clip(np.rint(phone_codes(light)).astype(int), 0, 255)
     sums, counts = np.bincount(code, light, 256), np.bincount(code, minlength=256)
     seen = counts > 0
     return np.interp(np.arange(256), np.flatnonzero(seen), sums[seen] / counts[seen])
@@ -36,7 +28,7 @@ def _photos(losses: dict[int, float], pitch: float = 0.6, seed: int = 5, size=(6
     w, h = size
     light = tone_photo_light(losses, pitch, size)
     rng = np.random.default_rng(seed)
-    return {name: np.clip(np.rint(_encode(value)[:, :, None] + rng.normal(0, 0.5, (h, w, 3))), 0, 255).astype(np.uint8)
+    return {name: np.clip(np.rint(phone_codes(value)[:, :, None] + rng.normal(0, 0.5, (h, w, 3))), 0, 255).astype(np.uint8)
             for name, value in light.items()}
 
 

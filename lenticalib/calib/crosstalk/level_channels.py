@@ -41,24 +41,20 @@ def photo_of(key: str) -> str:
     return key.split("@", 1)[0]
 
 
-def channel_shares(images: dict[str, np.ndarray], table: np.ndarray, tile: int, picked: np.ndarray, level: str,
-                   period: int) -> tuple[float, float, float]:
-    """Each channel's light of the ``level`` photo over its ``1/period`` of white's (above black),
-    summed over the ``picked`` tiles (flat indices of the ``tile`` x ``tile`` grid), under the curve
-    ``table`` (float (256,)): 1 where the channel kept it.  ``images``: uint8 (h, w, 3) photos."""
-    h, w = images["white"].shape[:2]
+def channel_light(image: np.ndarray, table: np.ndarray, tile: int, picked: np.ndarray) -> np.ndarray:
+    """float (3,): each channel's light of ``image`` (uint8 (h, w, 3)) under the curve ``table``
+    (float (256,)), summed over the ``picked`` tiles (flat indices of the ``tile`` x ``tile`` grid)."""
+    h, w = image.shape[:2]
     hh, ww = h // tile, w // tile
+    light = np.asarray(table, np.float64)[image[:hh * tile, :ww * tile]]
+    return light.reshape(hh, tile, ww, tile, 3).sum(axis=(1, 3)).reshape(hh * ww, 3)[picked].sum(axis=0)
 
-    def light(name: str, c: int) -> float:
-        lit = np.asarray(table, np.float64)[images[name][:hh * tile, :ww * tile, c]]
-        return float(lit.reshape(hh, tile, ww, tile).sum(axis=(1, 3)).ravel()[picked].sum())
 
-    shares = []
-    for c in range(3):
-        dark = light("black", c)
-        lit = light("white", c) - dark
-        shares.append(period * (light(level, c) - dark) / lit if lit > 0 else float("nan"))
-    return tuple(shares)
+def channel_shares(level: np.ndarray, white: np.ndarray, black: np.ndarray, period: int) -> tuple[float, ...]:
+    """Each channel's light of a level photo over its ``1/period`` of white's (above black), from the
+    three photos' :func:`channel_light`: 1 where the channel kept it (NaN where white is not brighter)."""
+    lit = white - black
+    return tuple(float(period * (v - b) / d) if d > 0 else float("nan") for v, b, d in zip(level, black, lit))
 
 
 def agreeing_channels(shares: tuple[float, float, float]) -> tuple[int, ...]:
@@ -78,8 +74,9 @@ def with_level_channels(hist: dict, images: dict[str, np.ndarray], table: np.nda
     agreeing channels added under :func:`channel_key` keys (:func:`.tiles.tile_histograms` of the
     ``picked`` tiles); the record: level -> {"channels", "shares"}), the shares under ``table``."""
     out, record = dict(hist), {}
+    white, black = (channel_light(images[name], table, tile, picked) for name in ("white", "black"))
     for level, period in zip(levels, periods):
-        shares = channel_shares(images, table, tile, picked, level, period)
+        shares = channel_shares(channel_light(images[level], table, tile, picked), white, black, period)
         used = agreeing_channels(shares)
         if len(used) < 3:
             for photo in ("white", "black", level):

@@ -98,7 +98,7 @@ class ToneCurve:
     ``toe_sigma`` the 1-sigma of the light of the codes just above black, relative (:func:`_toe_sigma`);
     ``level_modulations`` each level photo's rows as the camera resolved them and ``texture_sigma``
     what the light its demosaicing may have taken off them leaves open, as a power (:mod:`.level_texture`);
-    ``level_channels`` the channel each level's relation rests on and the three channels' shares
+    ``level_channels`` the channels each level's relation rests on and the three channels' shares
     (:mod:`.level_channels`)."""
 
     model: str
