@@ -36,8 +36,10 @@ unclipped with the noise sigma read on the black photo.  A JPEG whose chroma is 
 resolution (4:2:0, what phones and most cameras write) shows no sensor sites, and the sigma read
 on its interpolated pixels is too small (hard case 13: 0.0030 against 0.0054 from the same photos
 written 4:4:4, where the sites show): the far views come out short, the own view 0.011 high.  The
-JPEG's processing was not the cause: the same photos at 4:4:4 measured 0.004 off, with the true
-tone curve the 4:2:0 photos' light was right to 0.1 %.  Unclipping with a larger sigma adds light
+JPEG's processing was not the main cause: the same photos at 4:4:4 measured 0.004 off, and
+through the true tone curve the 4:2:0 photos' light, binned by its share of white's, was the
+pre-JPEG photo's within 0.0004 of white's (a fifth of one far view's light: a JPEG does lose
+some of the dark views' light, ``docs/crosstalk.md``, "Two causes, each in its own place").  Unclipping with a larger sigma adds light
 only where the photos are dark, so the integral rises with the scale of the sigma (0.974, 0.993,
 1.018, 1.041 at 1, 1.5, 2 and 2.5 times it on hard case 13).  :func:`close_clip` weighs each
 scale from 1 up to the most a JPEG's interpolation explains by the likelihood of its integral
