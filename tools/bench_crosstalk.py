@@ -79,7 +79,8 @@ CASES = [(101, 0.15, +1, "RGB", 400.0), (102, 0.35, -1, "BGR", 900.0), (103, 0.1
          # "The phone's JPEGs, found")
          (113, 0.40, +1, "RGB", 700.0, {"camera": {"jpeg_chroma": "4:4:4"}}),
          # 25: case 13 with a linear (bilinear) demosaicing: the level rows keep their light, where the
-         # measurement expects the edge-aware loss (docs/crosstalk.md, "The level rows' demosaicing loss")
+         # measurement carries an edge-aware loss in its uncertainty (docs/crosstalk.md, "The level rows'
+         # demosaicing loss")
          (113, 0.40, +1, "RGB", 700.0, {"camera": {"demosaicing": "bilinear"}}),
          ]
 

@@ -72,14 +72,18 @@ def with_level_channels(hist: dict, images: dict[str, np.ndarray], table: np.nda
                         levels: tuple[str, ...], periods: tuple[int, ...]) -> tuple[dict, dict[str, dict]]:
     """(``hist`` with, for each level whose channels disagree, its relation's histograms over the
     agreeing channels added under :func:`channel_key` keys (:func:`.tiles.tile_histograms` of the
-    ``picked`` tiles); the record: level -> {"channels", "shares"}), the shares under ``table``."""
-    out, record = dict(hist), {}
+    ``picked`` tiles); the record: level -> {"channels", "shares"}), the shares under ``table`` (None
+    for a channel whose white is not brighter than its black)."""
+    out, record, made = dict(hist), {}, {}
     white, black = (channel_light(images[name], table, tile, picked) for name in ("white", "black"))
     for level, period in zip(levels, periods):
         shares = channel_shares(channel_light(images[level], table, tile, picked), white, black, period)
         used = agreeing_channels(shares)
         if len(used) < 3:
-            for photo in ("white", "black", level):
-                out[channel_key(photo, level)] = tile_histograms(images[photo][:, :, list(used)], tile, picked)
-        record[level] = {"channels": "".join(CHANNEL_NAMES[c] for c in used), "shares": [round(v, 4) for v in shares]}
+            for photo in ("white", "black", level):  # white's and black's made once per set of channels
+                if (photo, used) not in made:
+                    made[(photo, used)] = tile_histograms(images[photo][:, :, list(used)], tile, picked)
+                out[channel_key(photo, level)] = made[(photo, used)]
+        record[level] = {"channels": "".join(CHANNEL_NAMES[c] for c in used),
+                         "shares": [round(v, 4) if np.isfinite(v) else None for v in shares]}
     return out, record

@@ -183,7 +183,9 @@ def _relations(hist, mixed, levels=LEVELS, shares=None) -> list:
     256) white - black, counts (rows,)) triples, each row the mean over ``count`` tiles: the half
     relation tile by tile on the ``mixed`` tiles, and the ``levels``' on ``BINS`` bins of tiles of
     similar white code (their means), each level's light ``shares[name]`` (default 1) of its ``1/K``
-    of white's (the light the camera's demosaicing takes off resolved rows: :mod:`.level_texture`).
+    of white's (the light the camera's demosaicing takes off resolved rows: :mod:`.level_texture`);
+    a level with :func:`.level_channels.channel_key` histograms in ``hist`` is related over those
+    channels of its own, white's and black's photos.
 
     The half relation holds pixel by pixel.  A level's holds only over whole periods of its rows
     and only where the camera does not resolve them: a tile holds a lit row more or less than its
