@@ -147,16 +147,27 @@ def test_a_photo_unclipped_with_too_small_a_sigma_is_restored_by_reclipping_with
 
 def test_a_channel_seldom_at_zero_takes_the_other_channels_sigma():
     """A JPEG's green, averaged over two sensor sites of every four, sits at 0 in a few blocks only:
-    the photo is still measured (red's and blue's sigma, green the median of theirs), where it was
-    left clipped as a whole before (bench hard case 1: the far views 25 % short)."""
-    y, x = np.mgrid[0:480, 0:640]
-    light = np.stack([np.full((480, 640), 0.002), 0.0135 + 0.004 * (x > 600), np.full((480, 640), 0.002)], axis=2)
-    sigma = np.array([0.004, 0.004, 0.005])
+    the photo is still measured, where it was left clipped as a whole before (bench hard case 1: the
+    far views 25 % short); a photo without sensor sites takes every channel's sigma from its block
+    means (noise_blocks), within what the measurement carries (``SIGMA_RANGE``)."""
+    import cv2
+
+    from lenticalib.calib.crosstalk import noise_blocks
+
+    h, w = 480, 640
+    y, x = np.mgrid[0:h, 0:w]
+    site_light = np.where((y % 2 == 0) & (x % 2 == 0), 0.002, np.where((y % 2 == 1) & (x % 2 == 1), 0.002,
+                                                                        0.0135 + 0.004 * (x > 600)))
+    site_sigma = np.where((y % 2 == 1) & (x % 2 == 1), 0.005, 0.004)  # RGGB: blue at the odd rows and columns
     rng = np.random.default_rng(6)
-    black = np.maximum(light + rng.normal(0.0, 1.0, light.shape) * sigma, 0.0).astype(np.float32)
+    sensor = np.clip(site_light + rng.normal(0.0, 1.0, (h, w)) * site_sigma, 0.0, 1.0)
+    black = (cv2.demosaicing(np.round(sensor * 65535).astype(np.uint16), cv2.COLOR_BayerRGGB2RGB)
+             / 65535.0).astype(np.float32)
+    black[0::2, 1::2] += 1e-6  # no sensor sites left at exactly 0: the phases a JPEG hides
     zero = black == 0
     assert 0 < np.count_nonzero(zero[..., 1]) < 0.001 * zero[..., 1].size  # green: a handful of pixels at 0
     found = dark.clipping_noise(black, zero)
     assert found is not None
-    assert np.allclose(found.sigma[[0, 2]], sigma[[0, 2]], rtol=0.05)
-    assert found.sigma[1] == pytest.approx(np.median(found.sigma[[0, 2]]))
+    low, high = noise_blocks.SIGMA_RANGE
+    ratio = np.array([0.004, 0.004, 0.005]) / found.sigma
+    assert np.all((ratio >= low) & (ratio <= high)), found.sigma

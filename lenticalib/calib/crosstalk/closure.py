@@ -30,25 +30,11 @@ closing toe, less its own 1-sigma (:meth:`Closure.pinned_toe`), is what the ligh
 could mean: its whole change is carried in the uncertainty (``diagnostics.sigma_closure``) and
 the integral is reported (``photometry.closure``).
 
-**What the closure does pin: a JPEG's clipping sigma.**  A camera clips its sensor's noise at 0
-before anything else, which compresses the light of dark places (:mod:`.dark`); the photos are
-unclipped with the noise sigma read on the black photo.  A JPEG whose chroma is kept at half
-resolution (4:2:0, what phones and most cameras write) shows no sensor sites, and the sigma read
-on its interpolated pixels is too small (hard case 13: 0.0030 against 0.0054 from the same photos
-written 4:4:4, where the sites show): the far views come out short, the own view 0.011 high.  The
-JPEG's processing was not the main cause: the same photos at 4:4:4 measured 0.004 off, and
-through the true tone curve the 4:2:0 photos' light, binned by its share of white's, was the
-pre-JPEG photo's within 0.0004 of white's (a fifth of one far view's light: a JPEG does lose
-some of the dark views' light, ``docs/crosstalk.md``, "Two causes, each in its own place").  Unclipping with a larger sigma adds light
-only where the photos are dark, so the integral rises with the scale of the sigma (0.974, 0.993,
-1.018, 1.041 at 1, 1.5, 2 and 2.5 times it on hard case 13).  :func:`close_clip` weighs each
-scale from 1 up to the most a JPEG's interpolation explains by the likelihood of its integral
-against 1, with a 1-sigma of ``CLOSURE_FLOOR`` (what the tone curve's power, the optics and the
-JPEG's processing move the integral by where the noise is right: 1.030 on those 4:4:4 photos), and
-takes the mean and standard deviation.  A weak pin (hard case 13: 1.73 +- 0.42), but the
-sensor's scale where it could be checked (hard cases 3 and 7: the linear photos' sigma over the
-JPEGs' 1.69 and 1.70, 1.65 and 1.71 taken; their own views were off through the tone curve's
-level rows, ``docs/crosstalk.md``, "The level rows' demosaicing loss").
+**Not the clipping's sigma.**  The closure was used to pick the scale of a JPEG's clipping sigma
+(read too small on its pixels) between 1 and 2.5: a weak pin (1-sigma of the integral 0.05, the
+optics and the tone curve move it as much: hard case 20's integral rose from 0.988 at the
+sigma read to 1.128 at 2.5 times it), which took the prior's middle.  The sigma is now read from
+the black photo's coarse detail, which a JPEG keeps (:mod:`.noise_blocks`).
 """
 
 from __future__ import annotations
@@ -72,8 +58,6 @@ MIN_SLOPE = 0.005  # d integral / d toe below which the dark light is too little
 UNKNOWN_EXPOSURE_SIGMA = 0.02  # 1-sigma of E where the frame cannot be read (a locked exposure: within 2 %)
 EXPOSURE_FLOOR = 0.003  # 1-sigma of the frame's exposures' mean that their sectors' spread does not show
 STRIPS = 8  # strips of rows of the panel for the integral's spread
-CLOSURE_FLOOR = 0.05  # 1-sigma of the integral that is not the clipping's (close_clip)
-CLIP_GRID = 4  # clipping scales the integral is evaluated at, from 1 to the largest (close_clip)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -186,63 +170,6 @@ def _usable(fit: cone.ConeFit, shifts: np.ndarray, exposures: Exposures | None, 
     gains, expected_sigma, read = frame_exposures(exposures, bands)
     keep = consistent_photos(fit.gains, gains)
     return dataclasses.replace(fit, gains=gains[keep]), np.asarray(shifts)[keep], keep, expected_sigma, read
-
-
-@dataclasses.dataclass(frozen=True)
-class ClipClosure:
-    """The clipping sigma's scale that the band photos' light adding up makes likely (:func:`close_clip`).
-
-    ``scales``, ``integrals``: the cone integral at each scale of the noise sigma evaluated;
-    ``sigma``: the integral's 1-sigma about 1 (the floor, the exposures' and the strips' spread);
-    ``scale``: the mean scale of the evidence (the likelihood of the integral at each scale, flat
-    between 1 and the largest), ``spread`` its standard deviation; ``low``, ``high``: ``scale -+
-    spread`` within the scales evaluated."""
-
-    scales: tuple[float, ...]
-    integrals: tuple[float, ...]
-    sigma: float
-    scale: float
-    spread: float
-
-    @property
-    def low(self) -> float:
-        return max(self.scales[0], self.scale - self.spread)
-
-    @property
-    def high(self) -> float:
-        return min(self.scales[-1], self.scale + self.spread)
-
-    def to_dict(self) -> dict:
-        return {"scales": [round(v, 3) for v in self.scales], "integrals": [round(v, 5) for v in self.integrals],
-                "integral_sigma": round(self.sigma, 5), "scale": round(self.scale, 3),
-                "scale_sigma": round(self.spread, 3), "scale_range": [round(self.low, 3), round(self.high, 3)]}
-
-
-def close_clip(ratios_at_scale: Callable[[float], np.ndarray], fit: cone.ConeFit, rows: np.ndarray,
-               cols: np.ndarray, shifts: np.ndarray, exposures: Exposures | None, bands, largest: float) -> ClipClosure:
-    """The scale (1..``largest``) of the noise sigma the photos were unclipped with that the cone
-    integral of the working pixels ``rows``, ``cols`` makes likely (see the module's text).
-
-    ``ratios_at_scale(scale)``: float (n, K) band ratios there with the photos unclipped at
-    ``scale`` times the sigma (:func:`.dark.reclipped`); ``fit``: a cone fit of those pixels (its
-    delta kept, the frame's exposures over the photos that agree with them).  The integral is
-    evaluated at ``CLIP_GRID`` scales and taken linear between them; each scale's likelihood is
-    that of its integral against 1 with 1-sigma ``CLOSURE_FLOOR`` (with the exposures' and the
-    strips' spread): the mean and standard deviation of the scale over that likelihood."""
-    fit, shifts, keep, expected_sigma, _ = _usable(fit, shifts, exposures, bands)
-    scales = tuple(float(v) for v in np.linspace(1.0, largest, CLIP_GRID))
-    integrals, spreads = [], []
-    for scale in scales:
-        ratios = ratios_at_scale(scale)[:, keep]
-        integrals.append(cone_integral(fit, ratios, rows, cols, shifts))
-        if scale == 1.0:
-            spreads.append(integral_spread(fit, ratios, rows, cols, shifts))
-    sigma = math.sqrt(CLOSURE_FLOOR ** 2 + expected_sigma ** 2 + spreads[0] ** 2)
-    fine = np.linspace(1.0, largest, 121)
-    weight = np.exp(-0.5 * ((np.interp(fine, scales, integrals) - 1.0) / sigma) ** 2)
-    weight /= weight.sum()
-    mean = float(np.sum(weight * fine))
-    return ClipClosure(scales, tuple(integrals), sigma, mean, float(np.sqrt(np.sum(weight * (fine - mean) ** 2))))
 
 
 def close_toe(ratios_with_toe: Callable[[float], np.ndarray], fit: cone.ConeFit, rows: np.ndarray,

@@ -24,9 +24,11 @@ small, and the far views' light came out 0.028 of white where the truth was 0.03
 sensor's layout is found on the black photo (the Bayer layout whose red and blue phases stand out
 in their channels' share of pixels at 0, :func:`filter_sites`), sigma is measured on each
 channel's own sites, and the areas' light is taken from their means alone; a camera's JPEG shows
-no such phases, and all of its pixels are used.  Its sigma is then too small (each pixel is
-interpolated from several clipped sites, fewer sit at 0: 0.4-0.7 of the raw photo's on the
-bench's phone cameras), and the measurement states what a larger one would change
+no such phases, and all of its pixels are used.  The sigma its pixels at 0 show is too small
+(each pixel is interpolated from several clipped sites, fewer sit at 0: 0.4-0.7 of the raw photo's
+on the bench's phone cameras), so a JPEG's sigma is read from the spread of its black photo's block
+means instead, which its processing keeps (:mod:`.noise_blocks`; the pixels at 0 still say whether
+the camera clips at all), and the measurement states what another one would change
 (:func:`reclipped`).
 
 :func:`clipping_noise` measures ``sigma`` per channel on the black photo (blocks where 2-98 % of
@@ -53,6 +55,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from .noise_blocks import block_noise
 
 WINDOW = 15  # photo pixels: the side of the area whose mean is un-clipped
 BLOCK = 32  # photo pixels: the side of the black photo's blocks that sigma is measured on
@@ -178,6 +182,10 @@ def clipping_noise(black: np.ndarray, zero: np.ndarray, sites: bool = True) -> C
     measured = [v for v in sigmas if math.isfinite(v)]
     if sum(counts) < MIN_BLOCKS or not measured:
         return None
+    if sites and all(tuple(p) == ALL_PHASES for p in layout):  # no sensor sites show: a camera JPEG
+        coarse = block_noise(black)
+        if coarse is not None:
+            return ClippingNoise(coarse.sigma, layout)
     return ClippingNoise(np.asarray([v if math.isfinite(v) else float(np.median(measured)) for v in sigmas]), layout)
 
 
@@ -215,24 +223,32 @@ def reclipped(light: np.ndarray, sigma: float, scale: float, channels: int = 3) 
     by :func:`unclip`) as it would have come out unclipped with ``scale`` times that sigma: each
     channel taken as ``light / channels``, clipped again (``f`` at ``sigma``) and unclipped at
     ``scale sigma``.  Places above ``REACH`` sigma are unchanged.  How the measurement states what
-    a JPEG's noise sigma leaves open (``measure``: its interpolated pixels read a smaller sigma)."""
+    a JPEG's noise sigma leaves open (``measure``: the sigma read from its blocks, :mod:`.noise_blocks`).
+
+    ``f`` and its inverse hold for the mean light of an area, not for a noisy pixel: an image
+    (2-D) is moved, pixel by pixel, by the change of its ``WINDOW`` x ``WINDOW`` area's mean, as
+    :func:`unclip` moves it (taken pixel by pixel, the curvature of ``f`` on each pixel's noise took
+    light off the dark places: hard case 13's far views 0.029 for 0.048 at the right sigma, 0.042
+    with the areas' means); a 1-D ``light`` holds such means already."""
+    import cv2
+
     if not (sigma > 0 and scale > 0) or scale == 1.0:
         return light
     t, table = _inverse_table()
-    x = np.asarray(light, np.float64) / channels
+    full = np.asarray(light, np.float64)
+    x = (cv2.blur(full, (WINDOW, WINDOW), borderType=cv2.BORDER_REFLECT) if full.ndim == 2 else full) / channels
     clipped = sigma * _clipped_mean(np.clip(x / sigma, LOWEST, None))
     u = clipped / (scale * sigma)
     wider = np.where(u < table[-1], scale * sigma * np.interp(u, table, t), clipped)  # f(t) = t far above 0
     near = x < REACH * max(sigma, scale * sigma)
-    return np.where(near, channels * wider, light).astype(np.asarray(light).dtype)
+    return np.where(near, full + channels * (wider - x), full).astype(np.asarray(light).dtype)
 
 
 def interpolated_clip_sigma(noise) -> float:
     """The mean noise sigma of the channels (linear light, per channel) where the photos were
-    unclipped (:func:`unclip`) with a sigma read on every pixel, no sensor sites found (a camera
-    JPEG: demosaicing and compression average a pixel over several sensor sites, so fewer of
-    its pixels sit at 0 than of the sensor's and the sigma read is too small: on the bench's
-    phone JPEGs 0.4-0.7 of the raw photos' sigma); 0 where none was needed or the sites were found."""
+    unclipped (:func:`unclip`) with a sigma read without the sensor's sites (a camera JPEG: from
+    its blocks' spread, :mod:`.noise_blocks`, which leaves it open by ``SIGMA_RANGE``); 0 where
+    none was needed or the sites were found."""
     if noise is None or any(tuple(sites) != ALL_PHASES for sites in noise.sites):
         return 0.0
     return float(np.mean(noise.sigma))

@@ -22,9 +22,9 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    (cameras are sRGB only to about +-8 %); 0.005 for linear photos), the light of the codes just
    above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
    ``ratios.TOE_END`` of white's light), a camera JPEG's noise sigma where the sensor clips it at
-   black (read too small on interpolated pixels: the photos are measured unclipped with the scale
-   of it, 1 to ``CLIP_SCALE``, that the light's closure makes likely, :func:`.closure.close_clip`,
-   and that scale's spread is carried, :func:`.dark.reclipped`), the far views' scatter about a
+   black (read from the black photo's coarse detail, :mod:`.noise_blocks`: the photos unclipped
+   with ``SIGMA_RANGE`` times it, half the row's change between the two carried,
+   :func:`.dark.reclipped`), the far views' scatter about a
    smooth cone (:func:`.cone.far_scatter`), the dark floor every entry sits on and, for camera
    JPEGs, the whole change of the row when the toe is set so that the band photos' light adds up
    to white's (the light's closure, :mod:`.closure`).
@@ -46,6 +46,7 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import closure, cone, dark, photometry
 from .band_check import check_bands
+from .noise_blocks import SIGMA_RANGE
 from .checks import routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from ..patterns.crosstalk_patterns import CrosstalkPatternSet
@@ -62,7 +63,6 @@ PHOTO_MODES = ("srgb", "linear")
 FLOOR_SIGMA = 0.0002  # 1-sigma of every matrix entry's dark floor (black subtraction, flare) ...
 FLOOR_GLARE_SHARE = 0.2  # ... plus this share of the glare fraction, spread over the N views
 ACROSS_SHARE = 0.25  # of the difference between the centre region's left and right halves: the cone's change across it
-CLIP_SCALE = 2.5  # the dark clipping's sigma read on a JPEG's pixels is up to this much too small (dark.interpolated_clip_sigma)
 
 
 @dataclasses.dataclass
@@ -246,18 +246,9 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # errors of a tenth of a view here and there, which smear (broaden) the cone
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                         degree=CENTRE_DEGREE, start=panel_fit)
-    # a camera JPEG's clipping sigma (read too small on its pixels): the scale of it that the band
-    # photos' light adding up makes likely is the one the photos are measured with (closure.close_clip)
-    clip_sigma, clipping, main_clip = dark.interpolated_clip_sigma(noise), None, None
-    if photos == "srgb" and clip_sigma:
-        clipping = closure.close_clip(lambda scale: ratios[centre] if scale == 1.0 else band_ratios(  # 1: as they are
-            luma, mask, pattern_set, glare, 1.0, column_average, 0.0, (clip_sigma, scale))[0][centre],
-                                      fit, rows[centre], cols[centre], band_shifts, exposures, bands, CLIP_SCALE)
-        if clipping.scale > 1.0:
-            main_clip = (clip_sigma, clipping.scale)
-            ratios = band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0, main_clip)[0]
-            fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
-                                degree=CENTRE_DEGREE, start=fit)
+    # a camera JPEG's clipping sigma, read from the black photo's blocks (noise_blocks): what it leaves
+    # open is carried below
+    clip_sigma = dark.interpolated_clip_sigma(noise)
     # camera JPEGs: how far the band photos' light is from adding up to white's in the centre region,
     # and the toe that would close it (closure.py; its row change is carried in the uncertainty, not
     # applied).  The region, not the whole panel: a panel whose sides show another cone (a lens that
@@ -265,7 +256,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     closed = None
     if photos == "srgb":
         closed = closure.close_toe(lambda lift: band_ratios(luma, mask, pattern_set, glare, 1.0, column_average, 0.0,
-                                                            main_clip, lift)[0][centre],
+                                                            None, lift)[0][centre],
                            fit, rows[centre], cols[centre], band_shifts, exposures, bands)
         if closed.clamped:
             warnings.append(f"the band photos' light adds up to {closed.integral:.3f} of white's, further from it than "
@@ -321,27 +312,22 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                   else curve.sigma)
     toe_sigma = 0.0 if curve is None else curve.toe_sigma  # no curve for linear photos
     # (glare scale, power, toe, clip, lift): band_ratios' variations
-    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, main_clip, 0.0),
-                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, main_clip, 0.0),
-                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, main_clip, 0.0),
-                  "tone+": (1.0, 1.0 + tone_sigma, 0.0, main_clip, 0.0)}
+    variations = {"glare-": (1 - GLARE_RELATIVE_SIGMA, 1.0, 0.0, None, 0.0),
+                  "glare+": (1 + GLARE_RELATIVE_SIGMA, 1.0, 0.0, None, 0.0),
+                  "tone-": (1.0, 1.0 - tone_sigma, 0.0, None, 0.0),
+                  "tone+": (1.0, 1.0 + tone_sigma, 0.0, None, 0.0)}
     if toe_sigma:
-        variations.update({"toe-": (1.0, 1.0, -toe_sigma, main_clip, 0.0), "toe+": (1.0, 1.0, toe_sigma, main_clip, 0.0)})
+        variations.update({"toe-": (1.0, 1.0, -toe_sigma, None, 0.0), "toe+": (1.0, 1.0, toe_sigma, None, 0.0)})
     if closed is not None and closed.pinned_toe():
         # the lift that would make the light add up, less its own 1-sigma: its whole change is
         # carried ("closure-" mirrors it)
-        variations["closure+"] = (1.0, 1.0, 0.0, main_clip, closed.pinned_toe())
+        variations["closure+"] = (1.0, 1.0, 0.0, None, closed.pinned_toe())
     perturbed = {}
-    if clipping is not None:
-        # the scales of the noise sigma that leave the light's closure within its 1-sigma: half the
-        # change of the row between them is its 1-sigma (dark.reclipped)
-        variations.update({"clip-": (1.0, 1.0, 0.0, (clip_sigma, clipping.low), 0.0),
-                           "clip+": (1.0, 1.0, 0.0, (clip_sigma, clipping.high), 0.0)})
-    elif clip_sigma:
-        # the noise sigma read on pixels that are not the sensor's own (a camera JPEG) is a lower
-        # bound: half the change of the row with CLIP_SCALE times it is its 1-sigma (dark.reclipped)
-        variations["clip+"] = (1.0, 1.0, 0.0, (clip_sigma, CLIP_SCALE), 0.0)
-        perturbed["clip-"] = (row, cone_values, counts)  # the main pass: as unclipped
+    if clip_sigma:
+        # the noise sigma read from the black photo's blocks (a camera JPEG) is left open by
+        # SIGMA_RANGE: half the change of the row between its ends is its 1-sigma (dark.reclipped)
+        variations.update({"clip-": (1.0, 1.0, 0.0, (clip_sigma, SIGMA_RANGE[0]), 0.0),
+                           "clip+": (1.0, 1.0, 0.0, (clip_sigma, SIGMA_RANGE[1]), 0.0)})
     for label, (g_scale, p, t, clip, lift) in variations.items():
         g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
         r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip, lift)
@@ -404,7 +390,6 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                          "tone_curve": None if curve is None else curve.to_dict(),
                          "tone_power_sigma": round(tone_sigma, 4), "tone_toe_sigma": round(toe_sigma, 4),
                          "closure": None if closed is None else closed.to_dict(),
-                         "clipping_closure": None if clipping is None else clipping.to_dict(),
                          "frame_exposures": None if exposures is None else exposures.to_dict(),
                          "exposures": {p.name: round(float(g), 4) for p, g in zip(bands, panel_fit.gains)},
                          "shifts": shifts,

@@ -20,9 +20,11 @@ curve's 256 values.  The half relation holds pixel by pixel; a level's only over
 its rows and only as far as the camera's demosaicing leaves resolved rows alone (a close camera's
 came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
 averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
-(:func:`_relations`); what the camera's demosaicing may take off rows it resolves is in the
+(:func:`.tone_relations.relations`); what the camera's demosaicing may take off rows it resolves is in the
 curve's uncertainty (:mod:`.level_texture`), and a level whose one channel lost light (or gained
-it) rests on the other two (:mod:`.level_channels`).
+it) rests on the other two (:mod:`.level_channels`).  The black photo holds light the sensor's
+clipped noise added to it, which the half and level photos' lit places do not: it is read on the
+black photo and taken off black in every relation (:mod:`.tone_relations`).
 
 The relations hold at one exposure.  A phone's drifts from photo to photo, so each photo's exposure
 is read on the registration frame every pattern carries (:mod:`.exposure`), under the curve fitted
@@ -58,29 +60,29 @@ import numpy as np
 
 from ...core.colour import srgb_decode_lut
 from .exposure import Exposures, frame_edge, measure_exposures
-from .level_channels import channel_key, photo_of, with_level_channels
+from .level_channels import photo_of, with_level_channels
 from .level_texture import level_modulations, shares_after_loss
 from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
 from .tone_models import (KNOTS, PHOTOS, bend_gain, best_power, fitted_curve, half_residual, level_power,
                           log_slope)
 from .tone_choice import curve_weight
+from .tone_relations import BIAS_RANGE, LEVELS, BlackBias, black_bias, level_biases
+from .tone_relations import relations as tone_relations
 
-LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
 # the curve model's knots (codes): finer at the toe, where an S-curve bends most and the half photos'
 # dark tiles are its only data (bench hard case 11: its codes 1-15 above black 16-20 % too dark with
 # knots every 16, the mid-tones' bend carried into the toe by the smoothing)
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
-BINS = 64  # bins of tiles (by white's code) the level relations are averaged over
-MIN_BIN = 50  # tiles per bin at least
-PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: _relations)
+PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: tone_relations)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
 MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
 MAX_TOE_SIGMA = 0.5  # the toe's 1-sigma at most (its light moved by half: the perturbation stays positive)
 MONOTONE_TOLERANCE = 0.001  # a bent curve's light may fall this share from one code to the next (noise), no more
+BIAS_ROUNDS = 2  # fits with the black photo's clipping taken off (each reads it through the curve before it)
 EXPOSURE_ROUNDS = 2  # fits with the frame's exposures (each reads the frame through the curve before it)
 
 
@@ -99,7 +101,8 @@ class ToneCurve:
     ``level_modulations`` each level photo's rows as the camera resolved them and ``texture_sigma``
     what the light its demosaicing may have taken off them leaves open, as a power (:mod:`.level_texture`);
     ``level_channels`` the channels each level's relation rests on and the three channels' shares
-    (:mod:`.level_channels`)."""
+    (:mod:`.level_channels`); ``black_bias`` the light the black photo's clipped noise added, taken
+    off black in the relations (the table's units; :mod:`.tone_relations`)."""
 
     model: str
     table: np.ndarray
@@ -120,6 +123,7 @@ class ToneCurve:
     level_modulations: tuple[float, ...] = ()
     texture_sigma: float = 0.0
     level_channels: dict = dataclasses.field(default_factory=dict)
+    black_bias: float = 0.0
 
     def lut(self) -> np.ndarray:
         """float32 (256,): the linear light of each 8-bit code."""
@@ -164,6 +168,8 @@ class ToneCurve:
                                      "power_sigma": round(self.texture_sigma, 4)}
         if self.level_channels:
             data["level_channels"] = self.level_channels
+        if self.black_bias:
+            data["black_clip_bias"] = round(self.black_bias, 6)
         if math.isfinite(self.bend_gain):
             data["curve_evidence"] = {"bend_gain": round(self.bend_gain, 4), "level_bias": round(self.level_bias, 4)}
         if self.exposures is not None:
@@ -176,55 +182,6 @@ class ToneCurve:
 def decode_lut(power: float = 1.0) -> np.ndarray:
     """float32 (256,): sRGB-decoded light of each 8-bit code, to the power ``power``."""
     return (srgb_decode_lut() ** power).astype(np.float32)
-
-
-def _relations(hist, mixed, levels=LEVELS, shares=None) -> list:
-    """The linear relations of the curve's 256 values, as (sparse (rows, 256) relation, sparse (rows,
-    256) white - black, counts (rows,)) triples, each row the mean over ``count`` tiles: the half
-    relation tile by tile on the ``mixed`` tiles, and the ``levels``' on ``BINS`` bins of tiles of
-    similar white code (their means), each level's light ``shares[name]`` (default 1) of its ``1/K``
-    of white's (the light the camera's demosaicing takes off resolved rows: :mod:`.level_texture`);
-    a level with :func:`.level_channels.channel_key` histograms in ``hist`` is related over those
-    channels of its own, white's and black's photos.
-
-    The half relation holds pixel by pixel.  A level's holds only over whole periods of its rows
-    and only where the camera does not resolve them: a tile holds a lit row more or less than its
-    share (a curve fitted tile by tile bends to shrink that texture instead of following the
-    camera), which the hundreds of tiles of a bin, at every phase of the rows, average out; and a
-    camera's demosaicing is not linear on resolved rows (OpenCV's edge-aware one left 1-in-8 rows
-    6-7 % short of 1/8 of white in linear light, 1-in-4 rows 3 %, 1-in-2 rows 0.8 %, on a sharp
-    sheet at 400 mm; 1-in-2 rows 2.5 % at 500 mm): the power rests on the halves, the finest rows
-    (``PINNING``) only state how far off it could be, and all levels give a bent curve its shape (a
-    phone's S-curve moves the levels by tens of per cent, far more than their texture)."""
-    from scipy.sparse import csr_matrix
-
-    lit = hist["white"] - hist["black"]
-    relations = [((hist["half-0"] + hist["half-1"] - hist["white"] - hist["black"])[mixed], lit[mixed],
-                  np.ones(int(np.count_nonzero(mixed))))]
-    order = np.argsort(hist["white"] @ np.arange(256), kind="stable")
-    bins = np.array_split(order, min(BINS, max(1, order.size // MIN_BIN)))
-    index = np.concatenate([np.full(b.size, i) for i, b in enumerate(bins)])
-    counts = np.array([b.size for b in bins], np.float64)
-    mean = csr_matrix((1.0 / counts[index], (index, np.concatenate(bins))), shape=(len(bins), order.size))
-    lit_bins = mean @ lit
-    for name in levels:
-        k = LEVEL_PERIODS[LEVELS.index(name)]
-        share = 1.0 if shares is None else shares.get(name, 1.0)
-        if channel_key(name, name) in hist:  # the channels that agree (level_channels)
-            level, white, dark = (hist[channel_key(p, name)] for p in (name, "white", "black"))
-            lit_level = mean @ (white - dark)
-            relations.append((mean @ (level - dark) - lit_level * (share / k), lit_level, counts))
-        else:
-            relations.append((mean @ (hist[name] - hist["black"]) - lit_bins * (share / k), lit_bins, counts))
-    return relations
-
-
-def _level_biases(hist, table) -> tuple[float, ...]:
-    """Each level photo's light over its share of white's (above black), less 1, under ``table``:
-    sums over all tiles (a tile's own ratio is off by a lit row where the camera resolves them)."""
-    lit = max(float(np.sum((hist["white"] - hist["black"]) @ table)), 1e-9)
-    return tuple(float(k * np.sum((hist[name] - hist["black"]) @ table) / lit - 1.0)
-                 for name, k in zip(LEVELS, LEVEL_PERIODS))
 
 
 def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None:
@@ -278,6 +235,16 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     hist, channels = with_level_channels(hist, images, fitted.table, tile, picked, LEVELS, LEVEL_PERIODS)
     if any(len(v["channels"]) < 3 for v in channels.values()):
         fitted = _fit_with_levels(hist, mixed, group, codes, modulations=modulations)
+    # the light the black photo's clipped noise added (tone_relations: the relations short by it,
+    # the toe bent to make it up), read under the curve fitted so far and taken off black in every
+    # relation; the curve fitted again (BIAS_ROUNDS times: the bias is read through the curve's toe)
+    bias = None
+    for _ in range(BIAS_ROUNDS):
+        bias = black_bias(images["black"], fitted.table)
+        if bias is None or not bias.light > 0:
+            bias = None  # nothing to take off
+            break
+        fitted = _fit_with_levels(hist, mixed, group, codes, modulations=modulations, bias=bias)
     # the exposures from the registration frame (exposure.py), under the curve fitted so far, and
     # the curve fitted again with every photo brought to white's exposure (twice: the exposures
     # read the frame's codes through the curve).  The blend of the two models stays what the
@@ -297,33 +264,39 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
         if all(v == 1.0 for v in applied.values()):
             break  # an exposure that held: the fit stands as it is
         fitted = _fit_with_levels({k: v / applied[photo_of(k)] for k, v in hist.items()}, mixed, group, codes,
-                                  weight, modulations)
-    return dataclasses.replace(fitted, code_range=(black, white), exposures=exposures, level_channels=channels)
+                                  weight, modulations, bias)
+    return dataclasses.replace(fitted, code_range=(black, white), exposures=exposures, level_channels=channels,
+                               black_bias=0.0 if bias is None else bias.light)
 
 
 def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
-                     modulations: dict[str, float] | None = None) -> ToneCurve:
+                     modulations: dict[str, float] | None = None, bias: BlackBias | None = None) -> ToneCurve:
     """The power and the bent curve fitted to the half and level relations of ``hist`` (each photo's
     tile histograms, at one exposure), the main model and its blend weight (:mod:`.tone_choice`;
     ``weight``: the curve's weight given instead); model "power" with a NaN sigma where a level
     photo is too far from its share of white.  ``modulations``: the level rows as the camera
-    resolved them (:func:`.level_texture.level_modulations`; None: taken as unresolved)."""
+    resolved them (:func:`.level_texture.level_modulations`; None: taken as unresolved); ``bias``: the
+    light the black photo's clipping added (:class:`.tone_relations.BlackBias`; None: none)."""
     # a level photo of another pattern would bend the fit: each is judged first under the halves' power
     halves_power, halves_residual = best_power({k: v[mixed] for k, v in hist.items()})
-    biases = _level_biases(hist, srgb_decode_lut() ** halves_power)
+    biases = level_biases(hist, srgb_decode_lut() ** halves_power, 0.0 if bias is None else bias.light)
     if max(abs(b) for b in biases) > MAX_LEVEL_BIAS:
         return ToneCurve("power", decode_lut(halves_power), math.nan, halves_residual, int(hist["white"].shape[0]),
                          halves_power, level_residuals=biases, levels=True)
     modulations = modulations or {}
-    relations = _relations(hist, mixed)
-    finest = _relations(hist, mixed, PINNING)
+    relations = tone_relations(hist, mixed, bias=bias)
+    finest = tone_relations(hist, mixed, PINNING, bias=bias)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
-    # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (_relations)
+    # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (tone_relations)
     power = level_power(relations[:1])
     curve = fitted_curve(relations)
     # the light the camera's demosaicing may have taken off the level rows (level_texture): half the
     # curve's change (as a power) when each loses LOSS_BOUND times its modulation, in its uncertainty
-    texture = (0.5 * abs(log_slope(fitted_curve(_relations(hist, mixed, shares=shares_after_loss(modulations))),
+    # what the black's clipping light leaves open (tone_relations.BIAS_RANGE): half the change of the
+    # curve (as a power) between its ends, in its uncertainty
+    clipping = (0.5 * abs(log_slope(*(fitted_curve(tone_relations(hist, mixed, bias=bias.scaled(f))) for f in BIAS_RANGE),
+                                    codes)) if bias is not None else 0.0)
+    texture = (0.5 * abs(log_slope(fitted_curve(tone_relations(hist, mixed, shares=shares_after_loss(modulations), bias=bias)),
                                    curve, codes)) if modulations else 0.0)
     # the curve's weight (tone_choice): by how much a bend of the mid-tones fits the halves better
     # than the power and how far the levels lie from their shares under the halves' power (a
@@ -338,7 +311,7 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
     weight = weight if np.all(np.diff(curve[codes]) > -MONOTONE_TOLERANCE * curve[codes[:-1]]) else 0.0
     # both models, whatever the weight: the other one's distance says how undecided the photos are
     fitted = {model: _finished(model, table, power, hist, mixed, group, codes, finest,
-                               texture if model == "curve" else 0.0)
+                               texture if model == "curve" else 0.0, bias, clipping if model == "curve" else 0.0)
               for model, table in (("power", srgb_decode_lut() ** power), ("curve", curve))}
     main, other = ("curve", "power") if weight > 0.5 else ("power", "curve")
     toe = _toe_sigma(fitted[main], fitted[other], codes)
@@ -376,17 +349,18 @@ def _other_share(main: ToneCurve, other: ToneCurve) -> float:
 
 
 def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, codes, finest,
-              texture: float = 0.0) -> ToneCurve:
+              texture: float = 0.0, bias: BlackBias | None = None, clipping: float = 0.0) -> ToneCurve:
     """The :class:`ToneCurve` of ``model`` ("power" of ``power``, or "curve") with ``table`` (256,),
     its residuals and its 1-sigma: the strips' spread, what the relations leave open and ``texture``
-    (a power: what the light the level rows may have lost leaves open)."""
+    (a power: what the light the level rows may have lost leaves open); ``bias`` as for
+    :func:`_fit_with_levels`, ``clipping`` what it leaves open (a power)."""
     residual = half_residual(table, {k: v[mixed] for k, v in hist.items()}, np.ones(2))[0]
-    level_residuals = _level_biases(hist, table)
+    level_residuals = level_biases(hist, table, 0.0 if bias is None else bias.light)
     strips = []
     for g in range(GROUPS):
         sel = group == g
         if sel.sum() >= MIN_TILES // GROUPS and np.count_nonzero(mixed[sel]) > 10:
-            part = _relations({k: v[sel] for k, v in hist.items()}, mixed[sel])
+            part = tone_relations({k: v[sel] for k, v in hist.items()}, mixed[sel], bias=bias)
             fitted = fitted_curve(part) if model == "curve" else srgb_decode_lut() ** level_power(part[:1])
             strips.append(log_slope(fitted, table, codes))
     spread = float(np.std(strips, ddof=1)) / math.sqrt(len(strips)) if len(strips) > 2 else 0.05
@@ -395,6 +369,7 @@ def _finished(model: str, table: np.ndarray, power: float, hist, mixed, group, c
     # coarser levels' texture bias and by what the power family cannot follow)
     reference = srgb_decode_lut() ** level_power(finest) if model == "power" else fitted_curve(finest)
     spread = math.sqrt(spread ** 2 + log_slope(reference, table, codes) ** 2)
-    return ToneCurve(model, table.astype(np.float32), math.sqrt(spread ** 2 + texture ** 2 + POWER_FLOOR ** 2),
+    return ToneCurve(model, table.astype(np.float32),
+                     math.sqrt(spread ** 2 + texture ** 2 + clipping ** 2 + POWER_FLOOR ** 2),
                      residual, int(hist["white"].shape[0]), power if model == "power" else math.nan, tuple(strips),
                      level_residuals, levels=True, texture_sigma=texture)

@@ -2,7 +2,7 @@
 
 Pure functions of a curve ``table`` (float (256,): the linear light of each 8-bit code, units of
 sRGB's at code 255), of tile code histograms (sparse (tiles, 256), :mod:`.tiles`) and of the
-linear relations :mod:`.tone` builds from them (``_relations``: (relation, white - black, counts)
+linear relations :mod:`.tone_relations` builds from them (``relations``: (relation, white - black, counts)
 triples).  ``power``: ``D(c) ** p`` from the half relation (:func:`best_power`) or the relations
 (:func:`level_power`); ``curve``: ``D(c) (1 + sum_j theta_j B_j(c))``, hats on ``KNOTS``, by linear
 least squares with a second-difference penalty (:func:`fitted_curve`); :func:`bend_gain` the
