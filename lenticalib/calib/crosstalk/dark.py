@@ -56,7 +56,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .noise_blocks import block_noise
+from .noise_blocks import block_noise, clipped_moments
 
 WINDOW = 15  # photo pixels: the side of the area whose mean is un-clipped
 BLOCK = 32  # photo pixels: the side of the black photo's blocks that sigma is measured on
@@ -94,9 +94,7 @@ class ClippingNoise:
 
 def _clipped_mean(t: np.ndarray) -> np.ndarray:
     """f(s) / sigma at ``t = s / sigma``."""
-    from scipy.stats import norm
-
-    return t * norm.cdf(t) + norm.pdf(t)
+    return clipped_moments(t)[0]
 
 
 def _inverse_table() -> tuple[np.ndarray, np.ndarray]:

@@ -63,8 +63,9 @@ class BlockNoise:
         return self.mean - self.light
 
 
-def _moments(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(F1, F2) of the clipped normal at ``a = mu / sigma``: its mean and second moment over sigma, sigma^2."""
+def clipped_moments(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F1, F2) of the normal clipped at 0 at ``a = mu / sigma``: its mean over sigma and its second
+    moment over sigma^2 (``a`` any array shape; the same shape back)."""
     from scipy.stats import norm
 
     cdf, pdf = norm.cdf(a), norm.pdf(a)
@@ -79,7 +80,7 @@ def block_noise(black: np.ndarray, block: int = BLOCK) -> BlockNoise | None:
     hh, ww = h // block, w // block
     if hh * ww < MIN_NOISE_BLOCKS or min(hh, ww) < 2:
         return None
-    f1, f2 = _moments(A_GRID)
+    f1, f2 = clipped_moments(A_GRID)
     ratio = np.sqrt(np.maximum(f2 - f1 ** 2, 1e-300)) / f1  # s / m, falling with a
     shares = SITE_SHARES if channels == 3 else (1.0,) * channels
     sigmas, means, lights = [], [], []
