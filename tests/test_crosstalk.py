@@ -159,7 +159,7 @@ def test_a_phone_s_curve_is_measured_as_a_curve(capture_set, scene, profile):
     curve model follows it, and M is within 0.01 (a power fitted to the same photos: 0.017; plain
     sRGB: 0.034).  The curve's light is within 13 % of the camera's from 10 % of white up (the best
     power on the halves: 14 %); its dark end rests on the 1-in-8 rows, which demosaicing leaves a
-    few per cent short of their share where the camera resolves them (tone_relations.relations).  With the
+    few per cent short of their share where the camera resolves them (tone_models.relations).  With the
     knots every 2 codes near black it came out 12.5 % off at code 35 (10.6 % with knots every 16),
     and 19-22 % instead of 24 % at the codes 2-10 above black."""
     phone = scene.replace_camera(tone_gamma=0.93, tone_contrast=0.8)

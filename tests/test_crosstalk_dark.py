@@ -149,10 +149,8 @@ def test_a_channel_seldom_at_zero_takes_the_other_channels_sigma():
     """A JPEG's green, averaged over two sensor sites of every four, sits at 0 in a few blocks only:
     the photo is still measured, where it was left clipped as a whole before (bench hard case 1: the
     far views 25 % short); a photo without sensor sites takes every channel's sigma from its block
-    means (noise_blocks), within what the measurement carries (``SIGMA_RANGE``)."""
+    means (dark.block_noise), within what the measurement carries (``SIGMA_RANGE``)."""
     import cv2
-
-    from lenticalib.calib.crosstalk import noise_blocks
 
     h, w = 480, 640
     y, x = np.mgrid[0:h, 0:w]
@@ -168,6 +166,6 @@ def test_a_channel_seldom_at_zero_takes_the_other_channels_sigma():
     assert 0 < np.count_nonzero(zero[..., 1]) < 0.001 * zero[..., 1].size  # green: a handful of pixels at 0
     found = dark.clipping_noise(black, zero)
     assert found is not None
-    low, high = noise_blocks.SIGMA_RANGE
+    low, high = dark.SIGMA_RANGE
     ratio = np.array([0.004, 0.004, 0.005]) / found.sigma
     assert np.all((ratio >= low) & (ratio <= high)), found.sigma

@@ -1,4 +1,4 @@
-"""The tone curve's relations with the black photo's clipping taken off (lenticalib.calib.crosstalk.tone_relations),
+"""The tone curve's relations with the black photo's clipping taken off (lenticalib.calib.crosstalk.tone_models.relations),
 on photos of a Bayer camera whose noise (sigma 0.03 of full scale, white at 0.55, black at 0.008) is
 clipped at 0 before demosaicing, read through its true curve: the relations come out short by the
 light the clipping added to black, the halves' by all of it, each level's by ``1 - 1/K`` of it, and
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from lenticalib.calib.crosstalk import tiles, tone_relations
+from lenticalib.calib.crosstalk import tiles, tone_models
 from lenticalib.calib.crosstalk.tone_models import PHOTOS
 
 from .crosstalk_support import phone_codes, rows_lit
@@ -30,7 +30,7 @@ def _light() -> dict[str, np.ndarray]:
     share = 0.5 + 0.35 * np.sin(2 * np.pi * (x + 0.3 * y) / 60.0)
     light = {"white": white, "black": black, "half-0": black + share * (white - black),
              "half-1": black + (1 - share) * (white - black)}
-    for name, k in zip(tone_relations.LEVELS, tone_relations.LEVEL_PERIODS):
+    for name, k in zip(tone_models.LEVELS, tone_models.LEVEL_PERIODS):
         rows = cv2.GaussianBlur(np.repeat(rows_lit(h, k, 0.25)[:, None], 8, axis=1), (0, 0), 1.0)[:, :1]
         light[name] = black + (white - black) * rows
     return light
@@ -59,7 +59,7 @@ def _histograms(photos) -> dict:
     """Each photo's code histograms over all its tiles of 16 x 16 pixels."""
     w, h = SIZE
     every = np.arange((h // 16) * (w // 16))
-    return {k: tiles.tile_histograms(photos[k], 16, every) for k in PHOTOS + tone_relations.LEVELS}
+    return {k: tiles.tile_histograms(photos[k], 16, every) for k in PHOTOS + tone_models.LEVELS}
 
 
 def _mean_residuals(photos, table, bias) -> list[float]:
@@ -70,7 +70,7 @@ def _mean_residuals(photos, table, bias) -> list[float]:
     share = (light["half-0"] - light["black"]) / (light["white"] - light["black"])
     mixed = (share > 0.05) & (share < 0.95)  # all of them: no place of the halves is dark
     out = []
-    for relation, lit, counts in tone_relations.relations(hist, mixed, bias=bias):
+    for relation, lit, counts in tone_models.relations(hist, mixed, bias=bias):
         out.append(float(np.sum(counts * (relation @ table)) / np.sum(counts * (lit @ table))))
     return out
 
@@ -84,16 +84,16 @@ def test_the_clipping_s_light_is_read_on_black_and_closes_the_relations():
     table = _true_table()
     photos = _photos()
     true_bias = SIGMA * (BLACK / SIGMA * norm.cdf(BLACK / SIGMA) + norm.pdf(BLACK / SIGMA)) - BLACK
-    read = tone_relations.black_bias(photos["black"], table)
-    low, high = tone_relations.BIAS_RANGE
+    read = tone_models.black_bias(photos["black"], table)
+    low, high = tone_models.BIAS_RANGE
     assert low <= true_bias / read.light <= high
     plain = _mean_residuals(photos, table, None)
     white = float(np.mean(table[photos["white"]]) - np.mean(table[photos["black"]]))
     # short by the clipping's light: the halves' by all of it, the levels' by 1 - 1/K of it
-    expected = [-1.0] + [-(1.0 - 1.0 / k) for k in tone_relations.LEVEL_PERIODS]
+    expected = [-1.0] + [-(1.0 - 1.0 / k) for k in tone_models.LEVEL_PERIODS]
     np.testing.assert_allclose(np.array(plain) * white / true_bias, expected, atol=0.05)
-    closed = _mean_residuals(photos, table, tone_relations.BlackBias(true_bias, table))
+    closed = _mean_residuals(photos, table, tone_models.BlackBias(true_bias, table))
     assert max(abs(v) for v in closed) < 0.05 * true_bias / white
-    assert tone_relations.level_biases(_histograms(photos), table, true_bias) == pytest.approx(
-        (0.0,) * len(tone_relations.LEVELS), abs=0.003)
-    assert min(tone_relations.level_biases(_histograms(photos), table)) < -0.1  # 1 in 8 short by 12 % without
+    assert tone_models.level_biases(_histograms(photos), table, true_bias) == pytest.approx(
+        (0.0,) * len(tone_models.LEVELS), abs=0.003)
+    assert min(tone_models.level_biases(_histograms(photos), table)) < -0.1  # 1 in 8 short by 12 % without

@@ -6,15 +6,13 @@ uses them:
     patterns     the sweep patterns and their manifest (``lenticalib crosstalk patterns``)
     photos       reading the photos: linear light, the panel's lit area, registration
     tone         the camera's tone curve, from the black, white, half and level photos
-    tone_relations the tone curve's linear relations, with the light the black photo's clipped noise added taken off
-    tone_models  the tone curve's two models (power, bent curve) fitted to the photos' relations
+    tone_models  the tone curve's relations (the black's clipping light off) and its two models (power, bent curve)
     tiles        photo tiles for the tone curve: the tile side, each tile's mean and largest code, histograms
     level_texture the level photos' rows as the camera resolved them: the light its demosaicing takes off them
     level_channels the level photos' colour channels: those that agree carry each level's relation
     exposure     each photo's exposure, read on the registration frame's step down to the bezel
     tone_choice  the power, the bent curve or a blend of the two: the curve's weight, the blend
-    noise_blocks the sensor's clipped noise read from the black photo's block means (what a JPEG keeps of it)
-    dark         dark pixels clipped at zero: their bias, measured on the black photo and undone
+    dark         dark pixels clipped at zero: their sigma (at the sensor's sites, or a JPEG's block means), their bias undone
     photometry   the camera's veiling glare, from the photos
     ratios       the band photos over white (relinearised for the tone curve's uncertainty, lifted for the closure, glare removed)
     checks       duplicate photos, band photos that do not fit the others, photos of another panel

@@ -34,7 +34,7 @@ the integral is reported (``photometry.closure``).
 (read too small on its pixels) between 1 and 2.5: a weak pin (1-sigma of the integral 0.05, the
 optics and the tone curve move it as much: hard case 20's integral rose from 0.988 at the
 sigma read to 1.128 at 2.5 times it), which took the prior's middle.  The sigma is now read from
-the black photo's coarse detail, which a JPEG keeps (:mod:`.noise_blocks`).
+the black photo's coarse detail, which a JPEG keeps (:func:`.dark.block_noise`).
 """
 
 from __future__ import annotations

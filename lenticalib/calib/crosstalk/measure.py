@@ -22,7 +22,7 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    (cameras are sRGB only to about +-8 %); 0.005 for linear photos), the light of the codes just
    above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
    ``ratios.TOE_END`` of white's light), a camera JPEG's noise sigma where the sensor clips it at
-   black (read from the black photo's coarse detail, :mod:`.noise_blocks`: the photos unclipped
+   black (read from the black photo's coarse detail, :func:`.dark.block_noise`: the photos unclipped
    with ``SIGMA_RANGE`` times it, half the row's change between the two carried,
    :func:`.dark.reclipped`), the far views' scatter about a
    smooth cone (:func:`.cone.far_scatter`), the dark floor every entry sits on and, for camera
@@ -46,7 +46,6 @@ from ...core.pattern_sets import MANIFEST_NAME, read_pattern_folder
 from ...core.profile import PanelProfile
 from . import closure, cone, dark, photometry
 from .band_check import check_bands
-from .noise_blocks import SIGMA_RANGE
 from .checks import routing_diagnostics
 from .photos import MAX_CLIPPED, check_encoding, load_all, measure_tone, panel_mask, register_photos
 from ..patterns.crosstalk_patterns import CrosstalkPatternSet
@@ -246,7 +245,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     # errors of a tenth of a view here and there, which smear (broaden) the cone
     fit = cone.fit_cone(ratios[centre], rows[centre], cols[centre], band_shifts, n, mask.shape,
                         degree=CENTRE_DEGREE, start=panel_fit)
-    # a camera JPEG's clipping sigma, read from the black photo's blocks (noise_blocks): what it leaves
+    # a camera JPEG's clipping sigma, read from the black photo's blocks (dark.block_noise): what it leaves
     # open is carried below
     clip_sigma = dark.interpolated_clip_sigma(noise)
     # camera JPEGs: how far the band photos' light is from adding up to white's in the centre region,
@@ -325,9 +324,9 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
     perturbed = {}
     if clip_sigma:
         # the noise sigma read from the black photo's blocks (a camera JPEG) is left open by
-        # SIGMA_RANGE: half the change of the row between its ends is its 1-sigma (dark.reclipped)
-        variations.update({"clip-": (1.0, 1.0, 0.0, (clip_sigma, SIGMA_RANGE[0]), 0.0),
-                           "clip+": (1.0, 1.0, 0.0, (clip_sigma, SIGMA_RANGE[1]), 0.0)})
+        # dark.SIGMA_RANGE: half the change of the row between its ends is its 1-sigma (dark.reclipped)
+        variations.update({"clip-": (1.0, 1.0, 0.0, (clip_sigma, dark.SIGMA_RANGE[0]), 0.0),
+                           "clip+": (1.0, 1.0, 0.0, (clip_sigma, dark.SIGMA_RANGE[1]), 0.0)})
     for label, (g_scale, p, t, clip, lift) in variations.items():
         g = dataclasses.replace(glare, fraction=glare.fraction * g_scale)
         r_p, rows_p, cols_p, _ = band_ratios(luma, mask, pattern_set, g, p, column_average, t, clip, lift)

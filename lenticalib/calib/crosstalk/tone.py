@@ -20,11 +20,11 @@ curve's 256 values.  The half relation holds pixel by pixel; a level's only over
 its rows and only as far as the camera's demosaicing leaves resolved rows alone (a close camera's
 came out 1-7 % short of their share in linear light, the coarser rows the more): the levels are
 averaged over bins of tiles and trusted for the shape of a clearly bent curve, not for a power
-(:func:`.tone_relations.relations`); what the camera's demosaicing may take off rows it resolves is in the
+(:func:`.tone_models.relations`); what the camera's demosaicing may take off rows it resolves is in the
 curve's uncertainty (:mod:`.level_texture`), and a level whose one channel lost light (or gained
 it) rests on the other two (:mod:`.level_channels`).  The black photo holds light the sensor's
 clipped noise added to it, which the half and level photos' lit places do not: it is read on the
-black photo and taken off black in every relation (:mod:`.tone_relations`).
+black photo and taken off black in every relation (:func:`.tone_models.relations`).
 
 The relations hold at one exposure.  A phone's drifts from photo to photo, so each photo's exposure
 is read on the registration frame every pattern carries (:mod:`.exposure`), under the curve fitted
@@ -64,11 +64,10 @@ from .level_channels import photo_of, with_level_channels
 from .level_texture import level_modulations, shares_after_loss
 from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
 from .tiles import tile_histograms, tile_max, tile_means
-from .tone_models import (KNOTS, PHOTOS, bend_gain, best_power, fitted_curve, half_residual, level_power,
-                          log_slope)
+from .tone_models import (BIAS_RANGE, KNOTS, LEVELS, PHOTOS, BlackBias, bend_gain, best_power, black_bias,
+                          fitted_curve, half_residual, level_biases, level_power, log_slope)
+from .tone_models import relations as tone_relations
 from .tone_choice import curve_weight
-from .tone_relations import BIAS_RANGE, LEVELS, BlackBias, black_bias, level_biases
-from .tone_relations import relations as tone_relations
 
 # the curve model's knots (codes): finer at the toe, where an S-curve bends most and the half photos'
 # dark tiles are its only data (bench hard case 11: its codes 1-15 above black 16-20 % too dark with
@@ -76,7 +75,7 @@ from .tone_relations import relations as tone_relations
 GROUPS = 8  # strips of rows of the panel fitted on their own, for the power's spread
 MIN_TILES = 400  # tiles where both halves are partly lit, at least (fewer: no fit)
 MAX_TILES = 40000  # tiles used at most (drawn with a fixed seed)
-PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: tone_relations)
+PINNING = ("level-1in2",)  # the levels whose power is held against the halves' (the finest rows: tone_models.relations)
 POWER_FLOOR = 0.01  # 1-sigma the power family leaves for any camera (its curve is not exactly sRGB ** p)
 MAX_RESIDUAL = 0.15  # relative RMS of half-0 + half-1 - white - black above which the photos do not add up
 MAX_LEVEL_BIAS = 0.25  # a level photo whose light is further than this from its share of white's: another photo
@@ -102,7 +101,7 @@ class ToneCurve:
     what the light its demosaicing may have taken off them leaves open, as a power (:mod:`.level_texture`);
     ``level_channels`` the channels each level's relation rests on and the three channels' shares
     (:mod:`.level_channels`); ``black_bias`` the light the black photo's clipped noise added, taken
-    off black in the relations (the table's units; :mod:`.tone_relations`)."""
+    off black in the relations (the table's units; :func:`.tone_models.relations`)."""
 
     model: str
     table: np.ndarray
@@ -235,7 +234,7 @@ def fit_tone_curve(images: dict[str, np.ndarray], tile: int) -> ToneCurve | None
     hist, channels = with_level_channels(hist, images, fitted.table, tile, picked, LEVELS, LEVEL_PERIODS)
     if any(len(v["channels"]) < 3 for v in channels.values()):
         fitted = _fit_with_levels(hist, mixed, group, codes, modulations=modulations)
-    # the light the black photo's clipped noise added (tone_relations: the relations short by it,
+    # the light the black photo's clipped noise added (tone_models.relations: the relations short by it,
     # the toe bent to make it up), read under the curve fitted so far and taken off black in every
     # relation; the curve fitted again (BIAS_ROUNDS times: the bias is read through the curve's toe)
     bias = None
@@ -276,7 +275,7 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
     ``weight``: the curve's weight given instead); model "power" with a NaN sigma where a level
     photo is too far from its share of white.  ``modulations``: the level rows as the camera
     resolved them (:func:`.level_texture.level_modulations`; None: taken as unresolved); ``bias``: the
-    light the black photo's clipping added (:class:`.tone_relations.BlackBias`; None: none)."""
+    light the black photo's clipping added (:class:`.tone_models.BlackBias`; None: none)."""
     # a level photo of another pattern would bend the fit: each is judged first under the halves' power
     halves_power, halves_residual = best_power({k: v[mixed] for k, v in hist.items()})
     biases = level_biases(hist, srgb_decode_lut() ** halves_power, 0.0 if bias is None else bias.light)
@@ -287,12 +286,12 @@ def _fit_with_levels(hist, mixed, group, codes, weight: float | None = None,
     relations = tone_relations(hist, mixed, bias=bias)
     finest = tone_relations(hist, mixed, PINNING, bias=bias)
     # the power from the half relation alone (the exposure locked): it holds pixel by pixel, where the
-    # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (tone_relations)
+    # levels' rows hold only as far as the camera's demosaicing and sharpening leave them (tone_models.relations)
     power = level_power(relations[:1])
     curve = fitted_curve(relations)
     # the light the camera's demosaicing may have taken off the level rows (level_texture): half the
     # curve's change (as a power) when each loses LOSS_BOUND times its modulation, in its uncertainty
-    # what the black's clipping light leaves open (tone_relations.BIAS_RANGE): half the change of the
+    # what the black's clipping light leaves open (tone_models.BIAS_RANGE): half the change of the
     # curve (as a power) between its ends, in its uncertainty
     clipping = (0.5 * abs(log_slope(*(fitted_curve(tone_relations(hist, mixed, bias=bias.scaled(f))) for f in BIAS_RANGE),
                                     codes)) if bias is not None else 0.0)

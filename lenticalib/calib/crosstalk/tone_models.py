@@ -1,24 +1,50 @@
-"""The two tone models fitted to the photos' relations: a power of the sRGB decoding, and a bent curve.
+"""The tone curve's relations, and its two models fitted to them: a power of the sRGB decoding, a bent curve.
 
 Pure functions of a curve ``table`` (float (256,): the linear light of each 8-bit code, units of
 sRGB's at code 255), of tile code histograms (sparse (tiles, 256), :mod:`.tiles`) and of the
-linear relations :mod:`.tone_relations` builds from them (``relations``: (relation, white - black, counts)
-triples).  ``power``: ``D(c) ** p`` from the half relation (:func:`best_power`) or the relations
+linear relations built from them (:func:`relations`: (relation, white - black, counts) triples).
+``power``: ``D(c) ** p`` from the half relation (:func:`best_power`) or the relations
 (:func:`level_power`); ``curve``: ``D(c) (1 + sum_j theta_j B_j(c))``, hats on ``KNOTS``, by linear
 least squares with a second-difference penalty (:func:`fitted_curve`); :func:`bend_gain` the
 evidence for a bend (``docs/crosstalk.md``).
+
+**The relations** (:func:`relations`, used by :mod:`.tone`) hold in linear light:
+
+    half-0 + half-1 = white + black,   level-1inK - black = (white - black) / K
+
+with ``black`` the panel's black.  A camera clips its sensor's noise at 0, which adds light to
+the black photo, all of it where the black is within a few sigma of 0, and next to none to the
+level and half photos' lit places: both relations then come out short by that light, the halves'
+by all of it and each level's by ``1 - 1/K`` of it (through the bench's true tone curves, hard
+case 3: the halves 0.023 of white's light short, the levels 0.023, 0.026 and 0.025; case 13:
+0.013, 0.014, 0.014, 0.013).  A curve fitted without it bends its toe to make the light up: hard
+case 3's came out 1.5-1.7 times the true light a few codes above black and 10-15 % over it at a
+quarter of white, and the own view 0.015 low.  The bias is read on the black photo
+(:class:`BlackBias`, :func:`.dark.block_noise`) under the curve fitted so far and taken off black in
+every relation; the curve is fitted again (``tone.BIAS_ROUNDS``).  The bias so read was 0.70-1.57
+times the truth on the tests' camera (the channels' mean; ``tests/test_crosstalk_dark_blocks.py``):
+half the change of the curve between ``BIAS_RANGE``'s ends is in its uncertainty.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...core.colour import srgb_decode_lut
+from ..patterns.crosstalk_patterns import LEVEL_ROW_PERIODS as LEVEL_PERIODS
+from .dark import block_noise
+from .level_channels import channel_key
 
 PHOTOS = ("black", "white", "half-0", "half-1")  # the photos the curve is measured on
 KNOTS = (0, 2, 4, 6, 8, 10, 12, 14, 16, 20, 24, 32) + tuple(range(48, 256, 16))
 SMOOTHING = 1e-3  # weight of the curve's second differences, per relation
 POWER_RANGE = (0.6, 1.6)
+LEVELS = tuple(f"level-1in{k}" for k in LEVEL_PERIODS)  # the level photos, when the set has them
+BINS = 64  # bins of tiles (by white's code) the level relations are averaged over
+MIN_BIN = 50  # tiles per bin at least
+BIAS_RANGE = (0.6, 1.6)  # the clipping's light over the one read, as far as the tests showed it (dark.block_noise)
 
 
 def half_residual(table, hist, gains=None):
@@ -110,3 +136,94 @@ def log_slope(table, reference, codes) -> float:
     x = np.log(reference[codes] / reference[codes[-1]])
     y = np.log(np.maximum(table[codes], 1e-12) / table[codes[-1]]) - x
     return float(np.dot(x, y) / max(np.dot(x, x), 1e-12))
+
+
+@dataclass(frozen=True)
+class BlackBias:
+    """The light the black photo's clipped noise added to it: ``light`` (the tone curve's units, the
+    channels' mean) under ``table`` (float (256,), the curve it was read under)."""
+
+    light: float
+    table: np.ndarray
+
+    def scaled(self, factor: float) -> "BlackBias":
+        """The same bias ``factor`` times as large (the curve's uncertainty: ``BIAS_RANGE``)."""
+        return BlackBias(self.light * factor, self.table)
+
+
+def black_bias(black: np.ndarray, table: np.ndarray) -> BlackBias | None:
+    """The clipping's light in the uint8 RGB black photo ``black`` (h, w, 3) under the curve ``table``
+    (:func:`.dark.block_noise`: the channels' mean of ``mean - light``); None where its
+    blocks do not tell."""
+    table = np.asarray(table, np.float64)
+    noise = block_noise(table[black])
+    if noise is None:
+        return None
+    return BlackBias(float(max(np.mean(noise.bias()), 0.0)), table)
+
+
+def _black_lift(lit_rows, bias: BlackBias | None):
+    """Sparse (rows, 256): the rows ``lit_rows`` (white - black) scaled so that each carries ``bias``'s
+    light under its table (the relations stay linear in the curve; the curve fitted again, the
+    share is read again); 0 without a bias."""
+    from scipy.sparse import csr_matrix, diags
+
+    if bias is None or not bias.light > 0:
+        return csr_matrix(lit_rows.shape)
+    light = np.asarray(lit_rows @ bias.table).ravel()
+    return csr_matrix(diags(bias.light / np.maximum(light, 1e-12)) @ lit_rows)
+
+
+def relations(hist, mixed, levels=LEVELS, shares=None, bias: "BlackBias | None" = None) -> list:
+    """The linear relations of the curve's 256 values, as (sparse (rows, 256) relation, sparse (rows,
+    256) white - black, counts (rows,)) triples, each row the mean over ``count`` tiles: the half
+    relation tile by tile on the ``mixed`` tiles, and the ``levels``' on ``BINS`` bins of tiles of
+    similar white code (their means), each level's light ``shares[name]`` (default 1) of its ``1/K``
+    of white's (the light the camera's demosaicing takes off resolved rows: :mod:`.level_texture`);
+    a level with :func:`.level_channels.channel_key` histograms in ``hist`` is related over those
+    channels of its own, white's and black's photos; black's light less ``bias`` (the light its
+    clipped noise added: :class:`BlackBias`).
+
+    The half relation holds pixel by pixel.  A level's holds only over whole periods of its rows
+    and only where the camera does not resolve them: a tile holds a lit row more or less than its
+    share (a curve fitted tile by tile bends to shrink that texture instead of following the
+    camera), which the hundreds of tiles of a bin, at every phase of the rows, average out; and a
+    camera's demosaicing is not linear on resolved rows (OpenCV's edge-aware one left 1-in-8 rows
+    6-7 % short of 1/8 of white in linear light, 1-in-4 rows 3 %, 1-in-2 rows 0.8 %, on a sharp
+    sheet at 400 mm; 1-in-2 rows 2.5 % at 500 mm): the power rests on the halves, the finest rows
+    (``PINNING``) only state how far off it could be, and all levels give a bent curve its shape (a
+    phone's S-curve moves the levels by tens of per cent, far more than their texture)."""
+    from scipy.sparse import csr_matrix
+
+    lit = hist["white"] - hist["black"]
+    relations = [((hist["half-0"] + hist["half-1"] - hist["white"] - hist["black"])[mixed]
+                  + _black_lift(lit[mixed], bias), lit[mixed],
+                  np.ones(int(np.count_nonzero(mixed))))]
+    order = np.argsort(hist["white"] @ np.arange(256), kind="stable")
+    bins = np.array_split(order, min(BINS, max(1, order.size // MIN_BIN)))
+    index = np.concatenate([np.full(b.size, i) for i, b in enumerate(bins)])
+    counts = np.array([b.size for b in bins], np.float64)
+    mean = csr_matrix((1.0 / counts[index], (index, np.concatenate(bins))), shape=(len(bins), order.size))
+    lit_bins = mean @ lit
+    for name in levels:
+        k = LEVEL_PERIODS[LEVELS.index(name)]
+        share = 1.0 if shares is None else shares.get(name, 1.0)
+        if channel_key(name, name) in hist:  # the channels that agree (level_channels)
+            level, white, dark = (hist[channel_key(p, name)] for p in (name, "white", "black"))
+            lit_level = mean @ (white - dark)
+            relations.append((mean @ (level - dark) - lit_level * (share / k)
+                              + (1.0 - share / k) * _black_lift(lit_level, bias), lit_level, counts))
+        else:
+            relations.append((mean @ (hist[name] - hist["black"]) - lit_bins * (share / k)
+                              + (1.0 - share / k) * _black_lift(lit_bins, bias), lit_bins, counts))
+    return relations
+
+
+def level_biases(hist, table, bias: float = 0.0) -> tuple[float, ...]:
+    """Each level photo's light over its share of white's (above black, less ``bias``: its clipping's
+    light), less 1, under ``table``: sums over all tiles (a tile's own ratio is off by a lit row
+    where the camera resolves them)."""
+    lifted = bias * hist["white"].shape[0]
+    lit = max(float(np.sum((hist["white"] - hist["black"]) @ table)) + lifted, 1e-9)
+    return tuple(float(k * (np.sum((hist[name] - hist["black"]) @ table) + lifted) / lit - 1.0)
+                 for name, k in zip(LEVELS, LEVEL_PERIODS))

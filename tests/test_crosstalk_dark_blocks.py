@@ -1,4 +1,4 @@
-"""The sensor's clipped noise read from a camera JPEG's coarse detail (lenticalib.calib.crosstalk.noise_blocks)
+"""The sensor's clipped noise read from a camera JPEG's coarse detail (lenticalib.calib.crosstalk.dark.block_noise)
 on black photos of a simulated camera: a Bayer sensor whose noise is clipped at 0, demosaiced,
 encoded to 8-bit sRGB and written as a 4:2:0 JPEG, with a known sigma and light under the clipping."""
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from lenticalib.calib.crosstalk import dark, noise_blocks, tone_relations
+from lenticalib.calib.crosstalk import dark, tone_models
 from lenticalib.core.colour import srgb_decode, srgb_encode
 
 
@@ -44,14 +44,14 @@ def test_a_jpeg_s_blocks_give_the_sensor_s_sigma_where_its_pixels_at_zero_read_i
     (demosaicing and compression leave fewer pixels at 0)."""
     sigma = 0.006
     black = _jpeg_black(light, sigma)
-    found = noise_blocks.block_noise(black)
+    found = dark.block_noise(black)
     assert found is not None
-    low, high = noise_blocks.SIGMA_RANGE
+    low, high = dark.SIGMA_RANGE
     assert np.all((sigma / found.sigma >= low) & (sigma / found.sigma <= high)), found.sigma
     assert found.sigma[1] == pytest.approx(sigma, rel=0.2)
     true_bias = _clipped_mean(light, sigma) - light
     assert np.all(found.bias() >= 0)
-    low, high = tone_relations.BIAS_RANGE  # the light the tone curve's relations take off black
+    low, high = tone_models.BIAS_RANGE  # the light the tone curve's relations take off black
     assert low <= true_bias / float(np.mean(found.bias())) <= high, (found.bias(), true_bias)
     at_zero = dark.clipping_noise(black, black <= 0, sites=False)
     if at_zero is not None:  # a black clipped rarely shows too few zeros to read at all
@@ -65,8 +65,8 @@ def test_a_black_far_above_its_noise_has_no_clipping_light_and_a_slow_glare_does
     sigma = 0.003
     x = np.linspace(0.0, 1.0, 640)[None, :] * np.ones((480, 1))
     black = _jpeg_black(0.024 + 4 * sigma * x, sigma, seed=4)
-    found = noise_blocks.block_noise(black)
-    low, high = noise_blocks.SIGMA_RANGE
+    found = dark.block_noise(black)
+    low, high = dark.SIGMA_RANGE
     assert np.all((sigma / found.sigma >= low) & (sigma / found.sigma <= high)), found.sigma
     assert found.sigma[1] == pytest.approx(sigma, rel=0.2)
     assert np.all(np.abs(found.bias()) < 0.02 * sigma)
@@ -79,9 +79,9 @@ def test_the_measurement_s_dark_clipping_takes_a_jpeg_s_sigma_from_its_blocks():
     black = _jpeg_black(0.002, sigma)
     noise = dark.clipping_noise(black, black <= 0)
     assert noise is not None and all(tuple(s) == dark.ALL_PHASES for s in noise.sites)
-    np.testing.assert_allclose(noise.sigma, noise_blocks.block_noise(black).sigma)
+    np.testing.assert_allclose(noise.sigma, dark.block_noise(black).sigma)
     assert dark.interpolated_clip_sigma(noise) == pytest.approx(float(np.mean(noise.sigma)))
-    assert noise_blocks.block_noise(black[:48, :64]) is None
+    assert dark.block_noise(black[:48, :64]) is None
 
 
 def test_reclipping_an_image_moves_each_pixel_by_its_area_s_change_not_by_its_own():
