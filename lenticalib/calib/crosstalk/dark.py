@@ -325,7 +325,7 @@ def block_noise(black: np.ndarray, block: int = MEAN_BLOCK) -> BlockNoise | None
     shares = SITE_SHARES if channels == 3 else (1.0,) * channels
     sigmas, means, lights = [], [], []
     for k in range(channels):
-        m = black[:hh * block, :ww * block, k].astype(np.float64).reshape(hh, block, ww, block).mean(axis=(1, 3))
+        m = black[:hh * block, :ww * block, k].reshape(hh, block, ww, block).mean(axis=(1, 3), dtype=np.float64)
         # each direction's steps less their median (a slope of the light moves them all alike)
         steps = np.concatenate([d.ravel() - np.median(d) for d in (m[:, 1:] - m[:, :-1], m[1:] - m[:-1])])
         spread = 1.4826 * float(np.median(np.abs(steps))) / np.sqrt(2.0)  # of one block mean
@@ -333,7 +333,7 @@ def block_noise(black: np.ndarray, block: int = MEAN_BLOCK) -> BlockNoise | None
         if not (spread > 0 and mean > 0):
             return None
         # of one site; a photo whose pixels are each a site (no demosaicing) shows it pixel to pixel
-        pixel = float(np.std(np.diff(black[:, :, k].astype(np.float64), axis=1))) / np.sqrt(2.0)
+        pixel = float(np.std(np.diff(black[:, :, k], axis=1), dtype=np.float64)) / np.sqrt(2.0)
         s = max(spread * np.sqrt(shares[k] * block * block), pixel)
         a = float(np.interp(s / mean, ratio[::-1], A_GRID[::-1]))  # ratio beyond the grid: its end
         sigma = mean / float(np.interp(a, A_GRID, f1))

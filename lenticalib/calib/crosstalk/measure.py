@@ -23,7 +23,7 @@ views.  The method is in ``docs/crosstalk.md``; in short:
    above black (the tone curve's toe, :func:`.tone._toe_sigma`: a relative change fading out by
    ``ratios.TOE_END`` of white's light), a camera JPEG's noise sigma where the sensor clips it at
    black (read from the black photo's coarse detail, :func:`.dark.block_noise`: the photos unclipped
-   with ``SIGMA_RANGE`` times it, half the row's change between the two carried,
+   with ``dark.SIGMA_RANGE`` times it, half the row's change between the two carried,
    :func:`.dark.reclipped`), the far views' scatter about a
    smooth cone (:func:`.cone.far_scatter`), the dark floor every entry sits on and, for camera
    JPEGs, the whole change of the row when the toe is set so that the band photos' light adds up

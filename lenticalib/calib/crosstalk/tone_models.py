@@ -156,7 +156,7 @@ def black_bias(black: np.ndarray, table: np.ndarray) -> BlackBias | None:
     (:func:`.dark.block_noise`: the channels' mean of ``mean - light``); None where its
     blocks do not tell."""
     table = np.asarray(table, np.float64)
-    noise = block_noise(table[black])
+    noise = block_noise(table.astype(np.float32)[black])  # 12 bytes a pixel, as the measurement's own channels
     if noise is None:
         return None
     return BlackBias(float(max(np.mean(noise.bias()), 0.0)), table)
