@@ -80,7 +80,7 @@ def test_the_measurement_s_dark_clipping_takes_a_jpeg_s_sigma_from_its_blocks():
     noise = dark.clipping_noise(black, black <= 0)
     assert noise is not None and all(tuple(s) == dark.ALL_PHASES for s in noise.sites)
     np.testing.assert_allclose(noise.sigma, dark.block_noise(black).sigma)
-    assert dark.interpolated_clip_sigma(noise) == pytest.approx(float(np.mean(noise.sigma)))
+    assert dark.block_read_sigma(noise) == pytest.approx(float(np.mean(noise.sigma)))
     assert dark.block_noise(black[:48, :64]) is None
 
 

@@ -279,7 +279,7 @@ def reclipped(light: np.ndarray, sigma: float, scale: float, channels: int = 3) 
     return np.where(near, full + channels * (wider - x), full).astype(np.asarray(light).dtype)
 
 
-def interpolated_clip_sigma(noise) -> float:
+def block_read_sigma(noise) -> float:
     """The mean noise sigma of the channels (linear light, per channel) where the photos were
     unclipped (:func:`unclip`) with a sigma read without the sensor's sites (a camera JPEG: from
     its blocks' spread, :func:`block_noise`, which leaves it open by ``SIGMA_RANGE``); 0 where

@@ -247,7 +247,7 @@ def _analyse(luma, mask, pattern_set, capture, profile, warnings, shifts, curve,
                         degree=CENTRE_DEGREE, start=panel_fit)
     # a camera JPEG's clipping sigma, read from the black photo's blocks (dark.block_noise): what it leaves
     # open is carried below
-    clip_sigma = dark.interpolated_clip_sigma(noise)
+    clip_sigma = dark.block_read_sigma(noise)
     # camera JPEGs: how far the band photos' light is from adding up to white's in the centre region,
     # and the toe that would close it (closure.py; its row change is carried in the uncertainty, not
     # applied).  The region, not the whole panel: a panel whose sides show another cone (a lens that

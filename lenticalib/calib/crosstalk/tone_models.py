@@ -162,16 +162,17 @@ def black_bias(black: np.ndarray, table: np.ndarray) -> BlackBias | None:
     return BlackBias(float(max(np.mean(noise.bias()), 0.0)), table)
 
 
-def _black_lift(lit_rows, bias: BlackBias | None):
-    """Sparse (rows, 256): the rows ``lit_rows`` (white - black) scaled so that each carries ``bias``'s
-    light under its table (the relations stay linear in the curve; the curve fitted again, the
-    share is read again); 0 without a bias."""
-    from scipy.sparse import csr_matrix, diags
+def _lifted(relation, lit_rows, factor: float, bias: BlackBias | None):
+    """``relation`` (sparse (rows, 256)) with ``factor`` times ``bias``'s light added to each row: the
+    rows ``lit_rows`` (white - black) scaled so that each carries that light under the bias's table
+    (the relations stay linear in the curve; the curve fitted again, the share is read again);
+    ``relation`` itself without a bias."""
+    from scipy.sparse import diags
 
     if bias is None or not bias.light > 0:
-        return csr_matrix(lit_rows.shape)
+        return relation
     light = np.asarray(lit_rows @ bias.table).ravel()
-    return csr_matrix(diags(bias.light / np.maximum(light, 1e-12)) @ lit_rows)
+    return relation + factor * (diags(bias.light / np.maximum(light, 1e-12)) @ lit_rows)
 
 
 def relations(hist, mixed, levels=LEVELS, shares=None, bias: "BlackBias | None" = None) -> list:
@@ -196,8 +197,8 @@ def relations(hist, mixed, levels=LEVELS, shares=None, bias: "BlackBias | None" 
     from scipy.sparse import csr_matrix
 
     lit = hist["white"] - hist["black"]
-    relations = [((hist["half-0"] + hist["half-1"] - hist["white"] - hist["black"])[mixed]
-                  + _black_lift(lit[mixed], bias), lit[mixed],
+    relations = [(_lifted((hist["half-0"] + hist["half-1"] - hist["white"] - hist["black"])[mixed], lit[mixed],
+                          1.0, bias), lit[mixed],
                   np.ones(int(np.count_nonzero(mixed))))]
     order = np.argsort(hist["white"] @ np.arange(256), kind="stable")
     bins = np.array_split(order, min(BINS, max(1, order.size // MIN_BIN)))
@@ -211,11 +212,11 @@ def relations(hist, mixed, levels=LEVELS, shares=None, bias: "BlackBias | None" 
         if channel_key(name, name) in hist:  # the channels that agree (level_channels)
             level, white, dark = (hist[channel_key(p, name)] for p in (name, "white", "black"))
             lit_level = mean @ (white - dark)
-            relations.append((mean @ (level - dark) - lit_level * (share / k)
-                              + (1.0 - share / k) * _black_lift(lit_level, bias), lit_level, counts))
+            relations.append((_lifted(mean @ (level - dark) - lit_level * (share / k), lit_level,
+                                      1.0 - share / k, bias), lit_level, counts))
         else:
-            relations.append((mean @ (hist[name] - hist["black"]) - lit_bins * (share / k)
-                              + (1.0 - share / k) * _black_lift(lit_bins, bias), lit_bins, counts))
+            relations.append((_lifted(mean @ (hist[name] - hist["black"]) - lit_bins * (share / k), lit_bins,
+                                      1.0 - share / k, bias), lit_bins, counts))
     return relations
 
 
